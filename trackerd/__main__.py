@@ -1,0 +1,5 @@
+import sys
+
+from trackerd.cli.main import main
+
+sys.exit(main())

@@ -1,0 +1,107 @@
+"""`trackerd config check FILE`: validate a rig file and print the rig as trackerd resolves it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from trackerd.config.loader import LoadedRig, load_rig
+from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.rotation import ypr_from_world_from_camera
+from trackerd.geometry.wall import WallFrame
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("config", help="check rig configuration files")
+    config_sub = parser.add_subparsers(dest="config_command", metavar="ACTION", required=True)
+    check = config_sub.add_parser("check", help="validate a rig file and print the resolved rig")
+    check.add_argument("file", help="rig TOML file, for example config/datawall.toml")
+    check.add_argument("--json", action="store_true", help="print the resolved rig as JSON")
+    check.set_defaults(handler=check_command)
+
+
+def check_command(args: argparse.Namespace) -> int:
+    loaded = load_rig(args.file)
+    cameras = [CameraModel.from_config(cam) for cam in loaded.config.cameras]
+    wall = WallFrame.from_config(loaded.config.wall)
+    if args.json:
+        print(json.dumps(resolved_summary(loaded, cameras, wall), indent=2))
+    else:
+        print(describe(loaded, cameras, wall))
+    return 0
+
+
+def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> dict:
+    rig = loaded.config
+    return {
+        "file": str(loaded.path),
+        "calibration": str(loaded.calibration_path) if loaded.calibration_path else None,
+        "name": rig.name,
+        "cameras": [
+            {
+                "id": cam.camera_id,
+                "source": loaded.sources[cam.camera_id],
+                "resolution_px": [cam.width_px, cam.height_px],
+                "pixel_format": cfg.pixel_format,
+                "matrix": cam.matrix.tolist(),
+                "distortion": cam.distortion.tolist(),
+                "centre_m": cam.centre_m.tolist(),
+                "yaw_pitch_roll_deg": list(ypr_from_world_from_camera(cam.world_from_camera)),
+                "optical_axis": cam.world_from_camera[:, 2].tolist(),
+            }
+            for cam, cfg in zip(cameras, rig.cameras, strict=True)
+        ],
+        "wall": {
+            "source": loaded.sources["wall"],
+            "origin_m": wall.origin_m.tolist(),
+            "x_axis": wall.x_axis.tolist(),
+            "y_axis": wall.y_axis.tolist(),
+            "normal": wall.normal.tolist(),
+            "size_m": [wall.width_m, wall.height_m],
+            "display_px": [wall.display_width_px, wall.display_height_px] if wall.has_display else None,
+            "max_plane_residual_m": float(np.max(np.abs(wall.fit_residuals_m)))
+            if wall.fit_residuals_m is not None else 0.0,
+        },
+        "pointer": rig.pointer.model_dump(),
+        "detector": rig.detector.model_dump(),
+    }
+
+
+def describe(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> str:
+    rig = loaded.config
+    lines = [f"{loaded.path}: OK, rig '{rig.name}'"]
+    if loaded.calibration_path:
+        lines.append(f"  calibration: {loaded.calibration_path}")
+    for cam, cfg in zip(cameras, rig.cameras, strict=True):
+        yaw, pitch, roll = ypr_from_world_from_camera(cam.world_from_camera)
+        k = cam.matrix
+        where = cfg.serial or cfg.address or cfg.device_id or "(first camera found)"
+        lines.append(
+            f"  camera {cam.camera_id}: {cam.width_px}x{cam.height_px} {cfg.pixel_format}, device {where},"
+            f" geometry {loaded.sources[cam.camera_id]}"
+        )
+        lines.append(
+            f"    fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} cx {k[0, 2]:.1f} cy {k[1, 2]:.1f} px,"
+            f" distortion [{', '.join(f'{d:g}' for d in cam.distortion) or 'none'}]"
+        )
+        centre = ", ".join(f"{v:.3f}" for v in cam.centre_m)
+        lines.append(
+            f"    at ({centre}) m, yaw {yaw:.2f} pitch {pitch:.2f} roll {roll:.2f} deg"
+        )
+    base = np.linalg.norm(cameras[0].centre_m - cameras[1].centre_m)
+    lines.append(f"  baseline {cameras[0].camera_id}-{cameras[1].camera_id}: {base:.3f} m")
+    lines.append(
+        f"  wall: {wall.width_m:.4f} x {wall.height_m:.4f} m ({wall.width_m / 0.3048:.2f} x"
+        f" {wall.height_m / 0.3048:.2f} ft), origin ({', '.join(f'{v:.3f}' for v in wall.origin_m)}),"
+        f" normal ({', '.join(f'{v:.3f}' for v in wall.normal)}), {loaded.sources['wall']}"
+    )
+    if wall.has_display:
+        lines.append(f"    display {wall.display_width_px}x{wall.display_height_px} px")
+    p = rig.pointer
+    lines.append(
+        f"  pointer: {p.front_colour} end in front, {p.length_m * 1000:.0f} mm between end centres"
+        f" (+-{p.length_tolerance_m * 1000:.0f} mm), ends {p.end_diameter_m * 1000:.0f} mm"
+    )
+    return "\n".join(lines)

@@ -1,0 +1,236 @@
+"""Loading rig and calibration files from TOML, with errors an operator can act on.
+
+``load_rig(path)`` reads the rig file, reads the calibration file it names (if
+any), lets the calibration's values replace the rig's, and checks that every
+camera ends up with intrinsics and extrinsics. Any problem raises
+:class:`~trackerd.errors.ConfigError` with one line of the form::
+
+    rig.toml: cameras[1].pixel_format: Mono8 is monochrome and cannot ...
+"""
+
+from __future__ import annotations
+
+import difflib
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, get_args, get_origin
+
+from pydantic import BaseModel, ValidationError
+
+from trackerd.config.models import CalibrationFile, RigConfig
+from trackerd.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class LoadedRig:
+    """A validated rig, where it came from, and where each camera's calibration came from."""
+
+    config: RigConfig
+    path: Path
+    calibration_path: Path | None
+    sources: dict[str, str]
+    """camera id (and 'wall') -> a short phrase naming the file its geometry was taken from."""
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file, turning I/O and syntax problems into one-line ConfigErrors."""
+    try:
+        with path.open("rb") as handle:
+            return tomllib.load(handle)
+    except FileNotFoundError as err:
+        raise ConfigError(f"{path}: no such file") from err
+    except IsADirectoryError as err:
+        raise ConfigError(f"{path}: is a directory, expected a TOML file") from err
+    except PermissionError as err:
+        raise ConfigError(f"{path}: permission denied") from err
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: not valid TOML: {err}") from err
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: not a text file (UTF-8 expected)") from err
+
+
+def format_location(loc: tuple[int | str, ...]) -> str:
+    """``('cameras', 1, 'intrinsics', 'opencv', 'fx_px')`` -> ``cameras[1].intrinsics.fx_px``.
+
+    The discriminator tag pydantic inserts for tagged unions ('opencv' above) is
+    dropped, because it is not a key the user wrote.
+    """
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        elif part in ("fov", "opencv", "pose") and text.endswith(("intrinsics", "extrinsics")):
+            continue
+        else:
+            text += f".{part}" if text else str(part)
+    return text or "(top level)"
+
+
+def _model_at(model: type[BaseModel], loc: tuple[int | str, ...]) -> type[BaseModel] | None:
+    """Walk a model class along an error location to find the model that owns the last key."""
+    current: Any = model
+    for part in loc[:-1]:
+        if isinstance(part, int) or current is None:
+            continue
+        if isinstance(current, type) and issubclass(current, BaseModel):
+            field = current.model_fields.get(str(part))
+            if field is None:
+                # a discriminator tag, or a dict key such as a camera id
+                current = _union_member(current, str(part)) or current
+                continue
+            current = _unwrap(field.annotation)
+        else:
+            current = _union_member(current, str(part))
+    if isinstance(current, type) and issubclass(current, BaseModel):
+        return current
+    return None
+
+
+def _unwrap(annotation: Any) -> Any:
+    """The BaseModel class inside Optional[...], tuple[...], dict[str, ...] or Annotated unions."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    args = [a for a in get_args(annotation) if a is not type(None)]
+    models = [a for a in args if isinstance(a, type) and issubclass(a, BaseModel)]
+    if len(models) == 1:
+        return models[0]
+    if models:
+        return tuple(models)
+    for arg in args:
+        inner = _unwrap(arg)
+        if inner is not None:
+            return inner
+    if get_origin(annotation) is None:
+        return None
+    return None
+
+
+def _union_member(current: Any, tag: str) -> Any:
+    """Pick the member of a tagged union whose tag value is ``tag``."""
+    candidates = current if isinstance(current, tuple) else ()
+    for member in candidates:
+        for name in ("model", "kind"):
+            field = member.model_fields.get(name)
+            if field is not None and tag in get_args(field.annotation):
+                return member
+    return None
+
+
+def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> str:
+    """The first error as ``key.path: what is wrong (allowed ...)``, plus a count of the rest."""
+    errors = err.errors(include_url=False)
+    # A misspelt key also shows up as the real key "missing"; report the misspelling first.
+    errors.sort(key=lambda e: e["type"] != "extra_forbidden")
+    first = errors[0]
+    loc = tuple(first["loc"])
+    where = format_location(loc)
+    kind = first["type"]
+    if kind == "extra_forbidden":
+        owner = _model_at(root, loc)
+        names = list(owner.model_fields) if owner else []
+        allowed = ", ".join(names) if names else "see docs/configuration.md"
+        close = difflib.get_close_matches(str(loc[-1]), names, n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        message = f"unknown key '{loc[-1]}'{hint}; allowed keys here: {allowed}"
+    elif kind == "missing":
+        message = "required key is missing"
+    elif kind == "union_tag_invalid" or kind == "union_tag_not_found":
+        message = first["msg"].replace("Input tag", "tag").replace("found using", "in key")
+    else:
+        message = first["msg"]
+        if message.startswith("Value error, "):
+            message = message[len("Value error, ") :]
+        value = first.get("input")
+        if kind not in ("value_error",) and isinstance(value, (str, int, float)):
+            message += f" (got {value!r})"
+    more = len(errors) - 1
+    suffix = f" (and {more} more problem{'s' if more > 1 else ''})" if more else ""
+    return f"{where}: {message}{suffix}"
+
+
+def parse_rig(data: dict[str, Any], path: Path) -> RigConfig:
+    """Validate rig data read from ``path``; errors name the file."""
+    try:
+        return RigConfig.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(f"{path}: {describe_validation_error(err, RigConfig)}") from err
+
+
+def parse_calibration(data: dict[str, Any], path: Path) -> CalibrationFile:
+    """Validate calibration data read from ``path``; errors name the file."""
+    try:
+        return CalibrationFile.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(f"{path}: {describe_validation_error(err, CalibrationFile)}") from err
+
+
+def load_calibration(path: Path) -> CalibrationFile:
+    """Read and validate a calibration file on its own."""
+    return parse_calibration(read_toml(path), path)
+
+
+def load_rig(path: str | Path) -> LoadedRig:
+    """Read a rig file, merge its calibration file, and check the result is complete."""
+    rig_path = Path(path)
+    rig = parse_rig(read_toml(rig_path), rig_path)
+    sources = {cam.id: f"inline in {rig_path.name}" for cam in rig.cameras}
+    sources["wall"] = f"inline in {rig_path.name}"
+    calibration_path: Path | None = None
+    if rig.calibration is not None:
+        calibration_path = (rig_path.parent / rig.calibration).resolve()
+        calibration = load_calibration(calibration_path)
+        rig = merge_calibration(rig, calibration, calibration_path)
+        for camera_id in calibration.cameras:
+            sources[camera_id] = f"from {calibration_path.name}"
+        if calibration.wall is not None:
+            sources["wall"] = f"from {calibration_path.name}"
+    for index, cam in enumerate(rig.cameras):
+        for part in ("intrinsics", "extrinsics"):
+            if getattr(cam, part) is None:
+                where = f" or in {calibration_path}" if calibration_path else ""
+                raise ConfigError(
+                    f"{rig_path}: cameras[{index}] ('{cam.id}') has no {part}; give them in"
+                    f" [cameras.{part}]{where} (a calibration file named by 'calibration')"
+                )
+    _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
+    return LoadedRig(rig, rig_path, calibration_path, sources)
+
+
+def _check_geometry(rig: RigConfig, wall_path: Path | None) -> None:
+    """Build the wall frame once so an impossible wall is reported now, naming its file."""
+    from trackerd.geometry.wall import WallFrame  # geometry imports config models
+
+    try:
+        WallFrame.from_config(rig.wall)
+    except ConfigError as err:
+        raise ConfigError(f"{wall_path}: {err}") from err
+
+
+def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) -> RigConfig:
+    """The rig with each camera's intrinsics/extrinsics (and the wall) replaced by the calibration's."""
+    known = {cam.id for cam in rig.cameras}
+    unknown = sorted(set(calibration.cameras) - known)
+    if unknown:
+        raise ConfigError(
+            f"{path}: cameras.{unknown[0]}: no camera with this id in the rig"
+            f" (the rig has {', '.join(sorted(known))})"
+        )
+    cameras = []
+    for cam in rig.cameras:
+        entry = calibration.cameras.get(cam.id)
+        if entry is None:
+            cameras.append(cam)
+            continue
+        update = {k: getattr(entry, k) for k in ("intrinsics", "extrinsics") if getattr(entry, k)}
+        cameras.append(cam.model_copy(update=update))
+    update: dict[str, Any] = {"cameras": tuple(cameras)}
+    if calibration.wall is not None:
+        update["wall"] = calibration.wall
+    # Re-validate so cross-field checks (principal point inside the image) see the merged values.
+    try:
+        return RigConfig.model_validate(rig.model_copy(update=update).model_dump())
+    except ValidationError as err:
+        raise ConfigError(
+            f"{path}: after merging into the rig: {describe_validation_error(err, RigConfig)}"
+        ) from err

@@ -1,0 +1,428 @@
+"""The rig configuration: pydantic models for everything one TOML file describes.
+
+A *rig* is the cameras, the wall, the pointer, the detector's thresholds and the
+outputs of one installation. Calibration (each camera's intrinsics and
+extrinsics, and optionally the wall) may live in a separate file that the rig
+file names; see :mod:`trackerd.config.loader` for how the two are merged.
+
+Every model forbids unknown keys, so a misspelt key is an error that names the
+keys that are allowed rather than a setting silently ignored. Units are in the
+field names: ``_m`` metres, ``_mm`` millimetres, ``_px`` pixels, ``_deg``
+degrees, ``_us`` microseconds, ``_ms`` milliseconds, ``_hz`` hertz.
+
+World frame used throughout (docs/geometry.md): right-handed, metres. The
+example rigs put the origin at the wall's bottom-left corner with x along the
+wall to the right, y up and z out of the wall into the room; any other frame
+works as long as cameras and wall are given in the same one.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Vec3 = tuple[float, float, float]
+
+COLOUR_PIXEL_FORMATS = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8")
+MONO_PIXEL_FORMATS = ("Mono8", "Mono10", "Mono12", "Mono16")
+PixelFormat = Literal["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8"]
+
+# OpenCV accepts these distortion vector lengths (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
+OPENCV_DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)
+
+
+class _Model(BaseModel):
+    """Base for every configuration model: closed (unknown keys are errors) and immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
+
+
+# --------------------------------------------------------------------------- intrinsics
+
+
+class FovIntrinsics(_Model):
+    """The report's simple camera model (section 3.4, eq. 14).
+
+    A distortion-free pinhole with its principal point at the image centre, fixed
+    by the horizontal field of view: a pixel spans ``f * tan(hfov / 2) / (width / 2)``
+    on an image plane at focal length ``f`` (eq. 14), which is a focal length of
+    ``(width / 2) / tan(hfov / 2)`` in pixels.
+    """
+
+    model: Literal["fov"]
+    """Selects this model."""
+    horizontal_fov_deg: float = Field(gt=0.0, lt=180.0)
+    """Full horizontal angle of view, in degrees."""
+    vertical_fov_deg: float | None = Field(default=None, gt=0.0, lt=180.0)
+    """Full vertical angle of view; omit for square pixels (then it follows from the aspect ratio)."""
+    focal_length_mm: float | None = Field(default=None, gt=0.0)
+    """Lens focal length. Does not change any ray (eq. 14 scales out); reported for reference."""
+
+
+class OpenCVIntrinsics(_Model):
+    """A full pinhole model with OpenCV's lens distortion, as `cv2.calibrateCamera` returns it."""
+
+    model: Literal["opencv"]
+    """Selects this model."""
+    fx_px: float = Field(gt=0.0)
+    """Focal length along image x, in pixels."""
+    fy_px: float = Field(gt=0.0)
+    """Focal length along image y, in pixels."""
+    cx_px: float
+    """Principal point x, in pixels, measured from the left edge of the first pixel's centre (OpenCV)."""
+    cy_px: float
+    """Principal point y, in pixels, from the top."""
+    distortion: tuple[float, ...] = ()
+    """Distortion coefficients in OpenCV order: k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]."""
+
+    @field_validator("distortion")
+    @classmethod
+    def _distortion_length(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        if len(value) not in OPENCV_DISTORTION_LENGTHS:
+            raise ValueError(
+                f"has {len(value)} coefficients; OpenCV takes "
+                + ", ".join(str(n) for n in OPENCV_DISTORTION_LENGTHS)
+            )
+        return value
+
+
+Intrinsics = Annotated[FovIntrinsics | OpenCVIntrinsics, Field(discriminator="model")]
+
+
+# --------------------------------------------------------------------------- extrinsics
+
+
+class PoseExtrinsics(_Model):
+    """Where the camera is and where it looks, as a camera operator would measure it.
+
+    The angles follow the report's pitch, yaw and roll about the camera's x, y and
+    z axes (eq. 18-20), composed as a pan-tilt head moves: yaw first, then pitch,
+    then roll (eq. 21, docs/geometry.md). With all three at zero the camera is
+    level and looks straight at the wall, along the world's -z axis.
+    """
+
+    kind: Literal["pose"]
+    """Selects this form."""
+    position_m: Vec3
+    """The camera's optical centre in world coordinates."""
+    yaw_deg: float = 0.0
+    """Pan: positive turns the camera to its right."""
+    pitch_deg: float = 0.0
+    """Tilt: positive tilts the camera up."""
+    roll_deg: float = 0.0
+    """Rotation about the optical axis: positive turns the image content anticlockwise
+    (the camera itself turns clockwise, seen from behind)."""
+
+
+class OpenCVExtrinsics(_Model):
+    """World-to-camera transform in OpenCV's convention: ``x_cam = R @ x_world + t``.
+
+    This is what `cv2.solvePnP` and `cv2.stereoCalibrate` produce. Give the rotation
+    either as a Rodrigues vector or as a matrix, not both.
+    """
+
+    kind: Literal["opencv"]
+    """Selects this form."""
+    rvec: Vec3 | None = None
+    """Rotation as a Rodrigues vector (axis times angle in radians)."""
+    rotation_matrix: tuple[Vec3, Vec3, Vec3] | None = None
+    """Rotation as a 3x3 matrix, rows first."""
+    tvec_m: Vec3
+    """Translation t, in metres."""
+
+    @model_validator(mode="after")
+    def _one_rotation(self) -> OpenCVExtrinsics:
+        if (self.rvec is None) == (self.rotation_matrix is None):
+            raise ValueError("give exactly one of rvec or rotation_matrix")
+        if self.rotation_matrix is not None:
+            import numpy as np
+
+            matrix = np.asarray(self.rotation_matrix, dtype=float)
+            if not np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-6) or np.linalg.det(matrix) < 0:
+                raise ValueError("rotation_matrix is not a rotation (orthonormal, determinant +1)")
+        return self
+
+
+Extrinsics = Annotated[PoseExtrinsics | OpenCVExtrinsics, Field(discriminator="kind")]
+
+
+# --------------------------------------------------------------------------- cameras
+
+
+class CameraConfig(_Model):
+    """One camera of the rig: how to find it, what it delivers, and (optionally) its calibration."""
+
+    id: str = Field(pattern=r"^[A-Za-z0-9_-]{1,32}$")
+    """Short name used in logs, messages and the calibration file, for example ``left``."""
+    serial: str | None = None
+    """Serial number, the usual way to find a GigE Vision camera."""
+    address: str | None = None
+    """IP address of the camera, an alternative to the serial number."""
+    device_id: str | None = None
+    """Aravis device id (as `trackerd cameras` lists it), an alternative to serial and address."""
+    width_px: int = Field(gt=0)
+    """Image width delivered by the camera."""
+    height_px: int = Field(gt=0)
+    """Image height delivered by the camera."""
+    pixel_format: str
+    """GenICam pixel format: BayerRG8, BayerGB8, BayerGR8, BayerBG8, RGB8 or BGR8."""
+    intrinsics: Intrinsics | None = None
+    """Lens model; may instead come from the calibration file."""
+    extrinsics: Extrinsics | None = None
+    """Camera pose; may instead come from the calibration file."""
+
+    @field_validator("pixel_format")
+    @classmethod
+    def _colour_format(cls, value: str) -> str:
+        if value in MONO_PIXEL_FORMATS:
+            raise ValueError(
+                f"{value} is monochrome and cannot tell the pointer's red end from its blue end;"
+                f" use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
+            )
+        if value not in COLOUR_PIXEL_FORMATS:
+            raise ValueError(f"'{value}' is not supported; use one of {', '.join(COLOUR_PIXEL_FORMATS)}")
+        return value
+
+    @model_validator(mode="after")
+    def _principal_point_inside(self) -> CameraConfig:
+        intr = self.intrinsics
+        if isinstance(intr, OpenCVIntrinsics) and not (
+            0 <= intr.cx_px < self.width_px and 0 <= intr.cy_px < self.height_px
+        ):
+            raise ValueError(
+                f"principal point ({intr.cx_px}, {intr.cy_px}) lies outside the"
+                f" {self.width_px}x{self.height_px} image"
+            )
+        return self
+
+
+# --------------------------------------------------------------------------- wall
+
+
+class WallConfig(_Model):
+    """The display wall: its plane (eq. 23-25) and its 2D frame (origin, x along, y up).
+
+    Either give the four corners of the display area (then everything follows), or
+    give three or more points on the plane together with the frame: ``origin_m``,
+    ``x_direction``, ``y_direction``, ``width_m`` and ``height_m``.
+    """
+
+    corners_m: tuple[Vec3, Vec3, Vec3, Vec3] | None = None
+    """Display corners in world coordinates: bottom-left, bottom-right, top-right, top-left."""
+    points_m: tuple[Vec3, ...] | None = None
+    """Three or more measured points on the wall plane (a least-squares plane when more than three)."""
+    origin_m: Vec3 | None = None
+    """With points_m: the display's bottom-left corner (projected onto the plane)."""
+    x_direction: Vec3 | None = None
+    """With points_m: a direction along the bottom edge, to the right (projected onto the plane)."""
+    y_direction: Vec3 | None = None
+    """With points_m: a direction roughly up the wall (made perpendicular to x in the plane)."""
+    width_m: float | None = Field(default=None, gt=0.0)
+    """With points_m: width of the display area along x."""
+    height_m: float | None = Field(default=None, gt=0.0)
+    """With points_m: height of the display area along y."""
+    display_width_px: int | None = Field(default=None, gt=0)
+    """Width of the displayed image in pixels, to report hits in display pixels."""
+    display_height_px: int | None = Field(default=None, gt=0)
+    """Height of the displayed image in pixels."""
+    planarity_tolerance_m: float = Field(default=0.01, gt=0.0)
+    """Corners or points further than this from their best-fit plane are rejected as a mistake."""
+
+    @model_validator(mode="after")
+    def _one_description(self) -> WallConfig:
+        frame_keys = ("origin_m", "x_direction", "y_direction", "width_m", "height_m")
+        if self.corners_m is not None:
+            given = [k for k in (*frame_keys, "points_m") if getattr(self, k) is not None]
+            if given:
+                raise ValueError(f"corners_m already fixes the wall; remove {', '.join(given)}")
+        elif self.points_m is not None:
+            if len(self.points_m) < 3:
+                raise ValueError("points_m needs three or more points (eq. 24)")
+            missing = [k for k in frame_keys if getattr(self, k) is None]
+            if missing:
+                raise ValueError(f"with points_m also give {', '.join(missing)}")
+        else:
+            raise ValueError("give either corners_m or points_m (with origin_m, x_direction, ...)")
+        if (self.display_width_px is None) != (self.display_height_px is None):
+            raise ValueError("give both display_width_px and display_height_px, or neither")
+        return self
+
+
+# --------------------------------------------------------------------------- pointer
+
+
+class PointerConfig(_Model):
+    """The passive pointer: a rod with a coloured ball at each end."""
+
+    front_colour: Literal["red", "blue"] = "red"
+    """The end nearer the wall when pointing: the pointing direction runs from the other end to this one."""
+    length_m: float = Field(gt=0.0)
+    """Distance between the centres of the two coloured ends."""
+    length_tolerance_m: float = Field(default=0.05, gt=0.0)
+    """A triangulated pointer whose length differs from length_m by more is rejected as impossible."""
+    end_diameter_m: float = Field(gt=0.0)
+    """Diameter of each coloured ball."""
+    rod_diameter_m: float = Field(default=0.012, gt=0.0)
+    """Diameter of the (dark) rod joining the balls; used by the simulator and the bias model."""
+
+    @model_validator(mode="after")
+    def _geometry(self) -> PointerConfig:
+        if self.end_diameter_m >= self.length_m:
+            raise ValueError("end_diameter_m must be smaller than length_m")
+        if self.rod_diameter_m > self.end_diameter_m:
+            raise ValueError("rod_diameter_m must not exceed end_diameter_m")
+        return self
+
+
+# --------------------------------------------------------------------------- detector
+
+
+class ColourThreshold(_Model):
+    """When a pixel counts as one end's colour (report eq. 10-11, made robust to white and grey)."""
+
+    min_excess: int = Field(default=40, ge=1, le=255)
+    """The colour's channel must exceed the larger of the other two channels by at least this much."""
+    min_value: int = Field(default=60, ge=0, le=255)
+    """And the colour's channel itself must be at least this bright."""
+
+
+class DetectorConfig(_Model):
+    """Thresholds of the colour-end detector (trackerd/detect)."""
+
+    red: ColourThreshold = ColourThreshold()
+    """Threshold for the red end."""
+    blue: ColourThreshold = ColourThreshold(min_excess=40, min_value=60)
+    """Threshold for the blue end."""
+    min_area_px: float = Field(default=12.0, gt=0.0)
+    """Smallest blob, in full-resolution pixels, accepted as an end."""
+    max_area_px: float = Field(default=20000.0, gt=0.0)
+    """Largest blob accepted as an end."""
+    max_elongation: float = Field(default=3.0, ge=1.0)
+    """A ball images as a near-circle; blobs longer than this times their width are rejected."""
+    min_fill: float = Field(default=0.45, gt=0.0, le=1.0)
+    """Blob area over its bounding-box area; a disc fills about 0.79, thin streaks much less."""
+    track_window_px: int = Field(default=96, ge=8)
+    """Half-size of the window searched first around the previous frame's position."""
+    centroid: Literal["weighted", "bbox"] = "weighted"
+    """weighted: intensity-weighted sub-pixel centroid; bbox: the report's bounding-box midpoint (eq. 12)."""
+
+    @model_validator(mode="after")
+    def _area_range(self) -> DetectorConfig:
+        if self.min_area_px >= self.max_area_px:
+            raise ValueError("min_area_px must be smaller than max_area_px")
+        return self
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+class ZmqOutput(_Model):
+    """ZeroMQ publishing of hits, pointer poses and status (docs/protocol.md)."""
+
+    endpoints: tuple[str, ...] = ("tcp://127.0.0.1:5560",)
+    """Endpoints the PUB socket binds. Non-loopback addresses need CURVE or allow_insecure_network."""
+
+
+class OutputsConfig(_Model):
+    """Where results go."""
+
+    zmq: ZmqOutput = ZmqOutput()
+    """ZeroMQ publisher."""
+
+
+# --------------------------------------------------------------------------- simulation
+
+
+class SimulationConfig(_Model):
+    """How the scene simulator renders this rig (trackerd/sim). Ignored by live tracking."""
+
+    seed: int = 7
+    """Seed for the room's clutter and textures, so renders are reproducible."""
+    room_depth_m: float = Field(default=6.0, gt=0.0)
+    """Distance from the wall to the back of the room."""
+    room_margin_m: float = Field(default=1.5, ge=0.0)
+    """How far the side walls, floor and ceiling extend beyond the display area."""
+    clutter: int = Field(default=12, ge=0)
+    """Number of distractor objects placed around the room, some red or blue."""
+    noise_sigma: float = Field(default=2.0, ge=0.0)
+    """Sensor read noise, standard deviation in 8-bit grey levels."""
+    shot_noise: float = Field(default=0.5, ge=0.0)
+    """Photon (shot) noise scale; the standard deviation grows as sqrt(signal) times this."""
+    supersampling: int = Field(default=4, ge=1, le=8)
+    """Anti-aliasing: rays per pixel along each axis (4 means 16 rays per pixel)."""
+
+
+# --------------------------------------------------------------------------- rig
+
+
+class RigConfig(_Model):
+    """A whole installation: the top level of a rig TOML file."""
+
+    version: Literal[1] = 1
+    """Format version of the rig file."""
+    name: str = "rig"
+    """A label shown in logs and status messages."""
+    calibration: Path | None = None
+    """A calibration TOML file (relative to this file) that supplies intrinsics, extrinsics and
+    optionally the wall; its values replace the ones given here."""
+    cameras: tuple[CameraConfig, ...] = Field(min_length=2)
+    """Two or more cameras; the first two are the stereo pair."""
+    wall: WallConfig
+    """The display wall."""
+    pointer: PointerConfig
+    """The pointer."""
+    detector: DetectorConfig = DetectorConfig()
+    """Colour-end detector settings."""
+    outputs: OutputsConfig = OutputsConfig()
+    """Output settings."""
+    simulation: SimulationConfig = SimulationConfig()
+    """Scene simulator settings (only used when rendering)."""
+
+    @field_validator("cameras")
+    @classmethod
+    def _unique_ids(cls, cameras: tuple[CameraConfig, ...]) -> tuple[CameraConfig, ...]:
+        ids = [c.id for c in cameras]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ValueError(f"camera ids must be unique; repeated: {', '.join(duplicates)}")
+        return cameras
+
+    def camera(self, camera_id: str) -> CameraConfig:
+        """The camera with this id (KeyError naming the known ids otherwise)."""
+        for cam in self.cameras:
+            if cam.id == camera_id:
+                return cam
+        raise KeyError(f"no camera '{camera_id}'; the rig has {', '.join(c.id for c in self.cameras)}")
+
+
+# --------------------------------------------------------------------------- calibration file
+
+
+class CameraCalibration(_Model):
+    """One camera's entry in a calibration file."""
+
+    intrinsics: Intrinsics | None = None
+    """Lens model, replacing the rig file's."""
+    extrinsics: Extrinsics | None = None
+    """Camera pose, replacing the rig file's."""
+    info: dict[str, str | int | float] = {}
+    """Provenance written by `trackerd calibrate`: date, board, number of views, RMS error."""
+
+
+class CalibrationFile(_Model):
+    """The top level of a calibration TOML file: ``[cameras.<id>]`` tables and an optional wall."""
+
+    version: Literal[1] = 1
+    """Format version of the calibration file."""
+    cameras: dict[str, CameraCalibration] = {}
+    """Per camera id."""
+    wall: WallConfig | None = None
+    """The wall, replacing the rig file's."""
+
+
+def horizontal_focal_px(intrinsics: FovIntrinsics, width_px: int) -> float:
+    """Focal length in pixels implied by a field of view (eq. 14 inverted)."""
+    return (width_px / 2.0) / math.tan(math.radians(intrinsics.horizontal_fov_deg) / 2.0)

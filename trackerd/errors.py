@@ -1,0 +1,40 @@
+"""The few exceptions trackerd raises on purpose.
+
+Each one carries a message meant for an operator: one line that says what is
+wrong and where. The CLI prints it and exits with the error's ``exit_code``;
+anything else that escapes is a bug and exits non-zero with a traceback.
+"""
+
+from __future__ import annotations
+
+
+class TrackerdError(Exception):
+    """Base class: a problem the user can act on, reported without a traceback."""
+
+    exit_code = 1
+
+
+class ConfigError(TrackerdError):
+    """A rig or calibration file that cannot be read or does not validate."""
+
+    exit_code = 2
+
+
+class GeometryError(TrackerdError):
+    """A geometric configuration that has no answer (parallel rays, a line parallel to the wall)."""
+
+
+class DetectionError(TrackerdError):
+    """An image in which the pointer cannot be located (missing end, unusable frame)."""
+
+
+class ImageError(TrackerdError):
+    """An image file that cannot be read or does not match the camera it is said to come from."""
+
+
+class CameraError(TrackerdError):
+    """A camera that cannot be found, opened, configured or kept streaming."""
+
+
+class RecordingError(TrackerdError):
+    """A recording that cannot be written or read (corrupt, truncated, wrong version, disk full)."""

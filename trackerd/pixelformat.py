@@ -1,0 +1,133 @@
+"""Pixel formats: what the cameras deliver and how to move between raw frames and RGB.
+
+Colour GigE Vision cameras usually send the raw Bayer mosaic (one byte per
+pixel, each pixel behind one colour filter). The detector works on the mosaic's
+colour planes directly; converting to RGB (demosaicing) is only for viewing,
+exporting and the OpenCV reference pipeline.
+
+GenICam names the pattern by its top-left 2x2 cell read row by row: BayerRG8 is
+    R G
+    G B
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+Image = NDArray[np.uint8]
+
+
+@dataclass(frozen=True)
+class BayerLayout:
+    """Offsets (row, column) of each colour within the 2x2 Bayer cell."""
+
+    red: tuple[int, int]
+    green_a: tuple[int, int]
+    green_b: tuple[int, int]
+    blue: tuple[int, int]
+
+
+BAYER_LAYOUTS: dict[str, BayerLayout] = {
+    "BayerRG8": BayerLayout(red=(0, 0), green_a=(0, 1), green_b=(1, 0), blue=(1, 1)),
+    "BayerGR8": BayerLayout(red=(0, 1), green_a=(0, 0), green_b=(1, 1), blue=(1, 0)),
+    "BayerGB8": BayerLayout(red=(1, 0), green_a=(0, 0), green_b=(1, 1), blue=(0, 1)),
+    "BayerBG8": BayerLayout(red=(1, 1), green_a=(0, 1), green_b=(1, 0), blue=(0, 0)),
+}
+
+# OpenCV 4.10+ and 5.x name Bayer conversions by the full top-left 2x2 pattern
+# (BayerRGGB == GenICam BayerRG); the older two-letter names are off by one row.
+_DEMOSAIC_TO_RGB = {
+    "BayerRG8": cv2.COLOR_BayerRGGB2RGB,
+    "BayerGR8": cv2.COLOR_BayerGRBG2RGB,
+    "BayerGB8": cv2.COLOR_BayerGBRG2RGB,
+    "BayerBG8": cv2.COLOR_BayerBGGR2RGB,
+}
+
+SUPPORTED = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8")
+
+# GenICam Pixel Format Naming Convention (PFNC) codes, as Aravis reports them.
+PFNC_CODES = {
+    "Mono8": 0x01080001,
+    "BayerGR8": 0x01080008,
+    "BayerRG8": 0x01080009,
+    "BayerGB8": 0x0108000A,
+    "BayerBG8": 0x0108000B,
+    "RGB8": 0x02180014,
+    "BGR8": 0x02180015,
+}
+PFNC_NAMES = {code: name for name, code in PFNC_CODES.items()}
+
+
+def is_bayer(pixel_format: str) -> bool:
+    return pixel_format in BAYER_LAYOUTS
+
+
+def bytes_per_pixel(pixel_format: str) -> int:
+    """Bytes one pixel takes in a frame of this format."""
+    if is_bayer(pixel_format) or pixel_format == "Mono8":
+        return 1
+    if pixel_format in ("RGB8", "BGR8"):
+        return 3
+    raise ValueError(f"unsupported pixel format {pixel_format!r}")
+
+
+def frame_shape(pixel_format: str, width_px: int, height_px: int) -> tuple[int, ...]:
+    """NumPy shape of a frame: (H, W) for one byte per pixel, (H, W, 3) for RGB8/BGR8."""
+    if bytes_per_pixel(pixel_format) == 1:
+        return (height_px, width_px)
+    return (height_px, width_px, 3)
+
+
+def frame_from_bytes(data: bytes | memoryview | NDArray[np.uint8], pixel_format: str,
+                     width_px: int, height_px: int) -> Image:
+    """View a raw payload as a frame array (no copy when the buffer allows it)."""
+    shape = frame_shape(pixel_format, width_px, height_px)
+    expected = int(np.prod(shape))
+    arr = np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.reshape(-1)
+    if arr.size < expected:
+        raise ValueError(
+            f"{pixel_format} {width_px}x{height_px} needs {expected} bytes, got {arr.size}"
+        )
+    return arr[:expected].reshape(shape)
+
+
+def to_rgb(frame: Image, pixel_format: str) -> Image:
+    """Any supported frame -> an (H, W, 3) RGB image (Bayer is demosaiced bilinearly by OpenCV)."""
+    if is_bayer(pixel_format):
+        return cv2.cvtColor(frame, _DEMOSAIC_TO_RGB[pixel_format])
+    if pixel_format == "RGB8":
+        return frame
+    if pixel_format == "BGR8":
+        return np.ascontiguousarray(frame[..., ::-1])
+    if pixel_format == "Mono8":
+        return np.repeat(frame[..., None], 3, axis=2)
+    raise ValueError(f"unsupported pixel format {pixel_format!r}")
+
+
+def to_bgr(frame: Image, pixel_format: str) -> Image:
+    """Any supported frame -> (H, W, 3) BGR, the channel order cv2.imwrite expects."""
+    return np.ascontiguousarray(to_rgb(frame, pixel_format)[..., ::-1])
+
+
+def from_rgb(rgb: Image, pixel_format: str) -> Image:
+    """An (H, W, 3) RGB image -> a frame in ``pixel_format`` (Bayer keeps one channel per pixel)."""
+    if pixel_format == "RGB8":
+        return np.ascontiguousarray(rgb)
+    if pixel_format == "BGR8":
+        return np.ascontiguousarray(rgb[..., ::-1])
+    if pixel_format == "Mono8":
+        return cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY)
+    layout = BAYER_LAYOUTS.get(pixel_format)
+    if layout is None:
+        raise ValueError(f"unsupported pixel format {pixel_format!r}")
+    height, width = rgb.shape[:2]
+    mosaic = np.empty((height, width), dtype=np.uint8)
+    for (row, col), channel in (
+        (layout.red, 0), (layout.green_a, 1), (layout.green_b, 1), (layout.blue, 2)
+    ):
+        mosaic[row::2, col::2] = rgb[row::2, col::2, channel]
+    return mosaic
