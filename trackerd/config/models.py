@@ -22,7 +22,10 @@ import math
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
+
+from trackerd.config.acquisition import CameraAcquisition, RigAcquisition
+from trackerd.config.base import ConfigModel
 
 Vec3 = tuple[float, float, float]
 
@@ -34,10 +37,7 @@ PixelFormat = Literal["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "B
 OPENCV_DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)
 
 
-class _Model(BaseModel):
-    """Base for every configuration model: closed (unknown keys are errors) and immutable."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
+_Model = ConfigModel
 
 
 # --------------------------------------------------------------------------- intrinsics
@@ -173,6 +173,8 @@ class CameraConfig(_Model):
     """Lens model; may instead come from the calibration file."""
     extrinsics: Extrinsics | None = None
     """Camera pose; may instead come from the calibration file."""
+    acquisition: CameraAcquisition = CameraAcquisition()
+    """How this camera is driven: exposure, gain, region, GigE transport (docs/acquisition.md)."""
 
     @field_validator("pixel_format")
     @classmethod
@@ -374,6 +376,8 @@ class RigConfig(_Model):
     """The display wall."""
     pointer: PointerConfig
     """The pointer."""
+    acquisition: RigAcquisition = RigAcquisition()
+    """Trigger mode, frame pairing and camera-loss handling shared by all cameras."""
     detector: DetectorConfig = DetectorConfig()
     """Colour-end detector settings."""
     outputs: OutputsConfig = OutputsConfig()

@@ -1,0 +1,15 @@
+"""The base class shared by every configuration model."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+
+class ConfigModel(BaseModel):
+    """Base for every configuration model: closed (unknown keys are errors) and immutable.
+
+    Field docstrings become the field descriptions (``use_attribute_docstrings``),
+    which docs/configuration.md and error messages draw on.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
