@@ -342,19 +342,31 @@ class SimulationConfig(_Model):
     """How the scene simulator renders this rig (trackerd/sim). Ignored by live tracking."""
 
     seed: int = 7
-    """Seed for the room's clutter and textures, so renders are reproducible."""
+    """Seed for the room's clutter, so renders are reproducible."""
     room_depth_m: float = Field(default=6.0, gt=0.0)
     """Distance from the wall to the back of the room."""
     room_margin_m: float = Field(default=1.5, ge=0.0)
-    """How far the side walls, floor and ceiling extend beyond the display area."""
+    """How far the side walls extend beyond the display area on each side."""
+    room_height_m: float = Field(default=3.0, gt=0.0)
+    """Floor to ceiling."""
+    display_height_above_floor_m: float = Field(default=0.9, ge=0.0)
+    """Height of the display's bottom edge above the floor."""
     clutter: int = Field(default=12, ge=0)
-    """Number of distractor objects placed around the room, some red or blue."""
+    """Number of distractor objects (posters, stickers, strips, balls), a third red, a third blue."""
+    hand: bool = True
+    """Render a skin-coloured hand holding the pointer's handle (skin is a reddish distractor)."""
+    presenter_distance_m: tuple[float, float] = (1.2, 2.8)
+    """Range of distances of the pointer's tip from the wall for random poses."""
+    hand_height_m: tuple[float, float] = (1.0, 1.8)
+    """Range of heights of the pointer's tip above the floor for random poses."""
     noise_sigma: float = Field(default=2.0, ge=0.0)
     """Sensor read noise, standard deviation in 8-bit grey levels."""
     shot_noise: float = Field(default=0.5, ge=0.0)
-    """Photon (shot) noise scale; the standard deviation grows as sqrt(signal) times this."""
+    """Photon (shot) noise scale: the standard deviation grows as sqrt(grey level) times this."""
     supersampling: int = Field(default=4, ge=1, le=8)
-    """Anti-aliasing: rays per pixel along each axis (4 means 16 rays per pixel)."""
+    """Anti-aliasing of the pointer: rays per pixel along each axis (4 means 16 rays per pixel)."""
+    background_supersampling: int = Field(default=2, ge=1, le=4)
+    """Anti-aliasing of the static room, rendered once per camera and cached."""
 
 
 # --------------------------------------------------------------------------- rig
