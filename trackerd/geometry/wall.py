@@ -187,7 +187,9 @@ class WallFrame:
         _check_planarity(residuals, planarity_tolerance_m, "corners_m")
         bottom = (corners[1] - corners[0] + corners[2] - corners[3]) / 2.0
         side = (corners[3] - corners[0] + corners[2] - corners[1]) / 2.0
-        return cls._build(corners[0], bottom, side, plane, float(np.linalg.norm(bottom)),
+        # Measured corners are only nearly coplanar: put the origin on the fitted plane.
+        origin = corners[0] - plane.signed_distance_m(corners[0]) * plane.normal
+        return cls._build(origin, bottom, side, plane, float(np.linalg.norm(bottom)),
                           float(np.linalg.norm(side)), display_px, residuals)
 
     @classmethod
