@@ -318,6 +318,25 @@ class DetectorConfig(_Model):
         return self
 
 
+# --------------------------------------------------------------------------- locator
+
+
+class LocatorConfig(_Model):
+    """How detections become a pointer line and a wall hit (trackerd/locator.py)."""
+
+    max_ray_gap_m: float = Field(default=0.03, gt=0.0)
+    """Reject a fix when an end's rays miss its estimated centre by more than this
+    (a wrong blob in one camera gives rays that do not meet)."""
+    min_plane_angle_deg: float = Field(default=4.6, gt=0.0, lt=90.0)
+    """Below this angle between the cameras' interpretation planes the pointer's line is
+    taken through the two triangulated ends instead (docs/geometry.md)."""
+    sphere_correction: bool = True
+    """Correct each ball's image centroid for perspective (an imaged sphere's centre is not the
+    projection of its centre) before estimating the line."""
+    centroid_sigma_px: float = Field(default=0.15, gt=0.0)
+    """Assumed standard deviation of a centroid across the pointer, used for the hit's uncertainty."""
+
+
 # --------------------------------------------------------------------------- outputs
 
 
@@ -392,6 +411,8 @@ class RigConfig(_Model):
     """Trigger mode, frame pairing and camera-loss handling shared by all cameras."""
     detector: DetectorConfig = DetectorConfig()
     """Colour-end detector settings."""
+    locator: LocatorConfig = LocatorConfig()
+    """Line estimation and quality gates."""
     outputs: OutputsConfig = OutputsConfig()
     """Output settings."""
     simulation: SimulationConfig = SimulationConfig()

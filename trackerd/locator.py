@@ -1,0 +1,269 @@
+"""The locator: from one synchronized image per camera to the pointer's 3D line and its wall hit.
+
+This is the report's program (section 4) and the daemon's processing stage:
+detect both coloured ends in every image (trackerd/detect), turn the end
+centroids into rays (eq. 14 and the lens model), estimate the pointer's line
+(trackerd/geometry/pointer_line.py; eq. 15-17 for each end), and intersect it
+with the wall plane (eq. 23-28).
+
+Every outcome is a :class:`PointerFix` with a ``status``:
+
+``hit``       the pointer points at the display;
+``off_wall``  it points at the wall's plane outside the display;
+``away``      it points away from the wall (the hit would be behind the pointer);
+``parallel``  it is parallel to the wall;
+``rejected``  both ends were seen but the geometry is impossible (length, ray gap);
+``not_found`` an end is missing in some camera.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.config.models import RigConfig
+from trackerd.errors import GeometryError
+from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.pointer_line import (
+    PointerLine,
+    estimate_pointer_line,
+    interpretation_plane_normals,
+    line_from_planes,
+    sphere_centre_direction,
+)
+from trackerd.geometry.wall import WallFrame, intersect_line_plane
+
+Array = NDArray[np.float64]
+
+COLOURS = ("red", "blue")
+
+
+@dataclass(frozen=True)
+class WallHit:
+    """Where the pointer's line meets the wall plane."""
+
+    wall_xy_m: Array
+    """In the wall's 2D frame: metres from the display's bottom-left corner, x right, y up."""
+    world_m: Array
+    display_px: Array | None
+    """Display pixels (origin top-left, y down) when the wall has a display size."""
+    on_wall: bool
+    distance_m: float
+    """From the pointer's front end to the hit, along the line."""
+
+
+@dataclass(frozen=True)
+class PointerFix:
+    """The locator's answer for one set of images."""
+
+    status: str
+    reason: str | None
+    centroids_px: tuple[dict[str, Array | None], ...]
+    """Per camera, per colour: the centroid used (None where the end was not found)."""
+    line: PointerLine | None = None
+    hit: WallHit | None = None
+    uncertainty_m: float | None = None
+    """Estimated standard error of the hit on the wall (RMS radius), from centroid noise."""
+    timings_ns: dict[str, int] = field(default_factory=dict)
+    detections: tuple = ()
+    """The detector's full results, per camera (empty when centroids were given directly)."""
+
+    @property
+    def found(self) -> bool:
+        """Both ends were seen and triangulated to a plausible pointer."""
+        return self.line is not None and self.status != "rejected"
+
+
+class Locator:
+    """Detectors for each camera plus the rig's geometry; one instance per stream of image sets.
+
+    Not thread-safe: it keeps each camera's detector tracking state between calls.
+    """
+
+    def __init__(
+        self,
+        rig: RigConfig,
+        cameras: Sequence[CameraModel] | None = None,
+        wall: WallFrame | None = None,
+    ) -> None:
+        self.rig = rig
+        self.cameras = list(cameras) if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
+        self.wall = wall or WallFrame.from_config(rig.wall)
+        self.front_colour = rig.pointer.front_colour
+        self.back_colour = "blue" if self.front_colour == "red" else "red"
+        self._detectors: list | None = None
+        self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
+        self._centres = np.array([cam.centre_m for cam in self.cameras])
+        self._plane = self.wall.plane  # a property that recomputes; used several times per fix
+        # d_world = d_cam @ R (R is world-to-camera), stacked for all cameras.
+        self._rotations = np.stack([cam.rotation for cam in self.cameras])
+
+    # ------------------------------------------------------------------ detection
+
+    @property
+    def detectors(self) -> list:
+        if self._detectors is None:
+            from trackerd.detect import ColourEndDetector
+
+            self._detectors = [
+                ColourEndDetector(self.rig.detector, cfg.pixel_format, cfg.width_px, cfg.height_px)
+                for cfg in self.rig.cameras
+            ]
+        return self._detectors
+
+    def reset(self) -> None:
+        """Forget tracking state (the pointer left, a new recording starts)."""
+        for detector in self._detectors or []:
+            detector.reset()
+
+    def locate(self, images: Sequence[NDArray[np.uint8]]) -> PointerFix:
+        """Detect the ends in one image per camera (rig order) and locate the pointer."""
+        if len(images) != len(self.cameras):
+            raise ValueError(f"expected {len(self.cameras)} images, got {len(images)}")
+        start = time.perf_counter_ns()
+        detections = tuple(det.detect(image) for det, image in zip(self.detectors, images, strict=True))
+        detected = time.perf_counter_ns()
+        centroids = tuple(
+            {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS}
+            for d in detections
+        )
+        missing = [
+            f"{cam.camera_id}: {d.end(colour).reason or 'not found'}"
+            for cam, d in zip(self.cameras, detections, strict=True)
+            for colour in COLOURS
+            if not d.end(colour).found
+        ]
+        if missing:
+            fix = PointerFix("not_found", "; ".join(missing), centroids, detections=detections)
+        else:
+            fix = self.locate_centroids(centroids)
+            fix = PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
+                             dict(fix.timings_ns), detections)
+        fix.timings_ns["detect_ns"] = detected - start
+        return fix
+
+    # ------------------------------------------------------------------ geometry
+
+    def locate_centroids(self, centroids: Sequence[dict[str, Array | None]]) -> PointerFix:
+        """Locate the pointer from end centroids (pixels), one dict per camera keyed by colour."""
+        start = time.perf_counter_ns()
+        centroids = tuple(centroids)
+        for cam, per_camera in zip(self.cameras, centroids, strict=True):
+            for colour in COLOURS:
+                px = per_camera.get(colour)
+                if px is None or not np.all(np.isfinite(px)):
+                    return PointerFix("not_found", f"{cam.camera_id}: no {colour} end", centroids)
+        # Undistort once: (C, 2, 2) normalised image coordinates, [camera, front/back, xy].
+        normalised = np.stack([
+            cam.normalized_from_pixels(np.array([c[self.front_colour], c[self.back_colour]], dtype=np.float64))
+            for cam, c in zip(self.cameras, centroids, strict=True)
+        ])
+        try:
+            line = self._estimate(normalised, self.rig.locator.sphere_correction)
+        except GeometryError as err:
+            return PointerFix("rejected", str(err), centroids, timings_ns={"triangulate_ns": 0})
+        fix = self._judge(line, centroids, normalised)
+        fix.timings_ns["triangulate_ns"] = time.perf_counter_ns() - start
+        return fix
+
+    def _estimate(self, normalised: Array, sphere_correction: bool) -> PointerLine:
+        """Pointer line from normalised coordinates (C, 2 ends, 2)."""
+        rays = np.concatenate([normalised, np.ones(normalised.shape[:2] + (1,))], axis=2)
+        rays /= np.sqrt(np.sum(rays * rays, axis=2, keepdims=True))
+        line = self._line_from_camera_rays(rays[:, 0], rays[:, 1])
+        if sphere_correction:
+            radius = self.rig.pointer.end_diameter_m / 2.0
+            front_depth = np.array([cam.to_camera_frame(line.front_m[None])[0, 2] for cam in self.cameras])
+            back_depth = np.array([cam.to_camera_frame(line.back_m[None])[0, 2] for cam in self.cameras])
+            if np.all(front_depth > radius) and np.all(back_depth > radius):
+                line = self._line_from_camera_rays(
+                    sphere_centre_direction(rays[:, 0], front_depth, radius),
+                    sphere_centre_direction(rays[:, 1], back_depth, radius),
+                )
+        return line
+
+    def _line_from_camera_rays(self, front_cam: Array, back_cam: Array) -> PointerLine:
+        """Line from camera-frame unit rays (C, 3) through the front and back ends."""
+        front_world = np.einsum("cj,cjk->ck", front_cam, self._rotations)
+        back_world = np.einsum("cj,cjk->ck", back_cam, self._rotations)
+        return estimate_pointer_line(self._centres, front_world, back_world, self._min_plane_sin)
+
+    def _judge(
+        self, line: PointerLine, centroids: tuple[dict[str, Array | None], ...], normalised: Array
+    ) -> PointerFix:
+        pointer = self.rig.pointer
+        length_error = line.length_m - pointer.length_m
+        if abs(length_error) > pointer.length_tolerance_m:
+            return PointerFix(
+                "rejected",
+                f"ends are {line.length_m * 1000:.0f} mm apart, the pointer is {pointer.length_m * 1000:.0f}"
+                f" +- {pointer.length_tolerance_m * 1000:.0f} mm",
+                centroids, line, timings_ns={},
+            )
+        if line.gap_m > self.rig.locator.max_ray_gap_m:
+            return PointerFix(
+                "rejected",
+                f"rays miss by {line.gap_m * 1000:.0f} mm (limit {self.rig.locator.max_ray_gap_m * 1000:.0f} mm):"
+                " the cameras do not agree on an end",
+                centroids, line, timings_ns={},
+            )
+        try:
+            intersection = intersect_line_plane(line.back_m, line.front_m, self._plane)
+        except GeometryError as err:
+            return PointerFix("parallel", str(err), centroids, line, timings_ns={})
+        u = float(intersection.u)
+        if u <= 0.0:
+            return PointerFix("away", "the pointer points away from the wall", centroids, line, timings_ns={})
+        hit = self._wall_hit(intersection.point_m, line, u)
+        uncertainty = self._uncertainty(normalised)
+        status = "hit" if hit.on_wall else "off_wall"
+        reason = None if hit.on_wall else "the pointer points at the wall outside the display"
+        return PointerFix(status, reason, centroids, line, hit, uncertainty, timings_ns={})
+
+    def _wall_hit(self, point_m: Array, line: PointerLine, u: float) -> WallHit:
+        xy = self.wall.to_wall_m(point_m)
+        display = self.wall.to_display_px(xy) if self.wall.has_display else None
+        distance = (u - 1.0) * line.length_m
+        return WallHit(xy, point_m, display, bool(self.wall.on_wall(xy)), float(distance))
+
+    def _uncertainty(self, normalised: Array) -> float | None:
+        """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer.
+
+        Only displacements across each camera's image of the pointer move the
+        line (along it they only slide the ends), so one perturbation per end per
+        camera gives the Jacobian of the hit. Pixels are converted to normalised
+        coordinates with each camera's focal length (distortion's local scale
+        change of a few percent is ignored: this is an estimate).
+        """
+        sigma_px = self.rig.locator.centroid_sigma_px
+        try:
+            base_xy = self._plane_hit_xy(normalised)
+            variance = 0.0
+            for index, cam in enumerate(self.cameras):
+                along = normalised[index, 0] - normalised[index, 1]
+                across = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
+                step = across * sigma_px / cam.focal_px
+                for end in (0, 1):
+                    moved = normalised.copy()
+                    moved[index, end] += step
+                    variance += float(np.sum((self._plane_hit_xy(moved) - base_xy) ** 2))
+        except GeometryError:
+            return None
+        return float(np.sqrt(variance))
+
+    def _plane_hit_xy(self, normalised: Array) -> Array:
+        """Wall hit (2,) of the interpretation planes' line only: the cheap path for error propagation."""
+        rays = np.concatenate([normalised, np.ones(normalised.shape[:2] + (1,))], axis=2)
+        world = np.einsum("cej,cjk->cek", rays, self._rotations)
+        normals = interpretation_plane_normals(world[:, 0], world[:, 1])
+        point, direction, _ = line_from_planes(self._centres, normals)
+        plane = self._plane
+        denominator = float(direction @ plane.normal)
+        if abs(denominator) < 1e-9:
+            raise GeometryError("the pointer is parallel to the wall")
+        hit = point - (plane.signed_distance_m(point) / denominator) * direction
+        return self.wall.to_wall_m(hit)
