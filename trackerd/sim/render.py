@@ -75,6 +75,10 @@ class RenderedView:
 
 
 def default_cache_dir() -> Path:
+    """$TRACKERD_RENDER_CACHE, else $XDG_CACHE_HOME/trackerd/backgrounds, else ~/.cache/trackerd/backgrounds."""
+    explicit = os.environ.get("TRACKERD_RENDER_CACHE")
+    if explicit:
+        return Path(explicit)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "trackerd" / "backgrounds"
 

@@ -1,0 +1,45 @@
+"""Fixtures shared across the test suite: the example rigs and the scene renderer.
+
+Rendered backgrounds are cached under the repository's .cache/ (ignored by git),
+so only the first test session on a machine pays for rendering each camera's room.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
+
+REPO = Path(__file__).resolve().parent.parent
+CONFIG_DIR = REPO / "config"
+DATA_DIR = Path(__file__).resolve().parent / "data"
+RENDER_CACHE = REPO / ".cache" / "backgrounds"
+
+
+@pytest.fixture(scope="session")
+def simulated_rig() -> RigConfig:
+    """config/simulated.toml, as loaded by trackerd."""
+    return load_rig(CONFIG_DIR / "simulated.toml").config
+
+
+@pytest.fixture(scope="session")
+def renderer(simulated_rig: RigConfig):
+    """A SceneRenderer for the simulated rig, shared by the whole session (its backgrounds are cached)."""
+    from trackerd.sim.render import SceneRenderer
+
+    return SceneRenderer(simulated_rig, cache_dir=RENDER_CACHE)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261122)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # Benchmarks and the CLI share the cache with tests when run from the repo.
+    os.environ.setdefault("TRACKERD_RENDER_CACHE", str(RENDER_CACHE))
