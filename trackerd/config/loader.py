@@ -120,6 +120,15 @@ def _union_member(current: Any, tag: str) -> Any:
 def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> str:
     """The first error as ``key.path: what is wrong (allowed ...)``, plus a count of the rest."""
     errors = err.errors(include_url=False)
+    # pydantic also reports a tuple whose items failed as too short ("... after validation,
+    # not 0"); that follows from the item errors and is not a problem of its own.
+    locs = [tuple(e["loc"]) for e in errors]
+    errors = [
+        e for e in errors
+        if not (e["type"] == "too_short" and any(
+            len(other) > len(e["loc"]) and other[: len(e["loc"])] == tuple(e["loc"]) for other in locs
+        ))
+    ] or errors
     # A misspelt key also shows up as the real key "missing"; report the misspelling first.
     errors.sort(key=lambda e: e["type"] != "extra_forbidden")
     first = errors[0]
