@@ -41,6 +41,11 @@ Array = NDArray[np.float64]
 
 COLOURS = ("red", "blue")
 
+PARALLEL_ANGLE_DEG = 0.5
+"""A pointer within this angle of the wall's plane is reported as parallel: its line would meet
+the plane more than a hundred times further away than the tip is from the wall, and which way
+it crosses is decided by noise."""
+
 
 @dataclass(frozen=True)
 class WallHit:
@@ -89,16 +94,20 @@ class Locator:
         rig: RigConfig,
         cameras: Sequence[CameraModel] | None = None,
         wall: WallFrame | None = None,
+        pixel_formats: Sequence[str] | None = None,
     ) -> None:
+        """``pixel_formats`` overrides the rig's per-camera format (still images read as RGB, say)."""
         self.rig = rig
         self.cameras = list(cameras) if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
         self.wall = wall or WallFrame.from_config(rig.wall)
         self.front_colour = rig.pointer.front_colour
         self.back_colour = "blue" if self.front_colour == "red" else "red"
         self._detectors: list | None = None
+        self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
         self._centres = np.array([cam.centre_m for cam in self.cameras])
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
+        self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         # d_world = d_cam @ R (R is world-to-camera), stacked for all cameras.
         self._rotations = np.stack([cam.rotation for cam in self.cameras])
 
@@ -110,8 +119,8 @@ class Locator:
             from trackerd.detect import ColourEndDetector
 
             self._detectors = [
-                ColourEndDetector(self.rig.detector, cfg.pixel_format, cfg.width_px, cfg.height_px)
-                for cfg in self.rig.cameras
+                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px)
+                for cfg, fmt in zip(self.rig.cameras, self.pixel_formats, strict=True)
             ]
         return self._detectors
 
@@ -209,6 +218,11 @@ class Locator:
                 "rejected",
                 f"rays miss by {line.gap_m * 1000:.0f} mm (limit {self.rig.locator.max_ray_gap_m * 1000:.0f} mm):"
                 " the cameras do not agree on an end",
+                centroids, line, timings_ns={},
+            )
+        if abs(float(line.direction @ self._plane.normal)) < self._parallel_sin:
+            return PointerFix(
+                "parallel", f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
                 centroids, line, timings_ns={},
             )
         try:

@@ -1,0 +1,67 @@
+"""Reading still images as camera frames, for `trackerd locate` and recording import.
+
+A file becomes a frame in one of the pixel formats the detector understands:
+
+* a single-channel PNG/TIFF/PGM (or JPEG) is the camera's raw Bayer mosaic, in
+  the pixel format the rig configures for that camera;
+* a three-channel PNG/JPEG is a colour image (BGR8 as OpenCV reads it);
+* a ``.npy`` file holds the raw frame exactly as the camera delivers it
+  (shape (H, W) for Bayer, (H, W, 3) for RGB8/BGR8, dtype uint8).
+
+The image size must match the camera's configured resolution, since the
+calibration is only valid at that size.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.config.models import CameraConfig
+from trackerd.errors import ImageError
+from trackerd.pixelformat import frame_shape, is_bayer
+
+
+def read_frame(path: str | Path, camera: CameraConfig) -> tuple[NDArray[np.uint8], str]:
+    """Read an image file as a frame from ``camera``: (frame, pixel format of the frame)."""
+    path = Path(path)
+    if not path.exists():
+        raise ImageError(f"{path}: no such file")
+    if path.suffix.lower() == ".npy":
+        try:
+            frame = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as err:
+            raise ImageError(f"{path}: not a readable NumPy file ({err})") from err
+        expected = frame_shape(camera.pixel_format, camera.width_px, camera.height_px)
+        if frame.dtype != np.uint8 or frame.shape != expected:
+            raise ImageError(
+                f"{path}: holds a {frame.dtype} array of shape {frame.shape}; camera '{camera.id}'"
+                f" delivers {camera.pixel_format} frames of shape {expected} (uint8)"
+            )
+        return frame, camera.pixel_format
+    frame = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if frame is None:
+        raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, TIFF, PGM, or .npy)")
+    if frame.dtype != np.uint8:
+        raise ImageError(f"{path}: {frame.dtype} pixels; only 8-bit images are supported")
+    height, width = frame.shape[:2]
+    if (width, height) != (camera.width_px, camera.height_px):
+        raise ImageError(
+            f"{path}: image is {width}x{height} but camera '{camera.id}' is configured for"
+            f" {camera.width_px}x{camera.height_px} (its calibration only holds at that size)"
+        )
+    if frame.ndim == 2:
+        if not is_bayer(camera.pixel_format):
+            raise ImageError(
+                f"{path}: single-channel image, but camera '{camera.id}' delivers {camera.pixel_format};"
+                " a single channel is only read as a Bayer mosaic"
+            )
+        return frame, camera.pixel_format
+    if frame.ndim == 3 and frame.shape[2] == 4:
+        frame = cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
+    if frame.ndim == 3 and frame.shape[2] == 3:
+        return np.ascontiguousarray(frame), "BGR8"
+    raise ImageError(f"{path}: unsupported image layout {frame.shape}")
