@@ -142,6 +142,16 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         close = difflib.get_close_matches(str(loc[-1]), names, n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         message = f"unknown key '{loc[-1]}'{hint}; allowed keys here: {allowed}"
+    elif kind == "missing" and isinstance(loc[-1], int):
+        # A fixed-length array (a 3-vector, the four corners) with too few values: pydantic
+        # reports each absent item; say once how many values were wanted.
+        parent = loc[:-1]
+        absent = [e for e in errors if e["type"] == "missing" and tuple(e["loc"][:-1]) == parent]
+        errors = [e for e in errors if e not in absent[1:]]
+        given = first.get("input")
+        count = len(given) if isinstance(given, (list, tuple)) else loc[-1]
+        where = format_location(parent)
+        message = f"needs {count + len(absent)} values, got {count}"
     elif kind == "missing":
         message = "required key is missing"
     elif kind == "union_tag_invalid" or kind == "union_tag_not_found":
