@@ -117,6 +117,15 @@ def _union_member(current: Any, tag: str) -> Any:
     return None
 
 
+def _union_tags(root: type[BaseModel], loc: tuple[int | str, ...], key: str) -> list[str]:
+    """The values of the tag ``key`` that select the members of the tagged union at ``loc``."""
+    owner = _model_at(root, loc)
+    field = owner.model_fields.get(str(loc[-1])) if owner else None
+    members = _unwrap(field.annotation) if field is not None else None
+    members = members if isinstance(members, tuple) else ()
+    return [tag for m in members if key in m.model_fields for tag in get_args(m.model_fields[key].annotation)]
+
+
 def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> str:
     """The first error as ``key.path: what is wrong (allowed ...)``, plus a count of the rest."""
     errors = err.errors(include_url=False)
@@ -154,8 +163,13 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         message = f"needs {count + len(absent)} values, got {count}"
     elif kind == "missing":
         message = "required key is missing"
-    elif kind == "union_tag_invalid" or kind == "union_tag_not_found":
+    elif kind == "union_tag_invalid":
         message = first["msg"].replace("Input tag", "tag").replace("found using", "in key")
+    elif kind == "union_tag_not_found":
+        key = str(first.get("ctx", {}).get("discriminator", "")).strip("'")
+        tags = _union_tags(root, loc, key)
+        allowed = f" (one of {', '.join(repr(t) for t in tags)})" if tags else ""
+        message = f"required key '{key}' is missing; it selects the form{allowed}"
     else:
         message = first["msg"]
         if message.startswith("Value error, "):
