@@ -212,6 +212,11 @@ def load_rig(path: str | Path) -> LoadedRig:
     calibration_path: Path | None = None
     if rig.calibration is not None:
         calibration_path = (rig_path.parent / rig.calibration).resolve()
+        if not calibration_path.exists():
+            raise ConfigError(
+                f"{rig_path}: calibration: {calibration_path}: no such file"
+                " (the path is relative to the rig file)"
+            )
         calibration = load_calibration(calibration_path)
         rig = merge_calibration(rig, calibration, calibration_path)
         for camera_id in calibration.cameras:
