@@ -219,8 +219,15 @@ def load_rig(path: str | Path) -> LoadedRig:
             )
         calibration = load_calibration(calibration_path)
         rig = merge_calibration(rig, calibration, calibration_path)
-        for camera_id in calibration.cameras:
-            sources[camera_id] = f"from {calibration_path.name}"
+        for camera_id, entry in calibration.cameras.items():
+            given = [part for part in ("intrinsics", "extrinsics") if getattr(entry, part) is not None]
+            if len(given) == 2:
+                sources[camera_id] = f"from {calibration_path.name}"
+            elif given:
+                kept = "extrinsics" if given[0] == "intrinsics" else "intrinsics"
+                sources[camera_id] = (
+                    f"{given[0]} from {calibration_path.name}, {kept} inline in {rig_path.name}"
+                )
         if calibration.wall is not None:
             sources["wall"] = f"from {calibration_path.name}"
     for index, cam in enumerate(rig.cameras):
