@@ -1,0 +1,315 @@
+"""load_rig: reading TOML, merging a calibration file, and the one-line errors it raises."""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from pydantic import ValidationError
+
+from trackerd.config.loader import (
+    describe_validation_error,
+    format_location,
+    load_calibration,
+    load_rig,
+    read_toml,
+)
+from trackerd.config.models import (
+    CalibrationFile,
+    OpenCVExtrinsics,
+    OpenCVIntrinsics,
+    PoseExtrinsics,
+    RigConfig,
+)
+from trackerd.errors import ConfigError
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+Edit = Callable[[str, str, str], str]
+Write = Callable[[str, str], Path]
+WITH_CALIBRATION = ('name = "minimal"', 'name = "minimal"\ncalibration = "cal.toml"')
+
+
+def rig_error(data: dict, root: type = RigConfig) -> str:
+    with pytest.raises(ValidationError) as err:
+        root.model_validate(data)
+    return describe_validation_error(err.value, root)
+
+
+# ----------------------------------------------------------------- example rigs
+
+
+@pytest.mark.parametrize("name", ["datawall", "simulated"])
+def test_example_rigs_load_with_everything_inline(name: str) -> None:
+    path = CONFIG_DIR / f"{name}.toml"
+    loaded = load_rig(str(path))
+    assert loaded.path == path
+    assert loaded.calibration_path is None
+    assert loaded.config == RigConfig.model_validate(
+        tomllib.loads(path.read_text(encoding="utf-8"))
+    )
+    assert loaded.sources == {
+        **{cam.id: f"inline in {name}.toml" for cam in loaded.config.cameras},
+        "wall": f"inline in {name}.toml",
+    }
+
+
+# ----------------------------------------------------------------- calibration files
+
+
+def test_calibration_replaces_the_rigs_values_and_keeps_the_rest(
+    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+) -> None:
+    cal_path = write("cal.toml", left_calibration)
+    rig_path = write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION))
+    loaded = load_rig(rig_path)
+    plain = load_rig(write("plain.toml", minimal_rig)).config
+    left, right = loaded.config.cameras
+    expected = load_calibration(cal_path).cameras["left"]
+    assert left.intrinsics == expected.intrinsics
+    assert isinstance(left.intrinsics, OpenCVIntrinsics) and left.intrinsics.fx_px == 550.0
+    assert left.extrinsics == expected.extrinsics and isinstance(left.extrinsics, OpenCVExtrinsics)
+    assert left.model_copy(update={"intrinsics": None, "extrinsics": None}) == plain.cameras[
+        0
+    ].model_copy(update={"intrinsics": None, "extrinsics": None})
+    assert right == plain.cameras[1]
+    assert loaded.config.wall == plain.wall
+    assert loaded.calibration_path == cal_path.resolve()
+    assert loaded.sources == {
+        "left": "from cal.toml",
+        "right": "inline in rig.toml",
+        "wall": "inline in rig.toml",
+    }
+
+
+def test_calibration_path_is_relative_to_the_rig_file_not_the_working_directory(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    edit: Edit,
+    minimal_rig: str,
+    left_calibration: str,
+) -> None:
+    rigs = tmp_path / "site" / "rigs"
+    rigs.mkdir(parents=True)
+    (rigs / "cal.toml").write_text(left_calibration)
+    (rigs / "rig.toml").write_text(edit(minimal_rig, *WITH_CALIBRATION))
+    monkeypatch.chdir(tmp_path)
+    loaded = load_rig("site/rigs/rig.toml")
+    assert loaded.calibration_path == (rigs / "cal.toml").resolve()
+
+
+def test_partial_calibration_names_each_parts_source(
+    write: Write, edit: Edit, minimal_rig: str
+) -> None:
+    # Regression: a calibration entry with only intrinsics was reported as the source of
+    # the camera's whole geometry, and an entry with only provenance as the source too.
+    write(
+        "cal.toml",
+        '[cameras.left]\nintrinsics = { model = "fov", horizontal_fov_deg = 55.0 }\n'
+        '[cameras.right]\ninfo = { note = "not calibrated yet" }\n',
+    )
+    loaded = load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
+    assert loaded.config.cameras[0].intrinsics.horizontal_fov_deg == 55.0
+    assert isinstance(loaded.config.cameras[0].extrinsics, PoseExtrinsics)
+    assert loaded.sources["left"] == "intrinsics from cal.toml, extrinsics inline in rig.toml"
+    assert loaded.sources["right"] == "inline in rig.toml"
+
+
+def test_calibration_can_supply_what_the_rig_leaves_out(
+    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+) -> None:
+    text = edit(minimal_rig, *WITH_CALIBRATION)
+    text = edit(text, 'intrinsics = { model = "fov", horizontal_fov_deg = 60.0 }\n', "")
+    text = edit(
+        text, 'extrinsics = { kind = "pose", position_m = [-0.5, 1.0, 1.5], yaw_deg = 30.0 }\n', ""
+    )
+    write("cal.toml", left_calibration)
+    loaded = load_rig(write("rig.toml", text))
+    assert loaded.sources["left"] == "from cal.toml"
+
+
+def test_camera_missing_geometry_names_the_calibration_file_too(
+    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+) -> None:
+    text = edit(minimal_rig, *WITH_CALIBRATION)
+    text = edit(
+        text, 'extrinsics = { kind = "pose", position_m = [2.5, 1.0, 1.5], yaw_deg = -30.0 }\n', ""
+    )
+    cal = write("cal.toml", left_calibration)
+    rig = write("rig.toml", text)
+    with pytest.raises(ConfigError) as err:
+        load_rig(rig)
+    assert str(err.value) == (
+        f"{rig}: cameras[1] ('right') has no extrinsics; give them in [cameras.extrinsics]"
+        f" or in {cal.resolve()} (a calibration file named by 'calibration')"
+    )
+
+
+def test_wall_from_the_calibration_file(write: Write, edit: Edit, minimal_rig: str) -> None:
+    write("cal.toml", "[wall]\ncorners_m = [[0, 0, 0], [3, 0, 0], [3, 1.5, 0], [0, 1.5, 0]]\n")
+    loaded = load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
+    assert loaded.config.wall.corners_m[2] == (3.0, 1.5, 0.0)
+    assert loaded.config.wall.points_m is None
+    assert loaded.sources["wall"] == "from cal.toml"
+
+
+def test_impossible_wall_in_the_calibration_file_names_that_file(
+    write: Write, edit: Edit, minimal_rig: str
+) -> None:
+    cal = write(
+        "cal.toml", "[wall]\ncorners_m = [[0, 0, 0], [3, 0, 0], [3, 1.5, 0], [0, 1.5, 0.5]]\n"
+    )
+    with pytest.raises(
+        ConfigError, match="^" + str(cal.resolve()) + ": wall: corners_m are not coplanar"
+    ):
+        load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
+
+
+def test_calibration_with_an_unknown_camera(
+    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+) -> None:
+    cal = write("cal.toml", edit(left_calibration, "[cameras.left]", "[cameras.centre]"))
+    cal = write(
+        "cal.toml",
+        edit(cal.read_text(), "[cameras.left.intrinsics]", "[cameras.centre.intrinsics]"),
+    )
+    with pytest.raises(ConfigError) as err:
+        load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
+    assert str(err.value) == (
+        f"{cal.resolve()}: cameras.centre: no camera with this id in the rig"
+        " (the rig has left, right)"
+    )
+
+
+def test_missing_calibration_file(write: Write, edit: Edit, minimal_rig: str) -> None:
+    # Regression: the error named only the calibration path, not the rig that asked for it.
+    rig = write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION))
+    with pytest.raises(ConfigError) as err:
+        load_rig(rig)
+    assert str(err.value) == (
+        f"{rig}: calibration: {rig.parent.resolve() / 'cal.toml'}: no such file"
+        " (the path is relative to the rig file)"
+    )
+
+
+def test_calibration_file_version(write: Write) -> None:
+    path = write("cal.toml", "version = 2\n")
+    with pytest.raises(ConfigError, match=r"cal.toml: version: Input should be 1 \(got 2\)$"):
+        load_calibration(path)
+    assert load_calibration(write("empty.toml", "")) == CalibrationFile()
+
+
+# ----------------------------------------------------------------- reading files
+
+
+def test_read_toml_errors(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"nothing\.toml: no such file$"):
+        read_toml(tmp_path / "nothing.toml")
+    with pytest.raises(ConfigError, match=r"is a directory, expected a TOML file$"):
+        read_toml(tmp_path)
+    (tmp_path / "bad.toml").write_text("a = 1\nb = = 2\n")
+    with pytest.raises(ConfigError, match=r"bad.toml: not valid TOML: .*\(at line 2, column 5\)$"):
+        read_toml(tmp_path / "bad.toml")
+    (tmp_path / "latin1.toml").write_bytes('name = "café"\n'.encode("latin-1"))
+    with pytest.raises(ConfigError, match=r"latin1\.toml: not "):
+        read_toml(tmp_path / "latin1.toml")
+
+
+def test_config_errors_exit_with_code_2() -> None:
+    assert ConfigError.exit_code == 2
+
+
+# ----------------------------------------------------------------- describing errors
+
+
+@pytest.mark.parametrize(
+    ("loc", "text"),
+    [
+        (("cameras", 1, "intrinsics", "opencv", "fx_px"), "cameras[1].intrinsics.fx_px"),
+        (
+            ("cameras", 0, "extrinsics", "pose", "position_m", 2),
+            "cameras[0].extrinsics.position_m[2]",
+        ),
+        (("cameras", "left", "intrinsics", "fov", "model"), "cameras.left.intrinsics.model"),
+        (("wall", "corners_m", 3, 0), "wall.corners_m[3][0]"),
+        (("cameras", "pose"), "cameras.pose"),  # a camera whose id happens to be a tag
+        ((), "(top level)"),
+    ],
+)
+def test_format_location(loc: tuple, text: str) -> None:
+    assert format_location(loc) == text
+
+
+def test_unknown_key_lists_the_allowed_keys_and_a_near_miss() -> None:
+    message = rig_error({"cameras": [], "wall": {}, "pointer": {}, "detectr": {}})
+    assert message.startswith(
+        "detectr: unknown key 'detectr' (did you mean 'detector'?); allowed keys here: "
+    )
+    assert "version, name, calibration, cameras, wall, pointer" in message
+
+
+def test_unknown_key_inside_a_tagged_union_lists_that_forms_keys() -> None:
+    data = {
+        "cameras": {
+            "left": {"extrinsics": {"kind": "opencv", "rvec": [0, 0, 0], "tvec": [0, 0, 0]}}
+        }
+    }
+    message = rig_error(data, CalibrationFile)
+    assert message.startswith(
+        "cameras.left.extrinsics.tvec: unknown key 'tvec' (did you mean 'tvec_m'?);"
+        " allowed keys here: kind, rvec, rotation_matrix, tvec_m"
+    )
+
+
+def test_failed_items_are_not_counted_twice() -> None:
+    # Regression: pydantic adds "cameras: too short after validation, not 0" when every
+    # camera fails, which made the line end "(and 2 more problems)" for two.
+    minimal = {"width_px": 0, "height_px": 480, "pixel_format": "RGB8"}
+    message = rig_error(
+        {
+            "cameras": [{"id": "a", **minimal}, {"id": "b", **minimal}],
+            "wall": {"corners_m": [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]},
+            "pointer": {"length_m": 0.45, "end_diameter_m": 0.04},
+        }
+    )
+    assert (
+        message
+        == "cameras[0].width_px: Input should be greater than 0 (got 0) (and 1 more problem)"
+    )
+
+
+def test_too_few_cameras_is_still_reported() -> None:
+    message = rig_error(
+        {
+            "cameras": [],
+            "wall": {"corners_m": [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]},
+            "pointer": {"length_m": 0.45, "end_diameter_m": 0.04},
+        }
+    )
+    assert message.startswith("cameras: Tuple should have at least 2 items")
+
+
+def test_short_vector_says_how_many_values() -> None:
+    # Regression: this read "position_m[2]: required key is missing".
+    data = {"cameras": {"left": {"extrinsics": {"kind": "pose", "position_m": [1.0, 2.0]}}}}
+    assert (
+        rig_error(data, CalibrationFile)
+        == "cameras.left.extrinsics.position_m: needs 3 values, got 2"
+    )
+    data = {"wall": {"corners_m": [[0, 0, 0], [1, 0, 0]]}}
+    assert rig_error(data, CalibrationFile) == "wall.corners_m: needs 4 values, got 2"
+
+
+def test_missing_form_tag_says_which_forms_exist() -> None:
+    # Regression: this read "Unable to extract tag using discriminator 'kind'".
+    data = {"cameras": {"left": {"extrinsics": {"position_m": [1.0, 2.0, 3.0]}}}}
+    assert rig_error(data, CalibrationFile) == (
+        "cameras.left.extrinsics: required key 'kind' is missing;"
+        " it selects the form (one of 'pose', 'opencv')"
+    )
+    data = {"cameras": {"left": {"intrinsics": {"model": "pinhole"}}}}
+    assert rig_error(data, CalibrationFile) == (
+        "cameras.left.intrinsics: tag 'pinhole' in key 'model' does not match any of the"
+        " expected tags: 'fov', 'opencv'"
+    )
