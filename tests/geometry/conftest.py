@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from trackerd.config.loader import LoadedRig, load_rig
+from trackerd.config.loader import load_rig
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
 
@@ -27,14 +27,9 @@ def example_rig_cameras() -> dict[str, list[CameraModel]]:
 
 
 @pytest.fixture(scope="session")
-def simulated_rig() -> LoadedRig:
-    return load_rig(CONFIG_DIR / "simulated.toml")
-
-
-@pytest.fixture(scope="session")
-def simulated_cameras(simulated_rig: LoadedRig) -> list[CameraModel]:
+def simulated_cameras(example_rig_cameras: dict[str, list[CameraModel]]) -> list[CameraModel]:
     """Both cameras of config/simulated.toml (OpenCV lenses with distortion)."""
-    return [CameraModel.from_config(cam) for cam in simulated_rig.config.cameras]
+    return example_rig_cameras["simulated"]
 
 
 @pytest.fixture(scope="session")
