@@ -1,0 +1,348 @@
+"""The ZeroMQ publisher: an XPUB socket fed by a C-level proxy, with a last-value cache for ``status``.
+
+Threads and sockets (all in one ZeroMQ context owned by the publisher)::
+
+    caller's thread            proxy thread (libzmq, no GIL)           network
+    inlet PUB  --inproc-->  frontend XSUB ==zmq_proxy==> backend XPUB  --> subscribers
+    last-value thread:      lvc PUB --inproc--^      |
+                            capture SUB <--inproc-- capture PUB (statuses and subscriptions only)
+
+ZeroMQ sockets are not thread-safe and a late joiner must get the current status
+even while the pipeline is idle, so the network socket belongs to a proxy
+thread. The proxy runs inside libzmq without holding the GIL, so forwarding
+never waits for the pipeline's Python code. The last-value thread sees every
+status and every subscription (through the proxy's capture socket, filtered to
+those two) and answers a new subscription that covers ``status`` by sending the
+last status again through its own PUB into the proxy. docs/protocol.md, "Late
+joiners", says why this was preferred to a request socket.
+
+Never blocking: the inlet is a PUB with XPUB_NODROP, so a full hand-over queue
+makes a non-blocking send fail (counted as dropped) instead of blocking; a full
+subscriber queue (``send_hwm_messages``) drops that subscriber's messages
+inside ZeroMQ and touches nobody else.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import os
+import stat
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from types import TracebackType
+
+import zmq
+import zmq.auth
+from zmq.auth.thread import ThreadAuthenticator
+
+from trackerd.config.models import ZmqOutput
+from trackerd.errors import ConfigError, TrackerdError
+from trackerd.publish.messages import Message, StatusMessage, encode
+
+log = logging.getLogger(__name__)
+
+STATUS_TOPIC = b"status"
+_POLL_MS = 200
+_pipe_ids = itertools.count()
+
+
+class PublishError(TrackerdError):
+    """The publisher cannot bind its endpoints or is used after it was closed."""
+
+
+def load_curve_key_pair(path: Path) -> tuple[bytes, bytes]:
+    """(public, secret) Z85 keys from a ``.key_secret`` file; ConfigError when unusable or exposed."""
+    try:
+        mode = path.stat().st_mode
+        public, secret = zmq.auth.load_certificate(os.fspath(path))
+    except FileNotFoundError as err:
+        raise ConfigError(f"{path}: no such CURVE key file (make one with `trackerd keys server`)") from err
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read CURVE key file: {err.strerror}") from err
+    except ValueError as err:
+        raise ConfigError(f"{path}: not a CURVE key file ({err})") from err
+    if not secret:
+        raise ConfigError(f"{path}: holds a public key only; give the .key_secret file")
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        raise ConfigError(
+            f"{path}: secret key is accessible to other users (mode {stat.S_IMODE(mode):04o}); chmod 600 it"
+        )
+    return public, secret
+
+
+def load_curve_public_key(path: Path) -> bytes:
+    """The public key from a ``.key`` (or ``.key_secret``) file; ConfigError when unusable."""
+    try:
+        public, _ = zmq.auth.load_certificate(os.fspath(path))
+    except FileNotFoundError as err:
+        raise ConfigError(f"{path}: no such CURVE key file") from err
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read CURVE key file: {err.strerror}") from err
+    except ValueError as err:
+        raise ConfigError(f"{path}: not a CURVE key file ({err})") from err
+    return public
+
+
+def _authorized_keys_dir(path: Path) -> Path:
+    if not path.is_dir():
+        raise ConfigError(f"{path}: curve_authorized_keys_dir is not a directory")
+    if not any(path.glob("*.key")):
+        raise ConfigError(f"{path}: no client public keys (*.key) in curve_authorized_keys_dir; nobody could subscribe")
+    return path
+
+
+class Publisher:
+    """Binds the configured endpoints and publishes messages; use from one thread only.
+
+    ``clock`` gives ``publish_ns`` (nanoseconds since the UNIX epoch by default).
+    Raises ConfigError for an insecure or unusable CURVE setup and PublishError
+    when an endpoint cannot be bound; either way nothing is left running.
+    """
+
+    def __init__(self, config: ZmqOutput, clock: Callable[[], int] = time.time_ns) -> None:
+        exposed = config.insecure_endpoints()
+        if exposed:
+            raise ConfigError(
+                f"outputs.zmq.endpoints: {', '.join(exposed)} is reachable from the network; set"
+                " curve_secret_key_file or allow_insecure_network = true"
+            )
+        if config.curve_secret_key_file is not None and not zmq.has("curve"):
+            raise ConfigError("outputs.zmq.curve_secret_key_file: this libzmq was built without CURVE")
+        self.config = config
+        self._clock = clock
+        self._counts: dict[str, int] = {}
+        self._dropped = 0
+        self._closed = False
+        self._auth: ThreadAuthenticator | None = None
+        self._statuses_sent = 0
+        keys = None
+        if config.curve_secret_key_file is not None:
+            keys = load_curve_key_pair(config.curve_secret_key_file)
+            if config.curve_authorized_keys_dir is not None:
+                _authorized_keys_dir(config.curve_authorized_keys_dir)
+        self._context = zmq.Context()
+        self._lvc = _LastValue(self._context)
+        base = f"inproc://trackerd-publisher-{os.getpid()}-{next(_pipe_ids)}"
+        try:
+            if keys is not None:
+                self._start_authenticator()
+            xpub = self._bind(keys)
+            sockets = self._wire(base, xpub)
+        except BaseException:
+            self._context.destroy(linger=0)
+            if self._auth is not None:
+                self._auth.stop()
+            raise
+        # Thread start is a full memory barrier, which is what moving a ZeroMQ socket to
+        # another thread needs: from here on the proxy's sockets belong to the proxy thread.
+        self._proxy = threading.Thread(target=_run_proxy, args=sockets, name="trackerd-zmq-proxy", daemon=True)
+        self._proxy.start()
+        self._lvc.start()
+
+    def _wire(self, base: str, xpub: zmq.Socket) -> tuple[zmq.Socket, ...]:
+        """Create and connect the inproc sockets; returns the proxy thread's sockets."""
+        hwm = self.config.send_hwm_messages
+        frontend = self._context.socket(zmq.XSUB)
+        frontend.setsockopt(zmq.RCVHWM, hwm)
+        frontend.bind(f"{base}-in")
+        # The proxy's own subscription: statuses always reach the capture (the last-value cache),
+        # other topics only while someone subscribes. XSUB counts subscriptions per prefix, so a
+        # departing status subscriber cannot cancel this one.
+        frontend.send(b"\x01" + STATUS_TOPIC)
+        capture = self._context.socket(zmq.PUB)
+        capture.bind(f"{base}-capture")
+        control = self._context.socket(zmq.PAIR)
+        control.bind(f"{base}-control")
+        self._control = self._context.socket(zmq.PAIR)
+        self._control.setsockopt(zmq.LINGER, 0)
+        self._control.connect(f"{base}-control")
+        self._inlet = self._context.socket(zmq.PUB)
+        self._inlet.setsockopt(zmq.SNDHWM, hwm)
+        self._inlet.setsockopt(zmq.XPUB_NODROP, 1)
+        self._inlet.setsockopt(zmq.LINGER, 0)
+        self._inlet.connect(f"{base}-in")
+        self._lvc.connect(f"{base}-capture", f"{base}-in")
+        return frontend, xpub, capture, control
+
+    def _start_authenticator(self) -> None:
+        self._auth = ThreadAuthenticator(self._context, log=logging.getLogger("trackerd.publish.auth"))
+        self._auth.start()
+        self.reload_authorized_keys()
+
+    def reload_authorized_keys(self) -> None:
+        """Read curve_authorized_keys_dir again (after SIGHUP, say); no-op without CURVE."""
+        if self._auth is None:
+            return
+        directory = self.config.curve_authorized_keys_dir
+        if directory is None:
+            self._auth.configure_curve(domain="*", location=zmq.auth.CURVE_ALLOW_ANY)
+        else:
+            self._auth.configure_curve(domain="*", location=os.fspath(_authorized_keys_dir(directory)))
+
+    def _bind(self, keys: tuple[bytes, bytes] | None) -> zmq.Socket:
+        xpub = self._context.socket(zmq.XPUB)
+        xpub.setsockopt(zmq.SNDHWM, self.config.send_hwm_messages)
+        xpub.setsockopt(zmq.LINGER, self.config.linger_ms)
+        # Pass every subscription and unsubscription upstream, so a second status subscriber is
+        # seen (and answered) too, and the frontend's per-prefix counts stay balanced.
+        xpub.setsockopt(zmq.XPUB_VERBOSER, 1)
+        # A dead TCP peer would otherwise keep its queue until the kernel gives up (hours).
+        xpub.setsockopt(zmq.HEARTBEAT_IVL, 2000)
+        xpub.setsockopt(zmq.HEARTBEAT_TIMEOUT, 6000)
+        if keys is not None:
+            xpub.setsockopt(zmq.CURVE_SERVER, 1)
+            xpub.setsockopt(zmq.CURVE_PUBLICKEY, keys[0])
+            xpub.setsockopt(zmq.CURVE_SECRETKEY, keys[1])
+        self.endpoints: list[str] = []
+        """The bound endpoints, with the port chosen for ``*``."""
+        for endpoint in self.config.endpoints:
+            try:
+                xpub.bind(endpoint)
+            except zmq.ZMQError as err:
+                raise PublishError(f"outputs.zmq.endpoints: cannot bind {endpoint}: {err.strerror}") from err
+            self.endpoints.append(xpub.getsockopt_string(zmq.LAST_ENDPOINT))
+        return xpub
+
+    # ------------------------------------------------------------------ publishing
+
+    def publish(self, message: Message) -> bool:
+        """Stamp ``publish_ns`` and send; never blocks. False when the message was dropped (queue full)."""
+        if self._closed:
+            raise PublishError("the publisher is closed")
+        stamped = message.model_copy(update={"publish_ns": self._clock()})
+        return self._send(*encode(stamped))
+
+    def publish_status(self, message: StatusMessage) -> bool:
+        """Publish a status with the publisher's counters filled in; it becomes the last value for late joiners."""
+        if self._closed:
+            raise PublishError("the publisher is closed")
+        counts = dict(self._counts)
+        counts["status"] = counts.get("status", 0) + 1
+        stamped = message.model_copy(
+            update={"publish_ns": self._clock(), "messages": counts, "dropped_messages": self._dropped}
+        )
+        return self._send(*encode(stamped))
+
+    def _send(self, topic: bytes, payload: bytes) -> bool:
+        try:
+            self._inlet.send_multipart((topic, payload), flags=zmq.NOBLOCK)
+        except zmq.Again:
+            self._dropped += 1
+            return False
+        name = topic.decode("ascii")
+        self._counts[name] = self._counts.get(name, 0) + 1
+        if topic == STATUS_TOPIC:
+            self._statuses_sent += 1
+        return True
+
+    def clock_ns_from_monotonic(self, monotonic_ns: int) -> int:
+        """A ``time.monotonic_ns()`` instant (a frame's capture time) on the publisher's clock."""
+        return self._clock() - (time.monotonic_ns() - monotonic_ns)
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages handed to ZeroMQ since start, by topic."""
+        return dict(self._counts)
+
+    @property
+    def dropped(self) -> int:
+        """Messages dropped because the hand-over queue was full."""
+        return self._dropped
+
+    # ------------------------------------------------------------------ lifetime
+
+    def close(self) -> None:
+        """Flush the last status (for at most ``linger_ms``), unbind and stop every thread; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        linger_s = self.config.linger_ms / 1000.0
+        # The final status (``stopping``) should reach subscribers: wait until the proxy has passed it on.
+        self._lvc.wait_for_statuses(self._statuses_sent, timeout_s=linger_s)
+        self._control.send(b"TERMINATE")
+        self._proxy.join(timeout=linger_s + 2.0)
+        self._lvc.stop()
+        self._control.close()
+        self._inlet.close()
+        if self._auth is not None:
+            self._auth.stop()
+        if self._proxy.is_alive():
+            log.error("the ZeroMQ proxy thread did not stop; leaving its context open")
+            return
+        self._context.term()
+
+    def __enter__(self) -> Publisher:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+def _run_proxy(frontend: zmq.Socket, xpub: zmq.Socket, capture: zmq.Socket, control: zmq.Socket) -> None:
+    """The proxy thread: libzmq forwards frontend -> XPUB (and subscriptions back) until TERMINATE."""
+    try:
+        zmq.proxy_steerable(frontend, xpub, capture, control)
+    except zmq.ContextTerminated:
+        pass
+    finally:
+        for sock in (frontend, capture, control):
+            sock.close(linger=0)
+        xpub.close()  # with the configured linger: queued messages still go out
+
+
+class _LastValue:
+    """The last-value thread: keeps the last status and sends it again to each new status subscriber."""
+
+    def __init__(self, context: zmq.Context) -> None:
+        self._sub = context.socket(zmq.SUB)
+        self._pub = context.socket(zmq.PUB)
+        self._stop = threading.Event()
+        self._seen = threading.Condition()
+        self._statuses = 0
+        self._thread = threading.Thread(target=self._run, name="trackerd-zmq-last-value", daemon=True)
+
+    def connect(self, capture: str, frontend: str) -> None:
+        self._sub.setsockopt(zmq.LINGER, 0)
+        self._sub.subscribe(b"\x01")  # subscription events (a single frame: 1 + prefix)
+        self._sub.subscribe(STATUS_TOPIC)
+        self._sub.connect(capture)
+        self._pub.setsockopt(zmq.LINGER, 0)
+        self._pub.connect(frontend)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def wait_for_statuses(self, count: int, timeout_s: float) -> None:
+        """Block until ``count`` statuses went through the proxy, or the timeout passes."""
+        with self._seen:
+            self._seen.wait_for(lambda: self._statuses >= count, timeout=timeout_s)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=_POLL_MS / 1000.0 + 2.0)
+
+    def _run(self) -> None:
+        last: list[bytes] | None = None
+        try:
+            while not self._stop.is_set():
+                if not self._sub.poll(_POLL_MS):
+                    continue
+                parts = self._sub.recv_multipart()
+                if parts[0] == STATUS_TOPIC:
+                    if parts != last:  # our own repeat comes back through the capture too
+                        last = parts
+                        with self._seen:
+                            self._statuses += 1
+                            self._seen.notify_all()
+                elif STATUS_TOPIC.startswith(parts[0][1:]) and last is not None:
+                    self._pub.send_multipart(last, flags=zmq.NOBLOCK)
+        except zmq.ContextTerminated:
+            pass
+        finally:
+            self._sub.close(linger=0)
+            self._pub.close(linger=0)
