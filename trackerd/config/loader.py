@@ -18,7 +18,7 @@ from typing import Any, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
-from trackerd.config.models import CalibrationFile, RigConfig
+from trackerd.config.models import CalibrationFile, CameraConfig, RigConfig
 from trackerd.errors import ConfigError
 
 
@@ -123,7 +123,11 @@ def _union_tags(root: type[BaseModel], loc: tuple[int | str, ...], key: str) -> 
     field = owner.model_fields.get(str(loc[-1])) if owner else None
     members = _unwrap(field.annotation) if field is not None else None
     members = members if isinstance(members, tuple) else ()
-    return [tag for m in members if key in m.model_fields for tag in get_args(m.model_fields[key].annotation)]
+    tags: list[str] = []
+    for member in members:
+        if key in member.model_fields:
+            tags += get_args(member.model_fields[key].annotation)
+    return tags
 
 
 def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> str:
@@ -132,12 +136,13 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
     # pydantic also reports a tuple whose items failed as too short ("... after validation,
     # not 0"); that follows from the item errors and is not a problem of its own.
     locs = [tuple(e["loc"]) for e in errors]
-    errors = [
-        e for e in errors
-        if not (e["type"] == "too_short" and any(
-            len(other) > len(e["loc"]) and other[: len(e["loc"])] == tuple(e["loc"]) for other in locs
-        ))
-    ] or errors
+
+    def echoes_items(e: Any) -> bool:
+        loc = tuple(e["loc"])
+        inner = [o for o in locs if len(o) > len(loc) and o[: len(loc)] == loc]
+        return e["type"] == "too_short" and bool(inner)
+
+    errors = [e for e in errors if not echoes_items(e)] or errors
     # A misspelt key also shows up as the real key "missing"; report the misspelling first.
     errors.sort(key=lambda e: e["type"] != "extra_forbidden")
     first = errors[0]
@@ -220,7 +225,7 @@ def load_rig(path: str | Path) -> LoadedRig:
         calibration = load_calibration(calibration_path)
         rig = merge_calibration(rig, calibration, calibration_path)
         for camera_id, entry in calibration.cameras.items():
-            given = [part for part in ("intrinsics", "extrinsics") if getattr(entry, part) is not None]
+            given = [part for part in ("intrinsics", "extrinsics") if getattr(entry, part)]
             if len(given) == 2:
                 sources[camera_id] = f"from {calibration_path.name}"
             elif given:
@@ -239,7 +244,53 @@ def load_rig(path: str | Path) -> LoadedRig:
                     f" [cameras.{part}]{where} (a calibration file named by 'calibration')"
                 )
     _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
+    for index, cam in enumerate(rig.cameras):
+        from_calibration = sources[cam.id].startswith(("from ", "intrinsics from "))
+        if from_calibration:
+            _check_lens(cam, f"{calibration_path}: cameras.{cam.id}")
+        else:
+            _check_lens(cam, f"{rig_path}: cameras[{index}]")
     return LoadedRig(rig, rig_path, calibration_path, sources)
+
+
+MAX_LENS_INVERSION_PX = 0.01
+"""A pixel taken to its ray and projected back must land this close to where it started."""
+
+
+def _check_lens(cam: CameraConfig, where: str) -> None:
+    """Refuse a distortion model that cannot be inverted out to the image's edges.
+
+    A calibration fitted without points near the corners can fold over there (the
+    distorted radius stops growing with the true radius); the rays trackerd finds for
+    those pixels would then be silently wrong. Walk the image border and check that
+    pixel -> ray -> pixel comes back.
+    """
+    import numpy as np
+
+    from trackerd.geometry.camera import CameraModel
+
+    model = CameraModel.from_config(cam)
+    if not model.has_distortion:
+        return
+    w, h = cam.width_px - 0.5, cam.height_px - 0.5
+    steps = np.linspace(0.0, 1.0, 65)
+    border = np.vstack([
+        np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, -0.5)]),
+        np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, h)]),
+        np.column_stack([np.full(65, -0.5), -0.5 + steps * (h + 0.5)]),
+        np.column_stack([np.full(65, w), -0.5 + steps * (h + 0.5)]),
+    ])
+    origins, directions = model.pixel_to_ray(border)
+    miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
+    miss = np.where(np.isfinite(miss), miss, np.inf)
+    worst = int(np.argmax(miss))
+    if miss[worst] > MAX_LENS_INVERSION_PX:
+        u, v = border[worst]
+        raise ConfigError(
+            f"{where}.intrinsics.distortion: the lens model folds over near the image edge: the ray"
+            f" for pixel ({u:.1f}, {v:.1f}) projects back {miss[worst]:.3g} px away, so the"
+            " calibration does not hold out to the corners (calibrate with the board near them)"
+        )
 
 
 def _check_geometry(rig: RigConfig, wall_path: Path | None) -> None:
