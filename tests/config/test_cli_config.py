@@ -343,6 +343,14 @@ RIG_EDITS = [
         ["colinear"],
     ),
     (
+        "folding_lens",
+        'intrinsics = { model = "fov", horizontal_fov_deg = 60.0 }',
+        'intrinsics = { model = "opencv", fx_px = 333.0, fy_px = 333.0, cx_px = 319.5,'
+        " cy_px = 239.5, distortion = [-0.3, 0.12, 0.001, -0.001, -0.02] }",
+        "cameras[0].intrinsics.distortion: the lens model folds over near the image edge",
+        ["calibration does not hold out to the corners"],
+    ),
+    (
         "no_intrinsics_and_no_calibration_file",
         'intrinsics = { model = "fov", horizontal_fov_deg = 60.0 }\n',
         "",

@@ -166,6 +166,28 @@ def test_impossible_wall_in_the_calibration_file_names_that_file(
         load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
 
 
+def test_lens_that_folds_before_the_image_corners_is_refused(
+    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+) -> None:
+    # Regression: a calibration whose distortion polynomial turns back before the image
+    # corners (so no ray reaches them) gave rays there that were silently wrong, by 56-116 px
+    # for this lens; config check accepted it.
+    folding = edit(left_calibration, "fx_px = 550.0\nfy_px = 551.0", "fx_px = 333.3\nfy_px = 333.3")
+    folding = edit(folding, "[-0.05, 0.01, 0.0, 0.0]", "[-0.3, 0.12, 0.001, -0.001, -0.02]")
+    cal = write("cal.toml", folding)
+    rig = write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION))
+    with pytest.raises(ConfigError) as err:
+        load_rig(rig)
+    assert str(err.value).startswith(
+        f"{cal.resolve()}: cameras.left.intrinsics.distortion:"
+        " the lens model folds over near the image edge"
+    )
+    # With a larger k2 the same lens does not fold: accepted, though it moves its corners
+    # by about 75 px.
+    write("cal.toml", edit(folding, "[-0.3, 0.12,", "[-0.3, 0.15,"))
+    assert load_rig(rig).sources["left"] == "from cal.toml"
+
+
 def test_calibration_with_an_unknown_camera(
     write: Write, edit: Edit, minimal_rig: str, left_calibration: str
 ) -> None:
