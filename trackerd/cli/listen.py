@@ -1,0 +1,227 @@
+"""`trackerd listen`: subscribe to a running trackerd and print what it publishes.
+
+One line per message, for operators and application developers::
+
+    hit      #1234  x 1.234 m  y 0.567 m  (2951, 733 px)  on wall  +-1.8 mm  gap 0.9 mm
+
+or, with --json, each payload as one JSON line (pipe it into jq). CURVE keys come
+from --server-key/--client-key or from the rig file given with --config.
+Exit status: 0 after --count messages or on Ctrl-C; 1 when --timeout passes
+without a message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import zmq
+
+from trackerd.config.loader import load_rig
+from trackerd.errors import ConfigError, TrackerdError
+from trackerd.publish.messages import SCHEMA_MAJOR, TOPICS
+from trackerd.publish.publisher import load_curve_key_pair, load_curve_public_key
+
+DEFAULT_ENDPOINT = "tcp://127.0.0.1:5560"
+
+
+class ListenTimeout(TrackerdError):
+    """Nothing arrived within --timeout."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "listen",
+        help="subscribe to trackerd's messages and print them",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--endpoint", help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})")
+    parser.add_argument("--config", help="rig TOML file: take the endpoint and the server's CURVE key from it")
+    parser.add_argument("--topic", action="append", metavar="T",
+                        help=f"only this topic (repeatable; default: all). Topics: {', '.join(TOPICS)}")
+    parser.add_argument("--count", type=int, metavar="N", help="exit after N messages")
+    parser.add_argument("--json", action="store_true", help="print each payload as one JSON line")
+    parser.add_argument("--timeout", type=float, metavar="S",
+                        help="exit 1 if S seconds pass without a message")
+    parser.add_argument("--server-key", metavar="FILE", help="the daemon's CURVE public key (server.key)")
+    parser.add_argument("--client-key", metavar="FILE",
+                        help="this subscriber's CURVE key pair (.key_secret); default: a throwaway pair,"
+                             " enough when the daemon accepts any client")
+    parser.set_defaults(handler=listen_command)
+
+
+def listen_command(args: argparse.Namespace) -> int:
+    if args.count is not None and args.count < 1:
+        raise ConfigError("--count must be 1 or more")
+    if args.timeout is not None and args.timeout <= 0:
+        raise ConfigError("--timeout must be a positive number of seconds")
+    endpoint, server_key = _target(args)
+    context = zmq.Context()
+    sub = context.socket(zmq.SUB)
+    sub.setsockopt(zmq.LINGER, 0)
+    try:
+        if server_key is not None:
+            client = load_curve_key_pair(Path(args.client_key)) if args.client_key else zmq.curve_keypair()
+            sub.setsockopt(zmq.CURVE_SERVERKEY, server_key)
+            sub.setsockopt(zmq.CURVE_PUBLICKEY, client[0])
+            sub.setsockopt(zmq.CURVE_SECRETKEY, client[1])
+        elif args.client_key:
+            raise ConfigError("--client-key needs --server-key (or a --config with curve_secret_key_file)")
+        for topic in args.topic or [""]:
+            sub.setsockopt(zmq.SUBSCRIBE, topic.encode("ascii"))
+        try:
+            sub.connect(endpoint)
+        except zmq.ZMQError as err:
+            raise ConfigError(f"--endpoint {endpoint}: {err.strerror}") from err
+        return _receive(sub, args, endpoint)
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        sub.close()
+        context.term()
+
+
+def _target(args: argparse.Namespace) -> tuple[str, bytes | None]:
+    """Endpoint and server public key from the options, falling back on the rig file."""
+    endpoint, server_key = args.endpoint, None
+    if args.config:
+        zmq_config = load_rig(args.config).config.outputs.zmq
+        if endpoint is None:
+            endpoint = _connectable(zmq_config.endpoints[0])
+        if zmq_config.curve_secret_key_file is not None and not args.server_key:
+            secret = Path(zmq_config.curve_secret_key_file)
+            public = secret.with_suffix(".key") if secret.suffix == ".key_secret" else secret
+            server_key = load_curve_public_key(public if public.exists() else secret)
+    if args.server_key:
+        server_key = load_curve_public_key(Path(args.server_key))
+    return endpoint or DEFAULT_ENDPOINT, server_key
+
+
+def _connectable(endpoint: str) -> str:
+    """A bind endpoint as a local subscriber connects to it ('*' and 0.0.0.0 mean this host)."""
+    for wildcard in ("tcp://*:", "tcp://0.0.0.0:"):
+        if endpoint.startswith(wildcard):
+            return "tcp://127.0.0.1:" + endpoint[len(wildcard):]
+    if endpoint.startswith("tcp://[::]:"):
+        return "tcp://[::1]:" + endpoint[len("tcp://[::]:"):]
+    return endpoint
+
+
+def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str) -> int:
+    received = 0
+    warned_version = False
+    last_message = time.monotonic()
+    while args.count is None or received < args.count:
+        # A short poll keeps Ctrl-C responsive and lets the timeout be checked.
+        if not sub.poll(200):
+            if args.timeout is not None and time.monotonic() - last_message > args.timeout:
+                raise ListenTimeout(
+                    f"no message from {endpoint} within {args.timeout:g} s"
+                    " (is trackerd running there, publishing these topics, with matching CURVE keys?)"
+                )
+            continue
+        frames = sub.recv_multipart()
+        last_message = time.monotonic()
+        received += 1
+        topic = frames[0].decode("ascii", errors="replace")
+        payload = frames[1] if len(frames) > 1 else b""
+        if args.json:
+            print(payload.decode("utf-8", errors="replace"), flush=True)
+            continue
+        try:
+            data = json.loads(payload)
+        except ValueError:
+            print(f"{topic:<8} (payload is not JSON: {payload[:60]!r})", flush=True)
+            continue
+        version = str(data.get("schema_version", "?"))
+        if version.split(".")[0] != str(SCHEMA_MAJOR) and not warned_version:
+            print(f"trackerd listen: messages are schema {version}; this trackerd reads {SCHEMA_MAJOR}.x,"
+                  " so fields may be missing below", file=sys.stderr)
+            warned_version = True
+        print(format_message(topic, data), flush=True)
+    return 0
+
+
+# --------------------------------------------------------------------------- formatting
+
+
+def format_message(topic: str, data: dict[str, Any]) -> str:
+    """One readable line for a message; tolerant of missing and unknown fields."""
+    head = f"{topic:<8} #{data.get('sequence', '?')}"
+    formatter = {"hit": _hit, "pointer": _pointer, "status": _status}.get(topic)
+    if formatter is None:
+        envelope = {"schema_version", "topic", "sequence", "capture_ns", "publish_ns"}
+        rest = {k: v for k, v in data.items() if k not in envelope}
+        return f"{head}  {json.dumps(rest, separators=(',', ':'))}"
+    try:
+        return f"{head}  {formatter(data)}"
+    except (TypeError, ValueError, KeyError, IndexError):
+        return f"{head}  {json.dumps(data, separators=(',', ':'))}"
+
+
+def _num(value: Any, fmt: str, unit: str = "") -> str:
+    return "?" if value is None else f"{value:{fmt}}{unit}"
+
+
+def _hit(d: dict[str, Any]) -> str:
+    parts = [f"x {_num(d.get('wall_x_m'), '.3f', ' m')}", f"y {_num(d.get('wall_y_m'), '.3f', ' m')}"]
+    if d.get("display_x_px") is not None and d.get("display_y_px") is not None:
+        parts.append(f"({d['display_x_px']:.0f}, {d['display_y_px']:.0f} px)")
+    parts.append("on wall" if d.get("on_wall") else "off wall")
+    if d.get("uncertainty_mm") is not None:
+        parts.append(f"+-{d['uncertainty_mm']:.1f} mm")
+    parts.append(f"gap {_num(d.get('ray_gap_mm'), '.1f', ' mm')}")
+    return "  ".join(parts)
+
+
+def _vec(values: Any) -> str:
+    return "(" + ", ".join(f"{v:.3f}" for v in values) + ")"
+
+
+def _pointer(d: dict[str, Any]) -> str:
+    return "  ".join([
+        str(d.get("status", "?")),
+        f"front {_vec(d['front_m'])} m",
+        f"back {_vec(d['back_m'])} m",
+        f"length {d['length_m'] * 1000:.0f} mm",
+        f"gaps {_num(d.get('front_gap_mm'), '.1f')}/{_num(d.get('back_gap_mm'), '.1f')} mm",
+    ])
+
+
+def _status(d: dict[str, Any]) -> str:
+    parts = [str(d.get("state", "?")), f"up {_duration(d.get('uptime_s'))}"]
+    for cam in d.get("cameras", []):
+        text = f"{cam.get('id', '?')} {cam.get('state', '?')} {_num(cam.get('frame_rate_hz'), '.1f', ' Hz')}"
+        drops = sum((cam.get("dropped") or {}).values())
+        if drops:
+            text += f" drops {drops}"
+        parts.append(text)
+    pairing = d.get("pairing") or {}
+    text = f"pairs {_num(pairing.get('pair_rate_hz'), '.1f', ' Hz')}"
+    if pairing.get("skew_p99_us") is not None:
+        text += f" skew p99 {pairing['skew_p99_us']:.0f} us"
+    parts.append(text)
+    latency = d.get("latency") or {}
+    if latency.get("samples"):
+        parts.append(f"latency p50 {_num(latency.get('p50_ms'), '.1f')} p99 {_num(latency.get('p99_ms'), '.1f')} ms")
+    if d.get("version"):
+        parts.append(f"v{d['version']}")
+    if d.get("detail"):
+        parts.append(f"({d['detail']})")
+    return "  ".join(parts)
+
+
+def _duration(seconds: Any) -> str:
+    if seconds is None:
+        return "?"
+    seconds = int(seconds)
+    if seconds < 120:
+        return f"{seconds} s"
+    if seconds < 7200:
+        return f"{seconds // 60} min"
+    return f"{seconds // 3600} h {seconds % 3600 // 60} min"
