@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from trackerd.cli.main import main
 from trackerd.config.loader import load_rig
 from trackerd.config.models import PointerConfig
 
@@ -124,14 +123,14 @@ def test_calibration_values_replace_the_rig_and_the_source_is_named(
 
 
 def test_a_calibration_file_may_replace_the_wall(
-    run_check: RunCheck, write: Write, edit: Edit, minimal_rig: str
+    check_in_process: RunCheck, write: Write, edit: Edit, minimal_rig: str
 ) -> None:
     write("cal.toml", "[wall]\ncorners_m = [[0, 0, 0], [3, 0, 0], [3, 1.5, 0], [0, 1.5, 0]]\n")
     write(
         "rig.toml",
         edit(minimal_rig, 'name = "minimal"', 'name = "minimal"\ncalibration = "cal.toml"'),
     )
-    resolved = json.loads(run_check("rig.toml", "--json").stdout)
+    resolved = json.loads(check_in_process("rig.toml", "--json").stdout)
     assert resolved["wall"]["source"] == "from cal.toml"
     assert resolved["wall"]["size_m"] == pytest.approx([3.0, 1.5])
     assert [c["source"] for c in resolved["cameras"]] == ["inline in rig.toml"] * 2
@@ -372,15 +371,7 @@ IN_A_SUBPROCESS = {
     "non_coplanar_corners",
     "colinear_wall_points",
     "no_intrinsics_and_no_calibration_file",
-    "not_a_number",
 }
-
-
-def run_in_process(file: str, capsys: pytest.CaptureFixture[str]) -> CliRun:
-    """The same entry point as the `trackerd` script, called directly."""
-    code = main(["config", "check", file])
-    captured = capsys.readouterr()
-    return subprocess.CompletedProcess([], code, captured.out, captured.err)
 
 
 @pytest.mark.parametrize(
@@ -389,12 +380,10 @@ def run_in_process(file: str, capsys: pytest.CaptureFixture[str]) -> CliRun:
 )
 def test_bad_rig_gives_one_line_naming_file_and_key(
     run_check: RunCheck,
+    check_in_process: RunCheck,
     write: Write,
     edit: Edit,
     minimal_rig: str,
-    tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,
-    capsys: pytest.CaptureFixture[str],
     case: str,
     old: str,
     new: str,
@@ -402,11 +391,7 @@ def test_bad_rig_gives_one_line_naming_file_and_key(
     fragments: list[str],
 ) -> None:
     write("rig.toml", edit(minimal_rig, old, new))
-    if case in IN_A_SUBPROCESS:
-        run = run_check("rig.toml")
-    else:
-        monkeypatch.chdir(tmp_path)
-        run = run_in_process("rig.toml", capsys)
+    run = (run_check if case in IN_A_SUBPROCESS else check_in_process)("rig.toml")
     assert_one_line_error(run, f"rig.toml: {where}", *fragments)
 
 
@@ -421,21 +406,21 @@ def test_missing_file(run_check: RunCheck) -> None:
     assert_one_line_error(run_check("nowhere.toml"), "nowhere.toml: no such file")
 
 
-def test_a_directory_instead_of_a_file(run_check: RunCheck, tmp_path: Path) -> None:
+def test_a_directory_instead_of_a_file(check_in_process: RunCheck, tmp_path: Path) -> None:
     (tmp_path / "rigs").mkdir()
-    assert_one_line_error(run_check("rigs"), "rigs: is a directory")
+    assert_one_line_error(check_in_process("rigs"), "rigs: is a directory")
 
 
-def test_a_binary_file(run_check: RunCheck, tmp_path: Path) -> None:
+def test_a_binary_file(check_in_process: RunCheck, tmp_path: Path) -> None:
     (tmp_path / "rig.toml").write_bytes(b'name = "\xff\xfe"\n')
-    assert_one_line_error(run_check("rig.toml"), "rig.toml: not ")
+    assert_one_line_error(check_in_process("rig.toml"), "rig.toml: not ")
 
 
 def test_absolute_path_is_named_as_given(
-    run_check: RunCheck, write: Write, minimal_rig: str
+    check_in_process: RunCheck, write: Write, minimal_rig: str
 ) -> None:
     path = write("rig.toml", minimal_rig.replace("[pointer]", "[pointers]"))
-    assert_one_line_error(run_check(path), f"{path}: pointers: unknown key")
+    assert_one_line_error(check_in_process(path), f"{path}: pointers: unknown key")
 
 
 def test_calibration_naming_an_unknown_camera(
@@ -454,7 +439,7 @@ def test_calibration_naming_an_unknown_camera(
 
 
 def test_bad_key_in_a_calibration_file_names_that_file(
-    run_check: RunCheck, write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+    check_in_process: RunCheck, write: Write, edit: Edit, minimal_rig: str, left_calibration: str
 ) -> None:
     cal = write("cal.toml", edit(left_calibration, "cx_px", "cxx_px"))
     write(
@@ -462,14 +447,14 @@ def test_bad_key_in_a_calibration_file_names_that_file(
         edit(minimal_rig, 'name = "minimal"', 'name = "minimal"\ncalibration = "cal.toml"'),
     )
     assert_one_line_error(
-        run_check("rig.toml"),
+        check_in_process("rig.toml"),
         f"{cal}: cameras.left.intrinsics.cxx_px: unknown key 'cxx_px'",
         "did you mean 'cx_px'?",
     )
 
 
 def test_calibration_that_breaks_the_merged_rig(
-    run_check: RunCheck, write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+    check_in_process: RunCheck, write: Write, edit: Edit, minimal_rig: str, left_calibration: str
 ) -> None:
     # A principal point valid on its own but outside the rig's 640x480 image.
     cal = write("cal.toml", edit(left_calibration, "cx_px = 321.0", "cx_px = 960.0"))
@@ -478,19 +463,19 @@ def test_calibration_that_breaks_the_merged_rig(
         edit(minimal_rig, 'name = "minimal"', 'name = "minimal"\ncalibration = "cal.toml"'),
     )
     assert_one_line_error(
-        run_check("rig.toml"),
+        check_in_process("rig.toml"),
         f"{cal}: after merging into the rig: cameras[0]",
         "principal point (960.0, 239.0) lies outside the 640x480 image",
     )
 
 
 def test_missing_calibration_file_names_the_rig_key(
-    run_check: RunCheck, write: Write, edit: Edit, minimal_rig: str
+    check_in_process: RunCheck, write: Write, edit: Edit, minimal_rig: str
 ) -> None:
     write(
         "rig.toml",
         edit(minimal_rig, 'name = "minimal"', 'name = "minimal"\ncalibration = "cal.toml"'),
     )
     assert_one_line_error(
-        run_check("rig.toml"), "rig.toml: calibration: ", "cal.toml: no such file"
+        check_in_process("rig.toml"), "rig.toml: calibration: ", "cal.toml: no such file"
     )
