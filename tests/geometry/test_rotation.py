@@ -7,6 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from trackerd.config.models import CameraConfig, FovIntrinsics, PoseExtrinsics
+from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import (
     R_REST,
     rotation_about_x,
@@ -85,12 +87,37 @@ def test_elementary_rotations_are_right_handed() -> None:
     np.testing.assert_allclose(rotation_about_z(quarter) @ [1, 0, 0], [0, 1, 0], atol=1e-15)
 
 
-def test_datawall_left_camera_looks_right_down_and_into_the_room() -> None:
-    # config/datawall.toml: the left camera sits left of the wall and is turned 119.7
-    # degrees to the right, past facing along the wall, and tilted 19.1 degrees down.
-    axis = optical_axis(119.7, -19.1, 0.0)
-    assert axis[0] > 0 and axis[1] < 0 and axis[2] > 0
-    np.testing.assert_allclose(np.degrees(np.arcsin(axis[1])), -19.1, atol=1e-12)
+def test_worked_example_in_docs_geometry() -> None:
+    # docs/geometry.md works through a camera at (-1.3, 1.4, 3.0) with yaw 72.3 and
+    # pitch -16.9 and the report's 60-degree lens; its numbers must stay right.
+    rotation = world_from_camera_ypr(72.3, -16.9, 0.0)
+    np.testing.assert_allclose(
+        rotation,
+        [[0.30403, -0.27694, 0.91152], [0.0, -0.95681, -0.29070], [0.95266, 0.08838, -0.29090]],
+        atol=5e-6,
+    )
+    yaw, pitch = np.radians([72.3, -16.9])
+    np.testing.assert_allclose(
+        rotation[:, 2],
+        [np.sin(yaw) * np.cos(pitch), np.sin(pitch), -np.cos(yaw) * np.cos(pitch)],
+        atol=1e-15,
+    )
+    pose = PoseExtrinsics(kind="pose", position_m=(-1.3, 1.4, 3.0), yaw_deg=72.3, pitch_deg=-16.9)
+    lens = FovIntrinsics(model="fov", horizontal_fov_deg=60.0)
+    config = CameraConfig(
+        id="left",
+        width_px=1920,
+        height_px=1080,
+        pixel_format="BayerRG8",
+        intrinsics=lens,
+        extrinsics=pose,
+    )
+    cam = CameraModel.from_config(config)
+    in_camera = cam.to_camera_frame(np.array([1.8288, 0.4572, 0.0]))[0]
+    np.testing.assert_allclose(in_camera, [-1.9067, -0.2296, 3.9987], atol=5e-5)
+    np.testing.assert_allclose(
+        cam.project(np.array([1.8288, 0.4572, 0.0]))[0], [166.6, 444.0], atol=0.05
+    )
 
 
 angles = st.floats(-179.0, 179.0)
