@@ -1,0 +1,102 @@
+"""systemd/trackerd.service: `systemd-analyze verify` passes, the exposure score stays low, and the
+settings the daemon relies on are there."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from trackerd.config.models import RigAcquisition
+
+REPO = Path(__file__).resolve().parents[2]
+DROP_IN = REPO / "systemd" / "packet-socket.conf"
+GIGE_HEARTBEAT_TIMEOUT_S = 3.0
+"""GigE Vision's default GevHeartbeatTimeout: a camera stays bound to a dead controller this long."""
+
+needs_analyze = pytest.mark.skipif(shutil.which("systemd-analyze") is None,
+                                   reason="systemd-analyze is not installed (Debian package systemd)")
+
+
+def _settings(path: Path) -> dict[str, list[str]]:
+    settings: dict[str, list[str]] = {}
+    for raw in path.read_text().splitlines():
+        line = raw.strip()
+        if line and not line.startswith(("#", "[")) and "=" in line:
+            key, value = line.split("=", 1)
+            settings.setdefault(key, []).append(value)
+    return settings
+
+
+def _installable_copy(unit: Path, directory: Path) -> Path:
+    """The unit with ExecStart pointing at an executable that exists here (verify checks it)."""
+    stand_in = directory / "trackerd"
+    stand_in.write_text("#!/bin/sh\nexit 0\n")
+    stand_in.chmod(0o755)
+    text = unit.read_text().replace("/opt/trackerd/venv/bin/trackerd", str(stand_in))
+    copy = directory / "trackerd.service"
+    copy.write_text(text)
+    return copy
+
+
+@needs_analyze
+def test_systemd_analyze_verify_passes(unit_path: Path, tmp_path: Path):
+    copy = _installable_copy(unit_path, tmp_path)
+    result = subprocess.run(["systemd-analyze", "verify", str(copy)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip() == "", result.stderr
+
+
+@needs_analyze
+def test_verify_catches_a_broken_unit(tmp_path: Path, unit_path: Path):
+    """The verification above can fail: a misspelt directive is reported."""
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    copy = _installable_copy(unit_path, broken)
+    copy.write_text(copy.read_text().replace("Type=notify", "Type=notfy"))
+    result = subprocess.run(["systemd-analyze", "verify", str(copy)], capture_output=True, text=True, timeout=60)
+    assert "notfy" in result.stderr
+
+
+@needs_analyze
+def test_security_exposure_score(unit_path: Path):
+    result = subprocess.run(["systemd-analyze", "security", "--offline=true", "--no-pager", str(unit_path)],
+                            capture_output=True, text=True, timeout=60)
+    match = re.search(r"Overall exposure level for \S+: ([0-9.]+) (\w+)", result.stdout)
+    assert match, result.stdout[-2000:] + result.stderr
+    score = float(match.group(1))
+    print(f"systemd-analyze security: {score} {match.group(2)} (docs/deployment.md records it)")
+    documented = (REPO / "docs" / "deployment.md").read_text()
+    assert f"{score:.1f}" in documented, "update the score in docs/deployment.md"
+    assert score <= 2.0
+
+
+def test_service_settings_the_daemon_relies_on(unit_path: Path):
+    settings = _settings(unit_path)
+    assert settings["Type"] == ["notify"]
+    assert settings["ExecStart"][0].split()[0] == "/opt/trackerd/venv/bin/trackerd"
+    assert "run --config /etc/trackerd/rig.toml" in settings["ExecStart"][0]
+    assert settings["ExecReload"] == ["/bin/kill -HUP $MAINPID"]
+    assert settings["Restart"] == ["on-failure"]
+    restart_s = float(settings["RestartSec"][0].removesuffix("s"))
+    loss_timeout_s = RigAcquisition().loss_timeout_ms / 1000.0
+    assert restart_s > max(GIGE_HEARTBEAT_TIMEOUT_S, loss_timeout_s)
+    watchdog_s = float(settings["WatchdogSec"][0].removesuffix("s"))
+    # The watchdog must outlast a camera loss being noticed, or every loss would restart the daemon.
+    assert watchdog_s > loss_timeout_s * 2
+    assert settings["RestartPreventExitStatus"] == ["2"]  # ConfigError.exit_code
+    assert settings["NoNewPrivileges"] == ["yes"]
+    assert settings["ProtectSystem"] == ["strict"]
+    assert settings["CapabilityBoundingSet"] == [""]
+    assert "AF_PACKET" not in settings["RestrictAddressFamilies"][0]
+
+
+def test_packet_socket_drop_in_grants_only_cap_net_raw():
+    settings = _settings(DROP_IN)
+    assert settings["AmbientCapabilities"] == ["CAP_NET_RAW"]
+    assert settings["CapabilityBoundingSet"] == ["CAP_NET_RAW"]
+    assert "AF_PACKET" in settings["RestrictAddressFamilies"][0].split()
+    assert settings["PrivateUsers"] == ["no"]
