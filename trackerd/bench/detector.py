@@ -1,0 +1,309 @@
+"""Colour-end detector: time per 1920x1080 frame and detection error, against an OpenCV pipeline.
+
+Renders a smooth pointer trajectory (consecutive frames, as at 60 fps) and a
+set of independent random poses through the rig's cameras
+(trackerd.sim.render), then measures, interleaved frame by frame in one run:
+
+  (a) full     ColourEndDetector, whole-frame search (tracking state reset first)
+  (b) tracked  ColourEndDetector fed the trajectory in order (window search)
+  (c) opencv   demosaic + HSV + inRange + moments per end (detect.reference)
+  (d) floor    np.count_nonzero(frame > t): one vectorized pass over the frame
+
+Times are medians per frame; ratios are of medians from the same run. Targets
+(issue): (a) at least 8x faster than (c) and at most 4x (d); (b) no slower than (d).
+Detection error is the distance, in pixels, to the true centroid of each
+ball's visible image; also for the report's bounding-box midpoint (eq. 12) on
+the chosen blob, and for the report's method over the whole image.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
+from trackerd.detect import ColourEndDetector, ImageDetections
+from trackerd.detect.reference import opencv_reference, report_baseline
+from trackerd.sim.render import SceneRenderer
+from trackerd.sim.scene import PointerPose, pose_visible, random_pose
+
+FLOOR_THRESHOLD = 100
+
+COLOURS = ("red", "blue")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--rig",
+        type=Path,
+        default=Path("config/simulated.toml"),
+        help="rig to render (default: config/simulated.toml)",
+    )
+    parser.add_argument(
+        "--frames", type=int, default=24, help="distinct trajectory frames per camera (default: 24)"
+    )
+    parser.add_argument(
+        "--poses",
+        type=int,
+        default=24,
+        help="extra independent random poses per camera, for accuracy (default: 24)",
+    )
+    parser.add_argument(
+        "--repeats", type=int, default=10, help="timed passes over the frames (default: 10)"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=1, help="random seed of poses and noise (default: 1)"
+    )
+    parser.add_argument(
+        "--step-mm",
+        type=float,
+        default=8.0,
+        help="motion of the pointer between trajectory frames (default: 8 mm, 0.5 m/s at 60 fps)",
+    )
+
+
+@dataclass
+class Frame:
+    camera: int
+    image: NDArray[np.uint8]
+    truth: dict[str, NDArray[np.float64]]
+    """Visible centroid per colour (NaN if hidden)."""
+    area: dict[str, float]
+
+
+def trajectory(
+    rig: RigConfig, rng: np.random.Generator, n: int, step_m: float, cameras: list
+) -> list[PointerPose]:
+    """n poses of a pointer moving smoothly (step_m per frame) between random visible poses."""
+    length = rig.pointer.length_m
+    poses: list[PointerPose] = []
+    start = random_pose(rig, rng, cameras)
+    while len(poses) < n:
+        goal = random_pose(rig, rng, cameras)
+        distance = max(
+            float(np.linalg.norm(goal.front_m - start.front_m)),
+            float(np.linalg.norm(goal.back_m - start.back_m)),
+        )
+        steps = max(2, math.ceil(distance / step_m))
+        for k in range(steps):
+            f = k / steps
+            front = start.front_m + f * (goal.front_m - start.front_m)
+            back = start.back_m + f * (goal.back_m - start.back_m)
+            axis = front - back
+            pose = PointerPose(front, front - length * axis / np.linalg.norm(axis))
+            if pose_visible(pose, cameras):
+                poses.append(pose)
+            if len(poses) == n:
+                break
+        start = goal
+    return poses
+
+
+def render_frames(
+    renderer: SceneRenderer, poses: list[PointerPose], camera: int, rng: np.random.Generator
+) -> list[Frame]:
+    out = []
+    for pose in poses:
+        view = renderer.render(camera, pose, rng)
+        out.append(
+            Frame(
+                camera,
+                view.image,
+                {c: np.asarray(view.truth.centroid_px[c]) for c in COLOURS},
+                {c: float(view.truth.area_px[c]) for c in COLOURS},
+            )
+        )
+    return out
+
+
+def _timed(fn, *args) -> tuple[float, object]:
+    t0 = time.perf_counter()
+    result = fn(*args)
+    return time.perf_counter() - t0, result
+
+
+def run(args: argparse.Namespace) -> int:
+    rig = load_rig(args.rig).config
+    rng = np.random.default_rng(args.seed)
+    renderer = SceneRenderer(rig)
+    n_cams = min(2, len(rig.cameras))
+    t_render = time.perf_counter()
+    path = trajectory(rig, rng, args.frames, args.step_mm / 1000.0, renderer.cameras[:n_cams])
+    singles = [random_pose(rig, rng, renderer.cameras[:n_cams]) for _ in range(args.poses)]
+    sequences = [render_frames(renderer, path, cam, rng) for cam in range(n_cams)]
+    independent = [f for cam in range(n_cams) for f in render_frames(renderer, singles, cam, rng)]
+    t_render = time.perf_counter() - t_render
+
+    cfg = rig.detector
+    bbox_cfg = cfg.model_copy(update={"centroid": "bbox"})
+    detectors = {}
+    for cam in range(n_cams):
+        c = rig.cameras[cam]
+        detectors[cam] = {
+            "full": ColourEndDetector(cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer),
+            "tracked": ColourEndDetector(cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer),
+            "bbox": ColourEndDetector(
+                bbox_cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer
+            ),
+        }
+    formats = [rig.cameras[cam].pixel_format for cam in range(n_cams)]
+
+    # Ping-pong through each camera's trajectory so the tracked detector never jumps.
+    order = [
+        (cam, i)
+        for cam in range(n_cams)
+        for i in list(range(args.frames)) + list(range(args.frames - 2, 0, -1))
+    ]
+    times: dict[str, list[float]] = {"full": [], "tracked": [], "opencv": [], "floor": []}
+    windowed = 0
+    results: dict[str, list[tuple[Frame, ImageDetections]]] = {"tracked": []}
+    for _ in range(args.repeats):
+        for cam, i in order:
+            frame = sequences[cam][i]
+            image = frame.image
+            det = detectors[cam]
+            dt, _ = _timed(np.count_nonzero, image > FLOOR_THRESHOLD)
+            times["floor"].append(dt)
+            det["full"].reset()
+            dt, _ = _timed(det["full"].detect, image)
+            times["full"].append(dt)
+            dt, tracked = _timed(det["tracked"].detect, image)
+            times["tracked"].append(dt)
+            windowed += tracked.search == "window"
+            if len(results["tracked"]) < len(order):
+                results["tracked"].append((frame, tracked))
+            dt, _ = _timed(opencv_reference, image, formats[cam], cfg)
+            times["opencv"].append(dt)
+    median_ms = {k: 1e3 * float(np.median(v)) for k, v in times.items()}
+
+    # Accuracy on every distinct frame (trajectory and independent poses).
+    every = [f for seq in sequences for f in seq] + independent
+    methods = {
+        "weighted": lambda f: _fresh(detectors[f.camera]["full"], f.image),
+        "bbox (eq. 12, chosen blob)": lambda f: _fresh(detectors[f.camera]["bbox"], f.image),
+        "report (eq. 12, whole image)": lambda f: report_baseline(f.image, formats[f.camera], cfg),
+        "opencv": lambda f: opencv_reference(f.image, formats[f.camera], cfg),
+    }
+    accuracy = {name: _errors([(f, method(f)) for f in every]) for name, method in methods.items()}
+    accuracy["tracked"] = _errors(results["tracked"])
+
+    ratios = {
+        "opencv_over_full": median_ms["opencv"] / median_ms["full"],
+        "full_over_floor": median_ms["full"] / median_ms["floor"],
+        "tracked_over_floor": median_ms["tracked"] / median_ms["floor"],
+    }
+    report = {
+        "rig": str(args.rig),
+        "frame": f"{rig.cameras[0].width_px}x{rig.cameras[0].height_px} {formats[0]}",
+        "cameras": n_cams,
+        "trajectory_frames_per_camera": args.frames,
+        "independent_poses_per_camera": args.poses,
+        "timed_frames": len(order) * args.repeats,
+        "opencv_threads": cv2.getNumThreads(),
+        "render_s": round(t_render, 1),
+        "median_ms": {k: round(v, 4) for k, v in median_ms.items()},
+        "ratios": {k: round(v, 2) for k, v in ratios.items()},
+        "targets_met": {
+            "full_8x_faster_than_opencv": ratios["opencv_over_full"] >= 8.0,
+            "full_within_4x_floor": ratios["full_over_floor"] <= 4.0,
+            "tracked_within_floor": ratios["tracked_over_floor"] <= 1.0,
+        },
+        "tracked_window_fraction": round(windowed / max(1, len(times["tracked"])), 3),
+        "accuracy_px": accuracy,
+    }
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        _print_table(report)
+    return 0
+
+
+def _fresh(detector: ColourEndDetector, image: NDArray[np.uint8]) -> ImageDetections:
+    detector.reset()
+    return detector.detect(image)
+
+
+def _errors(pairs: list[tuple[Frame, ImageDetections]]) -> dict[str, object]:
+    """Error statistics (px) over the ends visible in the truth, per method."""
+    errors = []
+    missed = wrong = visible = 0
+    for frame, result in pairs:
+        for colour in COLOURS:
+            truth = frame.truth[colour]
+            if not np.all(np.isfinite(truth)) or frame.area[colour] <= 0:
+                continue
+            visible += 1
+            end = result.end(colour)
+            if not end.found or end.centroid_px is None:
+                missed += 1
+                continue
+            error = float(np.hypot(*(end.centroid_px - truth)))
+            # Further than a ball's radius (or 3 px): another blob was taken for the end.
+            if error > max(3.0, math.sqrt(frame.area[colour] / math.pi)):
+                wrong += 1
+            else:
+                errors.append(error)
+    e = np.array(errors) if errors else np.array([np.nan])
+    return {
+        "ends": visible,
+        "missed": missed,
+        "wrong_blob": wrong,
+        "median": round(float(np.median(e)), 3),
+        "p95": round(float(np.percentile(e, 95)), 3),
+        "max": round(float(np.max(e)), 3),
+    }
+
+
+def _print_table(r: dict) -> None:
+    print(f"detector benchmark: {r['frame']}, {r['cameras']} cameras, rig {r['rig']}")
+    print(
+        f"  {r['trajectory_frames_per_camera']} trajectory frames"
+        f" + {r['independent_poses_per_camera']}"
+        f" random poses per camera, {r['timed_frames']} timed frames (rendering {r['render_s']} s),"
+        f" OpenCV threads {r['opencv_threads']}"
+    )
+    print()
+    print("  method                          median ms/frame")
+    labels = {
+        "full": "(a) full-frame search",
+        "tracked": "(b) tracked search",
+        "opencv": "(c) OpenCV reference",
+        "floor": "(d) count_nonzero(frame > t)",
+    }
+    for key, label in labels.items():
+        print(f"  {label:<32}{r['median_ms'][key]:>10.3f}")
+    ratios, met = r["ratios"], r["targets_met"]
+    print()
+    print(
+        f"  (c)/(a) = {ratios['opencv_over_full']:.1f}x    target >= 8     "
+        f"{'met' if met['full_8x_faster_than_opencv'] else 'NOT met'}"
+    )
+    print(
+        f"  (a)/(d) = {ratios['full_over_floor']:.2f}x   target <= 4     "
+        f"{'met' if met['full_within_4x_floor'] else 'NOT met'}"
+    )
+    print(
+        f"  (b)/(d) = {ratios['tracked_over_floor']:.2f}x   target <= 1     "
+        f"{'met' if met['tracked_within_floor'] else 'NOT met'}"
+    )
+    print(
+        "  tracked frames answered by the window search:"
+        f" {100 * r['tracked_window_fraction']:.1f} %"
+    )
+    print()
+    print("  detection error (px, to the true centroid of the visible ball)")
+    print(f"  {'method':<30}{'ends':>6}{'missed':>8}{'wrong':>7}{'median':>9}{'p95':>8}{'max':>8}")
+    for name, a in r["accuracy_px"].items():
+        print(
+            f"  {name:<30}{a['ends']:>6}{a['missed']:>8}{a['wrong_blob']:>7}"
+            f"{a['median']:>9.3f}{a['p95']:>8.3f}{a['max']:>8.3f}"
+        )

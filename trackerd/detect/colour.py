@@ -1,0 +1,256 @@
+"""Per-pixel colour scores of the pointer's ends, on the camera's own planes (report eq. 9-11).
+
+The report keeps only the red channel to find the red end (eq. 10) and only the
+blue channel for the blue end (eq. 11). A bright white wall is as red as a red
+ball by that measure, so here a sample counts as an end's colour when its
+channel *exceeds the larger of the other two* by ``min_excess`` and is itself
+at least ``min_value`` (trackerd.config.models.ColourThreshold).
+
+A Bayer frame is never demosaiced. Its 2x2 cells give four planes (R, two G, B)
+at half resolution, and each colour sample sits at a known offset inside the
+cell (trackerd.pixelformat.BAYER_LAYOUTS): in BayerRG8 the R sample of cell
+(i, j) is full-resolution pixel (x, y) = (2j, 2i) and the B sample is
+(2j + 1, 2i + 1). Every position this module reports is that sample's own
+full-resolution pixel position, so centroids carry no half-pixel bias. RGB8 and
+BGR8 frames are treated as a grid of 1x1 cells holding all three channels.
+
+Two scores are computed:
+
+* :func:`coarse_masks`: a yes/no test on a subsampled grid of cells, comparing
+  each cell's samples as they are (the cheapest test that finds seeds); it uses
+  only uint8 arithmetic, with no whole-frame widening to int16;
+* :func:`excess_window`: at full plane resolution in a small window, the
+  colour's sample against the other channels *interpolated at that sample's
+  position* (mean of its four green neighbours and of its four diagonal
+  neighbours), which is symmetric about the sample and so gives an unbiased
+  sub-pixel centroid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.errors import ImageError
+from trackerd.pixelformat import BAYER_LAYOUTS
+
+EXCESS_SCALE = 4
+"""Excess values from :func:`excess_window` are grey levels times this (sums of four samples)."""
+
+Region = tuple[int, int, int, int]
+"""A rectangle of cells: (row0, row1, col0, col1), half-open."""
+
+
+@dataclass(frozen=True, slots=True)
+class Threshold:
+    """One colour's test as plain ints (from ColourThreshold), hoisted out of the per-frame path."""
+
+    min_excess: int
+    min_value: int
+
+
+@dataclass(frozen=True, slots=True)
+class SampleGrid:
+    """Where each colour's samples are in a frame of one pixel format.
+
+    The frame is a grid of ``cell_px`` x ``cell_px`` cells; cell (i, j) holds
+    the sample of a colour at full-resolution pixel
+    ``(y, x) = (cell_px * i + offset[0], cell_px * j + offset[1])``.
+    """
+
+    pixel_format: str
+    cell_px: int
+    """2 for Bayer mosaics, 1 for RGB8/BGR8."""
+    rows: int
+    """Cells down the frame."""
+    cols: int
+    """Cells across the frame."""
+    red: tuple[int, int]
+    """Offset (row, col) of the red sample in its cell (Bayer), or (0, 0)."""
+    blue: tuple[int, int]
+    green_a: tuple[int, int]
+    green_b: tuple[int, int]
+    channels: tuple[int, int, int]
+    """For RGB8/BGR8: the index of red, green and blue in the last axis."""
+    frame_shape: tuple[int, ...]
+
+    @property
+    def is_bayer(self) -> bool:
+        return self.cell_px == 2
+
+    def offset(self, colour: str) -> tuple[int, int]:
+        """Offset (row, col) of ``colour``'s sample inside a cell."""
+        return self.red if colour == "red" else self.blue
+
+    def interior(self) -> Region:
+        """The cells whose samples all have neighbours inside the frame (searches stay inside)."""
+        if self.is_bayer:
+            return (1, self.rows - 1, 1, self.cols - 1)
+        return (0, self.rows, 0, self.cols)
+
+
+def sample_grid(pixel_format: str, width_px: int, height_px: int) -> SampleGrid:
+    """The sample layout of a ``width_px`` x ``height_px`` frame in ``pixel_format``."""
+    layout = BAYER_LAYOUTS.get(pixel_format)
+    if layout is not None:
+        if width_px < 8 or height_px < 8:
+            raise ImageError(
+                f"a {width_px}x{height_px} {pixel_format} frame is too small to search"
+            )
+        return SampleGrid(
+            pixel_format,
+            2,
+            height_px // 2,
+            width_px // 2,
+            layout.red,
+            layout.blue,
+            layout.green_a,
+            layout.green_b,
+            (0, 1, 2),
+            (height_px, width_px),
+        )
+    if pixel_format in ("RGB8", "BGR8"):
+        channels = (0, 1, 2) if pixel_format == "RGB8" else (2, 1, 0)
+        return SampleGrid(
+            pixel_format,
+            1,
+            height_px,
+            width_px,
+            (0, 0),
+            (0, 0),
+            (0, 0),
+            (0, 0),
+            channels,
+            (height_px, width_px, 3),
+        )
+    raise ImageError(
+        f"pixel format {pixel_format!r} cannot show the pointer's colours;"
+        " use BayerRG8, BayerGB8, BayerGR8, BayerBG8, RGB8 or BGR8"
+    )
+
+
+def _plane(
+    frame: NDArray[np.uint8], grid: SampleGrid, which: str, region: Region, step: int
+) -> NDArray[np.uint8]:
+    """A strided view of one colour's samples over ``region`` (cells), every ``step``-th cell."""
+    r0, r1, c0, c1 = region
+    if grid.is_bayer:
+        dr, dc = getattr(grid, which)
+        s = 2 * step
+        return frame[2 * r0 + dr : 2 * r1 : s, 2 * c0 + dc : 2 * c1 : s]
+    channel = grid.channels[{"red": 0, "green_a": 1, "green_b": 1, "blue": 2}[which]]
+    return frame[r0:r1:step, c0:c1:step, channel]
+
+
+def _exceeds(
+    value: NDArray[np.uint8], others_max: NDArray[np.uint8], threshold: Threshold
+) -> NDArray[np.bool_]:
+    """``value >= others_max + min_excess and value >= min_value``, in uint8 without overflow.
+
+    Subtracting ``min_excess - 1`` with saturation at zero, then asking for a
+    result strictly above ``others_max``, is the same test, and the saturated
+    zero can never pass it. ``min_value`` folds into the right-hand side.
+    ``others_max`` is overwritten.
+    """
+    lowered = np.maximum(value, np.uint8(threshold.min_excess - 1))
+    lowered -= np.uint8(threshold.min_excess - 1)
+    floor = threshold.min_value - threshold.min_excess
+    if floor > 0:
+        np.maximum(others_max, np.uint8(floor), out=others_max)
+    return lowered > others_max
+
+
+def coarse_masks(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    red: Threshold | None,
+    blue: Threshold | None,
+    region: Region,
+    step: int,
+) -> tuple[NDArray[np.bool_] | None, NDArray[np.bool_] | None]:
+    """Seed masks of both colours on every ``step``-th cell of ``region``.
+
+    Element (a, b) of a mask is cell ``(region[0] + step * a, region[2] + step * b)``.
+    Each cell is tested with its samples as they are: the brighter of its two
+    greens (so a sharp grey edge running through the cell is not taken for
+    colour) and the other colour's sample. Pass None for a colour not wanted.
+    Returns (red mask or None, blue mask or None), shape about (rows / step, cols / step).
+    """
+    # Each plane is read from the frame once, into a small contiguous array: the
+    # tests below read each of them twice, and strided reads cost more than copies.
+    r = np.ascontiguousarray(_plane(frame, grid, "red", region, step))
+    b = np.ascontiguousarray(_plane(frame, grid, "blue", region, step))
+    g = _plane(frame, grid, "green_a", region, step)
+    g = np.maximum(g, _plane(frame, grid, "green_b", region, step)) if grid.is_bayer else g
+    red_mask = _exceeds(r, np.maximum(g, b), red) if red is not None else None
+    blue_mask = _exceeds(b, np.maximum(g, r), blue) if blue is not None else None
+    return red_mask, blue_mask
+
+
+def excess_window(
+    frame: NDArray[np.uint8], grid: SampleGrid, colour: str, region: Region
+) -> tuple[NDArray[np.int16], NDArray[np.uint8]]:
+    """The colour's excess over the other channels at full plane resolution in ``region``.
+
+    Returns ``(excess, value)``, both shape (rows, cols) of the region:
+    ``excess`` is ``EXCESS_SCALE`` times (the colour's sample minus the larger of
+    the green and the other colour interpolated at that sample's position) as
+    int16, and ``value`` the colour's own samples. For a Bayer frame the region
+    must lie inside :meth:`SampleGrid.interior` (every sample needs its eight
+    neighbours).
+    """
+    r0, r1, c0, c1 = region
+    if not grid.is_bayer:
+        ch = grid.channels
+        own, other = (ch[0], ch[2]) if colour == "red" else (ch[2], ch[0])
+        window = frame[r0:r1, c0:c1]
+        value = window[..., own]
+        others = np.maximum(window[..., ch[1]], window[..., other])
+        excess = value.astype(np.int16)
+        excess -= others
+        excess <<= 2
+        return excess, value
+    dr, dc = grid.red if colour == "red" else grid.blue
+    h, w = r1 - r0, c1 - c0
+    # A patch with one pixel of border: local cell (i, j) has its sample at
+    # patch[1 + dr + 2i, 1 + dc + 2j].
+    patch = frame[2 * r0 - 1 : 2 * r1 + 1, 2 * c0 - 1 : 2 * c1 + 1]
+    rows = slice(1 + dr, 1 + dr + 2 * h, 2)
+    cols = slice(1 + dc, 1 + dc + 2 * w, 2)
+    above, below = slice(dr, dr + 2 * h, 2), slice(2 + dr, 2 + dr + 2 * h, 2)
+    left, right = slice(dc, dc + 2 * w, 2), slice(2 + dc, 2 + dc + 2 * w, 2)
+    value = patch[rows, cols]
+    greens = np.add(patch[rows, left], patch[rows, right], dtype=np.int16)
+    greens += patch[above, cols]
+    greens += patch[below, cols]
+    diagonal = np.add(patch[above, left], patch[above, right], dtype=np.int16)
+    diagonal += patch[below, left]
+    diagonal += patch[below, right]
+    np.maximum(greens, diagonal, out=greens)
+    excess = value.astype(np.int16)
+    excess <<= 2
+    excess -= greens
+    return excess, value
+
+
+def green_at(
+    frame: NDArray[np.uint8], grid: SampleGrid, points_px: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Green, a stand-in for brightness, near points (N, 2) given as (x, y) pixels -> (N,).
+
+    On a Bayer mosaic, the green sample at or right of the nearest pixel (half of
+    all pixels are green, in a checkerboard); on RGB8/BGR8 the nearest pixel's
+    green. Points are clamped into the frame. One gather per point, because a dark
+    rod on a lighter room is as dark in green as in any channel.
+    """
+    height, width = grid.frame_shape[:2]
+    x = np.rint(points_px[:, 0]).astype(np.intp).clip(0, width - 2)
+    y = np.rint(points_px[:, 1]).astype(np.intp).clip(0, height - 1)
+    if grid.is_bayer:
+        # Greens sit where (x + y) has the parity of green_a's row + column.
+        parity = (grid.green_a[0] + grid.green_a[1]) & 1
+        x += (x + y + parity) & 1
+        return frame.reshape(-1)[y * width + x].astype(np.float64)
+    return frame[y, x, grid.channels[1]].astype(np.float64)

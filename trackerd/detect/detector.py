@@ -1,0 +1,393 @@
+"""The colour-end detector: find the pointer's red and blue ends in one camera's frames.
+
+Per frame (report section 3.2, eq. 10-12, made robust and sub-pixel):
+
+1. *Window search*, when both ends were found in the previous frame. Each end
+   is first measured directly in a small window around where it should be now
+   (previous position plus previous motion); if both are there, whole, round,
+   of the size they had and consistent as a pair, that is the answer. Otherwise
+   the blobs in those windows, and then in windows of ``track_window_px`` on
+   each side, are found and chosen as in a full search.
+2. *Full search* otherwise: a subsampled pass over the whole frame (every
+   ``search_step_px``) finds seeds of each colour; each seed is refined at full
+   plane resolution in a small window (:mod:`trackerd.detect.candidates`).
+3. *Selection* (:mod:`trackerd.detect.select`): blobs that cannot be a ball
+   (area, elongation, fill) are dropped, and of the rest the red-blue pair most
+   consistent with one pointer wins.
+4. *Centre* (:mod:`trackerd.detect.centroid`): intensity-weighted and
+   sub-pixel (``centroid = "weighted"``), or the report's bounding-box midpoint
+   (eq. 12, ``centroid = "bbox"``).
+
+``ColourEndDetector`` keeps the tracking state; :func:`detect_ends` is the same
+search without state. Either way the search is NumPy only (docs/detection.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.config.models import DetectorConfig, PointerConfig
+from trackerd.detect.candidates import (
+    Candidate,
+    Limits,
+    Rejects,
+    grow,
+    refine,
+    seed_windows,
+    shape_score,
+)
+from trackerd.detect.centroid import Measurement, measure_candidate, measure_region
+from trackerd.detect.colour import Region, SampleGrid, Threshold, coarse_masks, sample_grid
+from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
+from trackerd.detect.select import choose, missing_reason, pair_consistency, rod_evidence
+from trackerd.errors import ImageError
+
+DEFAULT_SEARCH_STEP_PX = 8
+"""Spacing of the subsampled full-frame pass. An end is seen by it from scratch when its
+image is at least about 1.5 times this across (12 px, about 110 px of area); once tracked, a
+smaller end is still followed by the window search. (Not yet a DetectorConfig field: see
+docs/detection.md.)"""
+
+DEFAULT_LENGTH_OVER_DIAMETER = 12.0
+"""Pointer length over ball diameter used when no PointerConfig is given."""
+
+DEFAULT_ROD_OVER_DIAMETER = 0.3
+"""Rod diameter over ball diameter used when no PointerConfig is given."""
+
+MAX_WINDOWS = 12
+"""Seed windows refined per colour in one search, largest seed first; more is clutter."""
+
+QUICK_MAX_ELONGATION = 1.6
+QUICK_MIN_FILL = 0.6
+QUICK_AREA_RATIO = 1.6
+"""The quick tracking measurement is taken only for a blob this round, this full and within
+this factor of its previous area; anything else (a second blob in the window, occlusion,
+a jump) goes through the blob search."""
+
+
+@dataclass(slots=True)
+class _Track:
+    """What the previous frame said about one end."""
+
+    centre_px: NDArray[np.float64]
+    velocity_px: NDArray[np.float64]
+    area_px: float
+
+
+@dataclass(slots=True)
+class _Search:
+    """Candidates of one colour from one search, with what is needed to explain a miss."""
+
+    candidates: list[Candidate]
+    seeds: int
+    too_large_seeds: int
+    rejects: Rejects
+    examined_all: bool
+
+
+class ColourEndDetector:
+    """Finds both ends of the pointer in the frames of one camera, tracking them between frames.
+
+    Cheap to build; keep one per camera, since it remembers the previous frame's
+    result. Call :meth:`reset` when the frames stop being consecutive (pointer
+    lost, new recording).
+    """
+
+    def __init__(
+        self,
+        cfg: DetectorConfig,
+        pixel_format: str,
+        width_px: int,
+        height_px: int,
+        pointer: PointerConfig | None = None,
+        *,
+        search_step_px: int | None = None,
+    ) -> None:
+        self.cfg = cfg
+        self.pixel_format = pixel_format
+        self.grid: SampleGrid = sample_grid(pixel_format, width_px, height_px)
+        self.thresholds = {
+            "red": Threshold(cfg.red.min_excess, cfg.red.min_value),
+            "blue": Threshold(cfg.blue.min_excess, cfg.blue.min_value),
+        }
+        self.limits = Limits(cfg.min_area_px, cfg.max_area_px, cfg.max_elongation, cfg.min_fill)
+        self.weighted = cfg.centroid == "weighted"
+        if pointer is not None:
+            self.length_over_diameter = pointer.length_m / pointer.end_diameter_m
+            self.rod_over_diameter = pointer.rod_diameter_m / pointer.end_diameter_m
+        else:
+            self.length_over_diameter = DEFAULT_LENGTH_OVER_DIAMETER
+            self.rod_over_diameter = DEFAULT_ROD_OVER_DIAMETER
+        step_px = search_step_px or getattr(cfg, "search_step_px", None) or DEFAULT_SEARCH_STEP_PX
+        self.step_cells = max(1, round(step_px / self.grid.cell_px))
+        self._track: dict[str, _Track] | None = None
+
+    def reset(self) -> None:
+        """Forget the previous frame: the next frame is searched in full."""
+        self._track = None
+
+    def detect(self, frame: NDArray[np.uint8]) -> ImageDetections:
+        """Both ends in ``frame`` (shape (H, W) for Bayer, (H, W, 3) for RGB8/BGR8, uint8)."""
+        if frame.shape != self.grid.frame_shape or frame.dtype != np.uint8:
+            raise ImageError(
+                f"frame of shape {frame.shape} and type {frame.dtype} does not match the camera's"
+                f" {self.pixel_format} {self.grid.frame_shape[1]}x{self.grid.frame_shape[0]}"
+                " (uint8)"
+            )
+        result = None
+        if self._track is not None:
+            result = self._quick_track(frame, self._track) or self._window_search(
+                frame, self._track
+            )
+        if result is None:
+            result = self._full_search(frame)
+        self._remember(result)
+        return result
+
+    # ------------------------------------------------------------------ searches
+
+    def _full_search(self, frame: NDArray[np.uint8]) -> ImageDetections:
+        step = self.step_cells
+        r0, r1, c0, c1 = self.grid.interior()
+        # Centre the coarse samples in their step x step blocks.
+        coarse = (r0 + step // 2, r1, c0 + step // 2, c1)
+        red, blue = coarse_masks(
+            frame, self.grid, self.thresholds["red"], self.thresholds["blue"], coarse, step
+        )
+        assert red is not None and blue is not None
+        seeds = seed_windows({"red": red, "blue": blue}, coarse, step, self.grid, self.limits)
+        jobs = [(colour, w) for colour in COLOURS for w in seeds[colour].windows[:MAX_WINDOWS]]
+        found = self._refine(frame, jobs)
+        searches = {}
+        for colour in COLOURS:
+            candidates, rejects = found[colour]
+            s = seeds[colour]
+            searches[colour] = _Search(
+                candidates, s.count, s.too_large, rejects, len(s.windows) <= MAX_WINDOWS
+            )
+        result = self._result(frame, searches, "full", None)
+        assert result is not None
+        return result
+
+    def _quick_track(
+        self, frame: NDArray[np.uint8], track: dict[str, _Track]
+    ) -> ImageDetections | None:
+        """Each end measured straight in a small window where it should be, if it is plainly there.
+
+        This is the common case while tracking, and costs a few dozen NumPy calls
+        per end; None sends the frame to the blob search.
+        """
+        found: dict[str, Measurement] = {}
+        for colour in COLOURS:
+            t = track[colour]
+            radius = math.sqrt(t.area_px / math.pi)
+            speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
+            window = self._window_around(
+                t.centre_px + t.velocity_px, 1.6 * radius + 0.5 * speed + 6.0
+            )
+            if window is None:
+                return None
+            m = measure_region(
+                frame, self.grid, colour, self.thresholds[colour], window, self.weighted, shape=True
+            )
+            if (
+                m is None
+                or m.on_border
+                or m.elongation > QUICK_MAX_ELONGATION
+                or m.fill < QUICK_MIN_FILL
+                or not t.area_px / QUICK_AREA_RATIO <= m.area_px <= t.area_px * QUICK_AREA_RATIO
+                or not self.limits.min_area_px <= m.area_px <= self.limits.max_area_px
+            ):
+                return None
+            found[colour] = m
+        red, blue = found["red"], found["blue"]
+        pair = pair_consistency(
+            red.area_px,
+            blue.area_px,
+            red.x_px - blue.x_px,
+            red.y_px - blue.y_px,
+            self.length_over_diameter,
+        )
+        if pair <= 0.0:
+            return None
+        ends = [
+            EndDetection(
+                True,
+                m.centre_px,
+                m.area_px,
+                m.bbox_px,
+                shape_score(m.elongation, m.fill) * pair,
+                None,
+            )
+            for m in (red, blue)
+        ]
+        return ImageDetections(ends[0], ends[1], "window")
+
+    def _window_search(
+        self, frame: NDArray[np.uint8], track: dict[str, _Track]
+    ) -> ImageDetections | None:
+        """Both ends among the blobs near their previous positions, or None (search in full)."""
+        jobs = []
+        for colour in COLOURS:
+            t = track[colour]
+            radius = math.sqrt(t.area_px / math.pi)
+            speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
+            # Just around the ball first: it moves little between frames.
+            near = self._window_around(t.centre_px + t.velocity_px, 2.0 * radius + speed + 8.0)
+            if near is None:
+                return None
+            jobs.append((colour, near))
+        found = self._refine(frame, jobs)
+        searches = {}
+        for colour in COLOURS:
+            candidates, rejects = found[colour]
+            if not candidates:
+                # Then the whole tracking window, with the subsampled pass.
+                t = track[colour]
+                wide = self._window_around(
+                    t.centre_px + t.velocity_px,
+                    max(self.cfg.track_window_px, 4.0 * math.sqrt(t.area_px / math.pi)),
+                )
+                assert wide is not None
+                thr = self.thresholds[colour]
+                mask = coarse_masks(
+                    frame,
+                    self.grid,
+                    thr if colour == "red" else None,
+                    thr if colour == "blue" else None,
+                    wide,
+                    self.step_cells,
+                )
+                seeds = seed_windows(
+                    {colour: mask[0] if colour == "red" else mask[1]},
+                    wide,
+                    self.step_cells,
+                    self.grid,
+                    self.limits,
+                )[colour]
+                jobs = [(colour, w) for w in seeds.windows[:MAX_WINDOWS]]
+                candidates, rejects = self._refine(frame, jobs)[colour]
+                if not candidates:
+                    return None
+            searches[colour] = _Search(candidates, 1, 0, rejects, True)
+        return self._result(
+            frame, searches, "window", {c: track[c].area_px for c in COLOURS}, need_pair=True
+        )
+
+    def _window_around(self, centre_px: NDArray[np.float64], half_px: float) -> Region | None:
+        """The cells within ``half_px`` of ``centre_px`` (clipped to the frame), or None if none."""
+        x, y = float(centre_px[0]), float(centre_px[1])
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return None
+        s = self.grid.cell_px
+        lo_r, hi_r, lo_c, hi_c = self.grid.interior()
+        region = (
+            max(lo_r, int((y - half_px) // s)),
+            min(hi_r, int((y + half_px) // s) + 1),
+            max(lo_c, int((x - half_px) // s)),
+            min(hi_c, int((x + half_px) // s) + 1),
+        )
+        if region[1] - region[0] < 2 or region[3] - region[2] < 2:
+            return None
+        return region
+
+    def _refine(
+        self, frame: NDArray[np.uint8], jobs: list[tuple[str, Region]]
+    ) -> dict[str, tuple[list[Candidate], Rejects]]:
+        """Ball-shaped candidates and rejects per colour, from refining (colour, window) jobs."""
+        refined = refine(frame, self.grid, jobs, self.thresholds, self.limits)
+        cut = [j for j, c in enumerate(refined.cut) if c]
+        if cut:
+            # A blob reaches its window's edge: the seed understated it (weak rim, fast motion).
+            again = refine(
+                frame,
+                self.grid,
+                [(jobs[j][0], grow(jobs[j][1], 2 * self.step_cells, self.grid)) for j in cut],
+                self.thresholds,
+                self.limits,
+            )
+            for i, j in enumerate(cut):
+                refined.candidates[j] = again.candidates[i]
+                refined.rejects[j] = again.rejects[i]
+        out: dict[str, tuple[list[Candidate], Rejects]] = {c: ([], Rejects({})) for c in COLOURS}
+        seen: set[tuple[int, int, int, int]] = set()
+        for (colour, _), candidates, rejects in zip(
+            jobs, refined.candidates, refined.rejects, strict=True
+        ):
+            found, total = out[colour]
+            total.merge(rejects)
+            for c in candidates:
+                # Grown windows can overlap their neighbours: keep each blob once.
+                key = c.bbox_px(self.grid)
+                if key not in seen:
+                    seen.add(key)
+                    found.append(c)
+        return out
+
+    # ------------------------------------------------------------------ results
+
+    def _result(
+        self,
+        frame: NDArray[np.uint8],
+        found: dict[str, _Search],
+        search: str,
+        previous_area_px: dict[str, float] | None,
+        need_pair: bool = False,
+    ) -> ImageDetections | None:
+        choice = choose(
+            found["red"].candidates,
+            found["blue"].candidates,
+            self.length_over_diameter,
+            previous_area_px,
+            lambda r, b: rod_evidence(frame, self.grid, r, b, self.rod_over_diameter),
+        )
+        if need_pair and not choice.paired:
+            return None
+        ends = {}
+        for colour, cand, score in (
+            ("red", choice.red, choice.red_score),
+            ("blue", choice.blue, choice.blue_score),
+        ):
+            if cand is None:
+                s = found[colour]
+                ends[colour] = EndDetection.missing(
+                    missing_reason(colour, s.seeds, s.too_large_seeds, s.rejects, s.examined_all)
+                )
+            else:
+                m = measure_candidate(
+                    frame, self.grid, cand, self.thresholds[colour], self.weighted
+                )
+                ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, score, None)
+        return ImageDetections(ends["red"], ends["blue"], search)  # type: ignore[arg-type]
+
+    def _remember(self, result: ImageDetections) -> None:
+        if not result.both_found:
+            self._track = None
+            return
+        previous = self._track
+        track = {}
+        for colour in COLOURS:
+            end = result.end(colour)
+            assert end.centroid_px is not None
+            velocity = (
+                end.centroid_px - previous[colour].centre_px
+                if previous is not None
+                else np.zeros(2)
+            )
+            track[colour] = _Track(end.centroid_px, velocity, end.area_px)
+        self._track = track
+
+
+def detect_ends(
+    frame: NDArray[np.uint8],
+    pixel_format: str,
+    cfg: DetectorConfig,
+    pointer: PointerConfig | None = None,
+) -> ImageDetections:
+    """Both ends in one frame, searched in full, with no memory of other frames."""
+    height, width = frame.shape[:2]
+    return ColourEndDetector(cfg, pixel_format, width, height, pointer).detect(frame)
