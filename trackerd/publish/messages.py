@@ -38,7 +38,10 @@ class _Part(BaseModel):
     """Base of every message and sub-object: closed for the producer (a misspelt field is a bug
     caught here), while subscribers are told to ignore unknown fields (the exported schemas allow them)."""
 
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True, allow_inf_nan=False)
+    model_config = ConfigDict(
+        extra="forbid", use_attribute_docstrings=True, allow_inf_nan=False,
+        json_schema_serialization_defaults_required=True,
+    )
 
 
 class Message(_Part):

@@ -17,7 +17,7 @@ last status again through its own PUB into the proxy. docs/protocol.md, "Late
 joiners", says why this was preferred to a request socket.
 
 Never blocking: the inlet is a PUB with XPUB_NODROP, so a full hand-over queue
-makes a non-blocking send fail (counted as dropped) instead of blocking; a full
+(HANDOVER_HWM) makes a non-blocking send fail (counted as dropped) instead of blocking; a full
 subscriber queue (``send_hwm_messages``) drops that subscriber's messages
 inside ZeroMQ and touches nobody else.
 """
@@ -46,6 +46,9 @@ log = logging.getLogger(__name__)
 
 STATUS_TOPIC = b"status"
 _POLL_MS = 200
+HANDOVER_HWM = 10_000
+"""Messages the hand-over pipe holds while the proxy thread waits for a CPU (about 4 MB at most);
+internal, unlike each subscriber's queue (send_hwm_messages)."""
 _pipe_ids = itertools.count()
 
 
@@ -144,7 +147,7 @@ class Publisher:
 
     def _wire(self, base: str, xpub: zmq.Socket) -> tuple[zmq.Socket, ...]:
         """Create and connect the inproc sockets; returns the proxy thread's sockets."""
-        hwm = self.config.send_hwm_messages
+        hwm = max(HANDOVER_HWM, self.config.send_hwm_messages)
         frontend = self._context.socket(zmq.XSUB)
         frontend.setsockopt(zmq.RCVHWM, hwm)
         frontend.bind(f"{base}-in")
