@@ -9,7 +9,10 @@ class ConfigModel(BaseModel):
     """Base for every configuration model: closed (unknown keys are errors) and immutable.
 
     Field docstrings become the field descriptions (``use_attribute_docstrings``),
-    which docs/configuration.md and error messages draw on.
+    which docs/configuration.md and error messages draw on. NaN and infinity are
+    refused: TOML can spell them (nan, inf), but no setting of a rig can take them.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, use_attribute_docstrings=True, allow_inf_nan=False
+    )

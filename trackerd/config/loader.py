@@ -298,9 +298,24 @@ def _check_geometry(rig: RigConfig, wall_path: Path | None) -> None:
     from trackerd.geometry.wall import WallFrame  # geometry imports config models
 
     try:
-        WallFrame.from_config(rig.wall)
+        wall = WallFrame.from_config(rig.wall)
     except ConfigError as err:
         raise ConfigError(f"{wall_path}: {err}") from err
+    # Corners listed clockwise (seen from the room) give a frame whose normal points
+    # into the wall and whose x runs up it; every camera then sits behind the wall.
+    from trackerd.geometry.camera import CameraModel
+
+    behind = [
+        cam.id for cam in rig.cameras
+        if cam.extrinsics is not None and cam.intrinsics is not None
+        and wall.plane.signed_distance_m(CameraModel.from_config(cam).centre_m) < 0
+    ]
+    if behind:
+        key = "wall.corners_m" if rig.wall.corners_m is not None else "wall.x_direction/y_direction"
+        raise ConfigError(
+            f"{wall_path}: {key}: camera(s) {', '.join(behind)} would be behind the wall; list the corners"
+            " bottom-left, bottom-right, top-right, top-left as seen from the room (x right, y up)"
+        )
 
 
 def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) -> RigConfig:

@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from trackerd.config.acquisition import CameraAcquisition, RigAcquisition
 from trackerd.config.base import ConfigModel
@@ -37,11 +37,7 @@ PixelFormat = Literal["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "B
 OPENCV_DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)
 
 
-class _Model(ConfigModel):
-    """A ConfigModel that also refuses NaN and infinity: TOML can spell them (nan, inf), but
-    no position, length, angle or threshold of a rig can take them."""
-
-    model_config = ConfigDict(allow_inf_nan=False)
+_Model = ConfigModel
 
 
 # --------------------------------------------------------------------------- intrinsics

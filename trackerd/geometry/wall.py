@@ -185,6 +185,7 @@ class WallFrame:
         corners = np.asarray(corners_m, dtype=np.float64).reshape(4, 3)
         plane, residuals = fit_plane(corners)
         _check_planarity(residuals, planarity_tolerance_m, "corners_m")
+        _check_rectangle(corners, planarity_tolerance_m)
         bottom = (corners[1] - corners[0] + corners[2] - corners[3]) / 2.0
         side = (corners[3] - corners[0] + corners[2] - corners[1]) / 2.0
         # Measured corners are only nearly coplanar: put the origin on the fitted plane.
@@ -274,3 +275,32 @@ def _check_planarity(residuals: Array, tolerance_m: float, key: str) -> None:
         f"{key} are not coplanar: distances from their best-fit plane are [{listing}] mm,"
         f" tolerance {tolerance_m * 1000:.1f} mm{culprit}"
     )
+
+
+MAX_CORNER_ANGLE_ERROR_DEG = 1.5
+"""A display's corners are right angles; a measured corner further off than this is a typo."""
+
+
+def _check_rectangle(corners: Array, tolerance_m: float) -> None:
+    """Refuse corners that do not form a rectangle: a mistyped coordinate inside the plane."""
+    edges = {
+        "bottom": corners[1] - corners[0],
+        "right": corners[2] - corners[1],
+        "top": corners[2] - corners[3],
+        "left": corners[3] - corners[0],
+    }
+    lengths = {name: float(np.linalg.norm(edge)) for name, edge in edges.items()}
+    for a, b in (("bottom", "top"), ("left", "right")):
+        if abs(lengths[a] - lengths[b]) > 2 * tolerance_m:
+            raise GeometryError(
+                f"corners_m do not form a rectangle: the {a} edge is {lengths[a] * 1000:.0f} mm long and the"
+                f" {b} edge {lengths[b] * 1000:.0f} mm (order: bottom-left, bottom-right, top-right, top-left)"
+            )
+    for index, (first, second) in enumerate((("bottom", "left"), ("bottom", "right"), ("top", "right"), ("top", "left"))):
+        cos = abs(float(edges[first] @ edges[second])) / (lengths[first] * lengths[second])
+        error = 90.0 - float(np.degrees(np.arccos(min(cos, 1.0))))
+        if error > MAX_CORNER_ANGLE_ERROR_DEG:
+            raise GeometryError(
+                f"corners_m do not form a rectangle: the corner between the {first} and {second} edges is"
+                f" {error:.1f} degrees off square (order: bottom-left, bottom-right, top-right, top-left)"
+            )
