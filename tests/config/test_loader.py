@@ -335,3 +335,40 @@ def test_missing_form_tag_says_which_forms_exist() -> None:
         "cameras.left.intrinsics: tag 'pinhole' in key 'model' does not match any of the"
         " expected tags: 'fov', 'opencv'"
     )
+
+
+# ----------------------------------------------------------------- wall sanity
+
+
+def _datawall_with(tmp_path: Path, old: str, new: str) -> Path:
+    text = (CONFIG_DIR / "datawall.toml").read_text(encoding="utf-8")
+    assert old in text
+    path = tmp_path / "rig.toml"
+    path.write_text(text.replace(old, new), encoding="utf-8")
+    return path
+
+
+def test_corners_listed_clockwise_put_the_cameras_behind_the_wall(tmp_path: Path) -> None:
+    path = _datawall_with(
+        tmp_path,
+        "[[0.0, 0.0, 0.0], [3.6576, 0.0, 0.0], [3.6576, 0.9144, 0.0], [0.0, 0.9144, 0.0]]",
+        "[[0.0, 0.0, 0.0], [0.0, 0.9144, 0.0], [3.6576, 0.9144, 0.0], [3.6576, 0.0, 0.0]]",
+    )
+    with pytest.raises(ConfigError, match=r"rig.toml: wall.corners_m: camera\(s\) left, right would be behind"):
+        load_rig(path)
+
+
+@pytest.mark.parametrize(
+    ("corner", "message"),
+    [
+        ("[0.1, 0.9144, 0.0]]", "the bottom edge is 3658 mm long and the top edge 3558 mm"),
+        ("[0.0, 0.9144, 0.0]]", None),
+    ],
+)
+def test_corners_must_form_a_rectangle(tmp_path: Path, corner: str, message: str | None) -> None:
+    path = _datawall_with(tmp_path, "[0.0, 0.9144, 0.0]]", corner)
+    if message is None:
+        load_rig(path)
+        return
+    with pytest.raises(ConfigError, match=message):
+        load_rig(path)
