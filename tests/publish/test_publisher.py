@@ -167,7 +167,7 @@ def test_bind_errors_are_one_line_and_leave_nothing_running(tmp_path):
     with pytest.raises(PublishError, match=rf"cannot bind tcp://127.0.0.1:{port}: Address already in use"):
         Publisher(ZmqOutput(endpoints=(f"tcp://127.0.0.1:{port}",)))
     holder.close()
-    with pytest.raises(PublishError, match="cannot bind ipc://.*No such file or directory"):
+    with pytest.raises(PublishError, match=r"cannot bind ipc://.*No such file or directory"):
         Publisher(ZmqOutput(endpoints=(f"ipc://{tmp_path}/missing/trackerd.sock",)))
     time.sleep(0.1)
     assert set(threading.enumerate()) <= threads_before

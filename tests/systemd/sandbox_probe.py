@@ -52,7 +52,9 @@ def load_seccomp():
 def unit_settings(path: str) -> dict[str, list[str]]:
     settings: dict[str, list[str]] = {}
     section = ""
-    for raw in open(path, encoding="utf-8"):
+    with open(path, encoding="utf-8") as handle:
+        lines = handle.read().splitlines()
+    for raw in lines:
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
@@ -182,7 +184,8 @@ def main() -> int:
             raise AssertionError(f"no complete frame in {len(statuses)}: {statuses}")
         if not calls:
             raise AssertionError("the stream callback (a libffi closure) never ran")
-        return f"{camera.get_model_name()} frame {buffer.get_image_width()}x{buffer.get_image_height()} after {statuses}"
+        size = f"{buffer.get_image_width()}x{buffer.get_image_height()}"
+        return f"{camera.get_model_name()} frame {size} after {statuses}"
 
     def ctypes_closure():
         callback = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_int)(lambda x: x + 1)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import zmq
@@ -70,7 +70,7 @@ def write_key_pair(directory: Path, name: str, role: str, *, force: bool = False
             verb = "exists" if len(existing) == 1 else "exist"
             raise KeyFileError(f"{' and '.join(existing)} already {verb}; use --force to replace")
     public, secret = zmq.curve_keypair()
-    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
     _write(public_path, _certificate(public, None, role, stamp), 0o644)
     _write(secret_path, _certificate(public, secret, role, stamp), 0o600)
     return public_path, secret_path

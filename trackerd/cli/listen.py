@@ -40,7 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--endpoint", help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})")
+    parser.add_argument("--endpoint",
+                        help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})")
     parser.add_argument("--config", help="rig TOML file: take the endpoint and the server's CURVE key from it")
     parser.add_argument("--topic", action="append", metavar="T",
                         help=f"only this topic (repeatable; default: all). Topics: {', '.join(TOPICS)}")

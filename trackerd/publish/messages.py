@@ -66,6 +66,7 @@ class HitMessage(Message):
     """Where the pointer points on the wall: one per camera pair in which it points at the wall's plane."""
 
     topic: Literal["hit"] = "hit"
+    """Always ``hit``."""
     wall_x_m: float
     """Metres from the display's bottom-left corner, to the right along the wall."""
     wall_y_m: float
@@ -94,6 +95,7 @@ class PointerMessage(Message):
     """The pointer in 3D whenever both ends are seen and agree, even when it points away from the wall."""
 
     topic: Literal["pointer"] = "pointer"
+    """Always ``pointer``."""
     status: FixStatus
     """hit: points at the display; off_wall: at the wall's plane outside the display; away: away
     from the wall; parallel: along the wall (within half a degree)."""
@@ -175,6 +177,7 @@ class StatusMessage(Message):
     """The daemon's health: sent about once a second, on every change, and to every new subscriber."""
 
     topic: Literal["status"] = "status"
+    """Always ``status``."""
     state: DaemonState
     """starting (cameras not all streaming yet), running, degraded (a camera lost), reloading, stopping."""
     version: str

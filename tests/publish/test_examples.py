@@ -1,0 +1,69 @@
+"""The minimal subscribers shown in docs/protocol.md work against a real publisher."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.publish.conftest import hit_message, status_message
+from trackerd.config.models import ZmqOutput
+from trackerd.publish import Publisher
+
+PROTOCOL = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
+
+
+def _example(name: str) -> str:
+    match = re.search(rf"<!-- example:{name} -->\n```\w+\n(.*?)```", PROTOCOL.read_text(), re.S)
+    assert match, f"docs/protocol.md has no example:{name}"
+    return match.group(1)
+
+
+def _first_lines(command: list[str], count: int) -> list[str]:
+    """Run a subscriber against a publisher sending status and hits until it printed ``count`` lines."""
+    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as publisher:
+        publisher.publish_status(status_message(state="running"))
+        process = subprocess.Popen([*command, publisher.endpoints[0]], stdout=subprocess.PIPE, text=True)
+        lines: list[str] = []
+        try:
+            deadline = time.monotonic() + 15
+            import selectors
+
+            selector = selectors.DefaultSelector()
+            selector.register(process.stdout, selectors.EVENT_READ)
+            while len(lines) < count and time.monotonic() < deadline:
+                publisher.publish(hit_message())
+                if selector.select(timeout=0.02):
+                    lines.append(process.stdout.readline().strip())
+        finally:
+            process.kill()
+            process.wait()
+    return lines
+
+
+def test_python_subscriber(tmp_path):
+    script = tmp_path / "subscriber.py"
+    script.write_text(_example("python"))
+    lines = _first_lines([sys.executable, str(script)], 3)
+    assert lines[0] == "status running"  # the late-joiner status comes first
+    assert lines[1] == "hit 1.234 0.567 m on_wall=True"
+
+
+def test_c_subscriber(tmp_path):
+    if shutil.which("cc") is None or shutil.which("pkg-config") is None:
+        pytest.skip("no C compiler or pkg-config")
+    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "libzmq"], capture_output=True, text=True)
+    if flags.returncode != 0:
+        pytest.skip("libzmq headers are not installed (Debian package libzmq3-dev)")
+    source = tmp_path / "subscriber.c"
+    source.write_text(_example("c"))
+    binary = tmp_path / "subscriber"
+    subprocess.run(["cc", "-Wall", "-Werror", str(source), "-o", str(binary), *flags.stdout.split()], check=True)
+    lines = _first_lines([str(binary)], 2)
+    assert lines[0].startswith('status {"schema_version":"1.0","topic":"status"')
+    assert lines[1].startswith('hit {"schema_version":"1.0","topic":"hit"')

@@ -1,0 +1,116 @@
+"""`trackerd listen` in a subprocess against a real publisher."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from tests.publish.conftest import hit_message, pointer_message, status_message
+from trackerd.cli.listen import format_message
+from trackerd.config.models import ZmqOutput
+from trackerd.publish import Publisher
+
+
+def _listen(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "trackerd", "listen", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _serve_until_done(publisher: Publisher, process: subprocess.Popen, messages, timeout_s: float = 20.0) -> None:
+    """Publish the messages in turn every 20 ms until the listener exits."""
+    deadline = time.monotonic() + timeout_s
+    index = 0
+    while process.poll() is None and time.monotonic() < deadline:
+        message = messages[index % len(messages)]
+        if message.topic == "status":
+            publisher.publish_status(message)
+        else:
+            publisher.publish(message)
+        index += 1
+        time.sleep(0.02)
+
+
+@pytest.fixture
+def publisher():
+    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as pub:
+        yield pub
+
+
+def test_listen_count_prints_readable_lines_and_exits_0(publisher):
+    process = _listen("--endpoint", publisher.endpoints[0], "--count", "4", "--topic", "hit", "--topic", "status")
+    _serve_until_done(publisher, process, [hit_message(1234), pointer_message(1234), status_message(9)])
+    out, err = process.communicate(timeout=10)
+    assert process.returncode == 0, err
+    lines = out.splitlines()
+    assert len(lines) == 4
+    assert all(line.split()[0] in ("hit", "status") for line in lines)
+    hit = next(line for line in lines if line.startswith("hit"))
+    assert hit == "hit      #1234  x 1.234 m  y 0.567 m  (2951, 733 px)  on wall  +-1.8 mm  gap 0.9 mm"
+
+
+def test_listen_json_prints_one_payload_per_line(publisher):
+    process = _listen("--endpoint", publisher.endpoints[0], "--count", "3", "--json", "--topic", "pointer")
+    _serve_until_done(publisher, process, [hit_message(), pointer_message(77)])
+    out, err = process.communicate(timeout=10)
+    assert process.returncode == 0, err
+    payloads = [json.loads(line) for line in out.splitlines()]
+    assert len(payloads) == 3
+    assert {p["topic"] for p in payloads} == {"pointer"} and payloads[0]["sequence"] == 77
+
+
+def test_listen_timeout_exits_1_with_one_clear_line():
+    process = _listen("--endpoint", "tcp://127.0.0.1:9", "--timeout", "0.5")
+    out, err = process.communicate(timeout=20)
+    assert process.returncode == 1
+    assert out == ""
+    assert err.strip() == ("trackerd listen: no message from tcp://127.0.0.1:9 within 0.5 s (is trackerd running"
+                           " there, publishing these topics, with matching CURVE keys?)")
+
+
+def test_listen_exits_0_on_ctrl_c(publisher):
+    process = _listen("--endpoint", publisher.endpoints[0])
+    stop = threading.Event()
+    feeder = threading.Thread(target=lambda: [publisher.publish(hit_message()) or time.sleep(0.02)
+                                              for _ in iter(lambda: stop.is_set(), True)])
+    feeder.start()
+    first = process.stdout.readline()
+    stop.set()
+    feeder.join()
+    process.send_signal(signal.SIGINT)
+    process.communicate(timeout=10)
+    assert first.startswith("hit")
+    assert process.returncode == 0
+
+
+def test_listen_reads_endpoint_and_server_key_from_the_rig(tmp_path):
+    from trackerd.cli.keys import write_key_pair
+
+    write_key_pair(tmp_path, "server", "server")
+    rig = (__import__("pathlib").Path(__file__).resolve().parents[2] / "config" / "datawall.toml").read_text()
+    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",),
+                             curve_secret_key_file=tmp_path / "server.key_secret")) as pub:
+        port = pub.endpoints[0].rsplit(":", 1)[1]
+        text = rig.replace('endpoints = ["tcp://127.0.0.1:5560"]',
+                           f'endpoints = ["tcp://*:{port}"]\ncurve_secret_key_file = "{tmp_path}/server.key_secret"')
+        assert text != rig
+        (tmp_path / "rig.toml").write_text(text)
+        process = _listen("--config", str(tmp_path / "rig.toml"), "--count", "1")
+        _serve_until_done(pub, process, [hit_message(5)])
+        out, err = process.communicate(timeout=10)
+    assert process.returncode == 0, err
+    assert out.startswith("hit      #5")
+
+
+def test_format_tolerates_unknown_topics_and_missing_fields():
+    assert format_message("gesture", {"sequence": 3, "topic": "gesture", "kind": "swipe"}) == (
+        'gesture  #3  {"kind":"swipe"}')
+    line = format_message("hit", {"sequence": 1, "wall_x_m": 1.0, "on_wall": False, "extra": 1})
+    assert line == "hit      #1  x 1.000 m  y ?  off wall  gap ?"
+    status = format_message("status", json.loads(status_message().model_dump_json()))
+    assert "right lost 0.0 Hz drops 3" in status and "latency p50 8.1 p99 12.0 ms" in status
