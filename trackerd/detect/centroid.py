@@ -9,12 +9,13 @@ sample of cell (i, j) in BayerRG8, (x, y) = (2j, 2i); for the B sample
 (2j + 1, 2i + 1)), which removes the half-pixel bias a cell-centred position
 would have.
 
-Weighted centroid: each sample weighs its colour excess less WEIGHT_FLOOR,
-capped at WEIGHT_SATURATION times the blob's mean excess. Inside the ball every
-sample therefore weighs the same (the lit side does not pull the centre towards
-the light), and a partly covered sample of the rim weighs in proportion to how
-much of it the ball covers, which is what gives sub-pixel resolution. The area
-is the summed coverage.
+Weighted centroid: over the blob's samples and a one-cell ring around them,
+each sample weighs its colour excess mapped linearly from 0 at
+WEIGHT_FLOOR_FRACTION to 1 at WEIGHT_SATURATION of the blob's mean excess.
+Inside the ball every sample therefore weighs the same (the lit side does not
+pull the centre towards the light), and a partly covered sample of the rim
+weighs about in proportion to how much of it the ball covers, which is what
+gives sub-pixel resolution. The area is the summed weight.
 
 Eq. 12: the midpoint of the extent (min and max x and y) of the samples passing
 the threshold, and the area is their count.
@@ -28,15 +29,20 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.detect.blobs import find_runs, label_runs
 from trackerd.detect.candidates import Candidate
 from trackerd.detect.colour import EXCESS_SCALE, Region, SampleGrid, Threshold, excess_window
 
 WEIGHT_FLOOR = 8
-"""Excess (grey levels) below which a sample gets no weight: sensor noise and neutral
-surfaces sit below it, the anti-aliased rim of a ball mostly above."""
+"""Excess (grey levels) below which a sample never gets weight: sensor noise."""
+
+WEIGHT_FLOOR_FRACTION = 0.2
+"""A sample whose excess is below this fraction of the blob's mean excess gets no weight (the
+ball covers little of it, and faintly coloured surfaces reach that much)."""
 
 WEIGHT_SATURATION = 0.6
-"""A sample whose excess reaches this fraction of the blob's mean excess counts as fully covered."""
+"""A sample whose excess reaches this fraction of the blob's mean excess counts as fully covered.
+Between the floor and this, the weight grows linearly: it is an estimate of coverage."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,41 +57,50 @@ class Measurement:
     on_border: bool
     """Whether samples passing the threshold touch the region's border (the end may be cut)."""
     elongation: float
-    """Of the samples passing the threshold (NaN unless measured with ``shape=True``)."""
+    """Of the samples passing the threshold: from their second moments with ``shape=True``,
+    else their bounding box's longer side over its shorter (cheaper, and enough for a check)."""
     fill: float
-    """Samples passing the threshold over their bounding box (NaN unless ``shape=True``)."""
+    """Samples passing the threshold over their bounding box, in samples."""
 
     @property
     def centre_px(self) -> NDArray[np.float64]:
         return np.array([self.x_px, self.y_px])
 
 
-def measure_region(
-    frame: NDArray[np.uint8],
-    grid: SampleGrid,
-    colour: str,
-    threshold: Threshold,
-    region: Region,
-    weighted: bool,
-    *,
-    shape: bool = False,
-    candidate: Candidate | None = None,
-) -> Measurement | None:
-    """Measure the samples of ``colour`` in ``region`` (cells, inside ``grid.interior()``).
+@dataclass(slots=True)
+class Samples:
+    """The colour test over one region: what :func:`measure` works on."""
 
-    Everything in the region counts, except, when ``candidate`` is given, the
-    samples of the other blobs found with it. Returns None if no sample passes
-    the threshold.
-    """
+    excess: NDArray[np.int16]
+    """EXCESS_SCALE x (sample - larger interpolated other channel), (rows, cols) of the region."""
+    weight: NDArray[np.float32]
+    """The excess as float, with the samples of blobs that do not count set to 0."""
+    strong: NDArray[np.bool_]
+    """Samples passing the threshold (of the blob measured)."""
+    x0_px: float
+    """Full-resolution position of the region's first sample."""
+    y0_px: float
+    cell_px: int
+
+
+def sample(
+    frame: NDArray[np.uint8], grid: SampleGrid, colour: str, threshold: Threshold, region: Region
+) -> Samples:
+    """The colour test over ``region`` (cells, inside ``grid.interior()``)."""
     excess, value = excess_window(frame, grid, colour, region)
-    weight = excess.astype(np.float32)
-    if candidate is not None and not candidate.alone:
-        _clear_other_blobs(
-            weight, candidate, region[0] - candidate.origin[0], region[2] - candidate.origin[1]
-        )
-    strong = weight >= EXCESS_SCALE * threshold.min_excess
+    strong = excess >= EXCESS_SCALE * threshold.min_excess
     if threshold.min_value > 0:
         strong &= value >= threshold.min_value
+    s = grid.cell_px
+    dr, dc = grid.offset(colour)
+    return Samples(
+        excess, excess.astype(np.float32), strong, s * region[2] + dc, s * region[0] + dr, s
+    )
+
+
+def measure(samples: Samples, weighted: bool, *, shape: bool = False) -> Measurement | None:
+    """Centre, area, bounding box and shape of the strong samples; None if there are none."""
+    strong = samples.strong
     n_strong = int(np.count_nonzero(strong))
     if n_strong == 0:
         return None
@@ -93,34 +108,58 @@ def measure_region(
     cols = strong.any(axis=0).nonzero()[0]
     rows = strong.any(axis=1).nonzero()[0]
     c0, c1, r0, r1 = int(cols[0]), int(cols[-1]), int(rows[0]), int(rows[-1])
-    s = grid.cell_px
-    dr, dc = grid.offset(colour)
-    x0, y0 = s * region[2] + dc, s * region[0] + dr  # full-resolution position of cell (0, 0)
-    bbox = (x0 + s * c0, y0 + s * r0, x0 + s * c1, y0 + s * r1)
+    s, x0, y0 = samples.cell_px, samples.x0_px, samples.y0_px
+    bbox = (int(x0) + s * c0, int(y0) + s * r0, int(x0) + s * c1, int(y0) + s * r1)
     on_border = c0 == 0 or r0 == 0 or c1 == w - 1 or r1 == h - 1
-    elongation = fill = math.nan
+    fill = n_strong / ((c1 - c0 + 1) * (r1 - r0 + 1))
     if shape:
-        elongation, fill = _shape(strong, n_strong, c0, c1, r0, r1)
+        elongation = _elongation(strong, n_strong)
+    else:
+        sides = (c1 - c0 + 1, r1 - r0 + 1)
+        elongation = max(sides) / min(sides)
     if not weighted:
-        return Measurement(
-            (bbox[0] + bbox[2]) / 2.0,
-            (bbox[1] + bbox[3]) / 2.0,
-            float(n_strong * s * s),
-            bbox,
-            on_border,
-            elongation,
-            fill,
-        )
-    floor = float(EXCESS_SCALE * WEIGHT_FLOOR)
-    cap = max(WEIGHT_SATURATION * float(weight[strong].sum()) / n_strong, floor + 1.0)
+        centre = ((bbox[0] + bbox[2]) / 2.0, (bbox[1] + bbox[3]) / 2.0)
+        return Measurement(*centre, float(n_strong * s * s), bbox, on_border, elongation, fill)
+    # Only the blob and a one-cell ring around it: the rest of the region is background,
+    # whose faint colour (a reddish floor, noise) must not pull on the centre.
+    level = float(samples.excess[strong].sum()) / n_strong
+    top, left = max(r0 - 1, 0), max(c0 - 1, 0)
+    weight = samples.weight[top : r1 + 2, left : c1 + 2].copy()
+    floor = max(float(EXCESS_SCALE * WEIGHT_FLOOR), WEIGHT_FLOOR_FRACTION * level)
+    cap = max(WEIGHT_SATURATION * level, floor + 1.0)
     weight -= floor
     np.clip(weight, 0.0, cap - floor, out=weight)
     total = float(weight.sum())
-    mx = float(weight.sum(axis=0) @ _ramp(w)) / total
-    my = float(weight.sum(axis=1) @ _ramp(h)) / total
-    return Measurement(
-        x0 + s * mx, y0 + s * my, total / (cap - floor) * s * s, bbox, on_border, elongation, fill
-    )
+    mx = float(weight.sum(axis=0) @ _ramp(weight.shape[1])) / total + left
+    my = float(weight.sum(axis=1) @ _ramp(weight.shape[0])) / total + top
+    area = total / (cap - floor) * s * s
+    return Measurement(x0 + s * mx, y0 + s * my, area, bbox, on_border, elongation, fill)
+
+
+def keep_nearest_blob(samples: Samples, near_px: tuple[float, float]) -> None:
+    """Keep only the 8-connected blob of strong samples nearest to ``near_px`` (x, y).
+
+    The blob kept is the one holding the strong sample nearest that point; the
+    other blobs' samples leave ``strong`` and weigh nothing.
+    """
+    runs = find_runs(samples.strong)
+    labels, n = label_runs(runs)
+    if n <= 1:
+        return
+    s = samples.cell_px
+    nx, ny = (near_px[0] - samples.x0_px) / s, (near_px[1] - samples.y0_px) / s
+    # Distance from the point to each run (a horizontal segment of samples).
+    dx = np.maximum(np.maximum(runs.first - nx, nx - runs.last), 0.0)
+    k = int(labels[int(np.argmin(dx * dx + (runs.rows - ny) ** 2))])
+    keep = np.zeros_like(samples.strong)
+    for row, first, last, label in zip(
+        runs.rows.tolist(), runs.first.tolist(), runs.last.tolist(), labels.tolist(), strict=True
+    ):
+        if label == k:
+            keep[row, first : last + 1] = True
+        else:
+            samples.weight[row, first : last + 1] = 0.0
+    samples.strong = keep
 
 
 def measure_candidate(
@@ -136,17 +175,18 @@ def measure_candidate(
         max(lo_c, q + x0 - 1),
         min(hi_c, q + x1 + 2),
     )
-    m = measure_region(frame, grid, c.colour, threshold, region, weighted, candidate=c)
+    samples = sample(frame, grid, c.colour, threshold, region)
+    if not c.alone:
+        _clear_other_blobs(samples, c, region[0] - r, region[2] - q)
+    m = measure(samples, weighted)
     if m is None:  # only if the cell test and the symmetric test disagree on every sample
         bbox = c.bbox_px(grid)
         return Measurement(c.x_px, c.y_px, c.area_px, bbox, False, c.elongation, c.fill)
     return m
 
 
-def _shape(
-    strong: NDArray[np.bool_], n: int, c0: int, c1: int, r0: int, r1: int
-) -> tuple[float, float]:
-    """Elongation and fill of the set samples of a mask (see trackerd.detect.blobs.BlobStats)."""
+def _elongation(strong: NDArray[np.bool_], n: int) -> float:
+    """Elongation of the set samples of a mask (as trackerd.detect.blobs.BlobStats.elongation)."""
     h, w = strong.shape
     mass = strong.astype(np.float32)
     xs, ys = _ramp(w), _ramp(h)
@@ -157,8 +197,7 @@ def _shape(
     xy = float(ys @ mass @ xs) / n - mx * my
     half_sum = 0.5 * (xx + yy)
     root = math.sqrt(0.25 * (xx - yy) ** 2 + xy * xy)
-    elongation = math.sqrt((half_sum + root) / max(half_sum - root, 1e-12))
-    return elongation, n / ((c1 - c0 + 1) * (r1 - r0 + 1))
+    return math.sqrt((half_sum + root) / max(half_sum - root, 1e-12))
 
 
 _RAMPS: dict[int, NDArray[np.float32]] = {}
@@ -175,18 +214,19 @@ def _ramp(n: int) -> NDArray[np.float32]:
     return ramp
 
 
-def _clear_other_blobs(weight: NDArray[np.float32], c: Candidate, sy0: int, sx0: int) -> None:
-    """Zero the weight of every sample of the candidate's window's other blobs.
+def _clear_other_blobs(samples: Samples, c: Candidate, sy0: int, sx0: int) -> None:
+    """Take the samples of the candidate's window's other blobs out of ``samples``.
 
-    ``weight`` covers strip cells from (sy0, sx0) (see trackerd.detect.strip);
+    ``samples`` covers strip cells from (sy0, sx0) (see trackerd.detect.strip);
     strip cells outside the candidate's window are black gap or other windows,
-    whose runs lie outside ``weight`` or are skipped.
+    whose runs lie outside ``samples`` or are skipped.
     """
-    h, w = weight.shape
+    h, w = samples.weight.shape
     runs = c.runs
     near = (runs.rows >= sy0) & (runs.rows < sy0 + h) & (runs.last >= sx0) & (runs.first < sx0 + w)
     near &= c.labels != c.label
     for i in near.nonzero()[0].tolist():
-        weight[
-            int(runs.rows[i]) - sy0, max(int(runs.first[i]) - sx0, 0) : int(runs.last[i]) - sx0 + 1
-        ] = 0.0
+        row = int(runs.rows[i]) - sy0
+        span = slice(max(int(runs.first[i]) - sx0, 0), int(runs.last[i]) - sx0 + 1)
+        samples.weight[row, span] = 0.0
+        samples.strong[row, span] = False

@@ -40,7 +40,13 @@ from trackerd.detect.candidates import (
     seed_windows,
     shape_score,
 )
-from trackerd.detect.centroid import Measurement, measure_candidate, measure_region
+from trackerd.detect.centroid import (
+    Measurement,
+    keep_nearest_blob,
+    measure,
+    measure_candidate,
+    sample,
+)
 from trackerd.detect.colour import Region, SampleGrid, Threshold, coarse_masks, sample_grid
 from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
 from trackerd.detect.select import choose, missing_reason, pair_consistency, rod_evidence
@@ -76,6 +82,9 @@ class _Track:
     centre_px: NDArray[np.float64]
     velocity_px: NDArray[np.float64]
     area_px: float
+    crowded: bool = False
+    """Whether the quick measurement had to pick the end out of other blobs of its colour
+    (then it does so straight away next time)."""
 
 
 @dataclass(slots=True)
@@ -125,6 +134,7 @@ class ColourEndDetector:
         step_px = search_step_px or getattr(cfg, "search_step_px", None) or DEFAULT_SEARCH_STEP_PX
         self.step_cells = max(1, round(step_px / self.grid.cell_px))
         self._track: dict[str, _Track] | None = None
+        self._crowded: set[str] = set()
 
     def reset(self) -> None:
         """Forget the previous frame: the next frame is searched in full."""
@@ -139,6 +149,7 @@ class ColourEndDetector:
                 " (uint8)"
             )
         result = None
+        self._crowded = set()
         if self._track is not None:
             result = self._quick_track(frame, self._track) or self._window_search(
                 frame, self._track
@@ -182,27 +193,29 @@ class ColourEndDetector:
         per end; None sends the frame to the blob search.
         """
         found: dict[str, Measurement] = {}
+        crowded = {c for c in COLOURS if track[c].crowded}
         for colour in COLOURS:
             t = track[colour]
+            thr = self.thresholds[colour]
             radius = math.sqrt(t.area_px / math.pi)
             speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
-            window = self._window_around(
-                t.centre_px + t.velocity_px, 1.6 * radius + 0.5 * speed + 6.0
-            )
+            predicted = t.centre_px + t.velocity_px
+            window = self._window_around(predicted, 1.25 * radius + 0.5 * speed + 4.0)
             if window is None:
                 return None
-            m = measure_region(
-                frame, self.grid, colour, self.thresholds[colour], window, self.weighted, shape=True
-            )
-            if (
-                m is None
-                or m.on_border
-                or m.elongation > QUICK_MAX_ELONGATION
-                or m.fill < QUICK_MIN_FILL
-                or not t.area_px / QUICK_AREA_RATIO <= m.area_px <= t.area_px * QUICK_AREA_RATIO
-                or not self.limits.min_area_px <= m.area_px <= self.limits.max_area_px
-            ):
+            samples = sample(frame, self.grid, colour, thr, window)
+            near = (float(predicted[0]), float(predicted[1]))
+            if t.crowded:
+                keep_nearest_blob(samples, near)
+            m = measure(samples, self.weighted)
+            if not t.crowded and not self._plainly(m, t.area_px):
+                # Something else of the colour in the window: keep the blob nearest the prediction.
+                keep_nearest_blob(samples, near)
+                m = measure(samples, self.weighted)
+                crowded.add(colour)
+            if not self._plainly(m, t.area_px):
                 return None
+            assert m is not None
             found[colour] = m
         red, blue = found["red"], found["blue"]
         pair = pair_consistency(
@@ -225,7 +238,21 @@ class ColourEndDetector:
             )
             for m in (red, blue)
         ]
+        self._crowded = crowded
         return ImageDetections(ends[0], ends[1], "window")
+
+    def _plainly(self, m: Measurement | None, previous_area_px: float) -> bool:
+        """Whether a quick measurement is plainly the end: whole, round, full, the same size."""
+        return (
+            m is not None
+            and not m.on_border
+            and m.elongation <= QUICK_MAX_ELONGATION
+            and m.fill >= QUICK_MIN_FILL
+            and previous_area_px / QUICK_AREA_RATIO
+            <= m.area_px
+            <= previous_area_px * QUICK_AREA_RATIO
+            and self.limits.min_area_px <= m.area_px <= self.limits.max_area_px
+        )
 
     def _window_search(
         self, frame: NDArray[np.uint8], track: dict[str, _Track]
@@ -378,7 +405,8 @@ class ColourEndDetector:
                 if previous is not None
                 else np.zeros(2)
             )
-            track[colour] = _Track(end.centroid_px, velocity, end.area_px)
+            crowded = result.search == "window" and colour in self._crowded
+            track[colour] = _Track(end.centroid_px, velocity, end.area_px, crowded)
         self._track = track
 
 
