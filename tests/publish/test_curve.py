@@ -128,8 +128,10 @@ def _keys(*args: str) -> subprocess.CompletedProcess:
                           timeout=60)
 
 
-def test_keys_command_writes_a_private_secret_and_refuses_to_overwrite(tmp_path):
-    result = _keys("server", "--dir", str(tmp_path))
+def test_keys_command_writes_a_private_secret_and_refuses_to_overwrite(tmp_path, capsys):
+    from trackerd.cli.main import main
+
+    result = _keys("server", "--dir", str(tmp_path))  # once as operators run it, the rest in-process
     assert result.returncode == 0, result.stderr
     public_file, secret_file = tmp_path / "server.key", tmp_path / "server.key_secret"
     assert public_file.stat().st_mode & 0o777 == 0o644
@@ -139,21 +141,18 @@ def test_keys_command_writes_a_private_secret_and_refuses_to_overwrite(tmp_path)
     assert zmq.curve_public(secret) == public  # the pair belongs together
     before = secret_file.read_bytes()
 
-    again = _keys("server", "--dir", str(tmp_path))
-    assert again.returncode == 1
-    assert again.stderr.strip().endswith("already exist; use --force to replace")
-    assert "Traceback" not in again.stderr
+    assert main(["keys", "server", "--dir", str(tmp_path)]) == 1
+    assert capsys.readouterr().err.strip().endswith("already exist; use --force to replace")
     assert secret_file.read_bytes() == before
 
-    forced = _keys("server", "--dir", str(tmp_path), "--force")
-    assert forced.returncode == 0
+    assert main(["keys", "server", "--dir", str(tmp_path), "--force"]) == 0
     assert secret_file.read_bytes() != before
     assert secret_file.stat().st_mode & 0o777 == 0o600
 
-    client = _keys("client", "--name", "wall-app", "--dir", str(tmp_path))
-    assert client.returncode == 0
+    assert main(["keys", "client", "--name", "wall-app", "--dir", str(tmp_path)]) == 0
     assert (tmp_path / "wall-app.key").exists()
-    missing = _keys("client", "--dir", str(tmp_path / "nope"))
-    assert missing.returncode == 1 and "no such directory" in missing.stderr
-    bad_name = _keys("client", "--name", "../x", "--dir", str(tmp_path))
-    assert bad_name.returncode == 2 and "--name" in bad_name.stderr
+    capsys.readouterr()
+    assert main(["keys", "client", "--dir", str(tmp_path / "nope")]) == 1
+    assert "no such directory" in capsys.readouterr().err
+    assert main(["keys", "client", "--name", "../x", "--dir", str(tmp_path)]) == 2
+    assert "--name" in capsys.readouterr().err
