@@ -10,12 +10,12 @@ sample of cell (i, j) in BayerRG8, (x, y) = (2j, 2i); for the B sample
 would have.
 
 Weighted centroid: over the blob's samples and a one-cell ring around them,
-each sample weighs its colour excess mapped linearly from 0 at
-WEIGHT_FLOOR_FRACTION to 1 at WEIGHT_SATURATION of the blob's mean excess.
-Inside the ball every sample therefore weighs the same (the lit side does not
-pull the centre towards the light), and a partly covered sample of the rim
-weighs about in proportion to how much of it the ball covers, which is what
-gives sub-pixel resolution. The area is the summed weight.
+each sample weighs an estimate of how much of it the ball covers: its excess
+over the largest excess in its 3x3 neighbourhood (see :func:`_coverage`).
+Inside the ball every sample therefore weighs about the same, however the ball
+is shaded (the lit side does not pull the centre towards the light), and a
+partly covered sample of the rim weighs in proportion to its coverage, which
+is what gives sub-pixel resolution. The area is the summed coverage.
 
 Eq. 12: the midpoint of the extent (min and max x and y) of the samples passing
 the threshold, and the area is their count.
@@ -33,16 +33,13 @@ from trackerd.detect.blobs import find_runs, label_runs
 from trackerd.detect.candidates import Candidate
 from trackerd.detect.colour import EXCESS_SCALE, Region, SampleGrid, Threshold, excess_window
 
-WEIGHT_FLOOR = 8
-"""Excess (grey levels) below which a sample never gets weight: sensor noise."""
+COVERAGE_FLOOR = 0.1
+"""A sample whose excess is below this fraction of its neighbourhood's largest weighs nothing
+(noise, and the faint colour of surfaces around the ball)."""
 
-WEIGHT_FLOOR_FRACTION = 0.2
-"""A sample whose excess is below this fraction of the blob's mean excess gets no weight (the
-ball covers little of it, and faintly coloured surfaces reach that much)."""
-
-WEIGHT_SATURATION = 0.6
-"""A sample whose excess reaches this fraction of the blob's mean excess counts as fully covered.
-Between the floor and this, the weight grows linearly: it is an estimate of coverage."""
+COVERAGE_FULL = 0.9
+"""A sample whose excess reaches this fraction of its neighbourhood's largest counts as fully
+covered (noise keeps fully covered samples a little below their brightest neighbour)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,16 +121,35 @@ def measure(samples: Samples, weighted: bool, *, shape: bool = False) -> Measure
     # whose faint colour (a reddish floor, noise) must not pull on the centre.
     level = float(samples.excess[strong].sum()) / n_strong
     top, left = max(r0 - 1, 0), max(c0 - 1, 0)
-    weight = samples.weight[top : r1 + 2, left : c1 + 2].copy()
-    floor = max(float(EXCESS_SCALE * WEIGHT_FLOOR), WEIGHT_FLOOR_FRACTION * level)
-    cap = max(WEIGHT_SATURATION * level, floor + 1.0)
-    weight -= floor
-    np.clip(weight, 0.0, cap - floor, out=weight)
+    weight = _coverage(samples.weight[top : r1 + 2, left : c1 + 2], level)
     total = float(weight.sum())
     mx = float(weight.sum(axis=0) @ _ramp(weight.shape[1])) / total + left
     my = float(weight.sum(axis=1) @ _ramp(weight.shape[0])) / total + top
-    area = total / (cap - floor) * s * s
-    return Measurement(x0 + s * mx, y0 + s * my, area, bbox, on_border, elongation, fill)
+    return Measurement(x0 + s * mx, y0 + s * my, total * s * s, bbox, on_border, elongation, fill)
+
+
+def _coverage(excess: NDArray[np.float32], level: float) -> NDArray[np.float32]:
+    """How much of each sample the ball covers, in [0, 1], from its excess.
+
+    A sample's excess is compared with the largest in its 3x3 neighbourhood,
+    which inside a ball, and on its rim next to the inside, is about what a fully
+    covered sample shows there: the comparison follows the ball's shading, so
+    the lit side does not weigh more than the dark side. Where the neighbourhood
+    holds no ball (a corner of the box), half the blob's mean excess stands in.
+    The ratio maps linearly to coverage between COVERAGE_FLOOR and COVERAGE_FULL.
+    """
+    h, w = excess.shape
+    padded = np.zeros((h + 2, w + 2), dtype=np.float32)
+    padded[1:-1, 1:-1] = excess
+    across = np.maximum(padded[:, :-2], padded[:, 1:-1])
+    np.maximum(across, padded[:, 2:], out=across)
+    local = np.maximum(across[:-2], across[1:-1])
+    np.maximum(local, across[2:], out=local)
+    np.maximum(local, 0.5 * level, out=local)
+    ratio = excess / local
+    ratio -= COVERAGE_FLOOR
+    ratio *= 1.0 / (COVERAGE_FULL - COVERAGE_FLOOR)
+    return np.clip(ratio, 0.0, 1.0, out=ratio)
 
 
 def keep_nearest_blob(samples: Samples, near_px: tuple[float, float]) -> None:
