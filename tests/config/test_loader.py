@@ -372,3 +372,15 @@ def test_corners_must_form_a_rectangle(tmp_path: Path, corner: str, message: str
         return
     with pytest.raises(ConfigError, match=message):
         load_rig(path)
+
+
+def test_curve_key_paths_are_relative_to_the_rig_file(tmp_path: Path) -> None:
+    path = _datawall_with(
+        tmp_path,
+        'endpoints = ["tcp://127.0.0.1:5560"]',
+        'endpoints = ["tcp://127.0.0.1:5560"]\ncurve_secret_key_file = "keys/server.key_secret"\n'
+        'curve_authorized_keys_dir = "keys/clients"',
+    )
+    zmq = load_rig(path).config.outputs.zmq
+    assert zmq.curve_secret_key_file == tmp_path / "keys" / "server.key_secret"
+    assert zmq.curve_authorized_keys_dir == tmp_path / "keys" / "clients"

@@ -244,6 +244,7 @@ def load_rig(path: str | Path) -> LoadedRig:
                     f" [cameras.{part}]{where} (a calibration file named by 'calibration')"
                 )
     _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
+    rig = _resolve_paths(rig, rig_path)
     for index, cam in enumerate(rig.cameras):
         from_calibration = sources[cam.id].startswith(("from ", "intrinsics from "))
         if from_calibration:
@@ -291,6 +292,20 @@ def _check_lens(cam: CameraConfig, where: str) -> None:
             f" for pixel ({u:.1f}, {v:.1f}) projects back {miss[worst]:.3g} px away, so the"
             " calibration does not hold out to the corners (calibrate with the board near them)"
         )
+
+
+def _resolve_paths(rig: RigConfig, rig_path: Path) -> RigConfig:
+    """File names inside a rig file are relative to that file, like ``calibration``."""
+    zmq = rig.outputs.zmq
+    update = {
+        key: (rig_path.parent / value).resolve()
+        for key in ("curve_secret_key_file", "curve_authorized_keys_dir")
+        if (value := getattr(zmq, key)) is not None and not Path(value).is_absolute()
+    }
+    if not update:
+        return rig
+    outputs = rig.outputs.model_copy(update={"zmq": zmq.model_copy(update=update)})
+    return rig.model_copy(update={"outputs": outputs})
 
 
 def _check_geometry(rig: RigConfig, wall_path: Path | None) -> None:

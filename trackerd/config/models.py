@@ -361,11 +361,12 @@ class ZmqOutput(_Model):
     """Period of the ``status`` message; it is also sent on every change of state."""
     curve_secret_key_file: Path | None = None
     """The daemon's CURVE key pair (a ``.key_secret`` file from ``trackerd keys server``).
-    Setting it turns on CURVE encryption and authentication for every endpoint."""
+    Setting it turns on CURVE encryption and authentication for every endpoint. A relative
+    path is relative to the rig file."""
     curve_authorized_keys_dir: Path | None = None
     """A directory of client public keys (``*.key`` files from ``trackerd keys client``);
     only those clients may subscribe. Omit to accept any client that knows the server's
-    public key. Needs curve_secret_key_file."""
+    public key. Needs curve_secret_key_file. A relative path is relative to the rig file."""
     allow_insecure_network: bool = False
     """Bind non-loopback addresses without CURVE: anyone who can reach the port reads every
     message. For isolated networks only."""
