@@ -1,0 +1,337 @@
+"""The wall's plane and 2D frame, from what the calibrated cameras see of the pointer.
+
+Three kinds of observation, usable together:
+
+* a **touch**: the pointer's tip ball held against the wall at a known place (a
+  display corner, a taped mark). The triangulated tip centre lies one ball radius
+  in front of the wall plane, at the known wall coordinates;
+* a **touch anywhere**: the same without a known place; it only pins the plane;
+* a **pointing**: the pointer aimed at a known target (a cross shown on the display,
+  a laser dot on it); the target lies on the pointer's line. From two or more
+  places the lines meet at the target, so targets the cameras cannot see (the
+  display's far corners) are reached too.
+
+The report measured three points by hand and took the plane through them (eq.
+23-25); here every observation is a residual of one least-squares problem whose
+unknowns are the wall frame (origin, x along the wall, y up, normal into the
+room) and, when the targets are defined by the display (its corners, display
+pixels), the display's size. Each observation's residual is reported, so a
+wrong corner or a moved camera stands out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.calibration import CalibrationError
+from trackerd.errors import GeometryError
+from trackerd.geometry.rotation import rotation_from_rvec
+from trackerd.geometry.triangulation import triangulate_least_squares
+from trackerd.geometry.wall import WallFrame, fit_plane
+
+Array = NDArray[np.float64]
+
+CORNER_LABELS = {"bl": (0.0, 0.0), "br": (1.0, 0.0), "tr": (1.0, 1.0), "tl": (0.0, 1.0)}
+"""Display corners as fractions of the wall's width and height."""
+
+
+@dataclass(frozen=True)
+class Target:
+    """A place on the wall: its coordinates in metres (x right, y up from the display's bottom-left).
+
+    ``scalable`` targets are defined by the display (its corners, display pixels) and
+    move with its size when the size is solved for; marks measured with a tape are not.
+    """
+
+    label: str
+    wall_xy_m: Array | None
+    scalable: bool = False
+
+
+def corner_targets(width_m: float, height_m: float) -> dict[str, Target]:
+    """The display's corners bl, br, tr, tl as scalable targets."""
+    return {label: Target(label, np.array([fx * width_m, fy * height_m]), True)
+            for label, (fx, fy) in CORNER_LABELS.items()}
+
+
+@dataclass(frozen=True)
+class Touch:
+    """The tip ball held against the wall: its triangulated centre and the back ball's."""
+
+    target: Target
+    tip_m: Array
+    back_m: Array
+
+
+@dataclass(frozen=True)
+class Pointing:
+    """The pointer aimed at a target: its triangulated ends (the line through them meets the target)."""
+
+    target: Target
+    tip_m: Array
+    back_m: Array
+
+    @property
+    def direction(self) -> Array:
+        axis = self.tip_m - self.back_m
+        return axis / np.linalg.norm(axis)
+
+
+@dataclass(frozen=True)
+class Residual:
+    """How one observation fits the solved wall."""
+
+    label: str
+    kind: str
+    """'touch' or 'pointing'."""
+    plane_mm: float | None
+    """Signed distance from the wall plane (touches: of the ball's near surface; pointings: of
+    the point where that target's lines meet, when there are two or more). Positive: in front."""
+    in_plane_mm: float | None
+    """Distance from the target's place within the plane (touches with a known place)."""
+    miss_mm: float | None
+    """Pointings: how far the pointer's line passes from the target."""
+
+    @property
+    def worst_mm(self) -> float:
+        return max(abs(v) for v in (self.plane_mm, self.in_plane_mm, self.miss_mm) if v is not None)
+
+
+@dataclass(frozen=True)
+class WallFit:
+    """The solved wall in the cameras' (current world) frame."""
+
+    rotation: Array
+    """World-from-wall rotation (3, 3): columns are the wall's x (along), y (up) and normal (into the room)."""
+    origin_m: Array
+    """The display's bottom-left corner, world coordinates."""
+    width_m: float
+    height_m: float
+    size_fitted: bool
+    """Whether width and height were solved for (display-defined targets) or taken as given."""
+    residuals: tuple[Residual, ...]
+    rms_mm: float
+
+    @property
+    def frame(self) -> WallFrame:
+        return WallFrame(self.origin_m.copy(), self.rotation[:, 0].copy(), self.rotation[:, 1].copy(),
+                         self.width_m, self.height_m)
+
+    @property
+    def corners_m(self) -> Array:
+        """(4, 3) bottom-left, bottom-right, top-right, top-left in the world frame."""
+        return self.frame.corners_m
+
+    def camera_in_wall_frame(self, rotation: Array, translation_m: Array) -> tuple[Array, Array]:
+        """A camera's world-to-camera (R, t) re-expressed with the wall frame as the world.
+
+        ``x_cam = R x_world + t`` and ``x_world = W x_wall + o`` give
+        ``x_cam = (R W) x_wall + (R o + t)``.
+        """
+        rotation = np.asarray(rotation, dtype=np.float64)
+        return rotation @ self.rotation, rotation @ self.origin_m + np.asarray(translation_m, dtype=np.float64)
+
+
+def fit_wall(
+    touches: Sequence[Touch],
+    pointings: Sequence[Pointing],
+    size_m: tuple[float, float],
+    tip_radius_m: float,
+    *,
+    fit_size: bool | None = None,
+) -> WallFit:
+    """Solve the wall frame (and optionally its size) from touches and pointings.
+
+    ``size_m`` is the display's nominal width and height; with ``fit_size`` (by
+    default: when the scalable targets reach across most of the display both
+    ways) the size is solved for and reported as the implied size.
+    Raises CalibrationError when the observations cannot fix a wall.
+    """
+    touches, pointings = list(touches), list(pointings)
+    known = [t.target for t in touches if t.target.wall_xy_m is not None] + [p.target for p in pointings]
+    if fit_size is None:
+        fit_size = _spans_display(known, size_m)
+    estimates = _initial_points(touches, pointings)
+    if len(estimates) < 3:
+        raise CalibrationError(
+            f"the wall needs three or more places (touched, or pointed at from two or more places);"
+            f" got {len(estimates)}"
+        )
+    labelled = {label: xy for label, (_, xy, _) in estimates.items() if xy is not None}
+    if len(labelled) < 2:
+        raise CalibrationError("at least two of the places must be known on the wall (corners or marks)")
+    room_side = _room_side(touches, pointings)
+    rotation, origin = _initial_frame(estimates, room_side, tip_radius_m)
+    params = np.zeros(8 if fit_size else 6)
+
+    def residual_vector(p: Array) -> Array:
+        return _residuals(p, rotation, origin, touches, pointings, tip_radius_m)
+
+    params = _gauss_newton(residual_vector, params)
+    rot, org, scale = _unpack(params, rotation, origin)
+    width, height = size_m[0] * scale[0], size_m[1] * scale[1]
+    residuals = _report(rot, org, scale, touches, pointings, tip_radius_m)
+    rms = float(np.sqrt(np.mean(residual_vector(params) ** 2))) * 1000.0
+    return WallFit(rot, org, float(width), float(height), bool(fit_size), residuals, rms)
+
+
+def _spans_display(targets: Sequence[Target], size_m: tuple[float, float]) -> bool:
+    xy = np.array([t.wall_xy_m for t in targets if t.scalable and t.wall_xy_m is not None])
+    if len(xy) < 3:
+        return False
+    span = xy.max(axis=0) - xy.min(axis=0)
+    return bool(span[0] > 0.5 * size_m[0] and span[1] > 0.5 * size_m[1])
+
+
+def _initial_points(touches: Sequence[Touch], pointings: Sequence[Pointing]) -> dict[str, tuple[Array, Array | None, str]]:
+    """A first 3D position for each place: label -> (point, wall xy or None, 'touch' / 'pointing')."""
+    out: dict[str, tuple[Array, Array | None, str]] = {}
+    for index, touch in enumerate(touches):
+        label = touch.target.label or f"touch {index + 1}"
+        key = label if label not in out else f"{label} #{index + 1}"
+        out[key] = (np.asarray(touch.tip_m, dtype=np.float64), touch.target.wall_xy_m, "touch")
+    groups: dict[str, list[Pointing]] = {}
+    for pointing in pointings:
+        groups.setdefault(pointing.target.label, []).append(pointing)
+    for label, group in groups.items():
+        if len(group) < 2:
+            continue
+        try:
+            point, _ = triangulate_least_squares(np.array([p.tip_m for p in group]),
+                                                 np.array([p.direction for p in group]))
+        except GeometryError:
+            continue
+        out.setdefault(label, (point, group[0].target.wall_xy_m, "pointing"))
+    return out
+
+
+def _room_side(touches: Sequence[Touch], pointings: Sequence[Pointing]) -> Array:
+    """A direction from the wall into the room: from the tip toward the back ball, averaged."""
+    vectors = [np.asarray(o.back_m) - np.asarray(o.tip_m) for o in (*touches, *pointings)]
+    mean = np.mean([v / np.linalg.norm(v) for v in vectors], axis=0)
+    return mean / np.linalg.norm(mean)
+
+
+def _initial_frame(estimates: dict[str, tuple[Array, Array | None, str]], room_side: Array,
+                   tip_radius_m: float) -> tuple[Array, Array]:
+    """Plane through the first estimates, then the in-plane rotation and origin from the known places."""
+    points = np.array([p for p, _, _ in estimates.values()])
+    try:
+        plane, _ = fit_plane(points)
+    except GeometryError as err:
+        raise CalibrationError(f"the wall places do not fix a plane: {err}") from err
+    normal = plane.normal if plane.normal @ room_side > 0 else -plane.normal
+    # Touched tip centres sit one radius in front of the wall.
+    shifted = {k: (p - tip_radius_m * normal if kind == "touch" else p, xy)
+               for k, (p, xy, kind) in estimates.items()}
+    seed = np.cross(normal, [0.0, 0.0, 1.0])
+    if np.linalg.norm(seed) < 0.1:
+        seed = np.cross(normal, [1.0, 0.0, 0.0])
+    e1 = seed / np.linalg.norm(seed)
+    e2 = np.cross(normal, e1)
+    in_plane = np.array([[p @ e1, p @ e2] for p, xy in shifted.values() if xy is not None])
+    wall_xy = np.array([xy for _, xy in shifted.values() if xy is not None])
+    # 2D Kabsch: in_plane ~ R2 wall_xy + t, a rotation (no reflection: the normal is fixed).
+    mean_p, mean_q = in_plane.mean(axis=0), wall_xy.mean(axis=0)
+    cov = (wall_xy - mean_q).T @ (in_plane - mean_p)
+    angle = np.arctan2(cov[0, 1] - cov[1, 0], cov[0, 0] + cov[1, 1])
+    c, s = np.cos(angle), np.sin(angle)
+    r2 = np.array([[c, -s], [s, c]])
+    t2 = mean_p - r2 @ mean_q
+    x_axis = r2[0, 0] * e1 + r2[1, 0] * e2
+    y_axis = r2[0, 1] * e1 + r2[1, 1] * e2
+    offset = -plane.offset_m if plane.normal @ room_side > 0 else plane.offset_m
+    origin = t2[0] * e1 + t2[1] * e2 + offset * normal
+    return np.column_stack([x_axis, y_axis, normal]), origin
+
+
+def _unpack(params: Array, rotation0: Array, origin0: Array) -> tuple[Array, Array, Array]:
+    rotation = rotation0 @ rotation_from_rvec(params[:3])
+    origin = origin0 + params[3:6]
+    scale = np.exp(params[6:8]) if len(params) == 8 else np.ones(2)
+    return rotation, origin, scale
+
+
+def _target_point(target: Target, rotation: Array, origin: Array, scale: Array, lift_m: float = 0.0) -> Array:
+    xy = np.asarray(target.wall_xy_m, dtype=np.float64) * (scale if target.scalable else 1.0)
+    return origin + rotation @ np.array([xy[0], xy[1], lift_m])
+
+
+def _residuals(params: Array, rotation0: Array, origin0: Array, touches: Sequence[Touch],
+               pointings: Sequence[Pointing], tip_radius_m: float) -> Array:
+    rotation, origin, scale = _unpack(params, rotation0, origin0)
+    normal = rotation[:, 2]
+    parts: list[Array] = []
+    for touch in touches:
+        if touch.target.wall_xy_m is None:
+            parts.append(np.array([normal @ (touch.tip_m - origin) - tip_radius_m]))
+        else:
+            parts.append(touch.tip_m - _target_point(touch.target, rotation, origin, scale, tip_radius_m))
+    for pointing in pointings:
+        rel = _target_point(pointing.target, rotation, origin, scale) - pointing.tip_m
+        d = pointing.direction
+        parts.append(rel - (rel @ d) * d)
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _gauss_newton(func, params: Array, iterations: int = 50) -> Array:
+    """Minimise |func(p)|^2 by Gauss-Newton with a numerical Jacobian and step halving."""
+    step = 1e-7
+    current = func(params)
+    cost = float(current @ current)
+    for _ in range(iterations):
+        jac = np.empty((len(current), len(params)))
+        for k in range(len(params)):
+            delta = np.zeros(len(params))
+            delta[k] = step
+            jac[:, k] = (func(params + delta) - func(params - delta)) / (2 * step)
+        update, *_ = np.linalg.lstsq(jac, -current, rcond=None)
+        factor = 1.0
+        while factor > 1e-4:
+            trial = params + factor * update
+            value = func(trial)
+            trial_cost = float(value @ value)
+            if trial_cost <= cost:
+                break
+            factor /= 2.0
+        else:
+            break
+        converged = cost - trial_cost < 1e-18 + 1e-12 * cost
+        params, current, cost = trial, value, trial_cost
+        if converged:
+            break
+    return params
+
+
+def _report(rotation: Array, origin: Array, scale: Array, touches: Sequence[Touch],
+            pointings: Sequence[Pointing], tip_radius_m: float) -> tuple[Residual, ...]:
+    normal = rotation[:, 2]
+    out: list[Residual] = []
+    for touch in touches:
+        plane = float(normal @ (touch.tip_m - origin) - tip_radius_m) * 1000.0
+        in_plane = None
+        if touch.target.wall_xy_m is not None:
+            diff = touch.tip_m - _target_point(touch.target, rotation, origin, scale, tip_radius_m)
+            in_plane = float(np.linalg.norm(diff - (diff @ normal) * normal)) * 1000.0
+        out.append(Residual(touch.target.label, "touch", plane, in_plane, None))
+    groups: dict[str, list[Pointing]] = {}
+    for pointing in pointings:
+        groups.setdefault(pointing.target.label, []).append(pointing)
+    for label, group in groups.items():
+        meet = None
+        if len(group) >= 2:
+            try:
+                point, _ = triangulate_least_squares(np.array([p.tip_m for p in group]),
+                                                     np.array([p.direction for p in group]))
+                meet = float(normal @ (point - origin)) * 1000.0
+            except GeometryError:
+                meet = None
+        for pointing in group:
+            rel = _target_point(pointing.target, rotation, origin, scale) - pointing.tip_m
+            miss = float(np.linalg.norm(rel - (rel @ pointing.direction) * pointing.direction)) * 1000.0
+            out.append(Residual(label, "pointing", meet, None, miss))
+    return tuple(out)
