@@ -1,0 +1,33 @@
+"""`trackerd bench detector` runs end to end and reports what the issue asks for."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from trackerd.cli.main import main
+
+pytestmark = pytest.mark.slow
+
+
+def test_bench_detector_json(capsys) -> None:
+    args = ["bench", "detector", "--frames", "3", "--poses", "1", "--repeats", "1", "--json"]
+    assert main([*args, "--min-excess", "70", "60"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert set(report["median_ms"]) == {"full", "tracked", "opencv", "floor"}
+    assert all(v > 0 for v in report["median_ms"].values())
+    assert set(report["ratios"]) == {"opencv_over_full", "full_over_floor", "tracked_over_floor"}
+    assert report["min_excess"] == {"red": 70, "blue": 60}
+    accuracy = report["accuracy_px"]
+    assert {"weighted", "tracked", "opencv", "bbox (eq. 12, chosen blob)"} <= set(accuracy)
+    assert accuracy["weighted"]["ends"] == 2 * 2 * (3 + 1)
+    assert accuracy["weighted"]["missed"] == 0
+
+
+def test_bench_detector_table_and_bad_option(capsys) -> None:
+    assert main(["bench", "detector", "--frames", "2", "--poses", "0", "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "(a) full-frame search" in out and "(c)/(a)" in out and "weighted" in out
+    assert main(["bench", "detector", "--frames", "2", "--min-excess", "0", "300"]) == 2
+    assert "--min-excess 0 300" in capsys.readouterr().err

@@ -1,0 +1,122 @@
+"""The colour tests on raw planes: uint8 arithmetic, sample positions, symmetric excess."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from trackerd.detect.colour import (
+    EXCESS_SCALE,
+    Threshold,
+    _exceeds,
+    coarse_masks,
+    excess_window,
+    green_at,
+    sample_grid,
+)
+from trackerd.errors import ImageError
+from trackerd.pixelformat import BAYER_LAYOUTS, from_rgb
+
+FORMATS = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8")
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    arrays(np.uint8, 64),
+    arrays(np.uint8, 64),
+    st.integers(1, 255),
+    st.integers(0, 255),
+)
+def test_uint8_test_is_the_integer_test(value, others, min_excess, min_value) -> None:
+    """value >= others + min_excess and value >= min_value, with no overflow anywhere."""
+    expected = (value.astype(int) >= others.astype(int) + min_excess) & (value >= min_value)
+    got = _exceeds(value, others.copy(), Threshold(min_excess, min_value))
+    assert np.array_equal(got, expected)
+
+
+@pytest.mark.parametrize("pixel_format", FORMATS)
+def test_each_colour_sample_is_at_its_own_pixel(pixel_format: str) -> None:
+    """A frame whose every pixel's value encodes its (x, y): the grid's offsets find R and B."""
+    height, width = 12, 16
+    rng = np.random.default_rng(1)
+    rgb = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    frame = from_rgb(rgb, pixel_format)
+    grid = sample_grid(pixel_format, width, height)
+    for colour, channel in (("red", 0), ("blue", 2)):
+        dr, dc = grid.offset(colour)
+        for i, j in ((1, 1), (2, 5), (4, 3)):
+            y, x = grid.cell_px * i + dr, grid.cell_px * j + dc
+            _, value = excess_window(frame, grid, colour, (i, i + 1, j, j + 1))
+            assert value[0, 0] == rgb[y, x, channel]
+    if pixel_format in BAYER_LAYOUTS:
+        assert grid.red == BAYER_LAYOUTS[pixel_format].red
+        assert grid.blue == BAYER_LAYOUTS[pixel_format].blue
+
+
+@pytest.mark.parametrize("pixel_format", FORMATS)
+def test_excess_of_a_flat_colour(pixel_format: str) -> None:
+    rgb = np.empty((20, 24, 3), dtype=np.uint8)
+    rgb[:] = (200, 50, 80)
+    frame = from_rgb(rgb, pixel_format)
+    grid = sample_grid(pixel_format, 24, 20)
+    red, _ = excess_window(frame, grid, "red", grid.interior())
+    blue, _ = excess_window(frame, grid, "blue", grid.interior())
+    assert np.all(red == EXCESS_SCALE * (200 - 80))
+    assert np.all(blue == EXCESS_SCALE * (80 - 200))
+    r_mask, b_mask = coarse_masks(
+        frame, grid, Threshold(100, 150), Threshold(1, 0), grid.interior(), 2
+    )
+    assert r_mask is not None and b_mask is not None
+    assert r_mask.all() and not b_mask.any()
+    r_mask, _ = coarse_masks(frame, grid, Threshold(121, 0), None, grid.interior(), 2)
+    assert r_mask is not None and not r_mask.any()
+
+
+@pytest.mark.parametrize("pixel_format", [f for f in FORMATS if f.startswith("Bayer")])
+@pytest.mark.parametrize("colour", ["red", "blue"])
+def test_excess_is_symmetric_about_each_sample(pixel_format: str, colour: str) -> None:
+    """A mosaic symmetric about one of the colour's samples gives an excess symmetric about it.
+
+    Point reflection through a red (blue) pixel maps the mosaic onto itself colour
+    for colour, so a colour test that compares each sample with neighbours
+    interpolated *at its own position* must come out symmetric too. This is why the
+    centroid of the excess has no pull towards where green and the other colour sit
+    in the Bayer cell (a cell-based test fails this).
+    """
+    grid0 = sample_grid(pixel_format, 8, 8)
+    dr, dc = grid0.offset(colour)
+    rows, cols = 2 * (20 + dr) + 1, 2 * (24 + dc) + 1  # centre pixel (rows // 2, cols // 2)
+    cy, cx = rows // 2, cols // 2
+    assert (cy % 2, cx % 2) == (dr, dc)
+    rng = np.random.default_rng(2)
+    mosaic = rng.integers(0, 256, (rows, cols), dtype=np.uint8)
+    index = np.arange(rows * cols).reshape(rows, cols)
+    mosaic = np.where(index <= index[cy, cx], mosaic, mosaic[::-1, ::-1])
+    assert np.array_equal(mosaic, mosaic[::-1, ::-1])
+    grid = sample_grid(pixel_format, cols, rows)
+    i, j, k = (cy - dr) // 2, (cx - dc) // 2, 5
+    excess, _ = excess_window(mosaic, grid, colour, (i - k, i + k + 1, j - k, j + k + 1))
+    assert excess.shape == (2 * k + 1, 2 * k + 1)
+    assert np.array_equal(excess, excess[::-1, ::-1])
+
+
+def test_green_at_reads_green_pixels() -> None:
+    rgb = np.zeros((10, 12, 3), dtype=np.uint8)
+    rgb[..., 1] = 77
+    rgb[..., 0] = 200
+    rgb[..., 2] = 10
+    for fmt in FORMATS:
+        frame = from_rgb(rgb, fmt)
+        grid = sample_grid(fmt, 12, 10)
+        points = np.array([[0.2, 0.1], [5.4, 3.6], [10.9, 8.7], [-3.0, 40.0]])
+        assert np.all(green_at(frame, grid, points) == 77)
+
+
+def test_mono_and_unknown_formats_are_refused() -> None:
+    with pytest.raises(ImageError, match="Mono8"):
+        sample_grid("Mono8", 64, 48)
+    with pytest.raises(ImageError, match="too small"):
+        sample_grid("BayerRG8", 4, 4)
