@@ -190,3 +190,16 @@ def test_frames_that_do_not_match_the_camera_are_refused(detect_rng) -> None:
         det.detect(np.zeros((48, 64, 3), dtype=np.uint8))
     with pytest.raises(ImageError, match="does not match"):
         det.detect(np.zeros((48, 64), dtype=np.uint16))
+
+
+@pytest.mark.parametrize("gap_px", [4.0, 12.0])
+def test_a_ball_beside_a_large_poster_of_its_colour(gap_px: float, detect_rng) -> None:
+    """The poster's window is measured at half resolution; the ball in it must survive that."""
+    radius = 7.0
+    poster = Shape(150.0, 100.0, RED, half_size=(50.0, 45.0))
+    shapes = [poster, *pointer(150.0 - 50.0 - gap_px - radius, 100.3, -60.0, 20.0, radius)]
+    scene = Scene(width=320, height=220, shapes=shapes)
+    frame, truth = scene.render("BayerRG8", detect_rng)
+    result = detector("BayerRG8", scene).detect(frame)
+    assert np.hypot(*(result.red.centroid_px - truth[1])) < 0.2
+    assert np.hypot(*(result.blue.centroid_px - truth[2])) < 0.2

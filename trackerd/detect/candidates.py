@@ -57,15 +57,17 @@ class Limits:
 class Candidate:
     """One ball-shaped blob of an end's colour, measured from its thresholded mask.
 
-    ``runs`` and the bounding box are in *strip* cells (:mod:`trackerd.detect.strip`);
-    ``origin`` turns a strip cell into a frame cell (frame = strip + origin).
+    ``runs`` and the bounding box are in *strip* cells (:mod:`trackerd.detect.strip`):
+    strip cell c is frame cell ``origin + scale * c``.
     """
 
     colour: str
     window: Region
     """The frame window (cells) it was measured in."""
     origin: tuple[int, int]
-    """(row, col) to add to a strip cell to get the frame cell."""
+    """(row, col) of the frame cell of strip cell (0, 0)."""
+    scale: int
+    """Frame cells per strip cell along each axis (1, or 2 or 4 in a large window)."""
     runs: Runs
     labels: NDArray[np.int64]
     label: int
@@ -98,9 +100,15 @@ class Candidate:
         """The blob's outermost samples (x0, y0, x1, y1), inclusive, full resolution."""
         dr, dc = grid.offset(self.colour)
         s = grid.cell_px
+        x0, y0, x1, y1 = self.frame_cells()
+        return (s * x0 + dc, s * y0 + dr, s * x1 + dc, s * y1 + dr)
+
+    def frame_cells(self) -> tuple[int, int, int, int]:
+        """The blob's bounding box (x0, y0, x1, y1), inclusive, in frame cells."""
         x0, y0, x1, y1 = self.bbox_cells
         r, c = self.origin
-        return (s * (c + x0) + dc, s * (r + y0) + dr, s * (c + x1) + dc, s * (r + y1) + dr)
+        k = self.scale
+        return (c + k * x0, r + k * y0, c + k * x1 + k - 1, r + k * y1 + k - 1)
 
 
 @dataclass(slots=True)
@@ -274,7 +282,8 @@ def refine(
     stats = blob_stats(runs, labels, n)
     s = grid.cell_px
     owner = strip.jobs_at(runs.rows[stats.first_run], runs.first[stats.first_run])
-    area = stats.count * float(s * s)
+    scale = np.array(strip.scales)[owner]
+    area = stats.count * (scale * scale * s * s)
     # Specks (noise, the rim of a reddish surface) are common: classify all blobs at once
     # and build candidates only from the ball-shaped ones.
     elongation = stats.elongation()
@@ -308,28 +317,31 @@ def refine(
         r0, r1, c0, c1 = window
         x0, y0, x1, y1 = int(stats.x0[k]), int(stats.y0[k]), int(stats.x1[k]), int(stats.y1[k])
         y, x = strip.rows[j], strip.cols[j]
+        h, w = strip.shapes[j]
         # A ball-shaped blob reaching the window's edge may be cut short: measure again wider.
         if (
             (x0 == x and c0 > lo_c)
             or (y0 == y and r0 > lo_r)
-            or (x1 == x + c1 - c0 - 1 and c1 < hi_c)
-            or (y1 == y + r1 - r0 - 1 and r1 < hi_r)
+            or (x1 == x + w - 1 and c1 < hi_c)
+            or (y1 == y + h - 1 and r1 < hi_r)
         ):
             out.cut[j] = True
         dr, dc = grid.offset(colour)
         origin = strip.origin(j, window)
+        k_scale = strip.scales[j]
         out.candidates[j].append(
             Candidate(
                 colour,
                 window,
                 origin,
+                k_scale,
                 runs,
                 labels,
                 k,
                 blobs_in[j] == 1,
                 float(area[k]),
-                s * (origin[1] + float(mean_x[k])) + dc,
-                s * (origin[0] + float(mean_y[k])) + dr,
+                s * (origin[1] + k_scale * float(mean_x[k])) + dc,
+                s * (origin[0] + k_scale * float(mean_y[k])) + dr,
                 (x0, y0, x1, y1),
                 float(elongation[k]),
                 float(fill[k]),

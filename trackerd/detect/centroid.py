@@ -182,17 +182,21 @@ def measure_candidate(
     frame: NDArray[np.uint8], grid: SampleGrid, c: Candidate, threshold: Threshold, weighted: bool
 ) -> Measurement:
     """Measure a chosen candidate around its blob (box grown by a cell), other blobs left out."""
-    x0, y0, x1, y1 = c.bbox_cells
-    r, q = c.origin
+    x0, y0, x1, y1 = c.frame_cells()
     lo_r, hi_r, lo_c, hi_c = grid.interior()
+    # One cell around the blob (one strip cell, in a window measured at a coarser scale).
+    grow = c.scale
     region = (
-        max(lo_r, r + y0 - 1),
-        min(hi_r, r + y1 + 2),
-        max(lo_c, q + x0 - 1),
-        min(hi_c, q + x1 + 2),
+        max(lo_r, y0 - grow),
+        min(hi_r, y1 + 1 + grow),
+        max(lo_c, x0 - grow),
+        min(hi_c, x1 + 1 + grow),
     )
     samples = sample(frame, grid, c.colour, threshold, region)
-    if not c.alone:
+    if c.scale > 1:
+        keep_nearest_blob(samples, (c.x_px, c.y_px))
+    elif not c.alone:
+        r, q = c.origin
         _clear_other_blobs(samples, c, region[0] - r, region[2] - q)
     m = measure(samples, weighted)
     if m is None:  # only if the cell test and the symmetric test disagree on every sample

@@ -24,6 +24,9 @@ from numpy.typing import NDArray
 
 from trackerd.detect.colour import Region, SampleGrid
 
+LARGE_WINDOW_CELLS = 1600
+"""Windows with more cells than this are copied at half (or quarter) resolution."""
+
 
 @dataclass(frozen=True, slots=True)
 class Strip:
@@ -42,6 +45,10 @@ class Strip:
     """First row of each shelf, increasing."""
     shelf_jobs: NDArray[np.int32]
     """(shelves, width): the window index of each column of each shelf (-1 in gaps)."""
+    scales: list[int]
+    """Each window keeps every ``scale``-th cell along both axes (1: all)."""
+    shapes: list[tuple[int, int]]
+    """(rows, cols) of each window in the strip."""
 
     def jobs_at(self, rows: NDArray[np.int64], cols: NDArray[np.int64]) -> list[int]:
         """Index of the window holding each strip cell (rows[i], cols[i]) (each inside a window)."""
@@ -49,8 +56,26 @@ class Strip:
         return self.shelf_jobs[shelf, cols].tolist()
 
     def origin(self, job: int, window: Region) -> tuple[int, int]:
-        """(row, col) to add to a strip cell of window ``job`` to get its frame cell."""
-        return window[0] - self.rows[job], window[2] - self.cols[job]
+        """(row, col) such that strip cell c of window ``job`` is frame cell origin + scale * c."""
+        k = self.scales[job]
+        return window[0] - k * self.rows[job], window[2] - k * self.cols[job]
+
+
+def scale_for(window: Region) -> int:
+    """Cells kept along each axis of a window: every one, or every 2nd or 4th of a large window.
+
+    A window larger than LARGE_WINDOW_CELLS holds either a ball close to the camera,
+    large enough to classify from a quarter of its cells, or a large surface of
+    the colour, often speckled where its colour is near the threshold, whose
+    hundreds of specks would cost far more to label at full resolution than the
+    ball does. (The chosen end is measured at full resolution in the frame.)
+    """
+    cells = (window[1] - window[0]) * (window[3] - window[2])
+    scale = 1
+    while cells > LARGE_WINDOW_CELLS and scale < 4:
+        cells //= 4
+        scale *= 2
+    return scale
 
 
 def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Region]]) -> Strip:
@@ -58,7 +83,12 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
 
     The strip's first and last columns are always black.
     """
-    boxes = [(w[1] - w[0] + 1, w[3] - w[2] + 1) for _, w in jobs]  # with the gap after
+    scales = [scale_for(w) for _, w in jobs]
+    shapes = [
+        (-(-(w[1] - w[0]) // k), -(-(w[3] - w[2]) // k))
+        for (_, w), k in zip(jobs, scales, strict=True)
+    ]
+    boxes = [(h + 1, w + 1) for h, w in shapes]  # with the gap after
     area = sum(h * w for h, w in boxes)
     width = max(max(w for _, w in boxes), math.isqrt(area) + 1) + 1
     rows = [0] * len(jobs)
@@ -92,9 +122,16 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
     shelf_jobs = np.full((len(shelf_tops), width), -1, dtype=np.int32)
     for j, (_, (r0, r1, c0, c1)) in enumerate(jobs):
         y, x = rows[j], cols[j]
-        image[s * y : s * (y + r1 - r0), s * x : s * (x + c1 - c0)] = frame[
-            s * r0 : s * r1, s * c0 : s * c1
-        ]
-        shelf_jobs[shelf_of[j], x : x + c1 - c0] = j
+        h, w = shapes[j]
+        window = frame[s * r0 : s * r1, s * c0 : s * c1]
+        k = scales[j]
+        if k > 1:
+            # Every k-th cell, whole (a Bayer cell's 2x2 samples stay together).
+            cells = window.reshape(r1 - r0, s, c1 - c0, s, *frame.shape[2:])[::k, :, ::k, :]
+            window = cells.reshape(s * h, s * w, *frame.shape[2:])
+        image[s * y : s * (y + h), s * x : s * (x + w)] = window
+        shelf_jobs[shelf_of[j], x : x + w] = j
     strip_grid = dataclasses.replace(grid, rows=height, cols=width, frame_shape=image.shape)
-    return Strip(image, strip_grid, rows, cols, zones, np.array(shelf_tops), shelf_jobs)
+    return Strip(
+        image, strip_grid, rows, cols, zones, np.array(shelf_tops), shelf_jobs, scales, shapes
+    )
