@@ -124,12 +124,16 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
         y, x = rows[j], cols[j]
         h, w = shapes[j]
         window = frame[s * r0 : s * r1, s * c0 : s * c1]
+        target = image[s * y : s * (y + h), s * x : s * (x + w)]
         k = scales[j]
         if k > 1:
-            # Every k-th cell, whole (a Bayer cell's 2x2 samples stay together).
+            # Every k-th cell, whole (a Bayer cell's 2x2 samples stay together), copied once.
             cells = window.reshape(r1 - r0, s, c1 - c0, s, *frame.shape[2:])[::k, :, ::k, :]
-            window = cells.reshape(s * h, s * w, *frame.shape[2:])
-        image[s * y : s * (y + h), s * x : s * (x + w)] = window
+            blocks = target.view()
+            blocks.shape = (h, s, w, s, *frame.shape[2:])  # a view, never a silent copy
+            blocks[...] = cells
+        else:
+            target[...] = window
         shelf_jobs[shelf_of[j], x : x + w] = j
     strip_grid = dataclasses.replace(grid, rows=height, cols=width, frame_shape=image.shape)
     return Strip(
