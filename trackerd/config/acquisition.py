@@ -79,6 +79,10 @@ class RigAcquisition(ConfigModel):
     """GenICam ``TriggerSource`` for hardware triggering, the camera input the pulse is wired to."""
     hardware_trigger_activation: TriggerActivation = "RisingEdge"
     """GenICam ``TriggerActivation``: which edge (or level) of the pulse starts an exposure."""
+    max_outstanding_triggers: int = Field(default=2, ge=1, le=16)
+    """Software triggers a camera may have unanswered (fired, frame not yet received). A tick
+    finding any camera at this limit is skipped for every camera, so their frame counters stay in
+    step; 1 fires only when every previous frame is in."""
     pairing_tolerance_us: float | None = Field(default=None, gt=0.0)
     """Largest capture-time difference between the frames of one pair. Omit for half a frame period.
     A frame with no partner this close is dropped and counted."""

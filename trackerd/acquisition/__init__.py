@@ -1,0 +1,12 @@
+"""Camera acquisition: frames from two (or more) cameras, paired into synchronized sets.
+
+The pipeline sees only :class:`PairSource`; :class:`~trackerd.acquisition.live.AravisPairSource`
+(live GigE Vision cameras through Aravis) is imported from its module so that this
+package does not need PyGObject.
+"""
+
+from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.acquisition.source import PairSource
+from trackerd.acquisition.status import CameraStatus, SourceStatus
+
+__all__ = ["CameraStatus", "Frame", "FramePair", "PairSource", "SourceStatus"]

@@ -1,0 +1,388 @@
+"""Aravis, through PyGObject: loading it, finding a camera, and one configured connection to it.
+
+A :class:`CameraSession` is one connection: the ``ArvCamera``, its stream and a
+pool of buffers allocated once and recycled for every frame. It is built by
+:func:`open_session` and closed exactly once, either gracefully
+(:meth:`CameraSession.close`, acquisition stopped, buffers drained back) or, for
+a camera that stopped answering, by dropping it (:meth:`CameraSession.abandon`),
+which can block for several seconds inside Aravis (its GVCP retries) and is
+therefore done off the acquisition thread.
+
+Aravis emits ``control-lost`` from its own heartbeat thread; the handler here
+only sets an event that the acquisition thread polls.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import functools
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+from trackerd.config.acquisition import RigAcquisition
+from trackerd.config.models import CameraConfig
+from trackerd.errors import CameraError
+
+ARAVIS_VERSION = "0.8"
+
+STREAM_COUNTERS = (
+    "n_completed_buffers",
+    "n_failures",
+    "n_underruns",
+    "n_timeouts",
+    "n_aborted",
+    "n_missing_frames",
+    "n_size_mismatch_errors",
+    "n_received_packets",
+    "n_missing_packets",
+    "n_error_packets",
+    "n_ignored_packets",
+    "n_resend_requests",
+    "n_resent_packets",
+    "n_duplicated_packets",
+)
+"""Aravis stream statistics read into the status, where the stream has them."""
+
+PTP_LOCKED_STATES = ("Master", "Slave")
+_PTP_REARM_STATES = ("Faulty", "Disabled")
+
+
+def load_aravis() -> tuple[Any, Any]:
+    """``(Aravis, GLib)`` from PyGObject, pinned to Aravis 0.8; CameraError saying what to install."""
+    try:
+        import gi
+
+        gi.require_version("Aravis", ARAVIS_VERSION)
+        from gi.repository import Aravis, GLib
+    except (ImportError, ValueError) as err:
+        raise CameraError(
+            f"Aravis {ARAVIS_VERSION} is not available through PyGObject ({err}); on Debian install"
+            " python3-gi and gir1.2-aravis-0.8"
+        ) from err
+    return Aravis, GLib
+
+
+@functools.cache
+def _libaravis() -> ctypes.CDLL:
+    lib = ctypes.CDLL(ctypes.util.find_library(f"aravis-{ARAVIS_VERSION}") or "libaravis-0.8.so.0")
+    lib.arv_buffer_get_data.restype = ctypes.c_void_p
+    lib.arv_buffer_get_data.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_size_t)]
+    return lib
+
+
+def image_bytes(buffer: Any, nbytes: int, allocated: int) -> bytes:
+    """A copy of the first ``nbytes`` of a finished buffer's image.
+
+    Aravis's in-process Fake stream never records how much it wrote, so its
+    buffers report no image data; for them the payload is read directly, within
+    the ``allocated`` size of the buffer.
+    """
+    data = buffer.get_image_data()
+    if data or nbytes > allocated:
+        return data
+    pointer = _libaravis().arv_buffer_get_data(hash(buffer), None)  # hash(): the C pointer
+    return ctypes.string_at(pointer, nbytes) if pointer else b""
+
+
+def aravis_missing_reason() -> str | None:
+    """Why Aravis cannot be used here, or None if it can (for skipping tests and commands)."""
+    try:
+        load_aravis()
+    except CameraError as err:
+        return str(err)
+    return None
+
+
+def describe_lookup(cam: CameraConfig) -> str:
+    """How the rig file says to find a camera, for messages: ``address 10.0.0.2``."""
+    if cam.device_id:
+        return f"device id {cam.device_id}"
+    if cam.address:
+        return f"address {cam.address}"
+    if cam.serial:
+        return f"serial {cam.serial}"
+    return "no serial, address or device_id"
+
+
+def resolve_device_id(cam: CameraConfig) -> str:
+    """The id Aravis opens the camera by: device id or address as given, else found by serial.
+
+    Looking up a serial runs Aravis's discovery (about a second).
+    """
+    if cam.device_id:
+        return cam.device_id
+    if cam.address:
+        return cam.address
+    if not cam.serial:
+        raise CameraError(f"camera '{cam.id}' has no serial, address or device_id in the rig file")
+    aravis, _ = load_aravis()
+    aravis.update_device_list()
+    for index in range(aravis.get_n_devices()):
+        if aravis.get_device_serial_nbr(index) == cam.serial:
+            return aravis.get_device_id(index)
+    raise CameraError(
+        f"camera '{cam.id}' (serial {cam.serial}) not found; `trackerd cameras` lists the cameras Aravis sees"
+    )
+
+
+@dataclass
+class CameraSession:
+    """One open, configured, acquiring connection to a camera."""
+
+    camera_id: str
+    camera: Any
+    stream: Any
+    buffers: list[Any]
+    """The buffer pool: every Aravis buffer this session allocated, whether queued or not."""
+    address: str | None
+    """IPv4 address of a GigE Vision camera (for reconnect probes), None otherwise."""
+    software_trigger: bool
+    control_lost: threading.Event = field(default_factory=threading.Event)
+    notes: list[str] = field(default_factory=list)
+    ptp_feature: str | None = None
+    """``PtpEnable`` or ``GevIEEE1588`` when PTP was enabled on this camera."""
+    payload_bytes: int = 0
+    """Size of each buffer of the pool."""
+    _handler: int | None = None
+
+    def pop(self, timeout_us: int) -> Any | None:
+        """The next finished buffer, or None after ``timeout_us`` (the GIL is released meanwhile)."""
+        return self.stream.timeout_pop_buffer(max(int(timeout_us), 1))
+
+    def push(self, buffer: Any) -> None:
+        """Give a buffer back to the stream to be filled again."""
+        self.stream.push_buffer(buffer)
+
+    def fire(self) -> None:
+        """Execute TriggerSoftware (one GVCP command); CameraError if the camera does not answer."""
+        _, glib = load_aravis()
+        try:
+            self.camera.software_trigger()
+        except glib.Error as err:
+            raise CameraError(
+                f"camera '{self.camera_id}': software trigger failed: {err.message}"
+            ) from err
+
+    def counters(self) -> dict[str, int]:
+        """The Aravis stream statistics this stream offers."""
+        values: dict[str, int] = {}
+        names = {self.stream.get_info_name(i) for i in range(self.stream.get_n_infos())}
+        for name in STREAM_COUNTERS:
+            if name in names:
+                values[name] = int(self.stream.get_info_uint64_by_name(name))
+        return values
+
+    def ptp_state(self) -> str | None:
+        """The camera's IEEE 1588 state (re-armed if Faulty or Disabled), None without PTP."""
+        if self.ptp_feature is None:
+            return None
+        _, glib = load_aravis()
+        device = self.camera.get_device()
+        try:
+            if self.ptp_feature == "PtpEnable":
+                if device.is_feature_available("PtpDataSetLatch"):
+                    device.execute_command("PtpDataSetLatch")
+                state = device.get_string_feature_value("PtpStatus")
+            else:
+                state = device.get_string_feature_value("GevIEEE1588Status")
+            if state in _PTP_REARM_STATES:
+                device.set_boolean_feature_value(self.ptp_feature, False)
+                device.set_boolean_feature_value(self.ptp_feature, True)
+            return str(state)
+        except glib.Error as err:
+            return f"unreadable ({err.message})"
+
+    def close(self) -> int:
+        """Stop acquisition and drain the stream; returns how many buffers came back from it.
+
+        The stream and camera are released afterwards; every buffer is then held by
+        ``buffers`` alone (each one's GObject reference count is 1).
+        """
+        _, glib = load_aravis()
+        self._disconnect()
+        try:
+            self.camera.stop_acquisition()
+        except glib.Error as err:
+            self.notes.append(f"stop_acquisition: {err.message}")
+        returned = 0
+        while self.stream.try_pop_buffer() is not None:
+            returned += 1
+        self.stream = None
+        self.camera = None
+        return returned
+
+    def abandon(self) -> None:
+        """Drop a camera that stopped answering. Blocks while Aravis gives up on it (seconds)."""
+        self._disconnect()
+        self.stream = None
+        self.camera = None
+
+    def buffers_released(self) -> bool:
+        """True once nothing but this pool references any of its buffers."""
+        return all(buffer.__grefcount__ == 1 for buffer in self.buffers)
+
+    def _disconnect(self) -> None:
+        if self._handler is not None and self.camera is not None:
+            self.camera.get_device().disconnect(self._handler)
+            self._handler = None
+
+
+def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> CameraSession:
+    """Open ``device_id``, configure it from the rig file, allocate its buffers and start it.
+
+    Settings the camera lacks but trackerd can do without (packet size
+    negotiation, packet delay, PTP) become notes; a setting that matters
+    (pixel format, region, trigger, exposure or gain asked for) raises
+    CameraError naming the camera and the value.
+    """
+    aravis, glib = load_aravis()
+    try:
+        camera = aravis.Camera.new(device_id)
+    except glib.Error as err:
+        raise CameraError(
+            f"camera '{cam.id}' ({describe_lookup(cam)}): cannot open: {err.message}"
+        ) from err
+    session = CameraSession(cam.id, camera, None, [], None, rig.trigger == "software")
+    try:
+        _configure(session, cam, rig, aravis, glib)
+        _create_stream(session, cam, aravis, glib)
+        session._handler = camera.get_device().connect(
+            "control-lost", _on_control_lost, session.control_lost
+        )
+        camera.start_acquisition()
+    except glib.Error as err:
+        session.abandon()
+        raise CameraError(f"camera '{cam.id}' ({describe_lookup(cam)}): {err.message}") from err
+    except CameraError:
+        session.abandon()
+        raise
+    return session
+
+
+def _on_control_lost(_device: Any, event: threading.Event) -> None:
+    # Runs on Aravis's heartbeat thread: record the fact, nothing else.
+    event.set()
+
+
+def _configure(
+    session: CameraSession, cam: CameraConfig, rig: RigAcquisition, aravis: Any, glib: Any
+) -> None:
+    camera = session.camera
+    acq = cam.acquisition
+    offered = list(camera.dup_available_pixel_formats_as_strings() or [])
+    if offered and cam.pixel_format not in offered:
+        raise CameraError(
+            f"camera '{cam.id}' does not offer pixel format {cam.pixel_format} (it offers {', '.join(offered)})"
+        )
+    camera.set_pixel_format_from_string(cam.pixel_format)
+    camera.set_region(acq.offset_x_px, acq.offset_y_px, cam.width_px, cam.height_px)
+    region = camera.get_region()
+    got = (region.x, region.y, region.width, region.height)
+    wanted = (acq.offset_x_px, acq.offset_y_px, cam.width_px, cam.height_px)
+    if got != wanted:
+        raise CameraError(
+            f"camera '{cam.id}' took region x={got[0]} y={got[1]} {got[2]}x{got[3]} instead of"
+            f" x={wanted[0]} y={wanted[1]} {wanted[2]}x{wanted[3]} (check its sensor size and increments)"
+        )
+    if acq.exposure_us is not None:
+        camera.set_exposure_time(acq.exposure_us)
+    if acq.gain_db is not None:
+        camera.set_gain(acq.gain_db)
+    _configure_trigger(session, cam, rig, camera)
+    if camera.is_gv_device():
+        _configure_gige(session, cam, aravis, glib)
+    if rig.ptp:
+        _enable_ptp(session, camera, glib)
+
+
+def _configure_trigger(
+    session: CameraSession, cam: CameraConfig, rig: RigAcquisition, camera: Any
+) -> None:
+    camera.clear_triggers()
+    if rig.trigger == "free_running":
+        if camera.is_frame_rate_available():
+            camera.set_frame_rate(rig.frame_rate_hz)
+        else:
+            session.notes.append("frame rate is not settable; the camera runs at its own rate")
+        return
+    if rig.trigger == "software" and not camera.is_software_trigger_supported():
+        raise CameraError(f"camera '{cam.id}' does not support software triggering")
+    source = "Software" if rig.trigger == "software" else rig.hardware_trigger_line
+    sources = list(camera.dup_available_trigger_sources() or [])
+    if sources and source not in sources:
+        raise CameraError(
+            f"camera '{cam.id}' has no trigger source {source} (it has {', '.join(sources)})"
+        )
+    camera.set_string("TriggerSelector", rig.trigger_selector)
+    camera.set_string("TriggerMode", "On")
+    camera.set_string("TriggerSource", source)
+    if rig.trigger == "hardware":
+        if camera.is_feature_available("TriggerActivation"):
+            camera.set_string("TriggerActivation", rig.hardware_trigger_activation)
+        else:
+            session.notes.append("no TriggerActivation feature; the camera's default edge applies")
+
+
+def _configure_gige(session: CameraSession, cam: CameraConfig, aravis: Any, glib: Any) -> None:
+    camera = session.camera
+    acq = cam.acquisition
+    address = camera.get_device().get_device_address()
+    session.address = address.to_string() if address is not None else None
+    if not acq.packet_socket:
+        camera.gv_set_stream_options(aravis.GvStreamOption.PACKET_SOCKET_DISABLED)
+    try:
+        if acq.packet_size_bytes is not None:
+            camera.gv_set_packet_size(acq.packet_size_bytes)
+        else:
+            camera.gv_auto_packet_size()
+    except glib.Error as err:
+        session.notes.append(f"packet size not set ({err.message}); using the camera's")
+    if camera.is_feature_available("GevSCPD"):
+        camera.gv_set_packet_delay(acq.packet_delay_ns)
+    elif acq.packet_delay_ns:
+        session.notes.append("no packet delay feature (GevSCPD); packet_delay_ns ignored")
+
+
+def _enable_ptp(session: CameraSession, camera: Any, glib: Any) -> None:
+    for feature in ("PtpEnable", "GevIEEE1588"):
+        if camera.is_feature_available(feature):
+            try:
+                camera.set_boolean(feature, True)
+            except glib.Error as err:
+                session.notes.append(f"PTP not enabled ({feature}: {err.message})")
+                return
+            session.ptp_feature = feature
+            return
+    session.notes.append("no PTP support (PtpEnable / GevIEEE1588); pairing uses host time")
+
+
+def _create_stream(session: CameraSession, cam: CameraConfig, aravis: Any, glib: Any) -> None:
+    camera = session.camera
+    acq = cam.acquisition
+    stream = camera.create_stream(None, None)
+    if stream is None:
+        raise CameraError(f"camera '{cam.id}': Aravis could not create a stream")
+    session.stream = stream
+    if isinstance(stream, aravis.GvStream):
+        stream.set_property(
+            "packet-resend",
+            aravis.GvStreamPacketResend.ALWAYS
+            if acq.packet_resend
+            else aravis.GvStreamPacketResend.NEVER,
+        )
+        stream.set_property("packet-timeout", acq.packet_timeout_us)
+        stream.set_property("initial-packet-timeout", acq.initial_packet_timeout_us)
+        stream.set_property("frame-retention", acq.frame_retention_us)
+        stream.set_property("packet-request-ratio", acq.packet_request_ratio)
+        if acq.socket_buffer_bytes is None:
+            stream.set_property("socket-buffer", aravis.GvStreamSocketBuffer.AUTO)
+        else:
+            stream.set_property("socket-buffer", aravis.GvStreamSocketBuffer.FIXED)
+            stream.set_property("socket-buffer-size", acq.socket_buffer_bytes)
+    payload = camera.get_payload()
+    session.payload_bytes = payload
+    session.buffers = [aravis.Buffer.new_allocate(payload) for _ in range(acq.buffer_count)]
+    for buffer in session.buffers:
+        stream.push_buffer(buffer)

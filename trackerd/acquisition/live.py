@@ -1,0 +1,296 @@
+"""Live cameras through Aravis, as a :class:`~trackerd.acquisition.source.PairSource`.
+
+Threads: one acquisition thread per camera (:mod:`trackerd.acquisition.worker`),
+which also pairs its frames with the others' under one lock (the pairing work is
+a few deque operations per frame), and one *reaper* that drops the connections
+of lost cameras, because Aravis can block for several seconds giving up on a
+camera that no longer answers. The consumer's thread only waits in
+:meth:`AravisPairSource.next_pair`.
+
+Clocks: each camera's device timestamps are mapped to the host's monotonic
+clock by a :class:`~trackerd.acquisition.clock.DeviceClock`. Without PTP every
+camera has its own mapping (pairing by host time, with each camera's offset
+estimated and tracked); with PTP enabled and every camera in Master or Slave
+state, one shared mapping is used, so pairs are formed by device time.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import queue
+import threading
+import time
+from collections import deque
+
+from trackerd.acquisition.arv import PTP_LOCKED_STATES, CameraSession, load_aravis
+from trackerd.acquisition.clock import DeviceClock, NonDecreasing
+from trackerd.acquisition.frame import FramePair
+from trackerd.acquisition.meters import RateMeter, SkewWindow
+from trackerd.acquisition.pairing import Arrival, Pairer, spread_ns
+from trackerd.acquisition.source import PairSource
+from trackerd.acquisition.status import SourceStatus
+from trackerd.acquisition.trigger import TickSchedule, TriggerGate
+from trackerd.acquisition.worker import CameraWorker, OpenHook
+from trackerd.config.models import RigConfig
+
+log = logging.getLogger(__name__)
+
+STOP_BUDGET_S = 1.0
+"""stop() joins every thread within this many seconds (see Reaper for the one exception)."""
+TRIGGER_LEAD_NS = 50_000_000
+"""The first software trigger tick is this far after start, once every camera is open."""
+
+
+class Reaper:
+    """Drops connections to lost cameras on its own thread, one at a time.
+
+    Releasing an Aravis GigE Vision device that stopped answering blocks while
+    Aravis retries its last GVCP commands (about 2.5 s for the stream and 5 s for
+    the device, with Aravis 0.8's fixed retry counts). A connection still being
+    released when the source stops is finished by this thread after stop()
+    returns; ``pending`` says how many remain.
+    """
+
+    def __init__(self) -> None:
+        self._queue: queue.Queue[CameraSession | None] = queue.Queue()
+        self._pending = 0
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, name="camera-reaper")
+
+    @property
+    def pending(self) -> int:
+        with self._lock:
+            return self._pending
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def put(self, session: CameraSession) -> None:
+        with self._lock:
+            self._pending += 1
+        self._queue.put(session)
+
+    def stop(self, timeout_s: float) -> bool:
+        """Ask the thread to finish after the queued work; True if it did within ``timeout_s``."""
+        if not self._thread.is_alive():
+            return True
+        self._queue.put(None)
+        self._thread.join(max(timeout_s, 0.0))
+        return not self._thread.is_alive()
+
+    def _run(self) -> None:
+        while True:
+            session = self._queue.get()
+            if session is None:
+                return
+            try:
+                session.abandon()
+            except Exception:  # a release that fails must not stop later releases
+                log.exception("releasing camera %s failed", session.camera_id)
+            del session
+            with self._lock:
+                self._pending -= 1
+
+
+class AravisPairSource(PairSource):
+    """Synchronized frame pairs from the rig's cameras, acquired through Aravis."""
+
+    def __init__(self, rig: RigConfig, *, on_open: OpenHook | None = None) -> None:
+        """``on_open(camera_id, aravis_camera)`` runs after each (re)connection is configured."""
+        self.rig = rig
+        acq = rig.acquisition
+        self._acq = acq
+        self._on_open = on_open
+        self._n = len(rig.cameras)
+        self._tolerance_ns = int(acq.tolerance_us * 1000)
+        self._lock = threading.Lock()
+        self._ready = threading.Condition(self._lock)
+        self._pairs: deque[FramePair] = deque()
+        self._pairer = Pairer(
+            self._n, self._tolerance_ns, acq.frame_queue_length, acq.trigger == "software"
+        )
+        window_ns = int(acq.clock_window_s * 1e9)
+        self._clocks = [DeviceClock(window_ns) for _ in range(self._n)]
+        self._shared_clock = DeviceClock(window_ns) if acq.ptp else None
+        self._workers: list[CameraWorker] = []
+        self._reaper: Reaper | None = None
+        self._running = False
+        self._stamp = NonDecreasing()
+        self._sequence = 0
+        self._delivered = 0
+        self._dropped_pairs = 0
+        self._skews = SkewWindow()
+        self._rate = RateMeter()
+
+    # ------------------------------------------------------------------ PairSource
+
+    def start(self) -> None:
+        """Open every camera (in rig order), then start their threads. CameraError if one cannot open."""
+        if self._running:
+            return
+        load_aravis()
+        schedule = None
+        if self._acq.trigger == "software":
+            # Tick 0 is due once every camera has had time to open (the first ticks find
+            # the cameras not yet armed and pass).
+            period_ns = round(1e9 / self._acq.frame_rate_hz)
+            schedule = TickSchedule(time.monotonic_ns() + TRIGGER_LEAD_NS, period_ns)
+        with self._lock:
+            self._pairs.clear()
+            self._pairer = Pairer(
+                self._n,
+                self._tolerance_ns,
+                self._acq.frame_queue_length,
+                self._acq.trigger == "software",
+            )
+        for clock in [*self._clocks, *([self._shared_clock] if self._shared_clock else [])]:
+            clock.reset()
+        reaper = Reaper()
+        reaper.start()
+        gate = None
+        if schedule is not None:
+            # A camera that answers no trigger for a quarter second stops holding the others
+            # back (it is about to be declared lost); a first frame may take 0.1 s to come.
+            gate = TriggerGate(stall_ticks=max(3, math.ceil(0.25 * self._acq.frame_rate_hz)))
+        workers = [
+            CameraWorker(i, cam, self._acq, self, schedule, gate, self._on_open)
+            for i, cam in enumerate(self.rig.cameras)
+        ]
+        opened: list[CameraWorker] = []
+        try:
+            for worker in workers:
+                worker.open()
+                opened.append(worker)
+        except BaseException:
+            for worker in opened:
+                worker.close()
+            reaper.stop(STOP_BUDGET_S)
+            raise
+        self._workers, self._reaper = workers, reaper
+        self._running = True
+        for worker in workers:
+            worker.start()
+
+    def stop(self) -> None:
+        if not self._workers:
+            return
+        deadline = time.monotonic() + STOP_BUDGET_S
+        for worker in self._workers:
+            worker.request_stop()
+        for worker in self._workers:
+            if not worker.join(deadline - time.monotonic()):
+                log.warning("camera %s: acquisition thread did not stop in time", worker.cam.id)
+        if self._reaper is not None and not self._reaper.stop(deadline - time.monotonic()):
+            log.warning(
+                "%d lost camera connection(s) still being released by Aravis", self._reaper.pending
+            )
+        with self._ready:
+            self._running = False
+            self._ready.notify_all()
+
+    def next_pair(self, timeout_s: float) -> FramePair | None:
+        """The oldest undelivered pair; waits up to ``timeout_s`` (<= 0: does not wait)."""
+        with self._ready:
+            if not self._pairs and self._running and timeout_s > 0:
+                self._ready.wait_for(lambda: bool(self._pairs) or not self._running, timeout_s)
+            if not self._pairs:
+                return None
+            self._delivered += 1
+            return self._pairs.popleft()
+
+    def status(self) -> SourceStatus:
+        now = time.monotonic_ns()
+        cameras = tuple(
+            worker.status(self._clock_for(i).offset_ns) for i, worker in enumerate(self._workers)
+        )
+        with self._lock:
+            skew = self._skews.percentiles_us()
+            return SourceStatus(
+                running=self._running,
+                trigger=self._acq.trigger,
+                pairing=self._pairing_basis(),
+                pairs=self._sequence,
+                pair_rate_hz=round(self._rate.rate_hz(now), 3),
+                delivered=self._delivered,
+                dropped_frames=dict(self._pairer.dropped),
+                dropped_pairs=self._dropped_pairs,
+                skew_p50_us=skew[0] if skew else None,
+                skew_p99_us=skew[1] if skew else None,
+                skew_max_us=skew[2] if skew else None,
+                releasing=self._reaper.pending if self._reaper else 0,
+                cameras=cameras,
+            )
+
+    @property
+    def workers(self) -> list[CameraWorker]:
+        """The per-camera workers (for inspection: buffer pools, thread liveness)."""
+        return list(self._workers)
+
+    # ------------------------------------------------------------------ FrameSink (worker threads)
+
+    def deliver(self, arrival: Arrival) -> None:
+        with self._ready:
+            groups = self._pairer.add(arrival)
+            for group in groups:
+                self._publish(group)
+            if groups:
+                self._ready.notify_all()
+
+    def camera_lost(self, camera_index: int) -> None:
+        with self._lock:
+            self._pairer.set_active(camera_index, False)
+
+    def camera_back(self, camera_index: int) -> None:
+        self._clocks[camera_index].reset()
+        with self._lock:
+            self._pairer.set_active(camera_index, True)
+
+    def abandon(self, session: CameraSession) -> None:
+        assert self._reaper is not None
+        self._reaper.put(session)
+
+    def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
+        if device_ns == 0:
+            return host_ns
+        self._clocks[camera_index].observe(device_ns, host_ns)
+        if self._shared_clock is not None:
+            self._shared_clock.observe(device_ns, host_ns)
+        return self._clock_for(camera_index).to_host_ns(device_ns, host_ns)
+
+    # ------------------------------------------------------------------ internals
+
+    def _ptp_locked(self) -> bool:
+        return (
+            self._shared_clock is not None
+            and bool(self._workers)
+            and all(w.ptp_state in PTP_LOCKED_STATES for w in self._workers)
+        )
+
+    def _clock_for(self, camera_index: int) -> DeviceClock:
+        if self._shared_clock is not None and self._ptp_locked():
+            return self._shared_clock
+        return self._clocks[camera_index]
+
+    def _pairing_basis(self) -> str:
+        if self._acq.trigger == "software":
+            return "trigger count"
+        return "device time (PTP)" if self._ptp_locked() else "host time"
+
+    def _publish(self, group: tuple[Arrival, ...]) -> None:
+        """Called with the lock held."""
+        times = [a.capture_ns for a in group]
+        skew = spread_ns(group)
+        self._sequence += 1
+        pair = FramePair(
+            frames=tuple(a.frame for a in group),
+            timestamp_ns=self._stamp(sum(times) // len(times)),
+            skew_ns=skew,
+            sequence=self._sequence,
+        )
+        self._skews.add(skew)
+        self._rate.tick(time.monotonic_ns())
+        if len(self._pairs) >= self._acq.pair_queue_length:
+            self._pairs.popleft()
+            self._dropped_pairs += 1
+        self._pairs.append(pair)

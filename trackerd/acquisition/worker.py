@@ -1,0 +1,382 @@
+"""One thread per camera: pop a buffer, turn it into a frame, push the buffer back; notice loss; reconnect.
+
+The loop is kept lean: every blocking call has a timeout of at most
+``POLL_S`` and the loop checks the stop event on every turn, so stopping
+takes one turn. Per frame it does one copy (the payload into the frame's own
+array), a few Aravis getters and a hand-off to the pairing stage.
+
+A camera is *lost* when Aravis reports ``control-lost`` (heartbeat failure),
+when no frame arrives within ``loss_timeout_ms``, or when a software trigger
+cannot be delivered. Its connection is then handed to the *reaper* to be
+dropped (Aravis may block there for seconds on a dead camera) and the thread
+probes the camera's last known address with one GVCP discovery packet per
+attempt, backing off from ``reconnect_min_backoff_ms`` to
+``reconnect_max_backoff_ms``. When the camera answers, a fresh Aravis camera
+object is opened and configured; the frames it delivers start a new epoch.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import numpy as np
+
+from trackerd.acquisition.arv import (
+    CameraSession,
+    describe_lookup,
+    image_bytes,
+    load_aravis,
+    open_session,
+)
+from trackerd.acquisition.clock import FrameIdUnwrapper, realtime_to_monotonic_ns
+from trackerd.acquisition.firing import TriggerThread
+from trackerd.acquisition.frame import Frame
+from trackerd.acquisition.gvcp import probe
+from trackerd.acquisition.meters import RateMeter
+from trackerd.acquisition.pairing import Arrival
+from trackerd.acquisition.status import CameraState, CameraStatus
+from trackerd.acquisition.trigger import TickMap, TickSchedule, TriggerGate
+from trackerd.config.acquisition import RigAcquisition
+from trackerd.config.models import CameraConfig
+from trackerd.errors import CameraError
+from trackerd.pixelformat import PFNC_NAMES, frame_shape
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.1
+"""Longest single wait inside the loop (buffer pop, stop check, probe)."""
+COUNTER_PERIOD_NS = 1_000_000_000
+
+
+class FrameSink(Protocol):
+    """Where a worker sends its frames and news of its camera (the pair source)."""
+
+    def deliver(self, arrival: Arrival) -> None: ...
+    def camera_lost(self, camera_index: int) -> None: ...
+    def camera_back(self, camera_index: int) -> None: ...
+    def abandon(self, session: CameraSession) -> None: ...
+    def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
+        """Record a frame's timestamps; returns its estimated capture time on the host clock."""
+        ...
+
+
+OpenHook = Callable[[str, Any], None]
+"""Called as ``hook(camera_id, aravis_camera)`` after a camera is opened and configured."""
+
+
+class CameraWorker:
+    """Acquisition for one camera of the rig, on its own thread."""
+
+    def __init__(
+        self,
+        index: int,
+        cam: CameraConfig,
+        rig: RigAcquisition,
+        sink: FrameSink,
+        schedule: TickSchedule | None,
+        gate: TriggerGate | None = None,
+        on_open: OpenHook | None = None,
+    ) -> None:
+        self.index = index
+        self.cam = cam
+        self.rig = rig
+        self.sink = sink
+        self.on_open = on_open
+        self._stop = threading.Event()
+        self._trigger: TriggerThread | None = None
+        if schedule is not None and gate is not None:
+            self._trigger = TriggerThread(index, cam.id, schedule, gate, self._stop)
+        self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()
+        self._session: CameraSession | None = None
+        self._device_id: str | None = None
+        self._address: str | None = None
+        self._epoch = -1
+        self._state: CameraState = "connecting"
+        self._frames = 0
+        self._failed: Counter[str] = Counter()
+        self._stream_totals: Counter[str] = Counter()
+        self._stream_current: dict[str, int] = {}
+        self._losses = 0
+        self._reconnects = 0
+        self._lost_since: int | None = None
+        self._last_error: str | None = None
+        self._ptp_state: str | None = None
+        self._notes: tuple[str, ...] = ()
+        self._rate = RateMeter()
+        self.last_pool: list[Any] = []
+        """The buffer pool of the last connection closed gracefully (for checking none is held)."""
+        self._unwrap = FrameIdUnwrapper()
+        self._ticks: TickMap | None = None
+        self._last_frame_ns = 0
+        self._next_housekeeping_ns = 0
+        self._next_ptp_ns = 0
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def open(self) -> None:
+        """Find and open the camera on the calling thread (start-up errors surface here)."""
+        self._device_id = _resolve(self.cam)
+        self._connect(self._device_id)
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name=f"camera-{self.cam.id}", daemon=True)
+        self._thread.start()
+        if self._trigger is not None:
+            self._trigger.start()
+
+    def request_stop(self) -> None:
+        self._stop.set()
+
+    def join(self, timeout_s: float) -> bool:
+        """Join this camera's threads; True if all ended within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        done = True
+        if self._thread is not None:
+            self._thread.join(max(timeout_s, 0.0))
+            done = not self._thread.is_alive()
+        if self._trigger is not None and self._thread is not None:
+            done = self._trigger.join(deadline - time.monotonic()) and done
+        return done
+
+    @property
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def close(self) -> None:
+        """Release the camera of a worker whose thread never started (start-up failed elsewhere)."""
+        self._shutdown()
+
+    # ------------------------------------------------------------------ status
+
+    def status(self, clock_offset_ns: int | None = None) -> CameraStatus:
+        now = time.monotonic_ns()
+        with self._lock:
+            stream = Counter(self._stream_totals)
+            stream.update(self._stream_current)
+            return CameraStatus(
+                camera_id=self.cam.id,
+                state=self._state,
+                device=self._address or self._device_id or describe_lookup(self.cam),
+                frames=self._frames,
+                frame_rate_hz=round(self._rate.rate_hz(now), 3),
+                failed_buffers=dict(self._failed),
+                stream=dict(stream),
+                losses=self._losses,
+                reconnects=self._reconnects,
+                lost_since_ns=self._lost_since,
+                last_error=self._last_error,
+                ptp_state=self._ptp_state,
+                clock_offset_ns=clock_offset_ns,
+                notes=self._notes,
+            )
+
+    @property
+    def ptp_state(self) -> str | None:
+        return self._ptp_state
+
+    # ------------------------------------------------------------------ the thread
+
+    def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception as err:  # a bug: make it visible in the status, never silent
+            log.exception("camera %s: acquisition thread failed", self.cam.id)
+            with self._lock:
+                self._last_error = f"acquisition thread failed: {err!r}"
+        finally:
+            self._shutdown()
+
+    def _loop(self) -> None:
+        backoff_s = self.rig.reconnect_min_backoff_ms / 1000.0
+        while not self._stop.is_set():
+            if self._session is None:
+                if self._try_reconnect():
+                    backoff_s = self.rig.reconnect_min_backoff_ms / 1000.0
+                else:
+                    self._stop.wait(backoff_s)
+                    backoff_s = min(backoff_s * 2.0, self.rig.reconnect_max_backoff_ms / 1000.0)
+                continue
+            self._turn(self._session)
+
+    def _turn(self, session: CameraSession) -> None:
+        """One pass: wait for a buffer (or the next trigger tick), handle it, check health."""
+        buffer = session.pop(int(POLL_S * 1e6))
+        if buffer is not None:
+            try:
+                self._handle(session, buffer)
+            finally:
+                session.push(buffer)
+        now = time.monotonic_ns()
+        if session.control_lost.is_set():
+            self._lose("Aravis reported control lost (no heartbeat answer)")
+        elif self._trigger is not None and self._trigger.failure is not None:
+            self._lose(self._trigger.failure)
+        elif now - self._last_frame_ns > self.rig.loss_timeout_ms * 1e6:
+            self._lose(f"no frame for {self.rig.loss_timeout_ms:g} ms")
+        elif now >= self._next_housekeeping_ns:
+            self._housekeeping(session, now)
+
+    def _handle(self, session: CameraSession, buffer: Any) -> None:
+        aravis, _ = load_aravis()
+        status = buffer.get_status()
+        raw_id = buffer.get_frame_id()
+        frame_id = self._unwrap(raw_id) if raw_id else None
+        tick = (
+            self._ticks.frame(frame_id)
+            if (self._ticks is not None and frame_id is not None)
+            else None
+        )
+        if status != aravis.BufferStatus.SUCCESS:
+            self._count_failure(status.value_nick)
+            return
+        code = buffer.get_image_pixel_format()
+        pixel_format = PFNC_NAMES.get(code, f"0x{code:08x}")
+        if pixel_format != self.cam.pixel_format:
+            self._count_failure("wrong-format")
+            return
+        width, height = buffer.get_image_width(), buffer.get_image_height()
+        shape = frame_shape(pixel_format, width, height)
+        nbytes = int(np.prod(shape))
+        if (width, height) != (self.cam.width_px, self.cam.height_px):
+            self._count_failure("wrong-size")
+            return
+        data = image_bytes(buffer, nbytes, session.payload_bytes)  # the one copy per frame
+        if len(data) < nbytes:
+            self._count_failure("wrong-size")
+            return
+        if self._ticks is not None and tick is None:
+            self._count_failure("no-trigger")
+            return
+        image = np.frombuffer(data, dtype=np.uint8, count=nbytes).reshape(shape)
+        device_ns = int(buffer.get_timestamp())
+        system_ns = int(buffer.get_system_timestamp())
+        host_ns = realtime_to_monotonic_ns(system_ns) if system_ns else time.monotonic_ns()
+        frame = Frame(self.cam.id, int(frame_id or 0), device_ns, host_ns, pixel_format, image)
+        capture_ns = self.sink.observe_clock(self.index, device_ns, host_ns)
+        now = time.monotonic_ns()
+        self._last_frame_ns = now
+        with self._lock:
+            self._frames += 1
+            self._rate.tick(now)
+        self.sink.deliver(Arrival(self.index, frame, capture_ns, self._epoch, tick))
+
+    def _housekeeping(self, session: CameraSession, now: int) -> None:
+        self._next_housekeeping_ns = now + COUNTER_PERIOD_NS
+        counters = session.counters()
+        ptp = None
+        if session.ptp_feature is not None and now >= self._next_ptp_ns:
+            self._next_ptp_ns = now + int(self.rig.ptp_poll_interval_ms * 1e6)
+            ptp = session.ptp_state()
+        with self._lock:
+            self._stream_current = counters
+            if ptp is not None:
+                self._ptp_state = ptp
+
+    # ------------------------------------------------------------------ connection changes
+
+    def _connect(self, device_id: str) -> None:
+        session = open_session(self.cam, self.rig, device_id)
+        if self.on_open is not None:
+            self.on_open(self.cam.id, session.camera)
+        self._adopt(session)
+
+    def _adopt(self, session: CameraSession) -> None:
+        now = time.monotonic_ns()
+        self._session = session
+        self._epoch += 1
+        self._unwrap = FrameIdUnwrapper()
+        if self._trigger is not None:
+            self._ticks = self._trigger.arm(session.fire, self.rig.max_outstanding_triggers)
+        self._last_frame_ns = now
+        self._next_housekeeping_ns = now
+        self._next_ptp_ns = now
+        with self._lock:
+            self._address = session.address or self._address
+            self._notes = tuple(session.notes)
+            self._state = "streaming"
+            self._lost_since = None
+            self._stream_current = {}
+        self.sink.camera_back(self.index)
+
+    def _lose(self, reason: str) -> None:
+        session = self._session
+        self._session = None
+        if self._trigger is not None:
+            self._trigger.disarm()
+        log.warning("camera %s lost: %s", self.cam.id, reason)
+        with self._lock:
+            self._state = "lost"
+            self._losses += 1
+            self._lost_since = time.monotonic_ns()
+            self._last_error = reason
+            self._stream_totals.update(self._stream_current)
+            self._stream_current = {}
+        self.sink.camera_lost(self.index)
+        if session is not None:
+            self.sink.abandon(session)
+
+    def _try_reconnect(self) -> bool:
+        """One attempt: probe the camera, and open it if it answers. True when streaming again."""
+        address = self._address.split(":")[0] if self._address else None
+        if address is not None:
+            answer = probe(address, POLL_S * 2)
+            if answer is None:
+                return False
+            if self.cam.serial and answer.serial and answer.serial != self.cam.serial:
+                self._set_error(
+                    f"{address} answers as serial {answer.serial}, not {self.cam.serial}"
+                )
+                return False
+        with self._lock:
+            self._state = "reconnecting"
+        try:
+            self._connect(address or self._device_id or _resolve(self.cam))
+        except CameraError as err:
+            self._set_error(str(err))
+            with self._lock:
+                self._state = "lost"
+            return False
+        with self._lock:
+            self._reconnects += 1
+        return True
+
+    def _shutdown(self) -> None:
+        session = self._session
+        self._session = None
+        if self._trigger is not None:
+            self._trigger.disarm()
+        if session is not None:
+            recent = (
+                time.monotonic_ns() - self._last_frame_ns < 3 * 1e9 / self.rig.frame_rate_hz + 1e8
+            )
+            address = session.address.split(":")[0] if session.address else None
+            if recent or address is None or probe(address, 0.05) is not None:
+                with self._lock:
+                    self._stream_totals.update(session.counters())
+                    self._stream_current = {}
+                session.close()
+                self.last_pool = session.buffers
+            else:
+                self.sink.abandon(session)
+        with self._lock:
+            self._state = "stopped"
+
+    def _count_failure(self, cause: str) -> None:
+        with self._lock:
+            self._failed[cause] += 1
+
+    def _set_error(self, message: str) -> None:
+        with self._lock:
+            self._last_error = message
+
+
+def _resolve(cam: CameraConfig) -> str:
+    from trackerd.acquisition.arv import resolve_device_id
+
+    return resolve_device_id(cam)
