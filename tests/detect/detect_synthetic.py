@@ -98,6 +98,8 @@ class Scene:
         x1 = min(int(np.ceil(max(box[0], box[2]) + reach)) + 1, self.width)
         y0 = max(int(np.floor(min(box[1], box[3]) - reach)), 0)
         y1 = min(int(np.ceil(max(box[1], box[3]) + reach)) + 1, self.height)
+        if x1 <= x0 or y1 <= y0:
+            return None  # entirely outside the image
         px, py = np.meshgrid(np.arange(x0, x1, dtype=float), np.arange(y0, y1, dtype=float))
         sx = px[..., None, None] + offsets[None, None, None, :]
         sy = py[..., None, None] + offsets[None, None, :, None]
