@@ -119,7 +119,7 @@ class Locator:
             from trackerd.detect import ColourEndDetector
 
             self._detectors = [
-                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px)
+                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.rig.pointer)
                 for cfg, fmt in zip(self.rig.cameras, self.pixel_formats, strict=True)
             ]
         return self._detectors

@@ -294,9 +294,10 @@ class ColourThreshold(_Model):
 class DetectorConfig(_Model):
     """Thresholds of the colour-end detector (trackerd/detect)."""
 
-    red: ColourThreshold = ColourThreshold()
-    """Threshold for the red end."""
-    blue: ColourThreshold = ColourThreshold(min_excess=40, min_value=60)
+    red: ColourThreshold = ColourThreshold(min_excess=70)
+    """Threshold for the red end. Skin reaches an excess of about 55 and muted reds on a
+    projected slide about 50: the default keeps both out (docs/detection.md, tuning)."""
+    blue: ColourThreshold = ColourThreshold(min_excess=60, min_value=60)
     """Threshold for the blue end."""
     min_area_px: float = Field(default=12.0, gt=0.0)
     """Smallest blob, in full-resolution pixels, accepted as an end."""
@@ -306,6 +307,9 @@ class DetectorConfig(_Model):
     """A ball images as a near-circle; blobs longer than this times their width are rejected."""
     min_fill: float = Field(default=0.45, gt=0.0, le=1.0)
     """Blob area over its bounding-box area; a disc fills about 0.79, thin streaks much less."""
+    search_step_px: int = Field(default=8, ge=2, le=64)
+    """Spacing of the subsampled full-frame pass; an end smaller than about 1.5 times this across
+    may be missed by a full search (a tracked end is followed smaller)."""
     track_window_px: int = Field(default=96, ge=8)
     """Half-size of the window searched first around the previous frame's position."""
     centroid: Literal["weighted", "bbox"] = "weighted"
