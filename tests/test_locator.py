@@ -59,7 +59,10 @@ def test_planes_beat_two_points_when_the_rod_hides_part_of_a_ball(simulated_rig,
         fix = locator.locate_centroids(centroids)
         planes.append(np.linalg.norm(fix.hit.wall_xy_m - truth))
         rays = [
-            np.array([cam.pixel_to_ray(np.asarray(c[colour])[None])[1][0] for cam, c in zip(locator.cameras, centroids)])
+            np.array([
+                cam.pixel_to_ray(np.asarray(c[colour])[None])[1][0]
+                for cam, c in zip(locator.cameras, centroids, strict=True)
+            ])
             for colour in ("red", "blue")
         ]
         line = pointer_from_points(locator._centres, rays[0], rays[1])
@@ -74,7 +77,7 @@ def test_reported_uncertainty_matches_the_spread_of_noisy_fixes(simulated_rig, r
     locator = Locator(simulated_rig)
     sigma = simulated_rig.locator.centroid_sigma_px
     rng = np.random.default_rng(0)
-    pose, centroids = rendered_poses[0]
+    _, centroids = rendered_poses[0]
     reported = locator.locate_centroids(centroids).uncertainty_m
     hits = []
     for _ in range(300):
@@ -88,7 +91,7 @@ def test_reported_uncertainty_matches_the_spread_of_noisy_fixes(simulated_rig, r
 
 def test_status_for_each_kind_of_failure(simulated_rig, renderer, rendered_poses) -> None:
     locator = Locator(simulated_rig)
-    pose, centroids = rendered_poses[0]
+    _, centroids = rendered_poses[0]
     # A missing end.
     missing = (dict(centroids[0], blue=None), centroids[1])
     fix = locator.locate_centroids(missing)
@@ -98,7 +101,7 @@ def test_status_for_each_kind_of_failure(simulated_rig, renderer, rendered_poses
     fix = locator.locate_centroids(swapped)
     assert fix.status == "away" and fix.hit is None and fix.found
     # One camera sees a different pose: the rays do not meet, or the length is wrong.
-    other_pose, other_centroids = rendered_poses[1]
+    _, other_centroids = rendered_poses[1]
     mixed = (centroids[0], other_centroids[1])
     fix = locator.locate_centroids(mixed)
     assert fix.status == "rejected" and not fix.found
@@ -126,7 +129,8 @@ def test_a_third_camera_needs_no_new_math(simulated_rig, renderer, rendered_pose
         np.array([1.8, 2.0, 0.3]), world_from_camera_ypr(180.0, -45.0, 0.0),
     )
     cameras = [*renderer.cameras, third]
-    rig = simulated_rig.model_copy(update={"cameras": (*simulated_rig.cameras, simulated_rig.cameras[0].model_copy(update={"id": "top"}))})
+    top = simulated_rig.cameras[0].model_copy(update={"id": "top"})
+    rig = simulated_rig.model_copy(update={"cameras": (*simulated_rig.cameras, top)})
     locator = Locator(rig, cameras=cameras)
     third_centroids = {
         colour: third.project(pose.centre_of(colour, "red")[None])[0] for colour in ("red", "blue")

@@ -181,7 +181,7 @@ class Locator:
 
     def _estimate(self, normalised: Array, sphere_correction: bool) -> PointerLine:
         """Pointer line from normalised coordinates (C, 2 ends, 2)."""
-        rays = np.concatenate([normalised, np.ones(normalised.shape[:2] + (1,))], axis=2)
+        rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
         rays /= np.sqrt(np.sum(rays * rays, axis=2, keepdims=True))
         line = self._line_from_camera_rays(rays[:, 0], rays[:, 1])
         if sphere_correction:
@@ -271,7 +271,7 @@ class Locator:
 
     def _plane_hit_xy(self, normalised: Array) -> Array:
         """Wall hit (2,) of the interpretation planes' line only: the cheap path for error propagation."""
-        rays = np.concatenate([normalised, np.ones(normalised.shape[:2] + (1,))], axis=2)
+        rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
         world = np.einsum("cej,cjk->cek", rays, self._rotations)
         normals = interpretation_plane_normals(world[:, 0], world[:, 1])
         point, direction, _ = line_from_planes(self._centres, normals)

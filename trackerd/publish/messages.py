@@ -192,6 +192,12 @@ class StatusMessage(Message):
     """Frame pairing figures."""
     latency: LatencyPart
     """Capture-to-publish latency over the last status period."""
+    processing: LatencyPart | None = None
+    """The daemon's own latency over the last status period: from the arrival of the last frame
+    of a pair to its messages being handed to ZeroMQ."""
+    stages: dict[str, LatencyPart] = Field(default_factory=dict)
+    """Time spent per pair in each stage (``detect``, ``triangulate``, ``publish``) over the last
+    status period."""
     fixes: dict[str, int] = Field(default_factory=dict)
     """Processed pairs since start by outcome: hit, off_wall, away, parallel, rejected, not_found."""
     messages: dict[str, int] = Field(default_factory=dict)

@@ -91,7 +91,7 @@ class SceneRenderer:
         rig: RigConfig,
         cameras: list[CameraModel] | None = None,
         *,
-        cache_dir: Path | None | bool = True,
+        cache_dir: Path | bool | None = True,
     ) -> None:
         self.rig = rig
         self.cameras = cameras if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]

@@ -1,0 +1,151 @@
+"""The pipeline end to end on rendered frames: source -> locator -> ZeroMQ, with real sockets."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import threading
+import time
+
+import numpy as np
+import zmq
+
+from trackerd.acquisition.memory import MemoryPairSource
+from trackerd.pipeline.daemon import Pipeline
+from trackerd.publish import Publisher
+from trackerd.sdnotify import SdNotify
+
+
+def _rig_on(rig, endpoint: str, status_ms: float = 200.0):
+    zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": status_ms})
+    return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
+
+
+def _subscribe(endpoint: str, topics=(b"",)) -> tuple[zmq.Context, zmq.Socket]:
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    for topic in topics:
+        sub.setsockopt(zmq.SUBSCRIBE, topic)
+    sub.connect(endpoint)
+    return ctx, sub
+
+
+def _collect(sub: zmq.Socket, seconds: float) -> list[tuple[str, dict]]:
+    out = []
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if sub.poll(50):
+            topic, payload = sub.recv_multipart()
+            out.append((topic.decode(), json.loads(payload)))
+    return out
+
+
+def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_rig, rendered_sweep, tmp_path):
+    image_sets, truths = rendered_sweep
+    endpoint = f"ipc://{tmp_path}/pub.sock"
+    rig = _rig_on(simulated_rig, endpoint)
+    count = 3 * len(image_sets)
+    pipeline = Pipeline(
+        rig,
+        lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=count),
+        lambda r: Publisher(r.outputs.zmq),
+    )
+    ctx, sub = _subscribe(endpoint)
+    try:
+        pipeline.start()
+        messages = _collect(sub, count / 20.0 + 1.0)
+    finally:
+        pipeline.stop()
+        sub.close(0)
+        ctx.term()
+    hits = [m for t, m in messages if t == "hit"]
+    pointers = [m for t, m in messages if t == "pointer"]
+    statuses = [m for t, m in messages if t == "status"]
+    # A subscriber joins a moment after the pipeline starts (ZeroMQ's slow joiner); from then
+    # on every pair must arrive.
+    first = min(p["sequence"] for p in pointers)
+    assert first < 10
+    errors = []
+    for hit in hits:
+        truth = truths[hit["sequence"] % len(image_sets)]
+        errors.append(np.hypot(hit["wall_x_m"] - truth.wall_xy_m[0], hit["wall_y_m"] - truth.wall_xy_m[1]))
+        assert hit["capture_ns"] <= hit["publish_ns"]
+    assert np.median(errors) < 0.005
+    # Every pair was processed and published: sequences run without gaps.
+    sequences = sorted({p["sequence"] for p in pointers})
+    assert sequences == list(range(first, count))
+    assert statuses and statuses[-1]["cameras"][0]["state"] in ("streaming", "stopped")
+    last_running = [s for s in statuses if s["state"] == "running"][-1]
+    assert last_running["fixes"].get("hit", 0) + last_running["fixes"].get("off_wall", 0) > 0
+    assert set(last_running["stages"]) == {"detect", "triangulate", "publish"}
+    captures = [m["capture_ns"] for _, m in messages if _ != "status"]
+    assert captures == sorted(captures)  # published timestamps never go backwards
+
+
+def test_a_subscriber_that_never_reads_does_not_slow_the_pipeline(simulated_rig, rendered_sweep, tmp_path):
+    image_sets, _ = rendered_sweep
+    endpoint = f"ipc://{tmp_path}/pub.sock"
+    rig = _rig_on(simulated_rig, endpoint)
+    ctx = zmq.Context()
+    stalled = ctx.socket(zmq.SUB)
+    stalled.setsockopt(zmq.SUBSCRIBE, b"")
+    stalled.setsockopt(zmq.RCVHWM, 10)
+    stalled.connect(endpoint)
+    # As fast as it can, 300 pairs: the publisher must never block on the stalled subscriber.
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=None, count=300),
+                        lambda r: Publisher(r.outputs.zmq))
+    try:
+        pipeline.start()
+        deadline = time.monotonic() + 60
+        while pipeline.pairs_processed < 300 and time.monotonic() < deadline and pipeline.failure is None:
+            time.sleep(0.05)
+    finally:
+        pipeline.stop()
+        stalled.close(0)
+        ctx.term()
+    assert pipeline.failure is None
+    assert pipeline.pairs_processed == 300
+
+
+def test_watchdog_and_ready_reach_systemd_only_when_pairs_flow(simulated_rig, rendered_sweep, tmp_path):
+    """READY once the cameras stream, WATCHDOG=1 from processed pairs, STOPPING on stop."""
+    import socket
+
+    image_sets, _ = rendered_sweep
+    path = tmp_path / "notify.sock"
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    server.bind(str(path))
+    server.settimeout(0.1)
+    notifier = SdNotify({"NOTIFY_SOCKET": str(path), "WATCHDOG_USEC": "400000"})
+    rig = _rig_on(simulated_rig, f"ipc://{tmp_path}/pub.sock")
+    received: list[str] = []
+
+    def listen(stop: threading.Event) -> None:
+        while not stop.is_set():
+            with contextlib.suppress(TimeoutError):
+                received.append(server.recv(4096).decode())
+
+    stop = threading.Event()
+    listener = threading.Thread(target=listen, args=(stop,))
+    listener.start()
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=20),
+                        lambda r: Publisher(r.outputs.zmq), notifier)
+    try:
+        pipeline.start()
+        time.sleep(1.5)  # the 20 pairs take one second; then nothing flows
+        watchdogs_while_flowing = sum("WATCHDOG=1" in m for m in received)
+        time.sleep(0.6)
+        watchdogs_after = sum("WATCHDOG=1" in m for m in received)
+    finally:
+        pipeline.stop()
+        time.sleep(0.2)
+        stop.set()
+        listener.join()
+        server.close()
+    assert any("READY=1" in m for m in received)
+    first_ready = next(i for i, m in enumerate(received) if "READY=1" in m)
+    assert all("STOPPING=1" not in m for m in received[:first_ready])
+    assert watchdogs_while_flowing >= 2
+    # The source stopped delivering (count reached): nothing feeds the watchdog any more.
+    assert watchdogs_after == watchdogs_while_flowing
+    assert "STOPPING=1" in received[-1] or any("STOPPING=1" in m for m in received[-3:])

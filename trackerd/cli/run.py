@@ -1,0 +1,116 @@
+"""`trackerd run`: the real-time service.
+
+Opens the rig's cameras through Aravis, tracks the pointer in every synchronized
+pair and publishes hits, pointer poses and status over ZeroMQ until stopped.
+
+Signals (handled here and only here): SIGTERM and SIGINT stop cleanly (cameras
+released, sockets closed, exit 0 within about a second); SIGHUP re-reads the
+rig file and applies it when it validates, or keeps the running configuration
+and logs why not. A crashed pipeline thread exits with status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
+from trackerd.errors import TrackerdError
+from trackerd.sdnotify import SdNotify
+
+log = logging.getLogger("trackerd.run")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "run", help="run the tracking daemon on the rig's cameras",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--config", required=True, help="rig TOML file, e.g. /etc/trackerd/rig.toml")
+    parser.add_argument("--seconds", type=float, help="stop after this many seconds (default: run until stopped)")
+    parser.set_defaults(handler=run_command)
+
+
+def aravis_source(rig: RigConfig):
+    from trackerd.acquisition.live import AravisPairSource
+
+    return AravisPairSource(rig)
+
+
+def zmq_publisher(rig: RigConfig):
+    from trackerd.publish import Publisher
+
+    return Publisher(rig.outputs.zmq)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    path = Path(args.config)
+    rig = load_rig(path).config
+    return serve(rig, path, aravis_source, seconds=args.seconds)
+
+
+def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
+          publisher_factory=zmq_publisher, banner: str | None = None) -> int:
+    """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it."""
+    from trackerd.pipeline.daemon import Pipeline
+
+    notifier = SdNotify()
+    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier)
+    stop = threading.Event()
+    reload_requested = threading.Event()
+
+    def on_stop(signum: int, _frame: object) -> None:
+        log.info("%s: stopping", signal.Signals(signum).name)
+        stop.set()
+
+    def on_hup(_signum: int, _frame: object) -> None:
+        reload_requested.set()
+
+    previous = {
+        sig: signal.signal(sig, handler)
+        for sig, handler in ((signal.SIGTERM, on_stop), (signal.SIGINT, on_stop), (signal.SIGHUP, on_hup))
+    }
+    try:
+        pipeline.start()
+        endpoints = ", ".join(pipeline.publisher.endpoints) if pipeline.publisher else "-"
+        print(banner or f"trackerd {rig.name}: publishing on {endpoints} (Ctrl-C to stop)", file=sys.stderr,
+              flush=True)
+        deadline = None if seconds is None else time.monotonic() + seconds
+        while not stop.is_set():
+            if pipeline.wait(0.1):
+                break
+            if reload_requested.is_set():
+                reload_requested.clear()
+                _reload(pipeline, path)
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+    except TrackerdError:
+        raise
+    finally:
+        pipeline.stop()
+        notifier.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if pipeline.failure is not None:
+        print("trackerd: a pipeline thread crashed (traceback above); exiting", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _reload(pipeline, path: Path | None) -> None:
+    if path is None:
+        log.warning("SIGHUP: no configuration file to reload")
+        return
+    try:
+        rig = load_rig(path).config
+    except TrackerdError as err:
+        log.error("SIGHUP: keeping the running configuration: %s", err)
+        return
+    pipeline.request_reload(rig)
+    log.info("SIGHUP: reloading %s", path)

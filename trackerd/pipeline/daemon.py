@@ -1,0 +1,347 @@
+"""The real-time pipeline: pairs in, pointer fixes out, published over ZeroMQ.
+
+Threads (besides each camera's acquisition thread inside the pair source):
+
+* processing: takes the newest pairs from the source, detects both ends in
+  every image, triangulates, intersects the wall (trackerd/locator.py) and
+  hands the resulting messages to the publisher through a bounded queue that
+  drops its oldest item when full;
+* publishing: owns the ZeroMQ publisher, sends the messages, and sends a status
+  about once a second and on every change of state.
+
+Latency is measured, not guessed: per stage (detect, triangulate, publish) and
+end to end, from the moment the last frame of a pair arrived to the moment its
+messages were handed to ZeroMQ. Signals are not handled here: the CLI calls
+:meth:`Pipeline.stop` and :meth:`Pipeline.request_reload`.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import trackerd
+from trackerd.acquisition.source import PairSource
+from trackerd.acquisition.status import SourceStatus
+from trackerd.config.models import RigConfig
+from trackerd.locator import Locator
+from trackerd.pipeline.queues import DropOldestQueue
+from trackerd.pipeline.stats import Window, percentiles_ms
+from trackerd.publish import Publisher, StatusMessage, messages_from_fix
+from trackerd.publish.messages import CameraStatusPart, LatencyPart, Message, PairingPart
+from trackerd.sdnotify import SdNotify
+
+log = logging.getLogger(__name__)
+
+STATE_POLL_S = 0.2
+"""How often the publisher looks for a change of camera state (a change sends a status at once)."""
+PAIR_WAIT_S = 0.05
+"""How long the processing thread waits for a pair before checking for stop or reload."""
+
+
+@dataclass
+class _Processed:
+    """What the processing thread hands the publisher for one pair."""
+
+    messages: list[Message]
+    received_ns: int
+    """Monotonic time the last frame of the pair arrived."""
+    capture_ns: int
+    """Capture time on the publishing clock."""
+    stage_ns: dict[str, int] = field(default_factory=dict)
+
+
+class Pipeline:
+    """Runs a pair source through the locator into a publisher until stopped.
+
+    ``source_factory`` and ``publisher_factory`` build the parts from a rig, so a
+    reloaded configuration can replace them; ``clock_offset_ns`` turns the
+    monotonic clock into the epoch timestamps published (fixed at start, so
+    published times never go backwards even if the wall clock is stepped).
+    """
+
+    def __init__(
+        self,
+        rig: RigConfig,
+        source_factory: Callable[[RigConfig], PairSource],
+        publisher_factory: Callable[[RigConfig], Publisher],
+        notifier: SdNotify | None = None,
+        *,
+        queue_length: int = 16,
+        clock_offset_ns: int | None = None,
+    ) -> None:
+        self.rig = rig
+        self._source_factory = source_factory
+        self._publisher_factory = publisher_factory
+        self._notifier = notifier or SdNotify({})
+        self.clock_offset_ns = (
+            time.time_ns() - time.monotonic_ns() if clock_offset_ns is None else clock_offset_ns
+        )
+        self._queue: DropOldestQueue[_Processed] = DropOldestQueue(queue_length)
+        self._stop = threading.Event()
+        self._done = threading.Event()
+        self._failure: BaseException | None = None
+        self._failure_text: str | None = None
+        self._pending_rig: RigConfig | None = None
+        self._pending_outputs: RigConfig | None = None
+        self._pending_lock = threading.Lock()
+        self._threads: list[threading.Thread] = []
+        self._started_ns = time.monotonic_ns()
+        self._ready_sent = False
+        self._state = "starting"
+        self._detail: str | None = None
+        self._status_sequence = 0
+        self._fixes: dict[str, int] = {}
+        self.latency = Window()
+        """Capture to publish (ns), drained into each status."""
+        self.processing = Window()
+        """Last frame of the pair received to messages published (ns)."""
+        self.stages = {name: Window() for name in ("detect", "triangulate", "publish")}
+        self.pairs_processed = 0
+        self.source: PairSource | None = None
+        self.publisher: Publisher | None = None
+        self.locator = Locator(rig)
+
+    # ------------------------------------------------------------------ control
+
+    def start(self) -> None:
+        """Bind the publisher, open the cameras and start the threads (errors raise here)."""
+        self.publisher = self._publisher_factory(self.rig)
+        self._publisher_rig = self.rig
+        try:
+            self.source = self._source_factory(self.rig)
+            self.source.start()
+        except BaseException:
+            self.publisher.close()
+            raise
+        self._threads = [
+            threading.Thread(target=self._guard, args=(self._process_loop,), name="trackerd-process", daemon=True),
+            threading.Thread(target=self._guard, args=(self._publish_loop,), name="trackerd-publish", daemon=True),
+        ]
+        for thread in self._threads:
+            thread.start()
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        """Stop every thread, release the cameras and close the publisher; idempotent."""
+        self._notifier.stopping("stopping")
+        self._stop.set()
+        deadline = time.monotonic() + timeout_s
+        for thread in self._threads:
+            thread.join(max(0.0, deadline - time.monotonic()))
+        if self.source is not None:
+            self.source.stop()
+        if self.publisher is not None:
+            self.publisher.close()
+        self._done.set()
+
+    def request_reload(self, rig: RigConfig) -> None:
+        """Apply a new, already validated configuration between two pairs."""
+        with self._pending_lock:
+            self._pending_rig = rig
+            if rig.outputs != self._publisher_rig.outputs:
+                self._pending_outputs = rig
+        self._notifier.reloading()
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until a thread fails or stop() is called; True if stopping."""
+        return self._stop.wait(timeout_s)
+
+    @property
+    def failure(self) -> str | None:
+        """The traceback of a thread that crashed (the daemon then exits non-zero), else None."""
+        return self._failure_text
+
+    @property
+    def state(self) -> str:
+        return self._state
+
+    def _guard(self, loop: Callable[[], None]) -> None:
+        try:
+            loop()
+        except BaseException as err:  # noqa: BLE001 - any crash must stop the daemon, loudly
+            self._failure = err
+            self._failure_text = traceback.format_exc()
+            log.error("pipeline thread %s crashed:\n%s", threading.current_thread().name, self._failure_text)
+            self._stop.set()
+
+    # ------------------------------------------------------------------ processing
+
+    def _process_loop(self) -> None:
+        while not self._stop.is_set():
+            self._apply_pending_reload()
+            assert self.source is not None
+            pair = self.source.next_pair(PAIR_WAIT_S)
+            if pair is None:
+                if self._some_camera_recovering():
+                    # A power-cycled camera is not a stalled pipeline: keep systemd's watchdog fed.
+                    self._notifier.progress()
+                continue
+            start = time.monotonic_ns()
+            received = max(frame.host_timestamp_ns for frame in pair.frames)
+            fix = self.locator.locate(pair.images)
+            capture = pair.timestamp_ns + self.clock_offset_ns
+            messages = messages_from_fix(fix, self.locator, sequence=pair.sequence, capture_ns=capture)
+            self._fixes[fix.status] = self._fixes.get(fix.status, 0) + 1
+            if fix.status == "not_found":
+                # Tracking windows are stale once the pointer is gone.
+                self.locator.reset()
+            stage = {"detect": fix.timings_ns.get("detect_ns", 0),
+                     "triangulate": fix.timings_ns.get("triangulate_ns", 0),
+                     "process": time.monotonic_ns() - start}
+            self._queue.put(_Processed(messages, received, capture, stage))
+            self.pairs_processed += 1
+            self._notifier.progress()
+
+    def _apply_pending_reload(self) -> None:
+        with self._pending_lock:
+            rig, self._pending_rig = self._pending_rig, None
+        if rig is None:
+            return
+        old = self.rig
+        try:
+            locator = Locator(rig)
+            if _source_settings(rig) != _source_settings(old):
+                log.info("reload: camera settings changed, reopening the cameras")
+                assert self.source is not None
+                self.source.stop()
+                self.source = self._source_factory(rig)
+                self.source.start()
+        except Exception as err:  # noqa: BLE001 - a bad reload keeps the old configuration
+            log.error("reload failed, keeping the previous configuration: %s", err)
+            self._notifier.ready("running (reload failed: previous configuration kept)")
+            return
+        self.locator = locator
+        self.rig = rig
+        log.info("reload: configuration applied")
+        self._notifier.ready("running (configuration reloaded)")
+
+    def _some_camera_recovering(self) -> bool:
+        assert self.source is not None
+        return any(cam.state in ("lost", "reconnecting") for cam in self.source.status().cameras)
+
+    # ------------------------------------------------------------------ publishing
+
+    def _publish_loop(self) -> None:
+        interval_s = self.rig.outputs.zmq.status_interval_ms / 1000.0
+        next_status = 0.0
+        next_poll = 0.0
+        last_states: tuple[str, ...] = ()
+        while True:
+            now = time.monotonic()
+            if now >= next_poll:
+                next_poll = now + STATE_POLL_S
+                status = self.source.status() if self.source is not None else None
+                states = tuple(c.state for c in status.cameras) if status is not None else ()
+                if states != last_states or now >= next_status:
+                    last_states = states
+                    next_status = now + interval_s
+                    self._send_status(status)
+            if self._stop.is_set():
+                break
+            self._apply_pending_outputs()
+            item = self._queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
+            if item is None:
+                continue
+            assert self.publisher is not None
+            start = time.monotonic_ns()
+            for message in item.messages:
+                self.publisher.publish(message)
+            done = time.monotonic_ns()
+            self.stages["publish"].add(done - start)
+            for name in ("detect", "triangulate"):
+                self.stages[name].add(item.stage_ns[name])
+            self.processing.add(done - item.received_ns)
+            self.latency.add(done + self.clock_offset_ns - item.capture_ns)
+        self._state = "stopping"
+        self._detail = "stopping"
+        self._send_status(self.source.status() if self.source is not None else None)
+
+    def _apply_pending_outputs(self) -> None:
+        """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
+        with self._pending_lock:
+            rig, self._pending_outputs = self._pending_outputs, None
+        if rig is None:
+            return
+        assert self.publisher is not None
+        self.publisher.close()
+        try:
+            self.publisher = self._publisher_factory(rig)
+            self._publisher_rig = rig
+            log.info("reload: publisher rebound to %s", ", ".join(rig.outputs.zmq.endpoints))
+        except Exception as err:  # noqa: BLE001 - keep publishing on the old endpoints
+            log.error("reload: cannot apply the new outputs (%s); keeping the previous ones", err)
+            self.publisher = self._publisher_factory(self._publisher_rig)
+
+    def _send_status(self, source_status: SourceStatus | None) -> None:
+        assert self.publisher is not None
+        message = self.build_status(source_status)
+        self.publisher.publish_status(message)
+        line = f"{message.state}: " + ", ".join(f"{c.id} {c.state} {c.frame_rate_hz:.0f} fps" for c in message.cameras)
+        self._notifier.status(line if message.detail is None else f"{line} ({message.detail})")
+        if message.state == "running" and not self._ready_sent:
+            self._ready_sent = True
+            self._notifier.ready(line)
+
+    def build_status(self, source_status: SourceStatus | None) -> StatusMessage:
+        """The status message for now: camera states, pairing, latency since the last status, fixes."""
+        cameras = source_status.cameras if source_status is not None else ()
+        states = [c.state for c in cameras]
+        if self._state != "stopping":
+            if states and all(s == "streaming" for s in states):
+                self._state, self._detail = "running", None
+            elif self._ready_sent:
+                bad = [c.camera_id for c in cameras if c.state != "streaming"]
+                self._state, self._detail = "degraded", f"camera {', '.join(bad)} not streaming"
+            else:
+                waiting = [c.camera_id for c in cameras if c.state != "streaming"]
+                self._state, self._detail = "starting", f"waiting for {', '.join(waiting) or 'cameras'}"
+        latency = self.latency.drain()
+        processing = self.processing.drain()
+        stages = {name: window.drain() for name, window in self.stages.items()}
+        self._status_sequence += 1
+        now = time.monotonic_ns()
+        pairing = PairingPart(pair_rate_hz=0.0)
+        if source_status is not None:
+            pairing = PairingPart(
+                pair_rate_hz=source_status.pair_rate_hz,
+                pairs=source_status.pairs,
+                dropped_frames=dict(source_status.dropped_frames),
+                dropped_pairs=source_status.dropped_pairs + self._queue.dropped,
+                skew_p50_us=source_status.skew_p50_us,
+                skew_p99_us=source_status.skew_p99_us,
+            )
+        return StatusMessage(
+            sequence=self._status_sequence,
+            capture_ns=now + self.clock_offset_ns,
+            state=self._state,
+            version=trackerd.__version__,
+            uptime_s=(now - self._started_ns) / 1e9,
+            rig=self.rig.name,
+            cameras=tuple(
+                CameraStatusPart(
+                    id=c.camera_id, state=c.state, frame_rate_hz=c.frame_rate_hz, frames=c.frames,
+                    dropped=dict(c.failed_buffers), losses=c.losses, reconnects=c.reconnects,
+                    last_error=c.last_error,
+                )
+                for c in cameras
+            ),
+            pairing=pairing,
+            latency=LatencyPart(samples=int(latency.size), **percentiles_ms(latency)),
+            processing=LatencyPart(samples=int(processing.size), **percentiles_ms(processing)),
+            stages={
+                name: LatencyPart(samples=int(values.size), **percentiles_ms(values))
+                for name, values in stages.items()
+            },
+            fixes=dict(self._fixes),
+            detail=self._detail,
+        )
+
+
+def _source_settings(rig: RigConfig) -> object:
+    """What a change of which requires reopening the cameras (not their calibration)."""
+    cameras = tuple(c.model_copy(update={"intrinsics": None, "extrinsics": None}) for c in rig.cameras)
+    return (cameras, rig.acquisition)
