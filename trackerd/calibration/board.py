@@ -310,33 +310,60 @@ def detect_board(grey: NDArray[np.uint8], spec: BoardSpec, name: str = "",
 def _find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> BoardView | None:
     cols, rows = spec.inner_corners
     corners = None
-    # Half resolution first: four times faster, and enough to find a board that is
-    # not tiny; the corners are refined at full resolution below either way.
-    scales = (0.5, 1.0) if min(grey.shape[:2]) >= 720 else (1.0,)
-    for scale in scales:
-        image = grey if scale == 1.0 else cv2.resize(grey, None, fx=scale, fy=scale,
-                                                     interpolation=cv2.INTER_AREA)
-        ok, found = cv2.findChessboardCornersSB(image, (cols, rows), flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
-        if ok and found is not None and len(found) == cols * rows:
-            # Pixel centres sit at integers in both images: x_full = (x_small + 0.5) / scale - 0.5.
-            corners = (found.reshape(-1, 2).astype(np.float64) + 0.5) / scale - 0.5
-            break
+    # Half resolution first: four times faster, and enough to find a board that is not
+    # tiny. Where its squares are small (a distant or steeply tilted board) the
+    # half-resolution corners can be pixels off, so the board is found again at full
+    # resolution in a window around it; the corners are refined below either way.
+    if min(grey.shape[:2]) >= 720:
+        small = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        corners = _sector_corners(small, cols, rows)
+        if corners is not None:
+            # Pixel centres sit at integers in both images: x_full = (x_small + 0.5) * 2 - 0.5.
+            corners = (corners + 0.5) * 2.0 - 0.5
+            if _shortest_spacing_px(corners.reshape(rows, cols, 2)) < 40.0:
+                corners = _sector_corners_near(grey, corners, cols, rows)
+    if corners is None:
+        corners = _sector_corners(grey, cols, rows)
     if corners is None:
         return None
     grid = corners.reshape(rows, cols, 2)
     # The sector-based detector is robust but noisy (about 0.15 px on a noisy image);
     # gradient refinement over a window scaled to the squares brings it to about 0.06 px.
+    # On a steeply tilted board the squares are thin diamonds whose corners nearly touch
+    # along one diagonal, so the window follows the shortest spacing, diagonals included,
+    # and a corner the refinement carried off toward a neighbour keeps its first position.
     square = _square_px(grid)
-    half = int(np.clip(round(0.15 * square), 2, 9))
-    refined = cv2.cornerSubPix(grey, grid.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1),
-                               _SUBPIX_CRITERIA)
-    grid = refined.reshape(rows, cols, 2).astype(np.float64)
+    spacing = _shortest_spacing_px(grid)
+    half = int(np.clip(round(0.2 * spacing), 2, 9))
+    start = grid.reshape(-1, 2)
+    refined = cv2.cornerSubPix(grey, start.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1),
+                               _SUBPIX_CRITERIA).reshape(-1, 2).astype(np.float64)
+    moved = np.linalg.norm(refined - start, axis=1) > max(1.0, 0.15 * spacing)
+    refined[moved] = start[moved]
+    grid = refined.reshape(rows, cols, 2)
     grid = _canonical_order(grey, grid, spec)
     points = grid.reshape(-1, 2)
     ids = np.arange(cols * rows)
     height, width = grey.shape[:2]
     return BoardView(ids, points, spec.object_points_m.copy(), (width, height),
                      edge_sharpness_px(grey, points, square), spec.corner_count, name)
+
+
+def _sector_corners(image: NDArray[np.uint8], cols: int, rows: int) -> Array | None:
+    ok, found = cv2.findChessboardCornersSB(image, (cols, rows), flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not ok or found is None or len(found) != cols * rows:
+        return None
+    return found.reshape(-1, 2).astype(np.float64)
+
+
+def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows: int) -> Array | None:
+    """Find the board again at full resolution, in a window around rough corner positions."""
+    pad = 2.0 * _square_px(rough.reshape(rows, cols, 2)) + 8.0
+    h, w = grey.shape[:2]
+    x0, y0 = max(0, int(rough[:, 0].min() - pad)), max(0, int(rough[:, 1].min() - pad))
+    x1, y1 = min(w, int(rough[:, 0].max() + pad) + 1), min(h, int(rough[:, 1].max() + pad) + 1)
+    found = _sector_corners(np.ascontiguousarray(grey[y0:y1, x0:x1]), cols, rows)
+    return None if found is None else found + np.array([x0, y0], dtype=np.float64)
 
 
 def _canonical_order(grey: NDArray[np.uint8], grid: Array, spec: BoardSpec) -> Array:
@@ -368,6 +395,22 @@ def _mean_around(grey: NDArray[np.uint8], point: Array, radius: int = 2) -> floa
     h, w = grey.shape[:2]
     patch = grey[max(0, y - radius) : min(h, y + radius + 1), max(0, x - radius) : min(w, x + radius + 1)]
     return float(patch.mean()) if patch.size else 128.0
+
+
+def _shortest_spacing_px(grid: Array) -> float:
+    """Median over corners of the distance to the nearest neighbouring corner, diagonals included."""
+    rows, cols = grid.shape[:2]
+    best = np.full((rows, cols), np.inf)
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        a = grid[max(0, -dy) : rows - max(0, dy), max(0, -dx) : cols - max(0, dx)]
+        b = grid[max(0, dy) :, max(0, dx) : cols + min(0, dx) or None]
+        b = b[: a.shape[0], : a.shape[1]]
+        d = np.linalg.norm(a - b, axis=2)
+        ya, xa = max(0, -dy), max(0, -dx)
+        best[ya : ya + d.shape[0], xa : xa + d.shape[1]] = np.minimum(best[ya : ya + d.shape[0], xa : xa + d.shape[1]], d)
+        yb, xb = max(0, dy), max(0, dx)
+        best[yb : yb + d.shape[0], xb : xb + d.shape[1]] = np.minimum(best[yb : yb + d.shape[0], xb : xb + d.shape[1]], d)
+    return float(np.median(best))
 
 
 def _square_px(grid: Array) -> float:

@@ -41,6 +41,12 @@ SYNC_ROTATION_DEG = 0.1
 """A pair's implied relative pose may differ from the median by five times the typical
 difference, and at least by these, before it is called out of sync."""
 
+SYNC_SPREAD_M = 0.02
+SYNC_SPREAD_DEG = 0.5
+"""When the typical pair differs from the median pose by more than these, most pairs are out of
+sync and no majority can be trusted (pairs in sync agree within about a millimetre and 0.02
+degrees on the simulated DataWall)."""
+
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
 
@@ -125,6 +131,13 @@ def check_sync(pairs: Sequence[StereoPair], lens1: Lens, lens2: Lens) -> SyncChe
     median_r = rotation_from_rvec(np.median(np.array([rvec_from_rotation(r) for r in rotations]), axis=0))
     dt = np.linalg.norm(translations_arr - median_t, axis=1)
     dr = np.array([rotation_angle_deg(r @ median_r.T) for r in rotations])
+    if float(np.median(dt)) > SYNC_SPREAD_M or float(np.median(dr)) > SYNC_SPREAD_DEG:
+        raise CalibrationError(
+            f"pairs out of sync: the pairs disagree on where the cameras are (typically by"
+            f" {float(np.median(dt)) * 1000:.0f} mm and {float(np.median(dr)):.1f} degrees; in-sync pairs agree"
+            " within a few mm and a few hundredths of a degree): were both images of each pair taken at the"
+            " same instant, of the same board?"
+        )
     limit_t = max(5.0 * float(np.median(dt)), SYNC_TRANSLATION_M)
     limit_r = max(5.0 * float(np.median(dr)), SYNC_ROTATION_DEG)
     kept, rejected = [], []

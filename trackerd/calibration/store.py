@@ -155,15 +155,19 @@ def render_calibration(calibration: CalibrationFile, header: str) -> str:
 
 
 def write_calibration(context: RigContext, calibration: CalibrationFile, header: str,
-                      *, now: _dt.datetime | None = None) -> Path | None:
+                      *, check_wall: bool = True, now: _dt.datetime | None = None) -> Path | None:
     """Write ``calibration`` to the rig's calibration file atomically; return the backup's path (if any).
 
-    The result is validated merged into the rig first, so a file that would make
-    the rig invalid is never written.
+    The result is first merged into the rig and put through the loader's checks
+    (every lens must invert out to the image corners; with ``check_wall``, every
+    camera must be in front of the wall), so a file that ``trackerd config check``
+    would refuse is never written. ``check_wall`` is off only while the cameras
+    are in camera 1's frame and the wall is not calibrated yet.
     """
     path = require_output(context)
     try:
-        merge_calibration(context.rig, calibration, path)
+        merged = merge_calibration(context.rig, calibration, path)
+        check_merged(merged, path, check_wall)
     except ConfigError as err:
         raise CalibrationError(f"not written: {err}") from err
     except ValidationError as err:  # pragma: no cover - merge_calibration wraps these
@@ -188,6 +192,22 @@ def write_calibration(context: RigContext, calibration: CalibrationFile, header:
             os.unlink(tmp_name)
     _fsync_directory(path.parent)
     return backup
+
+
+def check_merged(rig: RigConfig, path: Path, check_wall: bool) -> None:
+    """The loader's geometric checks on a merged rig (ConfigError naming ``path``)."""
+    # The loader keeps these checks private to load_rig; the same functions are used
+    # here so that what is written is exactly what load_rig accepts.
+    from trackerd.config.loader import _check_geometry, _check_lens
+
+    complete = True
+    for cam in rig.cameras:
+        if cam.intrinsics is None or cam.extrinsics is None:
+            complete = False
+            continue
+        _check_lens(cam, f"{path}: cameras.{cam.id}")
+    if complete and check_wall:
+        _check_geometry(rig, path)
 
 
 def backup_path(path: Path, now: _dt.datetime | None = None) -> Path:

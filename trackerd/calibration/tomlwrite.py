@@ -45,7 +45,7 @@ def _table(data: Mapping[str, Any], path: list[str], lines: list[str]) -> None:
         if value is None:
             continue
         lines.append(f"{_key(key)} = {_value(value, [*path, key])}")
-    if path and (values or not tables):
+    if values or (path and not tables):
         lines.append("")
     for key, value in tables:
         _table(value, [*path, key], lines)

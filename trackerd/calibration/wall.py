@@ -22,7 +22,7 @@ wrong corner or a moved camera stands out.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -95,6 +95,8 @@ class Residual:
     """Distance from the target's place within the plane (touches with a known place)."""
     miss_mm: float | None
     """Pointings: how far the pointer's line passes from the target."""
+    used: bool = True
+    """False when the observation was left out of the fit as an outlier."""
 
     @property
     def worst_mm(self) -> float:
@@ -115,6 +117,9 @@ class WallFit:
     """Whether width and height were solved for (display-defined targets) or taken as given."""
     residuals: tuple[Residual, ...]
     rms_mm: float
+    """RMS of the residuals of the observations used."""
+    scale: Array = field(default_factory=lambda: np.ones(2))
+    """Solved size over nominal size, along x and y (ones when the size was not solved for)."""
 
     @property
     def frame(self) -> WallFrame:
@@ -136,6 +141,13 @@ class WallFit:
         return rotation @ self.rotation, rotation @ self.origin_m + np.asarray(translation_m, dtype=np.float64)
 
 
+ROBUST_SCALE_FLOOR_M = 0.001
+"""The robust weighting never treats residuals under about this as noise worth down-weighting."""
+LEFT_OUT_WEIGHT = 0.2
+"""Observations whose final weight is below this (residual beyond about five robust standard
+deviations) are reported as left out: a wrong blob, the pointer knocked during capture."""
+
+
 def fit_wall(
     touches: Sequence[Touch],
     pointings: Sequence[Pointing],
@@ -143,12 +155,19 @@ def fit_wall(
     tip_radius_m: float,
     *,
     fit_size: bool | None = None,
+    robust: bool = True,
 ) -> WallFit:
     """Solve the wall frame (and optionally its size) from touches and pointings.
 
     ``size_m`` is the display's nominal width and height; with ``fit_size`` (by
     default: when the scalable targets reach across most of the display both
     ways) the size is solved for and reported as the implied size.
+
+    With ``robust`` the least squares is iteratively reweighted with Cauchy
+    weights ``1 / (1 + (r / c)^2)``, ``c`` being 2.4 robust standard deviations
+    of the observations' residuals (from their median): a pointer line that
+    misses by centimetres, as a wrong blob makes it, barely moves the wall.
+    Observations left with a small weight are reported with ``used`` False.
     Raises CalibrationError when the observations cannot fix a wall.
     """
     touches, pointings = list(touches), list(pointings)
@@ -167,16 +186,37 @@ def fit_wall(
     room_side = _room_side(touches, pointings)
     rotation, origin = _initial_frame(estimates, room_side, tip_radius_m)
     params = np.zeros(8 if fit_size else 6)
+    weights = np.ones(len(touches) + len(pointings))
+    for _ in range(8 if robust else 1):
+        def residual_vector(p: Array, w: Array = weights) -> Array:
+            return _residuals(p, rotation, origin, touches, pointings, tip_radius_m, np.sqrt(w))
 
-    def residual_vector(p: Array) -> Array:
-        return _residuals(p, rotation, origin, touches, pointings, tip_radius_m)
+        params = _gauss_newton(residual_vector, params)
+        if not robust:
+            break
+        magnitudes = _magnitudes(params, rotation, origin, touches, pointings, tip_radius_m)
+        scale = max(1.4826 * float(np.median(magnitudes)), ROBUST_SCALE_FLOOR_M)
+        new_weights = 1.0 / (1.0 + (magnitudes / (2.385 * scale)) ** 2)
+        converged = float(np.max(np.abs(new_weights - weights))) < 0.01
+        weights = new_weights
+        if converged:
+            break
+    rot, org, scale_xy = _unpack(params, rotation, origin)
+    used = weights >= LEFT_OUT_WEIGHT
+    residuals = _report(rot, org, scale_xy, touches, pointings, tip_radius_m, used)
+    magnitudes = _magnitudes(params, rotation, origin, touches, pointings, tip_radius_m)
+    rms = float(np.sqrt(np.mean(magnitudes[used] ** 2))) * 1000.0 if np.any(used) else float("nan")
+    width, height = size_m[0] * scale_xy[0], size_m[1] * scale_xy[1]
+    return WallFit(rot, org, float(width), float(height), bool(fit_size), residuals, rms, scale_xy)
 
-    params = _gauss_newton(residual_vector, params)
-    rot, org, scale = _unpack(params, rotation, origin)
-    width, height = size_m[0] * scale[0], size_m[1] * scale[1]
-    residuals = _report(rot, org, scale, touches, pointings, tip_radius_m)
-    rms = float(np.sqrt(np.mean(residual_vector(params) ** 2))) * 1000.0
-    return WallFit(rot, org, float(width), float(height), bool(fit_size), residuals, rms)
+
+def _magnitudes(params: Array, rotation0: Array, origin0: Array, touches: Sequence[Touch],
+                pointings: Sequence[Pointing], tip_radius_m: float) -> Array:
+    """Each observation's residual length in metres (touches first, then pointings, input order)."""
+    rotation, origin, scale = _unpack(params, rotation0, origin0)
+    out = [float(np.linalg.norm(_touch_residual(t, rotation, origin, scale, tip_radius_m))) for t in touches]
+    out += [float(np.linalg.norm(_pointing_residual(p, rotation, origin, scale))) for p in pointings]
+    return np.array(out)
 
 
 def _spans_display(targets: Sequence[Target], size_m: tuple[float, float]) -> bool:
@@ -261,21 +301,28 @@ def _target_point(target: Target, rotation: Array, origin: Array, scale: Array, 
     return origin + rotation @ np.array([xy[0], xy[1], lift_m])
 
 
+def _touch_residual(touch: Touch, rotation: Array, origin: Array, scale: Array, tip_radius_m: float) -> Array:
+    """Where the tip centre is minus where it should be (3,), or its distance error from the plane (1,)."""
+    if touch.target.wall_xy_m is None:
+        return np.array([rotation[:, 2] @ (touch.tip_m - origin) - tip_radius_m])
+    return touch.tip_m - _target_point(touch.target, rotation, origin, scale, tip_radius_m)
+
+
+def _pointing_residual(pointing: Pointing, rotation: Array, origin: Array, scale: Array) -> Array:
+    """The target's offset from the pointer's line, perpendicular to it (3,)."""
+    rel = _target_point(pointing.target, rotation, origin, scale) - pointing.tip_m
+    d = pointing.direction
+    return rel - (rel @ d) * d
+
+
 def _residuals(params: Array, rotation0: Array, origin0: Array, touches: Sequence[Touch],
-               pointings: Sequence[Pointing], tip_radius_m: float) -> Array:
+               pointings: Sequence[Pointing], tip_radius_m: float, root_weights: Array) -> Array:
     rotation, origin, scale = _unpack(params, rotation0, origin0)
-    normal = rotation[:, 2]
-    parts: list[Array] = []
-    for touch in touches:
-        if touch.target.wall_xy_m is None:
-            parts.append(np.array([normal @ (touch.tip_m - origin) - tip_radius_m]))
-        else:
-            parts.append(touch.tip_m - _target_point(touch.target, rotation, origin, scale, tip_radius_m))
-    for pointing in pointings:
-        rel = _target_point(pointing.target, rotation, origin, scale) - pointing.tip_m
-        d = pointing.direction
-        parts.append(rel - (rel @ d) * d)
-    return np.concatenate(parts) if parts else np.zeros(0)
+    parts = [_touch_residual(t, rotation, origin, scale, tip_radius_m) for t in touches]
+    parts += [_pointing_residual(p, rotation, origin, scale) for p in pointings]
+    if not parts:
+        return np.zeros(0)
+    return np.concatenate([w * part for w, part in zip(root_weights, parts, strict=True)])
 
 
 def _gauss_newton(func, params: Array, iterations: int = 50) -> Array:
@@ -308,30 +355,34 @@ def _gauss_newton(func, params: Array, iterations: int = 50) -> Array:
 
 
 def _report(rotation: Array, origin: Array, scale: Array, touches: Sequence[Touch],
-            pointings: Sequence[Pointing], tip_radius_m: float) -> tuple[Residual, ...]:
+            pointings: Sequence[Pointing], tip_radius_m: float, used: Array) -> tuple[Residual, ...]:
+    """Residuals of every observation (touches, then pointings grouped by target in first-seen order)."""
     normal = rotation[:, 2]
     out: list[Residual] = []
+    used_t = {id(t) for t, u in zip(touches, used[: len(touches)], strict=True) if u}
+    used_p = {id(p) for p, u in zip(pointings, used[len(touches) :], strict=True) if u}
     for touch in touches:
         plane = float(normal @ (touch.tip_m - origin) - tip_radius_m) * 1000.0
         in_plane = None
         if touch.target.wall_xy_m is not None:
             diff = touch.tip_m - _target_point(touch.target, rotation, origin, scale, tip_radius_m)
             in_plane = float(np.linalg.norm(diff - (diff @ normal) * normal)) * 1000.0
-        out.append(Residual(touch.target.label, "touch", plane, in_plane, None))
+        out.append(Residual(touch.target.label, "touch", plane, in_plane, None, id(touch) in used_t))
     groups: dict[str, list[Pointing]] = {}
     for pointing in pointings:
         groups.setdefault(pointing.target.label, []).append(pointing)
     for label, group in groups.items():
         meet = None
-        if len(group) >= 2:
+        lines = [p for p in group if id(p) in used_p]
+        if len(lines) >= 2:
             try:
-                point, _ = triangulate_least_squares(np.array([p.tip_m for p in group]),
-                                                     np.array([p.direction for p in group]))
+                point, _ = triangulate_least_squares(np.array([p.tip_m for p in lines]),
+                                                     np.array([p.direction for p in lines]))
                 meet = float(normal @ (point - origin)) * 1000.0
             except GeometryError:
                 meet = None
         for pointing in group:
             rel = _target_point(pointing.target, rotation, origin, scale) - pointing.tip_m
             miss = float(np.linalg.norm(rel - (rel @ pointing.direction) * pointing.direction)) * 1000.0
-            out.append(Residual(label, "pointing", meet, None, miss))
+            out.append(Residual(label, "pointing", meet, None, miss, id(pointing) in used_p))
     return tuple(out)

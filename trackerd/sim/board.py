@@ -15,12 +15,16 @@ camera model.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.acquisition.source import PairSource
+from trackerd.acquisition.status import SourceStatus
 from trackerd.calibration.board import BoardSpec
 from trackerd.geometry.rotation import rotation_about_x, rotation_about_y, rotation_about_z
 from trackerd.sim.render import AMBIENT, DIFFUSE, SceneRenderer, _format_values, _quantise
@@ -284,8 +288,8 @@ def poses_for_camera(
     count: int,
     rng: np.random.Generator,
     *,
-    distance_m: tuple[float, float] = (0.9, 2.2),
-    max_tilt_deg: float = 45.0,
+    distance_m: tuple[float, float] = (0.8, 2.0),
+    tilt_deg: tuple[float, float] = (15.0, 50.0),
     margin_px: float = 12.0,
     candidates: int = 12,
     max_tries: int = 20000,
@@ -293,8 +297,10 @@ def poses_for_camera(
     """Varied poses of the whole board in one camera's view, as a careful operator holds it.
 
     Candidate poses put the board's centre on the ray through a random pixel, at
-    a random distance, turned toward the camera and tilted by up to
-    ``max_tilt_deg``. From ``candidates`` times ``count`` of them, poses are
+    a random distance, turned toward the camera and then tilted by an angle in
+    ``tilt_deg`` about a random axis in its plane (a board facing the camera
+    squarely says little about the focal length). From ``candidates`` times
+    ``count`` of them, poses are
     chosen one by one to cover the image cells (of an 8 x 6 grid) that earlier
     poses left empty, the image's corners and edges most of all, since that is
     where distortion is measured; ties go to the more tilted pose.
@@ -309,7 +315,9 @@ def poses_for_camera(
         distance = rng.uniform(*distance_m)
         _, dirs = camera.pixel_to_ray(target[None])
         centre = camera.centre_m + distance * dirs[0]
-        tilt_x, tilt_y = rng.uniform(-max_tilt_deg, max_tilt_deg, size=2)
+        tilt = rng.uniform(*tilt_deg)
+        axis = rng.uniform(0.0, 2.0 * np.pi)
+        tilt_x, tilt_y = tilt * np.cos(axis), tilt * np.sin(axis)
         spin = rng.uniform(-25.0, 25.0)
         view_dir = centre - camera.centre_m
         pose = BoardPose.centred(spec, centre, facing_rotation(view_dir, tilt_x, tilt_y, spin,
@@ -411,3 +419,65 @@ def board_in_view(scene: SceneRenderer, spec: BoardSpec, pose: BoardPose, camera
         if not np.all(np.isfinite(px)) or not np.all(camera.contains(px, margin_px)):
             return False
     return True
+
+
+# --------------------------------------------------------------------------- a pair source
+
+
+class RenderedPairSource(PairSource):
+    """A :class:`PairSource` that renders each pair when it is asked for one (tests and demos).
+
+    ``render(k)`` returns the k-th pair's images, one per camera in rig order;
+    after ``count`` pairs the source stops. There is no real-time backlog, so a
+    consumer should take pairs one by one rather than skip to the newest.
+    """
+
+    def __init__(self, camera_ids: list[str], pixel_formats: list[str],
+                 render: Callable[[int], list[NDArray[np.uint8]]], count: int, *,
+                 period_ns: int = 33_333_333, skew_ns: int = 0) -> None:
+        self.camera_ids = camera_ids
+        self.pixel_formats = pixel_formats
+        self._render = render
+        self.count = count
+        self.period_ns = period_ns
+        self.skew_ns = skew_ns
+        self._index = 0
+        self._running = False
+
+    def start(self) -> None:
+        self._running = True
+
+    def stop(self) -> None:
+        self._running = False
+
+    def next_pair(self, timeout_s: float) -> FramePair | None:
+        if not self._running:
+            return None
+        if self._index >= self.count:
+            self._running = False
+            return None
+        k = self._index
+        self._index += 1
+        images = self._render(k)
+        stamp = k * self.period_ns
+        frames = tuple(
+            Frame(cam_id, k, stamp, stamp, fmt, image)
+            for cam_id, fmt, image in zip(self.camera_ids, self.pixel_formats, images, strict=True)
+        )
+        return FramePair(frames, stamp, self.skew_ns, k)
+
+    def status(self) -> SourceStatus:
+        return SourceStatus(running=self._running, trigger="software", pairing="rendered",
+                            pairs=self._index, delivered=self._index)
+
+
+def board_pair_source(board: BoardRenderer, poses: list[BoardPose], rng: np.random.Generator,
+                      blur_px: float = 0.5) -> RenderedPairSource:
+    """Every camera's view of the board at each pose in turn, as a pair source."""
+    scene = board.scene
+    ids = [cam.camera_id for cam in scene.cameras]
+
+    def render(k: int) -> list[NDArray[np.uint8]]:
+        return [board.render(i, poses[k], rng, blur_px=blur_px).image for i in range(len(ids))]
+
+    return RenderedPairSource(ids, list(scene.pixel_formats), render, len(poses))
