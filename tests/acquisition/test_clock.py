@@ -55,9 +55,7 @@ def test_offset_is_the_smallest_delay_seen() -> None:
     for k, delay in enumerate(delays):
         device = 10**12 + k * 16_666_667
         clock.observe(device, device + offset + int(delay))
-    expected = offset + int(
-        delays[np.arange(200) * 16_666_667 >= 199 * 16_666_667 - 2_000_000_000].min()
-    )
+    expected = offset + int(delays[np.arange(200) * 16_666_667 >= 199 * 16_666_667 - 2_000_000_000].min())
     assert clock.offset_ns == expected
     assert clock.to_host_ns(10**12, 0) == 10**12 + expected
 

@@ -14,9 +14,7 @@ TOL_NS = PERIOD_NS // 2
 _IMAGE = np.zeros((2, 2), np.uint8)
 
 
-def arrival(
-    camera: int, time_ns: int, epoch: int = 0, tick: int | None = None, frame_id: int = 0
-) -> Arrival:
+def arrival(camera: int, time_ns: int, epoch: int = 0, tick: int | None = None, frame_id: int = 0) -> Arrival:
     frame = Frame(f"cam{camera}", frame_id, time_ns, time_ns, "BayerRG8", _IMAGE)
     return Arrival(camera, frame, time_ns, epoch, tick)
 
@@ -121,9 +119,7 @@ def test_three_cameras_group_only_when_all_agree() -> None:
     pairer = Pairer(3, TOL_NS, 4, by_tick=False)
     groups = feed(pairer, [arrival(0, 0), arrival(1, 1000), arrival(2, TOL_NS + 10)])
     assert groups == []
-    groups = feed(
-        pairer, [arrival(0, PERIOD_NS), arrival(1, PERIOD_NS + 10), arrival(2, PERIOD_NS + 20)]
-    )
+    groups = feed(pairer, [arrival(0, PERIOD_NS), arrival(1, PERIOD_NS + 10), arrival(2, PERIOD_NS + 20)])
     assert len(groups) == 1 and spread_ns(groups[0]) == 20
 
 

@@ -161,9 +161,7 @@ class CameraSession:
         try:
             self.camera.software_trigger()
         except glib.Error as err:
-            raise CameraError(
-                f"camera '{self.camera_id}': software trigger failed: {err.message}"
-            ) from err
+            raise CameraError(f"camera '{self.camera_id}': software trigger failed: {err.message}") from err
 
     def counters(self) -> dict[str, int]:
         """The Aravis stream statistics this stream offers."""
@@ -241,16 +239,14 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Came
     try:
         camera = aravis.Camera.new(device_id)
     except glib.Error as err:
-        raise CameraError(
-            f"camera '{cam.id}' ({describe_lookup(cam)}): cannot open: {err.message}"
-        ) from err
+        raise CameraError(f"camera '{cam.id}' ({describe_lookup(cam)}): cannot open: {err.message}") from err
     session = CameraSession(cam.id, camera, None, [], None, rig.trigger == "software")
+    # Refuse out-of-range values (a region beyond the sensor, say) instead of writing them.
+    camera.set_range_check_policy(aravis.RangeCheckPolicy.ENABLE)
     try:
         _configure(session, cam, rig, aravis, glib)
         _create_stream(session, cam, aravis, glib)
-        session._handler = camera.get_device().connect(
-            "control-lost", _on_control_lost, session.control_lost
-        )
+        session._handler = camera.get_device().connect("control-lost", _on_control_lost, session.control_lost)
         camera.start_acquisition()
     except glib.Error as err:
         session.abandon()
@@ -266,9 +262,7 @@ def _on_control_lost(_device: Any, event: threading.Event) -> None:
     event.set()
 
 
-def _configure(
-    session: CameraSession, cam: CameraConfig, rig: RigAcquisition, aravis: Any, glib: Any
-) -> None:
+def _configure(session: CameraSession, cam: CameraConfig, rig: RigAcquisition, aravis: Any, glib: Any) -> None:
     camera = session.camera
     acq = cam.acquisition
     offered = list(camera.dup_available_pixel_formats_as_strings() or [])
@@ -297,9 +291,7 @@ def _configure(
         _enable_ptp(session, camera, glib)
 
 
-def _configure_trigger(
-    session: CameraSession, cam: CameraConfig, rig: RigAcquisition, camera: Any
-) -> None:
+def _configure_trigger(session: CameraSession, cam: CameraConfig, rig: RigAcquisition, camera: Any) -> None:
     camera.clear_triggers()
     if rig.trigger == "free_running":
         if camera.is_frame_rate_available():
@@ -312,9 +304,7 @@ def _configure_trigger(
     source = "Software" if rig.trigger == "software" else rig.hardware_trigger_line
     sources = list(camera.dup_available_trigger_sources() or [])
     if sources and source not in sources:
-        raise CameraError(
-            f"camera '{cam.id}' has no trigger source {source} (it has {', '.join(sources)})"
-        )
+        raise CameraError(f"camera '{cam.id}' has no trigger source {source} (it has {', '.join(sources)})")
     camera.set_string("TriggerSelector", rig.trigger_selector)
     camera.set_string("TriggerMode", "On")
     camera.set_string("TriggerSource", source)
@@ -368,9 +358,7 @@ def _create_stream(session: CameraSession, cam: CameraConfig, aravis: Any, glib:
     if isinstance(stream, aravis.GvStream):
         stream.set_property(
             "packet-resend",
-            aravis.GvStreamPacketResend.ALWAYS
-            if acq.packet_resend
-            else aravis.GvStreamPacketResend.NEVER,
+            aravis.GvStreamPacketResend.ALWAYS if acq.packet_resend else aravis.GvStreamPacketResend.NEVER,
         )
         stream.set_property("packet-timeout", acq.packet_timeout_us)
         stream.set_property("initial-packet-timeout", acq.initial_packet_timeout_us)

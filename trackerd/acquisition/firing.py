@@ -1,10 +1,12 @@
-"""The software trigger of one camera, fired on its own thread at the shared schedule's ticks.
+"""The software trigger of one camera connection, fired on its own thread at the shared schedule's ticks.
 
 A dedicated thread does nothing but sleep until the next tick and fire, so a
 trigger is late only by the operating system's and the interpreter's wake-up
-latency, never by frame handling. Each camera has its own, so a camera whose
-trigger command hangs (Aravis waits about 2.5 s for a dead camera's
-acknowledgement) holds up no other camera.
+latency, never by frame handling. There is one per camera connection: a
+trigger command to a camera that has just died can hang for about 2.5 s
+(Aravis's GVCP retries), and that thread is then left to finish on its own
+while a fresh connection gets a fresh thread, so no other camera, and no
+reconnection, waits for it.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ POLL_S = 0.1
 
 
 class TriggerThread:
-    """Fires ``fire()`` at every tick the gate allows while armed; reports a failed trigger."""
+    """Fires ``fire()`` at every tick the gate allows, until stopped or a trigger fails."""
 
     def __init__(
         self,
@@ -28,38 +30,37 @@ class TriggerThread:
         name: str,
         schedule: TickSchedule,
         gate: TriggerGate,
-        stop: threading.Event,
+        fire: Callable[[], None],
+        max_outstanding: int,
     ) -> None:
         self.index = index
         self.schedule = schedule
         self.gate = gate
-        self._stop = stop
-        self._lock = threading.Lock()
-        self._fire: Callable[[], None] | None = None
-        self._ticks: TickMap | None = None
+        self._fire = fire
+        self.ticks = TickMap(max_outstanding)
+        """Which tick each frame of this connection answers."""
         self.failure: str | None = None
-        """Why the last armed connection's trigger failed (the camera is then disarmed)."""
+        """Why a trigger failed (the thread then stops firing)."""
+        self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"trigger-{name}", daemon=True)
 
     def start(self) -> None:
+        self.gate.join(self.index, self.ticks.ready)
         self._thread.start()
 
+    def stop(self) -> None:
+        """Stop firing (returns at once; a trigger command in progress finishes on its own)."""
+        self._stop.set()
+        self.gate.leave(self.index)
+
     def join(self, timeout_s: float) -> bool:
-        self._thread.join(max(timeout_s, 0.0))
+        if self._thread.ident is not None:
+            self._thread.join(max(timeout_s, 0.0))
         return not self._thread.is_alive()
 
-    def arm(self, fire: Callable[[], None], max_outstanding: int) -> TickMap:
-        """Start firing for a new connection; returns the tick map its frames are to be read with."""
-        ticks = TickMap(max_outstanding)
-        with self._lock:
-            self._fire, self._ticks, self.failure = fire, ticks, None
-        self.gate.join(self.index, ticks.ready)
-        return ticks
-
-    def disarm(self) -> None:
-        self.gate.leave(self.index)
-        with self._lock:
-            self._fire, self._ticks = None, None
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive()
 
     def _run(self) -> None:
         last: int | None = None
@@ -73,18 +74,13 @@ class TriggerThread:
                 self._stop.wait(min(wait_s, POLL_S))
                 continue
             last, tick = tick, None
-            with self._lock:
-                fire, ticks = self._fire, self._ticks
-            if fire is None or ticks is None:
-                continue
             if not self.gate.decide(last, self.index):
                 continue
             # Recorded before firing: the frame may be handled before fire() even returns.
-            ticks.fired(last)
+            self.ticks.fired(last)
             try:
-                fire()
+                self._fire()
             except CameraError as err:
-                with self._lock:
-                    if self._ticks is ticks:
-                        self.failure = str(err)
-                self.disarm()
+                if not self._stop.is_set():
+                    self.failure = str(err)
+                self.stop()

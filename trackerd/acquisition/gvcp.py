@@ -43,9 +43,7 @@ class GvcpDevice:
 
 def discovery_packet(request_id: int) -> bytes:
     """The 8-byte DISCOVERY_CMD (no payload)."""
-    return struct.pack(
-        ">BBHHH", _KEY, _FLAG_ACK_REQUIRED, _DISCOVERY_CMD, 0, request_id & 0xFFFF or 1
-    )
+    return struct.pack(">BBHHH", _KEY, _FLAG_ACK_REQUIRED, _DISCOVERY_CMD, 0, request_id & 0xFFFF or 1)
 
 
 def parse_discovery_ack(packet: bytes, sender: str) -> GvcpDevice | None:

@@ -2,10 +2,11 @@
 
 Threads: one acquisition thread per camera (:mod:`trackerd.acquisition.worker`),
 which also pairs its frames with the others' under one lock (the pairing work is
-a few deque operations per frame), and one *reaper* that drops the connections
-of lost cameras, because Aravis can block for several seconds giving up on a
-camera that no longer answers. The consumer's thread only waits in
-:meth:`AravisPairSource.next_pair`.
+a few deque operations per frame); in software-trigger mode one trigger thread
+per camera connection (:mod:`trackerd.acquisition.firing`); and a short-lived
+thread per lost connection (:class:`Releaser`), because Aravis can block for
+several seconds giving up on a camera that no longer answers. The consumer's
+thread only waits in :meth:`AravisPairSource.next_pair`.
 
 Clocks: each camera's device timestamps are mapped to the host's monotonic
 clock by a :class:`~trackerd.acquisition.clock.DeviceClock`. Without PTP every
@@ -18,7 +19,6 @@ from __future__ import annotations
 
 import logging
 import math
-import queue
 import threading
 import time
 from collections import deque
@@ -37,60 +37,53 @@ from trackerd.config.models import RigConfig
 log = logging.getLogger(__name__)
 
 STOP_BUDGET_S = 1.0
-"""stop() joins every thread within this many seconds (see Reaper for the one exception)."""
+"""stop() joins every thread within this many seconds (see Releaser and firing.py for the exceptions)."""
 TRIGGER_LEAD_NS = 50_000_000
 """The first software trigger tick is this far after start, once every camera is open."""
 
 
-class Reaper:
-    """Drops connections to lost cameras on its own thread, one at a time.
+class Releaser:
+    """Drops connections to lost cameras, each on a thread of its own.
 
     Releasing an Aravis GigE Vision device that stopped answering blocks while
     Aravis retries its last GVCP commands (about 2.5 s for the stream and 5 s for
-    the device, with Aravis 0.8's fixed retry counts). A connection still being
-    released when the source stops is finished by this thread after stop()
-    returns; ``pending`` says how many remain.
+    the device, with Aravis 0.8's fixed retry counts), whereas a connection to a
+    camera that still answers goes in milliseconds; one thread each keeps the
+    quick ones from queueing behind the slow. A release still running when the
+    source stops finishes after stop() returns; ``pending`` says how many remain.
     """
 
     def __init__(self) -> None:
-        self._queue: queue.Queue[CameraSession | None] = queue.Queue()
-        self._pending = 0
+        self._threads: list[threading.Thread] = []
         self._lock = threading.Lock()
-        self._thread = threading.Thread(target=self._run, name="camera-reaper")
 
     @property
     def pending(self) -> int:
         with self._lock:
-            return self._pending
-
-    def start(self) -> None:
-        self._thread.start()
+            self._threads = [t for t in self._threads if t.is_alive()]
+            return len(self._threads)
 
     def put(self, session: CameraSession) -> None:
+        thread = threading.Thread(target=_release, args=(session,), name=f"camera-release-{session.camera_id}")
         with self._lock:
-            self._pending += 1
-        self._queue.put(session)
+            self._threads.append(thread)
+        thread.start()
 
-    def stop(self, timeout_s: float) -> bool:
-        """Ask the thread to finish after the queued work; True if it did within ``timeout_s``."""
-        if not self._thread.is_alive():
-            return True
-        self._queue.put(None)
-        self._thread.join(max(timeout_s, 0.0))
-        return not self._thread.is_alive()
+    def join(self, timeout_s: float) -> bool:
+        """Wait for the releases in progress; True if all finished within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        with self._lock:
+            threads = list(self._threads)
+        for thread in threads:
+            thread.join(max(deadline - time.monotonic(), 0.0))
+        return self.pending == 0
 
-    def _run(self) -> None:
-        while True:
-            session = self._queue.get()
-            if session is None:
-                return
-            try:
-                session.abandon()
-            except Exception:  # a release that fails must not stop later releases
-                log.exception("releasing camera %s failed", session.camera_id)
-            del session
-            with self._lock:
-                self._pending -= 1
+
+def _release(session: CameraSession) -> None:
+    try:
+        session.abandon()
+    except Exception:  # one failed release must not take the process down
+        log.exception("releasing camera %s failed", session.camera_id)
 
 
 class AravisPairSource(PairSource):
@@ -107,14 +100,12 @@ class AravisPairSource(PairSource):
         self._lock = threading.Lock()
         self._ready = threading.Condition(self._lock)
         self._pairs: deque[FramePair] = deque()
-        self._pairer = Pairer(
-            self._n, self._tolerance_ns, acq.frame_queue_length, acq.trigger == "software"
-        )
+        self._pairer = Pairer(self._n, self._tolerance_ns, acq.frame_queue_length, acq.trigger == "software")
         window_ns = int(acq.clock_window_s * 1e9)
         self._clocks = [DeviceClock(window_ns) for _ in range(self._n)]
         self._shared_clock = DeviceClock(window_ns) if acq.ptp else None
         self._workers: list[CameraWorker] = []
-        self._reaper: Reaper | None = None
+        self._releaser = Releaser()
         self._running = False
         self._stamp = NonDecreasing()
         self._sequence = 0
@@ -146,8 +137,6 @@ class AravisPairSource(PairSource):
             )
         for clock in [*self._clocks, *([self._shared_clock] if self._shared_clock else [])]:
             clock.reset()
-        reaper = Reaper()
-        reaper.start()
         gate = None
         if schedule is not None:
             # A camera that answers no trigger for a quarter second stops holding the others
@@ -165,9 +154,8 @@ class AravisPairSource(PairSource):
         except BaseException:
             for worker in opened:
                 worker.close()
-            reaper.stop(STOP_BUDGET_S)
             raise
-        self._workers, self._reaper = workers, reaper
+        self._workers = workers
         self._running = True
         for worker in workers:
             worker.start()
@@ -181,10 +169,8 @@ class AravisPairSource(PairSource):
         for worker in self._workers:
             if not worker.join(deadline - time.monotonic()):
                 log.warning("camera %s: acquisition thread did not stop in time", worker.cam.id)
-        if self._reaper is not None and not self._reaper.stop(deadline - time.monotonic()):
-            log.warning(
-                "%d lost camera connection(s) still being released by Aravis", self._reaper.pending
-            )
+        if not self._releaser.join(deadline - time.monotonic()):
+            log.warning("%d lost camera connection(s) still being released by Aravis", self._releaser.pending)
         with self._ready:
             self._running = False
             self._ready.notify_all()
@@ -201,9 +187,7 @@ class AravisPairSource(PairSource):
 
     def status(self) -> SourceStatus:
         now = time.monotonic_ns()
-        cameras = tuple(
-            worker.status(self._clock_for(i).offset_ns) for i, worker in enumerate(self._workers)
-        )
+        cameras = tuple(worker.status(self._clock_for(i).offset_ns) for i, worker in enumerate(self._workers))
         with self._lock:
             skew = self._skews.percentiles_us()
             return SourceStatus(
@@ -218,7 +202,7 @@ class AravisPairSource(PairSource):
                 skew_p50_us=skew[0] if skew else None,
                 skew_p99_us=skew[1] if skew else None,
                 skew_max_us=skew[2] if skew else None,
-                releasing=self._reaper.pending if self._reaper else 0,
+                releasing=self._releaser.pending,
                 cameras=cameras,
             )
 
@@ -247,8 +231,7 @@ class AravisPairSource(PairSource):
             self._pairer.set_active(camera_index, True)
 
     def abandon(self, session: CameraSession) -> None:
-        assert self._reaper is not None
-        self._reaper.put(session)
+        self._releaser.put(session)
 
     def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
         if device_ns == 0:

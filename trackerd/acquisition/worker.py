@@ -7,7 +7,7 @@ array), a few Aravis getters and a hand-off to the pairing stage.
 
 A camera is *lost* when Aravis reports ``control-lost`` (heartbeat failure),
 when no frame arrives within ``loss_timeout_ms``, or when a software trigger
-cannot be delivered. Its connection is then handed to the *reaper* to be
+cannot be delivered. Its connection is then handed to the *releaser* to be
 dropped (Aravis may block there for seconds on a dead camera) and the thread
 probes the camera's last known address with one GVCP discovery packet per
 attempt, backing off from ``reconnect_min_backoff_ms`` to
@@ -50,6 +50,9 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.1
 """Longest single wait inside the loop (buffer pop, stop check, probe)."""
+FIRST_FRAME_GRACE_NS = 1_000_000_000
+"""Extra time a camera gets for its first frame after (re)connecting: some cameras (Aravis's
+simulated one among them) take a frame period or a tenth of a second to start streaming."""
 COUNTER_PERIOD_NS = 1_000_000_000
 
 
@@ -88,9 +91,10 @@ class CameraWorker:
         self.sink = sink
         self.on_open = on_open
         self._stop = threading.Event()
+        self.schedule = schedule
+        self.gate = gate
         self._trigger: TriggerThread | None = None
-        if schedule is not None and gate is not None:
-            self._trigger = TriggerThread(index, cam.id, schedule, gate, self._stop)
+        self._old_triggers: list[TriggerThread] = []
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._session: CameraSession | None = None
@@ -114,6 +118,7 @@ class CameraWorker:
         self._unwrap = FrameIdUnwrapper()
         self._ticks: TickMap | None = None
         self._last_frame_ns = 0
+        self._grace_ns = 0
         self._next_housekeeping_ns = 0
         self._next_ptp_ns = 0
 
@@ -140,9 +145,12 @@ class CameraWorker:
         if self._thread is not None:
             self._thread.join(max(timeout_s, 0.0))
             done = not self._thread.is_alive()
-        if self._trigger is not None and self._thread is not None:
-            done = self._trigger.join(deadline - time.monotonic()) and done
+        for trigger in self._all_triggers():
+            done = trigger.join(deadline - time.monotonic()) and done
         return done
+
+    def _all_triggers(self) -> list[TriggerThread]:
+        return [*self._old_triggers, *([self._trigger] if self._trigger else [])]
 
     @property
     def alive(self) -> bool:
@@ -217,7 +225,7 @@ class CameraWorker:
             self._lose("Aravis reported control lost (no heartbeat answer)")
         elif self._trigger is not None and self._trigger.failure is not None:
             self._lose(self._trigger.failure)
-        elif now - self._last_frame_ns > self.rig.loss_timeout_ms * 1e6:
+        elif now - self._last_frame_ns > self.rig.loss_timeout_ms * 1e6 + self._grace_ns:
             self._lose(f"no frame for {self.rig.loss_timeout_ms:g} ms")
         elif now >= self._next_housekeeping_ns:
             self._housekeeping(session, now)
@@ -227,11 +235,7 @@ class CameraWorker:
         status = buffer.get_status()
         raw_id = buffer.get_frame_id()
         frame_id = self._unwrap(raw_id) if raw_id else None
-        tick = (
-            self._ticks.frame(frame_id)
-            if (self._ticks is not None and frame_id is not None)
-            else None
-        )
+        tick = self._ticks.frame(frame_id) if (self._ticks is not None and frame_id is not None) else None
         if status != aravis.BufferStatus.SUCCESS:
             self._count_failure(status.value_nick)
             return
@@ -261,6 +265,7 @@ class CameraWorker:
         capture_ns = self.sink.observe_clock(self.index, device_ns, host_ns)
         now = time.monotonic_ns()
         self._last_frame_ns = now
+        self._grace_ns = 0
         with self._lock:
             self._frames += 1
             self._rate.tick(now)
@@ -291,9 +296,15 @@ class CameraWorker:
         self._session = session
         self._epoch += 1
         self._unwrap = FrameIdUnwrapper()
-        if self._trigger is not None:
-            self._ticks = self._trigger.arm(session.fire, self.rig.max_outstanding_triggers)
+        if self.schedule is not None and self.gate is not None:
+            self._trigger = TriggerThread(
+                self.index, self.cam.id, self.schedule, self.gate, session.fire, self.rig.max_outstanding_triggers
+            )
+            self._ticks = self._trigger.ticks
+            if self._thread is not None:  # reconnecting; at start-up, start() starts it
+                self._trigger.start()
         self._last_frame_ns = now
+        self._grace_ns = FIRST_FRAME_GRACE_NS
         self._next_housekeeping_ns = now
         self._next_ptp_ns = now
         with self._lock:
@@ -307,8 +318,7 @@ class CameraWorker:
     def _lose(self, reason: str) -> None:
         session = self._session
         self._session = None
-        if self._trigger is not None:
-            self._trigger.disarm()
+        self._retire_trigger()
         log.warning("camera %s lost: %s", self.cam.id, reason)
         with self._lock:
             self._state = "lost"
@@ -329,9 +339,7 @@ class CameraWorker:
             if answer is None:
                 return False
             if self.cam.serial and answer.serial and answer.serial != self.cam.serial:
-                self._set_error(
-                    f"{address} answers as serial {answer.serial}, not {self.cam.serial}"
-                )
+                self._set_error(f"{address} answers as serial {answer.serial}, not {self.cam.serial}")
                 return False
         with self._lock:
             self._state = "reconnecting"
@@ -349,12 +357,9 @@ class CameraWorker:
     def _shutdown(self) -> None:
         session = self._session
         self._session = None
-        if self._trigger is not None:
-            self._trigger.disarm()
+        self._retire_trigger()
         if session is not None:
-            recent = (
-                time.monotonic_ns() - self._last_frame_ns < 3 * 1e9 / self.rig.frame_rate_hz + 1e8
-            )
+            recent = time.monotonic_ns() - self._last_frame_ns < 3 * 1e9 / self.rig.frame_rate_hz + 1e8
             address = session.address.split(":")[0] if session.address else None
             if recent or address is None or probe(address, 0.05) is not None:
                 with self._lock:
@@ -366,6 +371,14 @@ class CameraWorker:
                 self.sink.abandon(session)
         with self._lock:
             self._state = "stopped"
+
+    def _retire_trigger(self) -> None:
+        """Stop the current connection's trigger thread; keep it to be joined (it may be hung)."""
+        if self._trigger is not None:
+            self._trigger.stop()
+            self._old_triggers.append(self._trigger)
+            self._trigger = None
+        self._old_triggers = [t for t in self._old_triggers if t.alive]
 
     def _count_failure(self, cause: str) -> None:
         with self._lock:

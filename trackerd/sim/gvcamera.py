@@ -49,9 +49,7 @@ _TAG = struct.Struct("<4sIIQ")  # magic, loop index, serve count, capture time (
 TAG_WIDTH_PX = 2 * _TAG.size
 TRIGGER_POLL_HZ = 1000.0
 
-_FILL = ctypes.CFUNCTYPE(
-    None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, ctypes.c_uint32
-)
+_FILL = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, ctypes.c_uint32)
 
 
 @dataclass(frozen=True)
@@ -67,9 +65,7 @@ def write_tag(image: NDArray[np.uint8], tag: FrameTag) -> None:
     """Stamp ``tag`` into the first two rows of a one-byte-per-pixel image (in place)."""
     if image.shape[1] < TAG_WIDTH_PX or image.shape[0] < 2:
         return
-    payload = np.frombuffer(
-        _TAG.pack(TAG_MAGIC, tag.loop_index, tag.served, tag.capture_ns), np.uint8
-    )
+    payload = np.frombuffer(_TAG.pack(TAG_MAGIC, tag.loop_index, tag.served, tag.capture_ns), np.uint8)
     cells = np.repeat(payload, 2)
     image[0, :TAG_WIDTH_PX] = cells
     image[1, :TAG_WIDTH_PX] = cells
@@ -103,9 +99,7 @@ class FrameLoop:
         return int((now_ns - self.start_ns) * self.content_fps // 1_000_000_000) % len(self.frames)
 
     @classmethod
-    def load(
-        cls, frames_path: Path, truth_path: Path | None, content_fps: float, start_ns: int
-    ) -> FrameLoop:
+    def load(cls, frames_path: Path, truth_path: Path | None, content_fps: float, start_ns: int) -> FrameLoop:
         frames = np.load(frames_path, mmap_mode="r")
         truth: tuple[dict[str, Any], ...] = ()
         if truth_path is not None:
@@ -113,9 +107,7 @@ class FrameLoop:
         return cls(frames, content_fps, start_ns, truth)
 
     @classmethod
-    def synthetic(
-        cls, width_px: int, height_px: int, start_ns: int, n_frames: int = 8, fps: float = 8.0
-    ) -> FrameLoop:
+    def synthetic(cls, width_px: int, height_px: int, start_ns: int, n_frames: int = 8, fps: float = 8.0) -> FrameLoop:
         """A cheap stand-in: a bright square stepping across a grey ramp (no ground truth)."""
         frames = np.empty((n_frames, height_px, width_px), np.uint8)
         ramp = (np.arange(width_px, dtype=np.uint32) * 96 // max(width_px, 1) + 64).astype(np.uint8)
@@ -188,9 +180,7 @@ class FillServer:
         fake_camera.set_trigger_frequency(TRIGGER_POLL_HZ)
 
     def install(self) -> None:
-        self._lib.arv_fake_camera_set_fill_pattern(
-            self._pointer, ctypes.cast(self._callback, ctypes.c_void_p), None
-        )
+        self._lib.arv_fake_camera_set_fill_pattern(self._pointer, ctypes.cast(self._callback, ctypes.c_void_p), None)
 
     def uninstall(self) -> None:
         """Back to Aravis's own pattern; call before dropping the server."""
@@ -202,9 +192,7 @@ class FillServer:
             with self._truth_lock:
                 self._truth_out.flush()
 
-    def _fill(
-        self, buffer: int, _data: int, _exposure_us: int, _gain: int, _pixel_format: int
-    ) -> None:
+    def _fill(self, buffer: int, _data: int, _exposure_us: int, _gain: int, _pixel_format: int) -> None:
         # Runs on Aravis's camera thread for every frame; any exception would be lost in ctypes.
         try:
             self._serve(buffer)
@@ -223,9 +211,7 @@ class FillServer:
         data = lib.arv_buffer_get_data(buffer, None)
         if not data or width <= 0 or height <= 0:
             return
-        target = np.ctypeslib.as_array(
-            ctypes.cast(data, ctypes.POINTER(ctypes.c_uint8)), shape=(height, width)
-        )
+        target = np.ctypeslib.as_array(ctypes.cast(data, ctypes.POINTER(ctypes.c_uint8)), shape=(height, width))
         index = self.loop.index_at(now)
         source = self.loop.frames[index]
         h, w = min(height, source.shape[0]), min(width, source.shape[1])
@@ -254,28 +240,18 @@ class FillServer:
 
 def main(argv: list[str] | None = None) -> int:
     """Serve one simulated camera until SIGTERM or SIGINT (the entry point of a camera process)."""
-    parser = argparse.ArgumentParser(
-        prog="python -m trackerd.sim.gvcamera", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument(
-        "--interface", default="lo", help="network interface (name or IPv4 address)"
-    )
+    parser = argparse.ArgumentParser(prog="python -m trackerd.sim.gvcamera", description=__doc__.splitlines()[0])
+    parser.add_argument("--interface", default="lo", help="network interface (name or IPv4 address)")
     parser.add_argument("--serial", required=True, help="serial number the camera reports")
     parser.add_argument("--label", default=None, help="camera id written in the ground truth")
     parser.add_argument("--loop", type=Path, help="frames to serve, an (N, H, W) uint8 .npy file")
     parser.add_argument("--loop-truth", type=Path, help="ground truth of the loop frames (JSON)")
     parser.add_argument("--content-fps", type=float, default=30.0, help="loop frames per second")
-    parser.add_argument(
-        "--synthetic", metavar="WxH", help="serve a synthetic pattern of this size instead"
-    )
-    parser.add_argument(
-        "--start-ns", type=int, default=None, help="monotonic instant of loop frame 0"
-    )
+    parser.add_argument("--synthetic", metavar="WxH", help="serve a synthetic pattern of this size instead")
+    parser.add_argument("--start-ns", type=int, default=None, help="monotonic instant of loop frame 0")
     parser.add_argument("--clock-offset-ns", type=int, default=0)
     parser.add_argument("--clock-drift-ppm", type=float, default=0.0)
-    parser.add_argument(
-        "--phase-us", type=float, default=0.0, help="capture delay when free running"
-    )
+    parser.add_argument("--phase-us", type=float, default=0.0, help="capture delay when free running")
     parser.add_argument("--no-tag", action="store_true", help="do not stamp the frame tag")
     parser.add_argument("--truth-out", type=Path, help="append per-frame ground truth (JSONL) here")
     args = parser.parse_args(argv)

@@ -97,9 +97,7 @@ def away(time_s: float, stage: Stage, period_s: float) -> PointerPose:
     """Points into the room (front ball farther from the wall than the back ball), swinging sideways."""
     angle = 0.6 * math.sin(2.0 * math.pi * _phase(time_s, period_s))
     normal, x_axis = stage.wall.normal, stage.wall.x_axis
-    direction = (
-        math.cos(angle) * normal + math.sin(angle) * x_axis + 0.15 * np.array([0.0, 1.0, 0.0])
-    )
+    direction = math.cos(angle) * normal + math.sin(angle) * x_axis + 0.15 * np.array([0.0, 1.0, 0.0])
     direction = direction / np.linalg.norm(direction)
     back = stage.hand_m - 0.5 * stage.length_m * normal
     return PointerPose(back + stage.length_m * direction, back)

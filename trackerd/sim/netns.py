@@ -59,9 +59,7 @@ def netns_missing_reason() -> str | None:
     return None
 
 
-def plan(
-    n_cameras: int, prefix: str = DEFAULT_PREFIX, subnet: str = DEFAULT_SUBNET
-) -> list[CameraNet]:
+def plan(n_cameras: int, prefix: str = DEFAULT_PREFIX, subnet: str = DEFAULT_SUBNET) -> list[CameraNet]:
     """Names and addresses for ``n_cameras`` cameras; ValueError if they do not fit."""
     if not _PREFIX.match(prefix):
         raise ValueError(

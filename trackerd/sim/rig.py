@@ -91,9 +91,7 @@ def loop_key(rig: RigConfig, motion: str, period_s: float, content_fps: float) -
     return digest.hexdigest()[:20]
 
 
-def loop_truth(
-    rig: RigConfig, motion: str, period_s: float, content_fps: float
-) -> list[dict[str, Any]]:
+def loop_truth(rig: RigConfig, motion: str, period_s: float, content_fps: float) -> list[dict[str, Any]]:
     """Per loop frame: scene time, whether the pointer is there, its true ends and true wall hit."""
     from trackerd.sim.scene import true_wall_hit
 
@@ -154,9 +152,7 @@ def render_loop(
         truth = loop_truth(rig, motion, period_s, content_fps)
         for i, cam in enumerate(rig.cameras):
             shape = (n_frames, cam.height_px, cam.width_px)
-            np.lib.format.open_memmap(
-                work / f"cam{i}.npy", mode="w+", dtype=np.uint8, shape=shape
-            ).flush()
+            np.lib.format.open_memmap(work / f"cam{i}.npy", mode="w+", dtype=np.uint8, shape=shape).flush()
         (work / "rig.json").write_text(rig.model_dump_json())
         n_jobs = n_frames * len(rig.cameras)
         workers = max(1, min(processes or os.cpu_count() or 1, n_jobs))
@@ -201,20 +197,14 @@ def render_loop(
         pass  # another process finished the same loop first
     except OSError as err:
         if not (truth_path.exists() and all(p.exists() for p in frame_paths)):
-            raise TrackerdError(
-                f"cannot write the rendered loop under {cache.parent}: {err}"
-            ) from err
+            raise TrackerdError(f"cannot write the rendered loop under {cache.parent}: {err}") from err
     finally:
         if work.exists():
             shutil.rmtree(work, ignore_errors=True)
-    return RenderedLoop(
-        cache, frame_paths, truth_path, n_frames, content_fps, time.monotonic() - started
-    )
+    return RenderedLoop(cache, frame_paths, truth_path, n_frames, content_fps, time.monotonic() - started)
 
 
-def _render_worker(
-    work: Path, motion: str, period_s: float, content_fps: float, k: int, workers: int
-) -> None:
+def _render_worker(work: Path, motion: str, period_s: float, content_fps: float, k: int, workers: int) -> None:
     """Render every ``workers``-th (camera, frame) job from ``k`` into the loop files in ``work``."""
     from trackerd.sim.render import SceneRenderer
 
@@ -281,9 +271,7 @@ class VirtualRig:
         if network == "netns" and (reason := netns.netns_missing_reason()):
             raise TrackerdError(f"cannot build the virtual rig's network: {reason}")
         if network == "loopback" and len(rig.cameras) > 2:
-            raise TrackerdError(
-                "without network namespaces the virtual rig serves at most two cameras"
-            )
+            raise TrackerdError("without network namespaces the virtual rig serves at most two cameras")
         if network == "loopback" and rig.acquisition.trigger == "software":
             # Aravis 0.8's in-process Fake stream does not wait for TriggerSoftware: in trigger
             # mode it delivers frames at its own trigger frequency.
@@ -299,9 +287,7 @@ class VirtualRig:
         self.prefix = prefix
         self.nets = netns.plan(len(rig.cameras), prefix, subnet) if network == "netns" else []
         self.mtu = mtu
-        self.out_dir = (
-            Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="trackerd-simrig-"))
-        )
+        self.out_dir = Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="trackerd-simrig-"))
         self.cache_dir = cache_dir
         self.synthetic = synthetic
         self.clock_offsets = clock_offsets
@@ -321,11 +307,19 @@ class VirtualRig:
 
     @property
     def daemon_rig(self) -> RigConfig:
-        """The rig as the daemon should open it: each camera by the simulated camera's address."""
+        """The rig as the daemon should open it.
+
+        Each camera is addressed as the simulated camera it now is. Two acquisition
+        settings are adapted to the simulated cameras: with jumbo frames (``mtu`` of
+        9000) the stream packet size is 8000 bytes (Aravis cannot negotiate it with
+        the fake camera), and software triggers are lock-step
+        (``max_outstanding_triggers = 1``), because the fake camera reads a trigger
+        command only between two frames it sends.
+        """
         cameras = []
         for index, cam in enumerate(self.rig.cameras):
             if self.network == "netns":
-                update = {
+                update: dict[str, Any] = {
                     "address": self.nets[index].camera_address,
                     "device_id": None,
                     "serial": self.serial(index),
@@ -334,8 +328,11 @@ class VirtualRig:
                 update = {"address": "127.0.0.1", "device_id": None, "serial": self.serial(index)}
             else:
                 update = {"address": None, "device_id": FAKE_DEVICE_ID, "serial": None}
+            if self.network == "netns" and self.mtu is not None and self.mtu >= 9000:
+                update["acquisition"] = cam.acquisition.model_copy(update={"packet_size_bytes": 8000})
             cameras.append(cam.model_copy(update=update))
-        return self.rig.model_copy(update={"cameras": tuple(cameras)})
+        acquisition = self.rig.acquisition.model_copy(update={"max_outstanding_triggers": 1})
+        return self.rig.model_copy(update={"cameras": tuple(cameras), "acquisition": acquisition})
 
     def truth_path(self, index: int) -> Path:
         return self.out_dir / f"truth-{self.rig.cameras[index].id}.jsonl"
@@ -366,6 +363,8 @@ class VirtualRig:
                 cache_dir=self.cache_dir,
             )
         self.out_dir.mkdir(parents=True, exist_ok=True)
+        for index in range(len(self.rig.cameras)):
+            self.truth_path(index).write_text("")  # restarted cameras append; a new run starts afresh
         self.start_ns = time.monotonic_ns()
         try:
             if self.network == "netns":
@@ -468,9 +467,7 @@ class VirtualRig:
         for proc in self._procs:
             if proc.index == index:
                 return proc
-        raise CameraError(
-            f"camera {index} is not a separate simulated GigE Vision camera in this rig"
-        )
+        raise CameraError(f"camera {index} is not a separate simulated GigE Vision camera in this rig")
 
     def _command(self, index: int) -> list[str]:
         cam = self.rig.cameras[index]
@@ -499,35 +496,25 @@ class VirtualRig:
             "--phase-us",
             f"{self.phase_us(index):.1f}",
         ]
+        command += ["--truth-out", str(self.truth_path(index))]
         if self.loop is None:
             command += ["--synthetic", f"{cam.width_px}x{cam.height_px}"]
         else:
-            command += [
-                "--loop",
-                str(self.loop.frame_paths[index]),
-                "--loop-truth",
-                str(self.loop.truth_path),
-                "--content-fps",
-                str(self.loop.content_fps),
-                "--truth-out",
-                str(self.truth_path(index)),
-            ]
+            loop = self.loop
+            command += ["--loop", str(loop.frame_paths[index]), "--loop-truth", str(loop.truth_path)]
+            command += ["--content-fps", str(loop.content_fps)]
         return command
 
     def _spawn(self, proc: _CameraProcess) -> None:
         env = _child_env()
         log_path = self.out_dir / f"camera-{self.rig.cameras[proc.index].id}.log"
         proc.log = log_path.open("a")
-        proc.process = subprocess.Popen(
-            proc.command, stdout=subprocess.PIPE, stderr=proc.log, text=True, env=env
-        )
+        proc.process = subprocess.Popen(proc.command, stdout=subprocess.PIPE, stderr=proc.log, text=True, env=env)
         line = _read_line(proc.process, READY_TIMEOUT_S)
         if not line.startswith("ready"):
             self._terminate(proc)
             detail = line.strip() or f"no answer in {READY_TIMEOUT_S:g} s; see {log_path}"
-            raise CameraError(
-                f"simulated camera '{self.rig.cameras[proc.index].id}' did not start: {detail}"
-            )
+            raise CameraError(f"simulated camera '{self.rig.cameras[proc.index].id}' did not start: {detail}")
 
     def _terminate(self, proc: _CameraProcess) -> None:
         process = proc.process

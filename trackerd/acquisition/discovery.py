@@ -1,0 +1,151 @@
+"""What Aravis can see: the cameras on the network (or USB), and what one camera offers."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from trackerd.acquisition.arv import load_aravis
+from trackerd.errors import CameraError
+
+TRIGGER_FEATURES = ("TriggerSelector", "TriggerMode", "TriggerSource", "TriggerActivation")
+PTP_FEATURES = ("PtpEnable", "GevIEEE1588")
+
+
+@dataclass(frozen=True)
+class DeviceEntry:
+    """One camera in Aravis's device list."""
+
+    device_id: str
+    vendor: str
+    model: str
+    serial: str
+    address: str
+    protocol: str
+    physical_id: str
+
+
+@dataclass(frozen=True)
+class CameraDetails:
+    """What one camera offers, as trackerd would configure it."""
+
+    device_id: str
+    vendor: str
+    model: str
+    serial: str
+    protocol: str
+    sensor_px: tuple[int, int]
+    width_px: tuple[int, int, int]
+    """(min, max, increment)."""
+    height_px: tuple[int, int, int]
+    pixel_format: str
+    pixel_formats: tuple[str, ...]
+    frame_rate_hz: tuple[float, float] | None
+    exposure_us: tuple[float, float] | None
+    gain: tuple[float, float] | None
+    triggers: tuple[str, ...]
+    """Trigger selectors (FrameStart, ...)."""
+    trigger_sources: tuple[str, ...]
+    trigger_activations: tuple[str, ...]
+    software_trigger: bool
+    ptp: str | None
+    """The PTP feature the camera has (PtpEnable or GevIEEE1588), None without PTP."""
+    packet_size_bytes: int | None
+    packet_delay: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def list_devices(include_fake: bool = False) -> list[DeviceEntry]:
+    """Every camera Aravis discovers (takes about a second for GigE Vision discovery)."""
+    aravis, _ = load_aravis()
+    if include_fake:
+        aravis.enable_interface("Fake")
+    aravis.update_device_list()
+    return [
+        DeviceEntry(
+            device_id=aravis.get_device_id(i) or "",
+            vendor=aravis.get_device_vendor(i) or "",
+            model=aravis.get_device_model(i) or "",
+            serial=aravis.get_device_serial_nbr(i) or "",
+            address=aravis.get_device_address(i) or "",
+            protocol=aravis.get_device_protocol(i) or "",
+            physical_id=aravis.get_device_physical_id(i) or "",
+        )
+        for i in range(aravis.get_n_devices())
+    ]
+
+
+def find_device(devices: list[DeviceEntry], wanted: str) -> DeviceEntry | None:
+    """The device whose id, serial or address is ``wanted``."""
+    for device in devices:
+        if wanted in (device.device_id, device.serial, device.address, device.physical_id):
+            return device
+    return None
+
+
+def describe_camera(device: DeviceEntry) -> CameraDetails:
+    """Open the camera and read what it offers; CameraError if it cannot be opened."""
+    aravis, glib = load_aravis()
+    try:
+        camera = aravis.Camera.new(device.device_id)
+    except glib.Error as err:
+        raise CameraError(f"cannot open {device.device_id}: {err.message}") from err
+    try:
+        return _details(camera, device, glib)
+    except glib.Error as err:
+        raise CameraError(f"{device.device_id}: {err.message}") from err
+
+
+def _bounds(camera: Any, available: str, getter: str, glib: Any) -> tuple[float, float] | None:
+    try:
+        if not getattr(camera, available)():
+            return None
+        low, high = getattr(camera, getter)()
+        return float(low), float(high)
+    except glib.Error:
+        return None
+
+
+def _enumeration(camera: Any, feature: str, glib: Any) -> tuple[str, ...]:
+    try:
+        if not camera.is_feature_available(feature):
+            return ()
+        return tuple(camera.dup_available_enumerations_as_strings(feature) or ())
+    except glib.Error:
+        return ()
+
+
+def _details(camera: Any, device: DeviceEntry, glib: Any) -> CameraDetails:
+    width = (*camera.get_width_bounds(), camera.get_width_increment())
+    height = (*camera.get_height_bounds(), camera.get_height_increment())
+    ptp = next((f for f in PTP_FEATURES if camera.is_feature_available(f)), None)
+    packet_size = None
+    if camera.is_gv_device():
+        try:
+            packet_size = int(camera.gv_get_packet_size())
+        except glib.Error:
+            packet_size = None
+    return CameraDetails(
+        device_id=device.device_id,
+        vendor=camera.get_vendor_name() or device.vendor,
+        model=camera.get_model_name() or device.model,
+        serial=camera.get_device_serial_number() or device.serial,
+        protocol=device.protocol,
+        sensor_px=tuple(camera.get_sensor_size()),
+        width_px=tuple(int(v) for v in width),
+        height_px=tuple(int(v) for v in height),
+        pixel_format=camera.get_pixel_format_as_string() or "",
+        pixel_formats=tuple(camera.dup_available_pixel_formats_as_strings() or ()),
+        frame_rate_hz=_bounds(camera, "is_frame_rate_available", "get_frame_rate_bounds", glib),
+        exposure_us=_bounds(camera, "is_exposure_time_available", "get_exposure_time_bounds", glib),
+        gain=_bounds(camera, "is_gain_available", "get_gain_bounds", glib),
+        triggers=tuple(camera.dup_available_triggers() or ()),
+        trigger_sources=tuple(camera.dup_available_trigger_sources() or ()),
+        trigger_activations=_enumeration(camera, "TriggerActivation", glib),
+        software_trigger=bool(camera.is_software_trigger_supported()),
+        ptp=ptp,
+        packet_size_bytes=packet_size,
+        packet_delay=camera.is_gv_device() and camera.is_feature_available("GevSCPD"),
+    )
