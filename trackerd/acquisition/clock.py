@@ -71,11 +71,14 @@ class DeviceClock:
         self._minima: deque[tuple[int, int]] = deque()  # (host_ns, delay_ns), delays increasing
         self._above = 0
         self._lock = threading.Lock()
+        self.observations = 0
+        """Frames observed since the last reset (the estimate settles over the first few)."""
 
     def observe(self, device_ns: int, host_ns: int) -> None:
         """Record one frame's device timestamp and host arrival time."""
         delay = host_ns - device_ns
         with self._lock:
+            self.observations += 1
             minima = self._minima
             if minima and delay > minima[0][1] + self.step_ns:
                 self._above += 1
@@ -106,6 +109,7 @@ class DeviceClock:
         with self._lock:
             self._minima.clear()
             self._above = 0
+            self.observations = 0
 
 
 def realtime_to_monotonic_ns(realtime_ns: int) -> int:

@@ -39,6 +39,9 @@ log = logging.getLogger(__name__)
 STOP_BUDGET_S = 1.0
 """stop() joins every thread within this many seconds (see Releaser and firing.py for the exceptions)."""
 TRIGGER_LEAD_NS = 50_000_000
+CLOCK_WARMUP_FRAMES = 8
+"""When pairing by time, a camera's first frames after (re)connecting are not paired: its
+device-to-host offset estimate has seen too few transfer delays to be trusted yet."""
 """The first software trigger tick is this far after start, once every camera is open."""
 
 
@@ -214,6 +217,10 @@ class AravisPairSource(PairSource):
     # ------------------------------------------------------------------ FrameSink (worker threads)
 
     def deliver(self, arrival: Arrival) -> None:
+        if arrival.tick is None and self._clock_for(arrival.camera_index).observations < CLOCK_WARMUP_FRAMES:
+            with self._lock:
+                self._pairer.dropped["clock_warmup"] += 1
+            return
         with self._ready:
             groups = self._pairer.add(arrival)
             for group in groups:

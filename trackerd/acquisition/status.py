@@ -62,7 +62,8 @@ class SourceStatus:
     dropped_frames: dict[str, int] = field(default_factory=dict)
     """Complete frames that never became part of a pair, by cause: ``no_partner`` (nothing close
     enough in time or trigger count), ``queue_full`` (too many waiting), ``resync`` (discarded when a
-    camera reconnected), ``skew`` (partner found but too far apart)."""
+    camera reconnected), ``skew`` (partner found but too far apart), ``partner_lost`` (another camera
+    was lost), ``clock_warmup`` (a camera's first frames, while its clock offset settles)."""
     dropped_pairs: int = 0
     """Pairs discarded because the consumer did not take them in time (oldest dropped first)."""
     skew_p50_us: float | None = None

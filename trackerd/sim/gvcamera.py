@@ -10,9 +10,9 @@ buffer, user data, exposure, gain and pixel format). The callback:
 * picks the loop frame for the current instant (``content_fps``, from a start
   time shared by every camera of the rig, so all cameras show the same scene);
 * copies it into the buffer (cropped or padded to the requested region);
-* writes a *tag* into the top-left corner: magic ``TRK1``, loop index, serve
-  count and capture time, each byte as a grey 2x2 cell so it reads the same in
-  any Bayer layout and is never mistaken for the pointer's colours
+* writes a *tag* along the top-left edge: magic ``TRK1``, loop index, serve
+  count and capture time, one bit per 2x2 cell in two nearby greys, so it reads
+  the same in any Bayer layout and is never mistaken for the pointer's colours
   (:func:`read_tag` decodes it);
 * replaces the device timestamp with this camera's simulated clock (an offset
   and a drift against the host's monotonic clock: the cameras of a real rig do
@@ -46,7 +46,10 @@ from numpy.typing import NDArray
 
 TAG_MAGIC = b"TRK1"
 _TAG = struct.Struct("<4sIIQ")  # magic, loop index, serve count, capture time (monotonic ns)
-TAG_WIDTH_PX = 2 * _TAG.size
+TAG_LEVELS = (104, 136)
+"""Grey values of a 0 bit and a 1 bit: close enough that demosaicing across two cells makes no
+colour a detector threshold (40 levels of excess by default) would take for a ball."""
+TAG_WIDTH_PX = 2 * 8 * _TAG.size
 TRIGGER_POLL_HZ = 1000.0
 
 _FILL = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32, ctypes.c_uint32)
@@ -62,11 +65,16 @@ class FrameTag:
 
 
 def write_tag(image: NDArray[np.uint8], tag: FrameTag) -> None:
-    """Stamp ``tag`` into the first two rows of a one-byte-per-pixel image (in place)."""
+    """Stamp ``tag`` into the first two rows of a one-byte-per-pixel image (in place).
+
+    Each bit is a 2x2 cell (one whole Bayer cell, so every colour plane sees the
+    same grey) of ``TAG_LEVELS[bit]``; 20 bytes take the first 320 pixels.
+    """
     if image.shape[1] < TAG_WIDTH_PX or image.shape[0] < 2:
         return
     payload = np.frombuffer(_TAG.pack(TAG_MAGIC, tag.loop_index, tag.served, tag.capture_ns), np.uint8)
-    cells = np.repeat(payload, 2)
+    bits = np.unpackbits(payload)
+    cells = np.repeat(np.where(bits, TAG_LEVELS[1], TAG_LEVELS[0]).astype(np.uint8), 2)
     image[0, :TAG_WIDTH_PX] = cells
     image[1, :TAG_WIDTH_PX] = cells
 
@@ -75,8 +83,8 @@ def read_tag(image: NDArray[np.uint8]) -> FrameTag | None:
     """The tag a simulated camera stamped into ``image``, or None if there is none."""
     if image.ndim != 2 or image.shape[1] < TAG_WIDTH_PX or image.shape[0] < 2:
         return None
-    payload = np.ascontiguousarray(image[0, :TAG_WIDTH_PX:2]).tobytes()
-    magic, loop_index, served, capture_ns = _TAG.unpack(payload)
+    bits = image[0, :TAG_WIDTH_PX:2] >= (TAG_LEVELS[0] + TAG_LEVELS[1]) // 2
+    magic, loop_index, served, capture_ns = _TAG.unpack(np.packbits(bits).tobytes())
     if magic != TAG_MAGIC:
         return None
     return FrameTag(loop_index, served, capture_ns)
