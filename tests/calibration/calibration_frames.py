@@ -22,7 +22,6 @@ import cv2
 import numpy as np
 
 from trackerd.calibration.board import BoardSpec
-from trackerd.config.models import RigConfig
 
 REPO = Path(__file__).resolve().parents[2]
 CACHE = REPO / ".cache" / "calibration"
@@ -38,8 +37,13 @@ PSF_PX = 0.5
 
 def _sources_digest(*extra: object) -> str:
     digest = hashlib.sha256()
-    for name in ("trackerd/sim/board.py", "trackerd/sim/render.py", "trackerd/sim/scene.py",
-                 "trackerd/bench/calibration.py", "config/simulated.toml"):
+    for name in (
+        "trackerd/sim/board.py",
+        "trackerd/sim/render.py",
+        "trackerd/sim/scene.py",
+        "trackerd/bench/calibration.py",
+        "config/simulated.toml",
+    ):
         digest.update((REPO / name).read_bytes())
     digest.update(repr(extra).encode())
     return digest.hexdigest()[:20]
@@ -80,9 +84,9 @@ def _write(folder: Path, name: str, image: np.ndarray) -> None:
     assert cv2.imwrite(str(folder / f"{name}.png"), image)
 
 
-
-def copy_set(frames: FrameSet, destination: Path, names: list[str] | None = None,
-             rename: Callable[[str], str] | None = None) -> Path:
+def copy_set(
+    frames: FrameSet, destination: Path, names: list[str] | None = None, rename: Callable[[str], str] | None = None
+) -> Path:
     """Copy (some of) a frame set's PNG files into a folder for the CLI."""
     destination.mkdir(parents=True, exist_ok=True)
     wanted = set(names) if names is not None else None

@@ -75,8 +75,7 @@ def pointing_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
         wall = renderer.wall
         names = []
         for target in wall_targets(wall.width_m, wall.height_m):
-            for n, pose in enumerate(aimed_poses(renderer, wall.from_wall_m(target.wall_xy_m), POINTING_PLACES,
-                                                 rng)):
+            for n, pose in enumerate(aimed_poses(renderer, wall.from_wall_m(target.wall_xy_m), POINTING_PLACES, rng)):
                 name = f"{target.label}-{n + 1}"
                 for index, cam in enumerate(simulated_rig.cameras):
                     _write(folder, f"{name}-{cam.id}", renderer.render(index, pose, rng).image)
@@ -140,8 +139,9 @@ def stereo_pairs(stereo_frames: FrameSet, simulated_rig: RigConfig) -> list:
     for name in stereo_frames.names():
         views = []
         for cam_id in ids:
-            detection = detect_board(grey_for_calibration(stereo_frames.frame(name, cam_id), "BayerRG8"),
-                                     STEREO_BOARD, f"{name}-{cam_id}")
+            detection = detect_board(
+                grey_for_calibration(stereo_frames.frame(name, cam_id), "BayerRG8"), STEREO_BOARD, f"{name}-{cam_id}"
+            )
             assert detection.view is not None, f"{name}-{cam_id}: {detection.reason}"
             views.append(detection.view)
         pair = match_views(views[0], views[1], name)

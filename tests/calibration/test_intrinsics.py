@@ -24,8 +24,9 @@ def test_each_camera_is_recovered_within_the_issues_limits(calibrated_lenses: di
         assert result.coverage.fraction > 0.8
         assert result.outliers == ()
         # The whole lens (up to a rotation the extrinsics absorb) agrees with the truth.
-        rms_px, max_px = lens_model_difference_px(truth, camera.distortion, result.matrix, result.distortion,
-                                                  (camera.width_px, camera.height_px))
+        rms_px, max_px = lens_model_difference_px(
+            truth, camera.distortion, result.matrix, result.distortion, (camera.width_px, camera.height_px)
+        )
         assert rms_px < 0.3 and max_px < 1.0, (rms_px, max_px)
         # OpenCV's own standard errors are consistent with the actual errors.
         assert abs(fx - truth[0, 0]) < 4 * result.std_matrix_px[0] + 0.5

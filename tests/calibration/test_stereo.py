@@ -63,8 +63,10 @@ def test_a_pair_out_of_sync_is_left_out_with_the_reason(stereo_pairs: list, cali
 
 
 def test_pairs_that_do_not_belong_together_are_a_clear_error(stereo_pairs: list, calibrated_lenses: dict) -> None:
-    shuffled = [dataclasses.replace(p, points2_px=stereo_pairs[(k + 1) % len(stereo_pairs)].points2_px)
-                for k, p in enumerate(stereo_pairs)]
+    shuffled = [
+        dataclasses.replace(p, points2_px=stereo_pairs[(k + 1) % len(stereo_pairs)].points2_px)
+        for k, p in enumerate(stereo_pairs)
+    ]
     with pytest.raises(CalibrationError, match=r"pairs out of sync: the pairs disagree .* same instant"):
         check_sync(shuffled, *lenses(calibrated_lenses))
     with pytest.raises(CalibrationError, match="pairs out of sync"):

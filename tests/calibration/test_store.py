@@ -53,8 +53,14 @@ end_diameter_m = 0.04
 
 
 def intrinsics(fx: float = 1660.123456789012) -> OpenCVIntrinsics:
-    return OpenCVIntrinsics(model="opencv", fx_px=fx, fy_px=1659.9876543210987, cx_px=962.5000000000001,
-                            cy_px=538.0, distortion=(-0.0801234567890123, 0.05, 4e-4, -3e-4, 1.2345e-7))
+    return OpenCVIntrinsics(
+        model="opencv",
+        fx_px=fx,
+        fy_px=1659.9876543210987,
+        cx_px=962.5000000000001,
+        cy_px=538.0,
+        distortion=(-0.0801234567890123, 0.05, 4e-4, -3e-4, 1.2345e-7),
+    )
 
 
 def simulated_poses() -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -72,9 +78,13 @@ def blank_rig(tmp_path: Path) -> Path:
 def complete_calibration() -> CalibrationFile:
     calibration = CalibrationFile()
     for cam_id, (rotation, translation) in simulated_poses().items():
-        calibration = with_camera(calibration, cam_id, intrinsics=intrinsics(),
-                                  extrinsics=extrinsics_config(rotation, translation),
-                                  info={"intrinsics_views": 14, "intrinsics_rms_px": 0.0686, "world_frame": "wall"})
+        calibration = with_camera(
+            calibration,
+            cam_id,
+            intrinsics=intrinsics(),
+            extrinsics=extrinsics_config(rotation, translation),
+            info={"intrinsics_views": 14, "intrinsics_rms_px": 0.0686, "world_frame": "wall"},
+        )
     return calibration
 
 
@@ -135,7 +145,7 @@ def test_a_folding_lens_is_refused_before_writing(blank_rig: Path) -> None:
     context = open_rig(blank_rig)
     folding = intrinsics().model_copy(update={"distortion": (0.9, -5.0, 0.0, 0.0, 0.0)})
     bad = with_camera(complete_calibration(), "right", intrinsics=folding.model_dump())
-    with pytest.raises(CalibrationError, match="not written: .*folds over near the image edge"):
+    with pytest.raises(CalibrationError, match=r"not written: .*folds over near the image edge"):
         write_calibration(context, bad, "bad")
     assert not context.calibration_path.exists()
 

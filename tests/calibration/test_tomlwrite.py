@@ -33,8 +33,10 @@ def test_nested_tables_and_arrays_round_trip() -> None:
     data = {
         "version": 1,
         "cameras": {
-            "left": {"intrinsics": {"model": "opencv", "fx_px": 1660.0000000001, "distortion": [-0.08, 5e-05]},
-                     "info": {"date": "2026-11-22", "views": 14}},
+            "left": {
+                "intrinsics": {"model": "opencv", "fx_px": 1660.0000000001, "distortion": [-0.08, 5e-05]},
+                "info": {"date": "2026-11-22", "views": 14},
+            },
             "cam-2": {"extrinsics": {"kind": "opencv", "rvec": [0.0, 2.4, 0.7], "tvec_m": [1e-17, -3.5, 6.0]}},
         },
         "wall": {"corners_m": [[0.0, 0.0, 0.0], [3.6576, 0.0, 0.0]]},
@@ -61,7 +63,7 @@ def test_header_becomes_comments() -> None:
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_nan_and_infinity_are_refused(bad: float) -> None:
-    with pytest.raises(ValueError, match="cameras.left.fx_px"):
+    with pytest.raises(ValueError, match=r"cameras\.left\.fx_px"):
         dumps({"cameras": {"left": {"fx_px": bad}}})
 
 

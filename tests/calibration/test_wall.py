@@ -121,8 +121,11 @@ def test_touches_without_a_known_place_pin_the_plane_only() -> None:
     marks = [Target("m1", np.array([1.6, 0.1])), Target("m2", np.array([2.1, 0.8]))]
     anywhere = [Target("", None) for _ in range(4)]
     observed = touches(rotation, o, marks) + [
-        Touch(t, wall_point(rotation, o, rng.uniform([0, 0], [WIDTH, HEIGHT]), RADIUS),
-              wall_point(rotation, o, np.array([1.0, 1.0]), 0.5))
+        Touch(
+            t,
+            wall_point(rotation, o, rng.uniform([0, 0], [WIDTH, HEIGHT]), RADIUS),
+            wall_point(rotation, o, np.array([1.0, 1.0]), 0.5),
+        )
         for t in anywhere
     ]
     fit = fit_wall(observed, [], (WIDTH, HEIGHT), RADIUS)
@@ -151,6 +154,10 @@ def test_too_few_places_is_a_clear_error() -> None:
         fit_wall([], pointings(rotation, o, two, PLACES[:1]), (WIDTH, HEIGHT), RADIUS)
     unknown = [Target(f"t{k}", None) for k in range(4)]
     with pytest.raises(CalibrationError, match="at least two of the places must be known"):
-        fit_wall(touches(rotation, o, []) + [
-            Touch(t, np.array([k, k % 2, 0.02]), np.array([k, k % 2, 0.5])) for k, t in enumerate(unknown)
-        ], [], (WIDTH, HEIGHT), RADIUS)
+        fit_wall(
+            touches(rotation, o, [])
+            + [Touch(t, np.array([k, k % 2, 0.02]), np.array([k, k % 2, 0.5])) for k, t in enumerate(unknown)],
+            [],
+            (WIDTH, HEIGHT),
+            RADIUS,
+        )

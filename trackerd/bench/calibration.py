@@ -57,8 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stereo-board", default="chessboard:10x7:100", help="board for stereo pairs")
     parser.add_argument("--views", type=int, default=20, help="board views per camera (default 20)")
     parser.add_argument("--pairs", type=int, default=15, help="stereo pairs (default 15)")
-    parser.add_argument("--pointing", type=int, default=3,
-                        help="places the pointer is aimed at each wall target from (default 3)")
+    parser.add_argument(
+        "--pointing", type=int, default=3, help="places the pointer is aimed at each wall target from (default 3)"
+    )
     parser.add_argument("--poses", type=int, default=100, help="pointer poses for the accuracy comparison")
     parser.add_argument("--seed", type=int, default=2026, help="seed for poses and noise")
     parser.add_argument("--write", metavar="FILE", help="also write the recovered calibration file here")
@@ -68,8 +69,13 @@ def run(args: argparse.Namespace) -> int:
     start = time.time()
     true_rig = load_rig(args.config).config
     study = calibrate_simulated(
-        true_rig, BoardSpec.parse(args.board), BoardSpec.parse(args.stereo_board),
-        views=args.views, pairs=args.pairs, pointing=args.pointing, seed=args.seed,
+        true_rig,
+        BoardSpec.parse(args.board),
+        BoardSpec.parse(args.stereo_board),
+        views=args.views,
+        pairs=args.pairs,
+        pointing=args.pointing,
+        seed=args.seed,
     )
     accuracy = compare_accuracy(true_rig, study.recovered_rig, study.scene, args.poses, args.seed + 1)
     summary = summarise(study, accuracy)
@@ -139,15 +145,19 @@ def calibrate_simulated(
 
     def frame_pairs():
         for k, pose in enumerate(pair_poses):
-            yield (f"pair-{k:02d}", (f"{k:02d}-{cam1.id}", *_render(stereo_renderer, 0, pose, rng)),
-                   (f"{k:02d}-{cam2.id}", *_render(stereo_renderer, 1, pose, rng)))
+            yield (
+                f"pair-{k:02d}",
+                (f"{k:02d}-{cam1.id}", *_render(stereo_renderer, 0, pose, rng)),
+                (f"{k:02d}-{cam2.id}", *_render(stereo_renderer, 1, pose, rng)),
+            )
 
     collected = collect_pairs(frame_pairs(), stereo_board, ViewSelector(cam1.width_px, cam1.height_px))
     rejected["pairs"] = len(collected.rejected)
     lenses = [Lens(results[c.id].matrix, results[c.id].distortion) for c in (cam1, cam2)]
     stereo = calibrate_stereo(collected.pairs, lenses[0], lenses[1], (cam1.width_px, cam1.height_px))
-    calibration, _ = apply_stereo(calibration, context.merged(calibration), cam1.id, cam2.id, stereo,
-                                  stereo_board, "rendered", keep_frame=False)
+    calibration, _ = apply_stereo(
+        calibration, context.merged(calibration), cam1.id, cam2.id, stereo, stereo_board, "rendered", keep_frame=False
+    )
     in_camera_frame = context.merged(calibration)
     fit = wall_by_pointing(scene, in_camera_frame, pointing, rng)
     wall_cfg = true_rig.wall
@@ -165,14 +175,20 @@ def _render(renderer: BoardRenderer, index: int, pose, rng: np.random.Generator)
 def wall_targets(width_m: float, height_m: float) -> list[Target]:
     """A 3 x 3 grid of targets shown on the display: its corners, the middles of its edges, its centre."""
     targets = list(corner_targets(width_m, height_m).values())
-    for label, fx, fy in (("bottom", 0.5, 0.0), ("top", 0.5, 1.0), ("left", 0.0, 0.5), ("right", 1.0, 0.5),
-                          ("centre", 0.5, 0.5)):
+    for label, fx, fy in (
+        ("bottom", 0.5, 0.0),
+        ("top", 0.5, 1.0),
+        ("left", 0.0, 0.5),
+        ("right", 1.0, 0.5),
+        ("centre", 0.5, 0.5),
+    ):
         targets.append(Target(label, np.array([fx * width_m, fy * height_m]), True))
     return targets
 
 
-def aimed_poses(scene: SceneRenderer, target_world_m: np.ndarray, count: int, rng: np.random.Generator,
-                max_tries: int = 2000) -> list[PointerPose]:
+def aimed_poses(
+    scene: SceneRenderer, target_world_m: np.ndarray, count: int, rng: np.random.Generator, max_tries: int = 2000
+) -> list[PointerPose]:
     """Pointer poses from varied places in the presenter's area, each aimed exactly at a target.
 
     The places are spread along the wall (left, middle, right thirds in turn) so
@@ -200,8 +216,7 @@ def aimed_poses(scene: SceneRenderer, target_world_m: np.ndarray, count: int, rn
     return poses
 
 
-def wall_by_pointing(scene: SceneRenderer, rig_now: RigConfig, per_target: int, rng: np.random.Generator
-                     ) -> WallFit:
+def wall_by_pointing(scene: SceneRenderer, rig_now: RigConfig, per_target: int, rng: np.random.Generator) -> WallFit:
     """Aim the (rendered) pointer at each target from ``per_target`` places; solve the wall.
 
     ``rig_now`` holds the calibration so far (cameras in camera 1's frame); the
@@ -225,8 +240,9 @@ def wall_by_pointing(scene: SceneRenderer, rig_now: RigConfig, per_target: int, 
 # --------------------------------------------------------------------------- accuracy
 
 
-def compare_accuracy(true_rig: RigConfig, recovered_rig: RigConfig, scene: SceneRenderer, poses: int,
-                     seed: int) -> dict[str, Any]:
+def compare_accuracy(
+    true_rig: RigConfig, recovered_rig: RigConfig, scene: SceneRenderer, poses: int, seed: int
+) -> dict[str, Any]:
     """Wall-hit errors on the same rendered images, located with the true and the recovered calibration."""
     rng = np.random.default_rng(seed)
     truth_locator = Locator(true_rig)
@@ -255,8 +271,11 @@ def _stats(errors_m: list[float]) -> dict[str, float | None]:
     if not errors_m:
         return {"median_mm": None, "p95_mm": None, "max_mm": None}
     e = np.asarray(errors_m) * 1000.0
-    return {"median_mm": round(float(np.median(e)), 3), "p95_mm": round(float(np.percentile(e, 95)), 3),
-            "max_mm": round(float(e.max()), 3)}
+    return {
+        "median_mm": round(float(np.median(e)), 3),
+        "p95_mm": round(float(np.percentile(e, 95)), 3),
+        "max_mm": round(float(e.max()), 3),
+    }
 
 
 # --------------------------------------------------------------------------- figures
@@ -278,14 +297,24 @@ def parameter_errors(study: SimulatedCalibration) -> dict[str, Any]:
             "fx_error_pct": round(float((k[0, 0] / k_true[0, 0] - 1) * 100), 4),
             "fy_error_pct": round(float((k[1, 1] / k_true[1, 1] - 1) * 100), 4),
             "principal_point_error_px": round(float(np.hypot(k[0, 2] - k_true[0, 2], k[1, 2] - k_true[1, 2])), 3),
-            **dict(zip(("lens_model_rms_px", "lens_model_max_px"), (round(v, 3) for v in lens_model_difference_px(
-                k_true, true_cam.distortion, k, result.distortion, (true_cam.width_px, true_cam.height_px))),
-                strict=True)),
+            **dict(
+                zip(
+                    ("lens_model_rms_px", "lens_model_max_px"),
+                    (
+                        round(v, 3)
+                        for v in lens_model_difference_px(
+                            k_true, true_cam.distortion, k, result.distortion, (true_cam.width_px, true_cam.height_px)
+                        )
+                    ),
+                    strict=True,
+                )
+            ),
             "centre_error_mm": round(float(np.linalg.norm(cam.centre_m - true_cam.centre_m) * 1000), 2),
             "orientation_error_deg": round(rotation_angle_deg(cam.rotation @ true_cam.rotation.T), 4),
         }
-    r_true, t_true = relative_pose(true_cams[0].rotation, true_cams[0].translation_m,
-                                   true_cams[1].rotation, true_cams[1].translation_m)
+    r_true, t_true = relative_pose(
+        true_cams[0].rotation, true_cams[0].translation_m, true_cams[1].rotation, true_cams[1].translation_m
+    )
     stereo = study.stereo
     wall = study.wall
     nominal = scene.wall
@@ -305,8 +334,10 @@ def parameter_errors(study: SimulatedCalibration) -> dict[str, Any]:
             "rms_mm": round(wall.rms_mm, 3),
             "worst_residual_mm": round(max(r.worst_mm for r in wall.residuals), 3),
             "implied_size_m": [round(wall.width_m, 5), round(wall.height_m, 5)],
-            "size_error_mm": [round((wall.width_m - nominal.width_m) * 1000, 2),
-                              round((wall.height_m - nominal.height_m) * 1000, 2)],
+            "size_error_mm": [
+                round((wall.width_m - nominal.width_m) * 1000, 2),
+                round((wall.height_m - nominal.height_m) * 1000, 2),
+            ],
         },
     }
 
@@ -322,8 +353,9 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(
             f"{cam_id}: {c['views']} views, RMS {c['intrinsics_rms_px']:.3f} px, coverage {c['coverage'] * 100:.0f} %;"
             f" fx {c['fx_error_pct']:+.3f} %, fy {c['fy_error_pct']:+.3f} %, principal point"
-            f" {c['principal_point_error_px']:.2f} px off, lens model RMS {c['lens_model_rms_px']:.2f} px (max {c['lens_model_max_px']:.2f});"
-            f" in the wall frame: centre {c['centre_error_mm']:.1f} mm, orientation {c['orientation_error_deg']:.3f} deg"
+            f" {c['principal_point_error_px']:.2f} px off, lens model RMS {c['lens_model_rms_px']:.2f} px"
+            f" (max {c['lens_model_max_px']:.2f}); in the wall frame: centre {c['centre_error_mm']:.1f} mm,"
+            f" orientation {c['orientation_error_deg']:.3f} deg"
         )
     s = p["stereo"]
     lines.append(

@@ -74,9 +74,7 @@ class BoardSpec:
         if self.square_m <= 0:
             raise ValueError("the square size must be positive")
         if self.kind == "chessboard" and self.squares_x == self.squares_y:
-            raise ValueError(
-                "a square chessboard has no orientation; use different numbers of rows and columns"
-            )
+            raise ValueError("a square chessboard has no orientation; use different numbers of rows and columns")
         if self.kind == "charuco":
             if self.marker_m is None or not 0 < self.marker_m < self.square_m:
                 raise ValueError("a ChArUco marker must be smaller than its square")
@@ -108,8 +106,12 @@ class BoardSpec:
         dictionary = (match["dict"] or DEFAULT_DICTIONARY).upper().removeprefix("DICT_")
         try:
             return cls(
-                kind, int(match["cols"]), int(match["rows"]), float(match["square"]) / 1000.0,
-                float(marker) / 1000.0 if marker else None, dictionary if kind == "charuco" else None,
+                kind,
+                int(match["cols"]),
+                int(match["rows"]),
+                float(match["square"]) / 1000.0,
+                float(marker) / 1000.0 if marker else None,
+                dictionary if kind == "charuco" else None,
             )
         except ValueError as err:
             raise ValueError(f"board '{text}': {err}") from err
@@ -122,8 +124,10 @@ class BoardSpec:
 
     def describe(self) -> str:
         """For humans: ``chessboard, 10 x 7 squares of 60 mm (54 inner corners)``."""
-        text = (f"{self.kind}, {self.squares_x} x {self.squares_y} squares of {_mm(self.square_m)} mm"
-                f" ({self.corner_count} inner corners")
+        text = (
+            f"{self.kind}, {self.squares_x} x {self.squares_y} squares of {_mm(self.square_m)} mm"
+            f" ({self.corner_count} inner corners"
+        )
         if self.kind == "charuco":
             text += f", {_mm(self.marker_m or 0.0)} mm markers from {self.dictionary}"
         return text + ")"
@@ -155,8 +159,9 @@ class BoardSpec:
         """(N, 3) board coordinates of every inner corner, indexed by corner id."""
         cols, rows = self.inner_corners
         i, j = np.meshgrid(np.arange(cols), np.arange(rows))
-        return np.column_stack([(i.ravel() + 1) * self.square_m, (j.ravel() + 1) * self.square_m,
-                                np.zeros(cols * rows)])
+        return np.column_stack(
+            [(i.ravel() + 1) * self.square_m, (j.ravel() + 1) * self.square_m, np.zeros(cols * rows)]
+        )
 
     def black_square(self, col: NDArray[np.int64], row: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether squares (col, row) are black. A chessboard's top-left square is black; a ChArUco
@@ -199,8 +204,9 @@ class BoardSpec:
         for marker_id, corners in zip(np.asarray(board.getIds()).ravel(), board.getObjPoints(), strict=True):
             byte_list = dictionary.bytesList[int(marker_id) : int(marker_id) + 1]
             bits = cv2.aruco.Dictionary_getBitsFromByteList(byte_list, dictionary.markerSize)
-            out.append((int(marker_id), np.asarray(corners, dtype=np.float64).reshape(4, 3),
-                        np.asarray(bits, dtype=np.uint8)))
+            out.append(
+                (int(marker_id), np.asarray(corners, dtype=np.float64).reshape(4, 3), np.asarray(bits, dtype=np.uint8))
+            )
         return tuple(out)
 
 
@@ -286,21 +292,19 @@ class Quality:
     min_corners: int = MIN_CORNERS
 
 
-def detect_board(grey: NDArray[np.uint8], spec: BoardSpec, name: str = "",
-                 quality: Quality | None = None) -> Detection:
+def detect_board(grey: NDArray[np.uint8], spec: BoardSpec, name: str = "", quality: Quality | None = None) -> Detection:
     """Find the board's corners in a grey image (H, W) and judge the view's quality."""
     quality = quality or Quality()
-    if spec.kind == "chessboard":
-        found = _find_chessboard(grey, spec, name)
-    else:
-        found = _find_charuco(grey, spec, name)
+    find = _find_chessboard if spec.kind == "chessboard" else _find_charuco
+    found = find(grey, spec, name)
     if found is None:
         return Detection(None, "no board found")
     if len(found.ids) < quality.min_corners or found.fraction < quality.min_corner_fraction:
         return Detection(None, f"partial: {len(found.ids)} of {spec.corner_count} corners in view", found)
     if not np.isfinite(found.sharpness_px) or found.sharpness_px > quality.max_sharpness_px:
         return Detection(
-            None, f"blurred: edges rise over {found.sharpness_px:.1f} px"
+            None,
+            f"blurred: edges rise over {found.sharpness_px:.1f} px"
             f" (limit {quality.max_sharpness_px:.1f}); hold the board still or shorten the exposure",
             found,
         )
@@ -336,8 +340,11 @@ def _find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> Boa
     spacing = _shortest_spacing_px(grid)
     half = int(np.clip(round(0.2 * spacing), 2, 9))
     start = grid.reshape(-1, 2)
-    refined = cv2.cornerSubPix(grey, start.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1),
-                               _SUBPIX_CRITERIA).reshape(-1, 2).astype(np.float64)
+    refined = (
+        cv2.cornerSubPix(grey, start.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1), _SUBPIX_CRITERIA)
+        .reshape(-1, 2)
+        .astype(np.float64)
+    )
     moved = np.linalg.norm(refined - start, axis=1) > max(1.0, 0.15 * spacing)
     refined[moved] = start[moved]
     grid = refined.reshape(rows, cols, 2)
@@ -345,8 +352,15 @@ def _find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> Boa
     points = grid.reshape(-1, 2)
     ids = np.arange(cols * rows)
     height, width = grey.shape[:2]
-    return BoardView(ids, points, spec.object_points_m.copy(), (width, height),
-                     edge_sharpness_px(grey, points, square), spec.corner_count, name)
+    return BoardView(
+        ids,
+        points,
+        spec.object_points_m.copy(),
+        (width, height),
+        edge_sharpness_px(grey, points, square),
+        spec.corner_count,
+        name,
+    )
 
 
 def _sector_corners(image: NDArray[np.uint8], cols: int, rows: int) -> Array | None:
@@ -391,7 +405,7 @@ def _canonical_order(grey: NDArray[np.uint8], grid: Array, spec: BoardSpec) -> A
 
 
 def _mean_around(grey: NDArray[np.uint8], point: Array, radius: int = 2) -> float:
-    x, y = int(round(point[0])), int(round(point[1]))
+    x, y = int(np.rint(point[0])), int(np.rint(point[1]))
     h, w = grey.shape[:2]
     patch = grey[max(0, y - radius) : min(h, y + radius + 1), max(0, x - radius) : min(w, x + radius + 1)]
     return float(patch.mean()) if patch.size else 128.0
@@ -407,9 +421,13 @@ def _shortest_spacing_px(grid: Array) -> float:
         b = b[: a.shape[0], : a.shape[1]]
         d = np.linalg.norm(a - b, axis=2)
         ya, xa = max(0, -dy), max(0, -dx)
-        best[ya : ya + d.shape[0], xa : xa + d.shape[1]] = np.minimum(best[ya : ya + d.shape[0], xa : xa + d.shape[1]], d)
+        best[ya : ya + d.shape[0], xa : xa + d.shape[1]] = np.minimum(
+            best[ya : ya + d.shape[0], xa : xa + d.shape[1]], d
+        )
         yb, xb = max(0, dy), max(0, dx)
-        best[yb : yb + d.shape[0], xb : xb + d.shape[1]] = np.minimum(best[yb : yb + d.shape[0], xb : xb + d.shape[1]], d)
+        best[yb : yb + d.shape[0], xb : xb + d.shape[1]] = np.minimum(
+            best[yb : yb + d.shape[0], xb : xb + d.shape[1]], d
+        )
     return float(np.median(best))
 
 
@@ -434,11 +452,19 @@ def _find_charuco(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> BoardV
     # Image size of a square from neighbouring corners along rows.
     neighbours = [
         float(np.linalg.norm(points[k + 1] - points[k]))
-        for k in range(len(ids) - 1) if ids[k + 1] == ids[k] + 1 and ids[k] % cols != cols - 1
+        for k in range(len(ids) - 1)
+        if ids[k + 1] == ids[k] + 1 and ids[k] % cols != cols - 1
     ]
     square = float(np.median(neighbours)) if neighbours else 20.0
-    return BoardView(ids, points, spec.object_points_m[ids].copy(), (width, height),
-                     edge_sharpness_px(grey, points, square), spec.corner_count, name)
+    return BoardView(
+        ids,
+        points,
+        spec.object_points_m[ids].copy(),
+        (width, height),
+        edge_sharpness_px(grey, points, square),
+        spec.corner_count,
+        name,
+    )
 
 
 _DETECTORS: dict[str, cv2.aruco.CharucoDetector] = {}
@@ -474,7 +500,7 @@ def edge_sharpness_px(grey: NDArray[np.uint8], points_px: Array, square_px: floa
     rises = []
     step = max(1, len(points_px) // 40)
     for x, y in np.asarray(points_px)[::step]:
-        xi, yi = int(round(x)), int(round(y))
+        xi, yi = int(np.rint(x)), int(np.rint(y))
         x0, x1 = max(0, xi - radius), min(w, xi + radius + 1)
         y0, y1 = max(0, yi - radius), min(h, yi + radius + 1)
         patch = grey[y0:y1, x0:x1]

@@ -31,8 +31,9 @@ class Collected:
     frames: int = 0
 
 
-def judge_view(frame: Frame, spec: BoardSpec, selector: ViewSelector, quality: Quality | None = None
-               ) -> tuple[BoardView | None, str | None]:
+def judge_view(
+    frame: Frame, spec: BoardSpec, selector: ViewSelector, quality: Quality | None = None
+) -> tuple[BoardView | None, str | None]:
     """Detect the board in one frame and offer it to the selector: (accepted view, None) or (None, reason)."""
     name, image, pixel_format = frame
     detection = detect_board(grey_for_calibration(image, pixel_format), spec, name, quality)
@@ -44,8 +45,9 @@ def judge_view(frame: Frame, spec: BoardSpec, selector: ViewSelector, quality: Q
     return detection.view, None
 
 
-def collect_views(frames: Iterable[Frame], spec: BoardSpec, selector: ViewSelector,
-                  quality: Quality | None = None) -> Collected:
+def collect_views(
+    frames: Iterable[Frame], spec: BoardSpec, selector: ViewSelector, quality: Quality | None = None
+) -> Collected:
     """Board views of one camera from frames, through the selector."""
     out = Collected()
     for frame in frames:
@@ -58,15 +60,17 @@ def collect_views(frames: Iterable[Frame], spec: BoardSpec, selector: ViewSelect
     return out
 
 
-def judge_pair(name: str, frame1: Frame, frame2: Frame, spec: BoardSpec, selector: ViewSelector,
-               quality: Quality | None = None) -> tuple[StereoPair | None, str | None]:
+def judge_pair(
+    name: str, frame1: Frame, frame2: Frame, spec: BoardSpec, selector: ViewSelector, quality: Quality | None = None
+) -> tuple[StereoPair | None, str | None]:
     """Detect the board in both frames of a pair; keep the corners both saw if the pair adds something."""
     detections = []
     for frame in (frame1, frame2):
         detection = detect_board(grey_for_calibration(frame[1], frame[2]), spec, frame[0], quality)
         detections.append(detection)
-    missing = [f"{frame[0]}: {d.reason}" for frame, d in zip((frame1, frame2), detections, strict=True)
-               if d.view is None]
+    missing = [
+        f"{frame[0]}: {d.reason}" for frame, d in zip((frame1, frame2), detections, strict=True) if d.view is None
+    ]
     if missing:
         return None, "; ".join(missing)
     view1, view2 = detections[0].view, detections[1].view
@@ -80,8 +84,12 @@ def judge_pair(name: str, frame1: Frame, frame2: Frame, spec: BoardSpec, selecto
     return pair, None
 
 
-def collect_pairs(frame_pairs: Iterable[tuple[str, Frame, Frame]], spec: BoardSpec, selector: ViewSelector,
-                  quality: Quality | None = None) -> Collected:
+def collect_pairs(
+    frame_pairs: Iterable[tuple[str, Frame, Frame]],
+    spec: BoardSpec,
+    selector: ViewSelector,
+    quality: Quality | None = None,
+) -> Collected:
     """Matched stereo pairs from synchronized frame pairs; ``selector`` judges camera 1's views."""
     out = Collected()
     for name, frame1, frame2 in frame_pairs:

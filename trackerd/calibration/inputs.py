@@ -29,8 +29,7 @@ from trackerd.images import read_frame
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp", ".npy")
 
-GRID_LABELS = {"bottom": (0.5, 0.0), "top": (0.5, 1.0), "left": (0.0, 0.5), "right": (1.0, 0.5),
-               "centre": (0.5, 0.5)}
+GRID_LABELS = {"bottom": (0.5, 0.0), "top": (0.5, 1.0), "left": (0.0, 0.5), "right": (1.0, 0.5), "centre": (0.5, 0.5)}
 """With the corners, a 3 x 3 grid of display-defined targets, as fractions of the display."""
 
 
@@ -61,9 +60,7 @@ def pair_files(directory: str | Path, camera_ids: Sequence[str]) -> list[tuple[s
                 groups.setdefault(name, {})[cam_id] = path
                 break
     if not groups:
-        raise CalibrationError(
-            f"{folder}: no images named <name>-<camera>.<ext> for cameras {', '.join(camera_ids)}"
-        )
+        raise CalibrationError(f"{folder}: no images named <name>-<camera>.<ext> for cameras {', '.join(camera_ids)}")
     out = []
     for name in sorted(groups, key=_natural_key):
         files = groups[name]
@@ -108,8 +105,9 @@ def default_targets(width_m: float, height_m: float) -> dict[str, Target]:
     return out
 
 
-def read_targets(path: str | Path, width_m: float, height_m: float,
-                 display_px: tuple[int, int] | None) -> dict[str, Target]:
+def read_targets(
+    path: str | Path, width_m: float, height_m: float, display_px: tuple[int, int] | None
+) -> dict[str, Target]:
     """Targets from a TOML file's ``[targets]`` table, added to the default ones.
 
     Each entry is one of::
@@ -147,8 +145,7 @@ def read_targets(path: str | Path, width_m: float, height_m: float,
                 y = (1.0 - float(entry["y_px"]) / display_px[1]) * height_m
                 out[label] = Target(label, np.array([x, y]), True)
             elif keys == {"x", "y"}:
-                out[label] = Target(label, np.array([float(entry["x"]) * width_m, float(entry["y"]) * height_m]),
-                                    True)
+                out[label] = Target(label, np.array([float(entry["x"]) * width_m, float(entry["y"]) * height_m]), True)
             else:
                 raise CalibrationError(
                     f"{where}: give x_m and y_m (metres), x_px and y_px (display pixels), or x and y"
@@ -178,4 +175,7 @@ def read_measured_wall(path: str | Path) -> WallConfig:
     try:
         return WallConfig.model_validate(data["wall"])
     except ValidationError as err:
-        raise CalibrationError(f"{path}: wall.{describe_validation_error(err, WallConfig)}") from err
+        detail = describe_validation_error(err, WallConfig)
+        if detail.startswith("(top level): "):
+            raise CalibrationError(f"{path}: wall: {detail.removeprefix('(top level): ')}") from err
+        raise CalibrationError(f"{path}: wall.{detail}") from err

@@ -71,8 +71,11 @@ class IntrinsicsResult:
 
     def to_config(self) -> OpenCVIntrinsics:
         return OpenCVIntrinsics(
-            model="opencv", fx_px=float(self.matrix[0, 0]), fy_px=float(self.matrix[1, 1]),
-            cx_px=float(self.matrix[0, 2]), cy_px=float(self.matrix[1, 2]),
+            model="opencv",
+            fx_px=float(self.matrix[0, 0]),
+            fy_px=float(self.matrix[1, 1]),
+            cx_px=float(self.matrix[0, 2]),
+            cy_px=float(self.matrix[1, 2]),
             distortion=tuple(float(d) for d in self.distortion),
         )
 
@@ -137,8 +140,9 @@ def check_views(views: Sequence[BoardView], min_views: int, after: str = "") -> 
             )
 
 
-def _calibrate(views: list[BoardView], terms: int, initial: tuple[Array, Array] | None,
-               dropped: tuple[str, ...]) -> IntrinsicsResult:
+def _calibrate(
+    views: list[BoardView], terms: int, initial: tuple[Array, Array] | None, dropped: tuple[str, ...]
+) -> IntrinsicsResult:
     size = views[0].image_size
     object_points = [v.object_points_m.astype(np.float32) for v in views]
     image_points = [v.image_points_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
@@ -188,7 +192,11 @@ def _calibrate(views: list[BoardView], terms: int, initial: tuple[Array, Array] 
 
 
 def lens_model_difference_px(
-    matrix_a: Array, dist_a: Array, matrix_b: Array, dist_b: Array, image_size: tuple[int, int],
+    matrix_a: Array,
+    dist_a: Array,
+    matrix_b: Array,
+    dist_b: Array,
+    image_size: tuple[int, int],
     step_px: int = 40,
 ) -> tuple[float, float]:
     """RMS and largest disagreement (pixels) between two lens models' rays over the image, up to a rotation.
@@ -202,8 +210,9 @@ def lens_model_difference_px(
     (they trade off against each other).
     """
     width, height = image_size
-    xs, ys = np.meshgrid(np.arange(0, width, step_px, dtype=np.float64),
-                         np.arange(0, height, step_px, dtype=np.float64))
+    xs, ys = np.meshgrid(
+        np.arange(0, width, step_px, dtype=np.float64), np.arange(0, height, step_px, dtype=np.float64)
+    )
     pixels = np.column_stack([xs.ravel(), ys.ravel()]).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
     rays = []

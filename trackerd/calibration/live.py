@@ -70,18 +70,30 @@ def save_frame(directory: Path, name: str, frame: NDArray[np.uint8], pixel_forma
 class IntrinsicsSession:
     """Collects views of one camera's board until there are enough, with guidance."""
 
-    def __init__(self, spec: BoardSpec, camera_index: int, camera_id: str, width_px: int, height_px: int, *,
-                 wanted_views: int = 20, min_views: int = MIN_VIEWS, quality: Quality | None = None,
-                 min_change: float | None = None, snapshots: Path | None = None,
-                 distortion_terms: int = 5) -> None:
+    def __init__(
+        self,
+        spec: BoardSpec,
+        camera_index: int,
+        camera_id: str,
+        width_px: int,
+        height_px: int,
+        *,
+        wanted_views: int = 20,
+        min_views: int = MIN_VIEWS,
+        quality: Quality | None = None,
+        min_change: float | None = None,
+        snapshots: Path | None = None,
+        distortion_terms: int = 5,
+    ) -> None:
         self.spec = spec
         self.index = camera_index
         self.camera_id = camera_id
         self.wanted = wanted_views
         self.min_views = min_views
         self.quality = quality
-        self.selector = (ViewSelector(width_px, height_px) if min_change is None
-                         else ViewSelector(width_px, height_px, min_change))
+        self.selector = (
+            ViewSelector(width_px, height_px) if min_change is None else ViewSelector(width_px, height_px, min_change)
+        )
         self.snapshots = snapshots
         self.terms = distortion_terms
         self.frames = 0
@@ -114,33 +126,48 @@ class IntrinsicsSession:
             save_frame(self.snapshots, f"{self.camera_id}-{len(self.views):03d}", image, fmt)
         if len(self.views) >= self.min_views:
             try:
-                self.last_rms_px = calibrate_intrinsics(self.views, distortion_terms=self.terms,
-                                                        min_views=self.min_views).rms_px
+                self.last_rms_px = calibrate_intrinsics(
+                    self.views, distortion_terms=self.terms, min_views=self.min_views
+                ).rms_px
             except CalibrationError:
                 self.last_rms_px = None
         rms = f", RMS {self.last_rms_px:.3f} px" if self.last_rms_px is not None else ""
-        text = (f"[{len(self.views):>3}/{self.wanted} views] accepted frame {self.frames}: {len(view.ids)} corners,"
-                f" coverage {self.selector.coverage.fraction * 100:.0f} %{rms}; next: "
-                f"{self.selector.guidance(self.wanted)}")
+        text = (
+            f"[{len(self.views):>3}/{self.wanted} views] accepted frame {self.frames}: {len(view.ids)} corners,"
+            f" coverage {self.selector.coverage.fraction * 100:.0f} %{rms}; next: "
+            f"{self.selector.guidance(self.wanted)}"
+        )
         return Event(text, accepted=True, finished=self.done)
 
     def result(self, drop_outliers: bool = False) -> IntrinsicsResult:
-        return calibrate_intrinsics(self.views, distortion_terms=self.terms, min_views=self.min_views,
-                                    drop_outliers=drop_outliers)
+        return calibrate_intrinsics(
+            self.views, distortion_terms=self.terms, min_views=self.min_views, drop_outliers=drop_outliers
+        )
 
 
 class StereoSession:
     """Collects synchronized pairs of the board seen by both cameras."""
 
-    def __init__(self, spec: BoardSpec, camera_ids: tuple[str, str], width_px: int, height_px: int, *,
-                 wanted_pairs: int = 15, quality: Quality | None = None, min_change: float | None = None,
-                 max_skew_ns: int = 2_000_000, snapshots: Path | None = None) -> None:
+    def __init__(
+        self,
+        spec: BoardSpec,
+        camera_ids: tuple[str, str],
+        width_px: int,
+        height_px: int,
+        *,
+        wanted_pairs: int = 15,
+        quality: Quality | None = None,
+        min_change: float | None = None,
+        max_skew_ns: int = 2_000_000,
+        snapshots: Path | None = None,
+    ) -> None:
         self.spec = spec
         self.camera_ids = camera_ids
         self.wanted = wanted_pairs
         self.quality = quality
-        self.selector = (ViewSelector(width_px, height_px) if min_change is None
-                         else ViewSelector(width_px, height_px, min_change))
+        self.selector = (
+            ViewSelector(width_px, height_px) if min_change is None else ViewSelector(width_px, height_px, min_change)
+        )
         self.max_skew_ns = max_skew_ns
         self.snapshots = snapshots
         self.pairs: list[StereoPair] = []
@@ -154,8 +181,9 @@ class StereoSession:
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]], skew_ns: int = 0) -> Event | None:
         self.frames += 1
         if skew_ns > self.max_skew_ns:
-            reason = (f"out of sync: the two frames are {skew_ns / 1e6:.1f} ms apart"
-                      f" (limit {self.max_skew_ns / 1e6:.1f} ms)")
+            reason = (
+                f"out of sync: the two frames are {skew_ns / 1e6:.1f} ms apart (limit {self.max_skew_ns / 1e6:.1f} ms)"
+            )
         else:
             name = f"{len(self.pairs):03d}"
             pair, reason = judge_pair(name, frames[0], frames[1], self.spec, self.selector, self.quality)
@@ -165,8 +193,10 @@ class StereoSession:
                 if self.snapshots is not None:
                     for cam_id, (_, image, fmt) in zip(self.camera_ids, frames[:2], strict=True):
                         save_frame(self.snapshots, f"{name}-{cam_id}", image, fmt)
-                text = (f"[{len(self.pairs):>3}/{self.wanted} pairs] accepted frame {self.frames}:"
-                        f" {len(pair.ids)} shared corners; next: {self._guidance()}")
+                text = (
+                    f"[{len(self.pairs):>3}/{self.wanted} pairs] accepted frame {self.frames}:"
+                    f" {len(pair.ids)} shared corners; next: {self._guidance()}"
+                )
                 return Event(text, accepted=True, finished=self.done)
         key = (reason or "").split(":")[0]
         if key == self._last_reason:
@@ -202,8 +232,10 @@ class Steadiness:
         if len(self._fronts) < self.frames:
             return None
         fronts, backs = np.array(self._fronts), np.array(self._backs)
-        spread = max(float(np.max(np.linalg.norm(fronts - np.median(fronts, axis=0), axis=1))),
-                     float(np.max(np.linalg.norm(backs - np.median(backs, axis=0), axis=1))))
+        spread = max(
+            float(np.max(np.linalg.norm(fronts - np.median(fronts, axis=0), axis=1))),
+            float(np.max(np.linalg.norm(backs - np.median(backs, axis=0), axis=1))),
+        )
         if spread > self.tolerance_m:
             return None
         self.clear()
@@ -221,9 +253,16 @@ class WallSession:
     the next one is then announced.
     """
 
-    def __init__(self, locator, targets: Sequence[Target], method: str, places: int = 2,
-                 steadiness: Steadiness | None = None, snapshots: Path | None = None,
-                 camera_ids: Sequence[str] = ()) -> None:
+    def __init__(
+        self,
+        locator,
+        targets: Sequence[Target],
+        method: str,
+        places: int = 2,
+        steadiness: Steadiness | None = None,
+        snapshots: Path | None = None,
+        camera_ids: Sequence[str] = (),
+    ) -> None:
         if method not in ("touch", "point"):
             raise ValueError("method is 'touch' or 'point'")
         self.locator = locator
@@ -248,13 +287,18 @@ class WallSession:
         target, place = self.plan[self.position]
         if self.method == "touch":
             return f"touch '{target.label}' with the {self.locator.front_colour} ball and hold still"
-        return (f"aim at '{target.label}' from place {place + 1} of {self.places}"
-                f"{' (move to a new place first)' if place else ''} and hold still")
+        return (
+            f"aim at '{target.label}' from place {place + 1} of {self.places}"
+            f"{' (move to a new place first)' if place else ''} and hold still"
+        )
 
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]]) -> Event | None:
         if self.done:
             return None
         self.frames += 1
+        # Each frame is judged on its own: the detector's tracking would otherwise carry
+        # a wrong blob from one frame to the next, and speed does not matter here.
+        self.locator.reset()
         fix = self.locator.locate([image for _, image, _ in frames])
         if fix.line is None or fix.status == "rejected":
             self.steadiness.clear()
@@ -273,8 +317,10 @@ class WallSession:
             for cam_id, (_, image, fmt) in zip(self.camera_ids, frames, strict=False):
                 save_frame(self.snapshots, f"{name}-{cam_id}", image, fmt)
         self.position += 1
-        text = (f"[{self.position:>2}/{len(self.plan)}] captured '{target.label}'"
-                f" (tip at {', '.join(f'{v:.3f}' for v in front)} m); next: {self.prompt()}")
+        text = (
+            f"[{self.position:>2}/{len(self.plan)}] captured '{target.label}'"
+            f" (tip at {', '.join(f'{v:.3f}' for v in front)} m); next: {self.prompt()}"
+        )
         return Event(text, accepted=True, finished=self.done)
 
 
@@ -294,6 +340,7 @@ class CheckSession:
 
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]]) -> Event | None:
         self.frames += 1
+        self.locator.reset()  # judged frame by frame, as in WallSession
         fix = self.locator.locate([image for _, image, _ in frames])
         if not self.health.add_fix(fix):
             return None
@@ -301,15 +348,19 @@ class CheckSession:
             return None
         self._last_report = self.health.total
         f = self.health.figures()
-        return Event(f"[{self.health.total:>4} fixes] ray gap median {f.gap_p50_mm:.2f} mm (p95 {f.gap_p95_mm:.2f});"
-                     f" reprojection median {f.reprojection_p50_px:.2f} px (p95 {f.reprojection_p95_px:.2f})",
-                     finished=self.done)
+        return Event(
+            f"[{self.health.total:>4} fixes] ray gap median {f.gap_p50_mm:.2f} mm (p95 {f.gap_p95_mm:.2f});"
+            f" reprojection median {f.reprojection_p50_px:.2f} px (p95 {f.reprojection_p95_px:.2f})",
+            finished=self.done,
+        )
 
 
 def pair_frames(pair, camera_ids: Sequence[str]) -> list[tuple[str, NDArray[np.uint8], str]]:
     """A FramePair as (name, image, pixel format) per camera."""
-    return [(f"{cam_id}-{frame.frame_id}", frame.image, frame.pixel_format)
-            for cam_id, frame in zip(camera_ids, pair.frames, strict=True)]
+    return [
+        (f"{cam_id}-{frame.frame_id}", frame.image, frame.pixel_format)
+        for cam_id, frame in zip(camera_ids, pair.frames, strict=True)
+    ]
 
 
 def newest_pair(source, timeout_s: float):
@@ -324,9 +375,17 @@ def newest_pair(source, timeout_s: float):
         pair = newer
 
 
-def run_session(source, session, camera_ids: Sequence[str], *, say: Callable[[str], None],
-                stop: threading.Event | None = None, max_seconds: float | None = None,
-                poll_s: float = 0.5, newest: bool = True) -> int:
+def run_session(
+    source,
+    session,
+    camera_ids: Sequence[str],
+    *,
+    say: Callable[[str], None],
+    stop: threading.Event | None = None,
+    max_seconds: float | None = None,
+    poll_s: float = 0.5,
+    newest: bool = True,
+) -> int:
     """Feed a session pairs from a started source until it is done, stopped or out of time.
 
     Returns the number of pairs fed. Raises CalibrationError when the source stops

@@ -54,10 +54,17 @@ def intrinsics_json(result: IntrinsicsResult, rejected: Sequence[tuple[str, str]
         ],
         "dropped": list(result.dropped),
         "corners": result.corners,
-        "fx_px": _r(fx, 3), "fy_px": _r(fy, 3), "cx_px": _r(cx, 3), "cy_px": _r(cy, 3),
+        "fx_px": _r(fx, 3),
+        "fy_px": _r(fy, 3),
+        "cx_px": _r(cx, 3),
+        "cy_px": _r(cy, 3),
         "distortion": [float(d) for d in result.distortion],
-        "std_px": {"fx": _r(result.std_matrix_px[0], 3), "fy": _r(result.std_matrix_px[1], 3),
-                   "cx": _r(result.std_matrix_px[2], 3), "cy": _r(result.std_matrix_px[3], 3)},
+        "std_px": {
+            "fx": _r(result.std_matrix_px[0], 3),
+            "fy": _r(result.std_matrix_px[1], 3),
+            "cx": _r(result.std_matrix_px[2], 3),
+            "cy": _r(result.std_matrix_px[3], 3),
+        },
         "coverage": result.coverage.to_json(),
         "rejected": [{"name": n, "reason": r} for n, r in rejected],
     }
@@ -94,11 +101,15 @@ def intrinsics_text(camera_id: str, result: IntrinsicsResult, rejected: Sequence
 def _warnings(rms_px: float, coverage: float) -> list[str]:
     out = []
     if rms_px > GOOD_RMS_PX:
-        out.append(f"  WARNING: RMS {rms_px:.2f} px is high (expect 0.1 to 0.3 px): check the board"
-                   " spec, focus, motion blur and outlier views")
+        out.append(
+            f"  WARNING: RMS {rms_px:.2f} px is high (expect 0.1 to 0.3 px): check the board"
+            " spec, focus, motion blur and outlier views"
+        )
     if coverage < GOOD_COVERAGE:
-        out.append(f"  WARNING: the corners cover only {coverage * 100:.0f} % of the image; add views"
-                   " with the board near the edges and corners")
+        out.append(
+            f"  WARNING: the corners cover only {coverage * 100:.0f} % of the image; add views"
+            " with the board near the edges and corners"
+        )
     return out
 
 
@@ -116,28 +127,32 @@ def stereo_json(result: StereoResult, rejected: Sequence[tuple[str, str]], world
         "camera2_centre_in_camera1_m": [_r(v, 6) for v in result.camera2_centre_m],
         "pairs": [
             {"name": name, "rms_px": _r(err), "epipolar_px": _r(epi), "outlier": i in result.outliers}
-            for i, (name, err, epi) in enumerate(zip(result.pair_names, result.per_pair_rms_px,
-                                                     result.per_pair_epipolar_px, strict=True))
+            for i, (name, err, epi) in enumerate(
+                zip(result.pair_names, result.per_pair_rms_px, result.per_pair_epipolar_px, strict=True)
+            )
         ],
         "rejected": [{"name": n, "reason": r} for n, r in (*result.rejected, *rejected)],
         "world_frame": world_frame,
     }
 
 
-def stereo_text(ids: tuple[str, str], result: StereoResult, rejected: Sequence[tuple[str, str]],
-                world_frame: str) -> str:
+def stereo_text(
+    ids: tuple[str, str], result: StereoResult, rejected: Sequence[tuple[str, str]], world_frame: str
+) -> str:
     yaw, pitch, roll = result.relative_ypr_deg
     c = result.camera2_centre_m
     lines = [
         f"stereo {ids[0]} -> {ids[1]}: RMS reprojection error {result.rms_px:.3f} px, epipolar error"
         f" {result.epipolar_rms_px:.3f} px (RMS) over {len(result.pair_names)} pairs",
-        f"  baseline {result.baseline_m:.4f} m; {ids[1]} at ({c[0]:+.4f}, {c[1]:+.4f}, {c[2]:+.4f}) m in {ids[0]}'s frame",
+        f"  baseline {result.baseline_m:.4f} m; {ids[1]} at ({c[0]:+.4f}, {c[1]:+.4f}, {c[2]:+.4f}) m"
+        f" in {ids[0]}'s frame",
         f"  relative rotation {result.rotation_deg:.3f} deg: yaw {yaw:+.3f}, pitch {pitch:+.3f}, roll {roll:+.3f} deg"
         f" ({ids[1]}'s axes seen from {ids[0]}, eq. 18-21)",
         "  per-pair RMS / epipolar error (px):",
     ]
-    for i, (name, err, epi) in enumerate(zip(result.pair_names, result.per_pair_rms_px,
-                                             result.per_pair_epipolar_px, strict=True)):
+    for i, (name, err, epi) in enumerate(
+        zip(result.pair_names, result.per_pair_rms_px, result.per_pair_epipolar_px, strict=True)
+    ):
         flag = "  <- outlier" if i in result.outliers else ""
         lines.append(f"    {name:<24} {err:.3f} / {epi:.3f}{flag}")
     for name, reason in result.rejected:
@@ -161,9 +176,14 @@ def wall_fit_json(fit: WallFit, nominal_size_m: tuple[float, float]) -> dict[str
         "origin_m": [_r(v, 5) for v in fit.origin_m],
         "normal": [_r(v, 6) for v in fit.rotation[:, 2]],
         "residuals": [
-            {"label": r.label, "kind": r.kind, "plane_mm": None if r.plane_mm is None else _r(r.plane_mm, 2),
-             "in_plane_mm": None if r.in_plane_mm is None else _r(r.in_plane_mm, 2),
-             "miss_mm": None if r.miss_mm is None else _r(r.miss_mm, 2), "used": r.used}
+            {
+                "label": r.label,
+                "kind": r.kind,
+                "plane_mm": None if r.plane_mm is None else _r(r.plane_mm, 2),
+                "in_plane_mm": None if r.in_plane_mm is None else _r(r.in_plane_mm, 2),
+                "miss_mm": None if r.miss_mm is None else _r(r.miss_mm, 2),
+                "used": r.used,
+            }
             for r in fit.residuals
         ],
     }
@@ -175,11 +195,18 @@ def wall_fit_text(fit: WallFit, nominal_size_m: tuple[float, float], flag_mm: fl
     o = fit.origin_m
     lines = [
         f"wall: RMS residual {fit.rms_mm:.2f} mm over {sum(r.used for r in fit.residuals)} observations"
-        + (f" ({sum(not r.used for r in fit.residuals)} left out as outliers)"
-           if not all(r.used for r in fit.residuals) else ""),
-        f"  size {w:.4f} x {h:.4f} m" + (
+        + (
+            f" ({sum(not r.used for r in fit.residuals)} left out as outliers)"
+            if not all(r.used for r in fit.residuals)
+            else ""
+        ),
+        f"  size {w:.4f} x {h:.4f} m"
+        + (
             f" (implied by the targets; configured {nw:.4f} x {nh:.4f} m,"
-            f" {(w - nw) * 1000:+.1f} / {(h - nh) * 1000:+.1f} mm)" if fit.size_fitted else " (as configured)"),
+            f" {(w - nw) * 1000:+.1f} / {(h - nh) * 1000:+.1f} mm)"
+            if fit.size_fitted
+            else " (as configured)"
+        ),
         f"  bottom-left corner at ({o[0]:+.4f}, {o[1]:+.4f}, {o[2]:+.4f}) m in the cameras' frame so far",
         "  residuals (mm): plane = distance from the fitted plane, in-plane = from the target's place,"
         " miss = pointer line to target",
@@ -192,12 +219,13 @@ def wall_fit_text(fit: WallFit, nominal_size_m: tuple[float, float], flag_mm: fl
             parts.append(f"in-plane {r.in_plane_mm:6.2f}")
         if r.miss_mm is not None:
             parts.append(f"miss {r.miss_mm:6.2f}")
-        flag = ("  <- left out as an outlier" if not r.used
-                else "  <- check this one" if r.worst_mm > flag_mm else "")
+        flag = "  <- left out as an outlier" if not r.used else "  <- check this one" if r.worst_mm > flag_mm else ""
         lines.append(f"    {r.kind:<8} {r.label:<12} {', '.join(parts)}{flag}")
     if fit.size_fitted and (abs(w - nw) > 0.02 or abs(h - nh) > 0.02):
-        lines.append("  WARNING: the implied size differs from the configured one by more than 20 mm:"
-                     " a target touched in the wrong place, or the display is not where it is said to be")
+        lines.append(
+            "  WARNING: the implied size differs from the configured one by more than 20 mm:"
+            " a target touched in the wrong place, or the display is not where it is said to be"
+        )
     return "\n".join(lines)
 
 
@@ -206,8 +234,7 @@ def measured_wall_text(frame: WallFrame, points: np.ndarray) -> str:
     lines = [
         f"wall from {len(points)} measured points: plane normal ({', '.join(f'{v:+.4f}' for v in frame.normal)}),"
         f" size {frame.width_m:.4f} x {frame.height_m:.4f} m",
-        "  distance of each point from the fitted plane (mm): "
-        + ", ".join(f"{r * 1000:+.2f}" for r in residuals),
+        "  distance of each point from the fitted plane (mm): " + ", ".join(f"{r * 1000:+.2f}" for r in residuals),
     ]
     if len(points) == 3:
         lines.append("  (three points fix the plane exactly: measure a fourth to check them)")
@@ -220,12 +247,17 @@ def measured_wall_text(frame: WallFrame, points: np.ndarray) -> str:
 def health_text(figures: HealthFigures, frames: int) -> str:
     if figures.fixes == 0:
         return f"check: no pointer fixes in {frames} frame pairs (is the pointer in view of both cameras?)"
-    verdict = "SUSPECT: " + (figures.reason or "") if figures.suspect else (
-        "OK" if figures.reason is None else f"undecided: {figures.reason}")
-    return "\n".join([
-        f"check: {figures.fixes} pointer fixes from {frames} frame pairs: {verdict}",
-        f"  ray gap (how far the cameras' rays through an end miss each other): median {figures.gap_p50_mm:.2f} mm,"
-        f" p95 {figures.gap_p95_mm:.2f} mm, max {figures.gap_max_mm:.2f} mm",
-        f"  reprojection error of the triangulated ends: median {figures.reprojection_p50_px:.2f} px,"
-        f" p95 {figures.reprojection_p95_px:.2f} px, max {figures.reprojection_max_px:.2f} px",
-    ])
+    verdict = (
+        "SUSPECT: " + (figures.reason or "")
+        if figures.suspect
+        else ("OK" if figures.reason is None else f"undecided: {figures.reason}")
+    )
+    return "\n".join(
+        [
+            f"check: {figures.fixes} pointer fixes from {frames} frame pairs: {verdict}",
+            f"  ray gap (how far the cameras' rays through an end miss each other): median {figures.gap_p50_mm:.2f} mm,"
+            f" p95 {figures.gap_p95_mm:.2f} mm, max {figures.gap_max_mm:.2f} mm",
+            f"  reprojection error of the triangulated ends: median {figures.reprojection_p50_px:.2f} px,"
+            f" p95 {figures.reprojection_p95_px:.2f} px, max {figures.reprojection_max_px:.2f} px",
+        ]
+    )

@@ -82,8 +82,9 @@ def match_views(view1: BoardView, view2: BoardView, name: str = "") -> StereoPai
     common, i1, i2 = np.intersect1d(view1.ids, view2.ids, return_indices=True)
     if len(common) < MIN_SHARED_CORNERS:
         return None
-    return StereoPair(name or view1.name, common, view1.object_points_m[i1], view1.image_points_px[i1],
-                      view2.image_points_px[i2])
+    return StereoPair(
+        name or view1.name, common, view1.object_points_m[i1], view1.image_points_px[i1], view2.image_points_px[i2]
+    )
 
 
 @dataclass(frozen=True)
@@ -99,15 +100,22 @@ class SyncCheck:
 
 def board_pose(pair_points: Array, object_points: Array, lens: Lens) -> tuple[Array, Array]:
     """Board-to-camera rotation (3, 3) and translation (3,) from one view's corners."""
-    ok, rvec, tvec = cv2.solvePnP(object_points.astype(np.float64), pair_points.astype(np.float64),
-                                  lens.matrix, lens.distortion, flags=cv2.SOLVEPNP_IPPE)
+    ok, rvec, tvec = cv2.solvePnP(
+        object_points.astype(np.float64),
+        pair_points.astype(np.float64),
+        lens.matrix,
+        lens.distortion,
+        flags=cv2.SOLVEPNP_IPPE,
+    )
     if not ok:
-        ok, rvec, tvec = cv2.solvePnP(object_points.astype(np.float64), pair_points.astype(np.float64),
-                                      lens.matrix, lens.distortion)
+        ok, rvec, tvec = cv2.solvePnP(
+            object_points.astype(np.float64), pair_points.astype(np.float64), lens.matrix, lens.distortion
+        )
     if not ok:
         raise CalibrationError("solvePnP failed on a board view")
-    rvec, tvec = cv2.solvePnPRefineLM(object_points.astype(np.float64), pair_points.astype(np.float64),
-                                      lens.matrix, lens.distortion, rvec, tvec)
+    rvec, tvec = cv2.solvePnPRefineLM(
+        object_points.astype(np.float64), pair_points.astype(np.float64), lens.matrix, lens.distortion, rvec, tvec
+    )
     return rotation_from_rvec(rvec.ravel()), tvec.ravel()
 
 
@@ -143,8 +151,13 @@ def check_sync(pairs: Sequence[StereoPair], lens1: Lens, lens2: Lens) -> SyncChe
     kept, rejected = [], []
     for pair, t_off, r_off in zip(pairs, dt, dr, strict=True):
         if t_off > limit_t or r_off > limit_r:
-            rejected.append((pair.name, f"out of sync: its two views put the cameras {t_off * 1000:.0f} mm and"
-                                        f" {r_off:.2f} degrees away from where the other pairs do"))
+            rejected.append(
+                (
+                    pair.name,
+                    f"out of sync: its two views put the cameras {t_off * 1000:.0f} mm and"
+                    f" {r_off:.2f} degrees away from where the other pairs do",
+                )
+            )
         else:
             kept.append(pair)
     if len(kept) < len(pairs) / 2:
@@ -247,10 +260,18 @@ def calibrate_stereo(
     flags |= cv2.CALIB_USE_INTRINSIC_GUESS if refine_intrinsics else cv2.CALIB_FIX_INTRINSIC
     try:
         out = cv2.stereoCalibrateExtended(
-            object_points, points1, points2,
-            lens1.matrix.copy(), lens1.distortion.copy(), lens2.matrix.copy(), lens2.distortion.copy(),
-            image_size, sync.rotation.copy(), sync.translation_m.reshape(3, 1).copy(),
-            flags=flags, criteria=_CRITERIA,
+            object_points,
+            points1,
+            points2,
+            lens1.matrix.copy(),
+            lens1.distortion.copy(),
+            lens2.matrix.copy(),
+            lens2.distortion.copy(),
+            image_size,
+            sync.rotation.copy(),
+            sync.translation_m.reshape(3, 1).copy(),
+            flags=flags,
+            criteria=_CRITERIA,
         )
     except cv2.error as err:
         raise CalibrationError(f"OpenCV could not solve the stereo pose: {err.err or err}") from err
@@ -261,8 +282,7 @@ def calibrate_stereo(
     lens2 = Lens(np.asarray(k2, dtype=np.float64), np.asarray(d2, dtype=np.float64).ravel())
     rotation = np.asarray(rotation, dtype=np.float64)
     translation = np.asarray(translation, dtype=np.float64).ravel()
-    epipolar = [epipolar_distances_px(p.points1_px, p.points2_px, lens1, lens2, rotation, translation)
-                for p in kept]
+    epipolar = [epipolar_distances_px(p.points1_px, p.points2_px, lens1, lens2, rotation, translation) for p in kept]
     all_epipolar = np.concatenate(epipolar)
     return StereoResult(
         rotation=rotation,
@@ -280,8 +300,9 @@ def calibrate_stereo(
     )
 
 
-def epipolar_distances_px(points1_px: Array, points2_px: Array, lens1: Lens, lens2: Lens,
-                          rotation: Array, translation_m: Array) -> Array:
+def epipolar_distances_px(
+    points1_px: Array, points2_px: Array, lens1: Lens, lens2: Lens, rotation: Array, translation_m: Array
+) -> Array:
     """Symmetric epipolar distance of each correspondence (N,), in pixels.
 
     With undistorted normalised coordinates x1, x2 and the essential matrix

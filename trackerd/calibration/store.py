@@ -154,8 +154,14 @@ def render_calibration(calibration: CalibrationFile, header: str) -> str:
     return text
 
 
-def write_calibration(context: RigContext, calibration: CalibrationFile, header: str,
-                      *, check_wall: bool = True, now: _dt.datetime | None = None) -> Path | None:
+def write_calibration(
+    context: RigContext,
+    calibration: CalibrationFile,
+    header: str,
+    *,
+    check_wall: bool = True,
+    now: _dt.datetime | None = None,
+) -> Path | None:
     """Write ``calibration`` to the rig's calibration file atomically; return the backup's path (if any).
 
     The result is first merged into the rig and put through the loader's checks

@@ -42,8 +42,11 @@ Array = NDArray[np.float64]
 
 def extrinsics_config(rotation: Array, translation_m: Array) -> OpenCVExtrinsics:
     """World-to-camera (R, t) as the calibration file stores it (a Rodrigues vector)."""
-    return OpenCVExtrinsics(kind="opencv", rvec=tuple(float(v) for v in rvec_from_rotation(rotation)),
-                            tvec_m=tuple(float(v) for v in np.asarray(translation_m).ravel()))
+    return OpenCVExtrinsics(
+        kind="opencv",
+        rvec=tuple(float(v) for v in rvec_from_rotation(rotation)),
+        tvec_m=tuple(float(v) for v in np.asarray(translation_m).ravel()),
+    )
 
 
 def camera_pose(rig: RigConfig, camera_id: str) -> tuple[Array, Array] | None:
@@ -58,8 +61,9 @@ def camera_pose(rig: RigConfig, camera_id: str) -> tuple[Array, Array] | None:
     return model.rotation.copy(), model.translation_m.copy()
 
 
-def apply_intrinsics(calibration: CalibrationFile, camera_id: str, result: IntrinsicsResult,
-                     spec: BoardSpec, source: str) -> CalibrationFile:
+def apply_intrinsics(
+    calibration: CalibrationFile, camera_id: str, result: IntrinsicsResult, spec: BoardSpec, source: str
+) -> CalibrationFile:
     """The calibration with one camera's intrinsics replaced, and their provenance in ``info``."""
     info: dict[str, Any] = {
         "intrinsics_date": today(),
@@ -72,9 +76,17 @@ def apply_intrinsics(calibration: CalibrationFile, camera_id: str, result: Intri
     return with_camera(calibration, camera_id, intrinsics=result.to_config(), info=info)
 
 
-def apply_stereo(calibration: CalibrationFile, rig: RigConfig, camera1: str, camera2: str,
-                 result: StereoResult, spec: BoardSpec, source: str, *, keep_frame: bool = True
-                 ) -> tuple[CalibrationFile, str]:
+def apply_stereo(
+    calibration: CalibrationFile,
+    rig: RigConfig,
+    camera1: str,
+    camera2: str,
+    result: StereoResult,
+    spec: BoardSpec,
+    source: str,
+    *,
+    keep_frame: bool = True,
+) -> tuple[CalibrationFile, str]:
     """The calibration with both cameras' extrinsics from a stereo result; returns (file, world frame).
 
     With ``keep_frame`` and camera 1 already posed in ``rig`` (the merged rig),
@@ -104,16 +116,25 @@ def apply_stereo(calibration: CalibrationFile, rig: RigConfig, camera1: str, cam
         "baseline_m": round(result.baseline_m, 6),
         "extrinsics_source": source,
     }
-    calibration = with_camera(calibration, camera1, extrinsics=extrinsics_config(r1, t1),
-                              info={WORLD_FRAME_KEY: frame, "extrinsics_date": info["extrinsics_date"],
-                                    "extrinsics_method": f"reference of the stereo pair with {camera2}"
-                                    if pose1 is None else "kept (stereo reference)"})
+    calibration = with_camera(
+        calibration,
+        camera1,
+        extrinsics=extrinsics_config(r1, t1),
+        info={
+            WORLD_FRAME_KEY: frame,
+            "extrinsics_date": info["extrinsics_date"],
+            "extrinsics_method": f"reference of the stereo pair with {camera2}"
+            if pose1 is None
+            else "kept (stereo reference)",
+        },
+    )
     calibration = with_camera(calibration, camera2, extrinsics=extrinsics_config(r2, t2), info=info)
     return calibration, frame
 
 
-def apply_wall_fit(calibration: CalibrationFile, rig: RigConfig, fit: WallFit, method: str,
-                   display_px: tuple[int, int] | None) -> CalibrationFile:
+def apply_wall_fit(
+    calibration: CalibrationFile, rig: RigConfig, fit: WallFit, method: str, display_px: tuple[int, int] | None
+) -> CalibrationFile:
     """Re-express every posed camera in the wall frame and write the wall's corners in it.
 
     ``rig`` is the merged rig whose camera poses the fit was made with.
@@ -123,8 +144,12 @@ def apply_wall_fit(calibration: CalibrationFile, rig: RigConfig, fit: WallFit, m
         if pose is None:
             continue
         rotation, translation = fit.camera_in_wall_frame(*pose)
-        calibration = with_camera(calibration, cam.id, extrinsics=extrinsics_config(rotation, translation),
-                                  info={WORLD_FRAME_KEY: "wall", "wall_date": today(), "wall_method": method})
+        calibration = with_camera(
+            calibration,
+            cam.id,
+            extrinsics=extrinsics_config(rotation, translation),
+            info={WORLD_FRAME_KEY: "wall", "wall_date": today(), "wall_method": method},
+        )
     width, height = fit.width_m, fit.height_m
     wall: dict[str, Any] = {
         "corners_m": [[0.0, 0.0, 0.0], [width, 0.0, 0.0], [width, height, 0.0], [0.0, height, 0.0]],
@@ -143,13 +168,14 @@ def apply_measured_wall(calibration: CalibrationFile, wall: WallConfig) -> Calib
 
 def world_frames(calibration: CalibrationFile) -> dict[str, str]:
     """camera id -> the world frame its extrinsics are in, as recorded."""
-    return {cid: str(entry.info.get(WORLD_FRAME_KEY, "unknown")) for cid, entry in calibration.cameras.items()
-            if entry.extrinsics is not None}
+    return {
+        cid: str(entry.info.get(WORLD_FRAME_KEY, "unknown"))
+        for cid, entry in calibration.cameras.items()
+        if entry.extrinsics is not None
+    }
 
 
-def relative_pose(rotation1: Array, translation1: Array, rotation2: Array, translation2: Array
-                  ) -> tuple[Array, Array]:
+def relative_pose(rotation1: Array, translation1: Array, rotation2: Array, translation2: Array) -> tuple[Array, Array]:
     """Camera 2 relative to camera 1 from both world poses: ``x2 = R x1 + T``."""
     rotation = np.asarray(rotation2) @ np.asarray(rotation1).T
     return rotation, np.asarray(translation2) - rotation @ np.asarray(translation1)
-

@@ -24,9 +24,15 @@ MIN_VIEW_CHANGE = 0.03
 from an accepted view's is 'too similar' to it."""
 
 REGIONS = (
-    ("top-left corner", 0, 0), ("top edge", 1, 0), ("top-right corner", 2, 0),
-    ("left edge", 0, 1), ("centre", 1, 1), ("right edge", 2, 1),
-    ("bottom-left corner", 0, 2), ("bottom edge", 1, 2), ("bottom-right corner", 2, 2),
+    ("top-left corner", 0, 0),
+    ("top edge", 1, 0),
+    ("top-right corner", 2, 0),
+    ("left edge", 0, 1),
+    ("centre", 1, 1),
+    ("right edge", 2, 1),
+    ("bottom-left corner", 0, 2),
+    ("bottom edge", 1, 2),
+    ("bottom-right corner", 2, 2),
 )
 """The image's nine regions, (name, column third, row third), corners first in the guidance order below."""
 
@@ -82,8 +88,12 @@ class CoverageGrid:
         return "\n".join("".join("#" if c else "." for c in row) for row in self.covered)
 
     def to_json(self) -> dict[str, object]:
-        return {"cols": self.cols, "rows": self.rows, "fraction": round(self.fraction, 3),
-                "covered": self.ascii().splitlines()}
+        return {
+            "cols": self.cols,
+            "rows": self.rows,
+            "fraction": round(self.fraction, 3),
+            "covered": self.ascii().splitlines(),
+        }
 
 
 def _third(n: int, index: int) -> slice:
@@ -162,8 +172,11 @@ class ViewSelector:
             change = view_change(view, kept)
             if change is not None and change < self.min_change:
                 label = f"'{kept.name}'" if kept.name else f"view {index + 1}"
-                return Verdict(False, f"too similar to {label} (corners moved {change * 100:.1f} % of the"
-                                      f" diagonal, need {self.min_change * 100:.0f} %); move or tilt the board")
+                return Verdict(
+                    False,
+                    f"too similar to {label} (corners moved {change * 100:.2f} % of the"
+                    f" diagonal, need {self.min_change * 100:.0f} %); move or tilt the board",
+                )
         self.add(view)
         return Verdict(True)
 
@@ -182,7 +195,7 @@ class ViewSelector:
         tilted = sum(t >= 20.0 for t in self.tilts_deg)
         if len(self.views) >= 3 and tilted < max(2, len(self.views) // 3):
             return "tilt the board (20 to 45 degrees) to the left, right, up and down"
-        if self.areas and max(self.areas) < 0.15:
+        if self.areas and max(self.areas) < 0.06:
             return "bring the board closer so that it fills more of the image"
         if len(self.views) < wanted_views:
             return "keep moving the board to new places and angles"

@@ -54,8 +54,9 @@ class Target:
 
 def corner_targets(width_m: float, height_m: float) -> dict[str, Target]:
     """The display's corners bl, br, tr, tl as scalable targets."""
-    return {label: Target(label, np.array([fx * width_m, fy * height_m]), True)
-            for label, (fx, fy) in CORNER_LABELS.items()}
+    return {
+        label: Target(label, np.array([fx * width_m, fy * height_m]), True) for label, (fx, fy) in CORNER_LABELS.items()
+    }
 
 
 @dataclass(frozen=True)
@@ -123,8 +124,9 @@ class WallFit:
 
     @property
     def frame(self) -> WallFrame:
-        return WallFrame(self.origin_m.copy(), self.rotation[:, 0].copy(), self.rotation[:, 1].copy(),
-                         self.width_m, self.height_m)
+        return WallFrame(
+            self.origin_m.copy(), self.rotation[:, 0].copy(), self.rotation[:, 1].copy(), self.width_m, self.height_m
+        )
 
     @property
     def corners_m(self) -> Array:
@@ -188,6 +190,7 @@ def fit_wall(
     params = np.zeros(8 if fit_size else 6)
     weights = np.ones(len(touches) + len(pointings))
     for _ in range(8 if robust else 1):
+
         def residual_vector(p: Array, w: Array = weights) -> Array:
             return _residuals(p, rotation, origin, touches, pointings, tip_radius_m, np.sqrt(w))
 
@@ -210,8 +213,14 @@ def fit_wall(
     return WallFit(rot, org, float(width), float(height), bool(fit_size), residuals, rms, scale_xy)
 
 
-def _magnitudes(params: Array, rotation0: Array, origin0: Array, touches: Sequence[Touch],
-                pointings: Sequence[Pointing], tip_radius_m: float) -> Array:
+def _magnitudes(
+    params: Array,
+    rotation0: Array,
+    origin0: Array,
+    touches: Sequence[Touch],
+    pointings: Sequence[Pointing],
+    tip_radius_m: float,
+) -> Array:
     """Each observation's residual length in metres (touches first, then pointings, input order)."""
     rotation, origin, scale = _unpack(params, rotation0, origin0)
     out = [float(np.linalg.norm(_touch_residual(t, rotation, origin, scale, tip_radius_m))) for t in touches]
@@ -227,7 +236,9 @@ def _spans_display(targets: Sequence[Target], size_m: tuple[float, float]) -> bo
     return bool(span[0] > 0.5 * size_m[0] and span[1] > 0.5 * size_m[1])
 
 
-def _initial_points(touches: Sequence[Touch], pointings: Sequence[Pointing]) -> dict[str, tuple[Array, Array | None, str]]:
+def _initial_points(
+    touches: Sequence[Touch], pointings: Sequence[Pointing]
+) -> dict[str, tuple[Array, Array | None, str]]:
     """A first 3D position for each place: label -> (point, wall xy or None, 'touch' / 'pointing')."""
     out: dict[str, tuple[Array, Array | None, str]] = {}
     for index, touch in enumerate(touches):
@@ -241,8 +252,9 @@ def _initial_points(touches: Sequence[Touch], pointings: Sequence[Pointing]) -> 
         if len(group) < 2:
             continue
         try:
-            point, _ = triangulate_least_squares(np.array([p.tip_m for p in group]),
-                                                 np.array([p.direction for p in group]))
+            point, _ = triangulate_least_squares(
+                np.array([p.tip_m for p in group]), np.array([p.direction for p in group])
+            )
         except GeometryError:
             continue
         out.setdefault(label, (point, group[0].target.wall_xy_m, "pointing"))
@@ -256,8 +268,9 @@ def _room_side(touches: Sequence[Touch], pointings: Sequence[Pointing]) -> Array
     return mean / np.linalg.norm(mean)
 
 
-def _initial_frame(estimates: dict[str, tuple[Array, Array | None, str]], room_side: Array,
-                   tip_radius_m: float) -> tuple[Array, Array]:
+def _initial_frame(
+    estimates: dict[str, tuple[Array, Array | None, str]], room_side: Array, tip_radius_m: float
+) -> tuple[Array, Array]:
     """Plane through the first estimates, then the in-plane rotation and origin from the known places."""
     points = np.array([p for p, _, _ in estimates.values()])
     try:
@@ -266,8 +279,7 @@ def _initial_frame(estimates: dict[str, tuple[Array, Array | None, str]], room_s
         raise CalibrationError(f"the wall places do not fix a plane: {err}") from err
     normal = plane.normal if plane.normal @ room_side > 0 else -plane.normal
     # Touched tip centres sit one radius in front of the wall.
-    shifted = {k: (p - tip_radius_m * normal if kind == "touch" else p, xy)
-               for k, (p, xy, kind) in estimates.items()}
+    shifted = {k: (p - tip_radius_m * normal if kind == "touch" else p, xy) for k, (p, xy, kind) in estimates.items()}
     seed = np.cross(normal, [0.0, 0.0, 1.0])
     if np.linalg.norm(seed) < 0.1:
         seed = np.cross(normal, [1.0, 0.0, 0.0])
@@ -315,8 +327,15 @@ def _pointing_residual(pointing: Pointing, rotation: Array, origin: Array, scale
     return rel - (rel @ d) * d
 
 
-def _residuals(params: Array, rotation0: Array, origin0: Array, touches: Sequence[Touch],
-               pointings: Sequence[Pointing], tip_radius_m: float, root_weights: Array) -> Array:
+def _residuals(
+    params: Array,
+    rotation0: Array,
+    origin0: Array,
+    touches: Sequence[Touch],
+    pointings: Sequence[Pointing],
+    tip_radius_m: float,
+    root_weights: Array,
+) -> Array:
     rotation, origin, scale = _unpack(params, rotation0, origin0)
     parts = [_touch_residual(t, rotation, origin, scale, tip_radius_m) for t in touches]
     parts += [_pointing_residual(p, rotation, origin, scale) for p in pointings]
@@ -354,8 +373,15 @@ def _gauss_newton(func, params: Array, iterations: int = 50) -> Array:
     return params
 
 
-def _report(rotation: Array, origin: Array, scale: Array, touches: Sequence[Touch],
-            pointings: Sequence[Pointing], tip_radius_m: float, used: Array) -> tuple[Residual, ...]:
+def _report(
+    rotation: Array,
+    origin: Array,
+    scale: Array,
+    touches: Sequence[Touch],
+    pointings: Sequence[Pointing],
+    tip_radius_m: float,
+    used: Array,
+) -> tuple[Residual, ...]:
     """Residuals of every observation (touches, then pointings grouped by target in first-seen order)."""
     normal = rotation[:, 2]
     out: list[Residual] = []
@@ -376,8 +402,9 @@ def _report(rotation: Array, origin: Array, scale: Array, touches: Sequence[Touc
         lines = [p for p in group if id(p) in used_p]
         if len(lines) >= 2:
             try:
-                point, _ = triangulate_least_squares(np.array([p.tip_m for p in lines]),
-                                                     np.array([p.direction for p in lines]))
+                point, _ = triangulate_least_squares(
+                    np.array([p.tip_m for p in lines]), np.array([p.direction for p in lines])
+                )
                 meet = float(normal @ (point - origin)) * 1000.0
             except GeometryError:
                 meet = None

@@ -69,62 +69,103 @@ from trackerd.locator import Locator
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "calibrate", help="calibrate cameras, the stereo pair and the wall; check a calibration",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "calibrate",
+        help="calibrate cameras, the stereo pair and the wall; check a calibration",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     steps = parser.add_subparsers(dest="calibrate_command", metavar="STEP", required=True)
 
-    p = steps.add_parser("intrinsics", help="one camera's lens from views of a board",
-                         description="Calibrate one camera's focal length, principal point and distortion.")
+    p = steps.add_parser(
+        "intrinsics",
+        help="one camera's lens from views of a board",
+        description="Calibrate one camera's focal length, principal point and distortion.",
+    )
     _common(p)
     p.add_argument("--camera", required=True, help="camera id, as in the rig file")
     p.add_argument("--board", required=True, type=_board, help="chessboard:10x7:60 or charuco:10x7:60:45[:5X5_100]")
     p.add_argument("images", nargs="*", metavar="IMAGE", help="images of the board from this camera")
     _sources(p)
     p.add_argument("--views", type=int, default=20, help="views to collect in --live mode (default 20)")
-    p.add_argument("--min-views", type=int, default=MIN_VIEWS, help=f"fewest views to calibrate from (default {MIN_VIEWS})")
-    p.add_argument("--distortion", type=int, choices=DISTORTION_TERMS, default=5,
-                   help="distortion coefficients: 4 (k1 k2 p1 p2), 5 (and k3, default), 8 (rational)")
+    p.add_argument(
+        "--min-views", type=int, default=MIN_VIEWS, help=f"fewest views to calibrate from (default {MIN_VIEWS})"
+    )
+    p.add_argument(
+        "--distortion",
+        type=int,
+        choices=DISTORTION_TERMS,
+        default=5,
+        help="distortion coefficients: 4 (k1 k2 p1 p2), 5 (and k3, default), 8 (rational)",
+    )
     p.add_argument("--drop-outliers", action="store_true", help="drop views whose error stands out, and recalibrate")
     _quality(p)
     p.set_defaults(handler=intrinsics_command)
 
-    p = steps.add_parser("stereo", help="camera 2's pose relative to camera 1 from synchronized pairs",
-                         description="Calibrate the stereo pair (the rig's first two cameras).")
+    p = steps.add_parser(
+        "stereo",
+        help="camera 2's pose relative to camera 1 from synchronized pairs",
+        description="Calibrate the stereo pair (the rig's first two cameras).",
+    )
     _common(p)
     p.add_argument("--board", required=True, type=_board, help="chessboard:10x7:100 or charuco:10x7:100:75[:DICT]")
     p.add_argument("--pairs", metavar="DIR", help="folder of pairs named <name>-<camera>.<ext>")
     _sources(p)
     p.add_argument("--views", type=int, default=15, help="pairs to collect in --live mode (default 15)")
     p.add_argument("--min-pairs", type=int, default=MIN_PAIRS, help=f"fewest pairs (default {MIN_PAIRS})")
-    p.add_argument("--refine-intrinsics", action="store_true",
-                   help="let the stereo solve adjust both cameras' intrinsics (default: keep them fixed)")
-    p.add_argument("--world", choices=("keep", "camera1"), default="keep",
-                   help="keep: camera 1 stays where the rig has it, so the rig's frame is kept (default);"
-                        " camera1: the world becomes camera 1's frame, as in the report")
-    p.add_argument("--max-skew-ms", type=float, default=2.0,
-                   help="--live: pairs whose frames are further apart in time are out of sync (default 2)")
+    p.add_argument(
+        "--refine-intrinsics",
+        action="store_true",
+        help="let the stereo solve adjust both cameras' intrinsics (default: keep them fixed)",
+    )
+    p.add_argument(
+        "--world",
+        choices=("keep", "camera1"),
+        default="keep",
+        help="keep: camera 1 stays where the rig has it, so the rig's frame is kept (default);"
+        " camera1: the world becomes camera 1's frame, as in the report",
+    )
+    p.add_argument(
+        "--max-skew-ms",
+        type=float,
+        default=2.0,
+        help="--live: pairs whose frames are further apart in time are out of sync (default 2)",
+    )
     _quality(p)
     p.set_defaults(handler=stereo_command)
 
-    p = steps.add_parser("wall", help="the wall plane and frame: measured points, touches or pointing",
-                         description="Calibrate the wall and re-express the cameras in its frame.")
+    p = steps.add_parser(
+        "wall",
+        help="the wall plane and frame: measured points, touches or pointing",
+        description="Calibrate the wall and re-express the cameras in its frame.",
+    )
     _common(p)
     method = p.add_mutually_exclusive_group(required=True)
-    method.add_argument("--points", metavar="FILE",
-                        help="a TOML file with a [wall] table measured in the cameras' frame (the report's way)")
+    method.add_argument(
+        "--points",
+        metavar="FILE",
+        help="a TOML file with a [wall] table measured in the cameras' frame (the report's way)",
+    )
     method.add_argument("--touch", action="store_true", help="touch targets on the wall with the pointer's tip")
     method.add_argument("--point", action="store_true", help="aim the pointer at targets from several places")
     p.add_argument("--pairs", metavar="DIR", help="folder of images named <target>[-<n>]-<camera>.<ext>")
     _sources(p)
     p.add_argument("--targets", metavar="FILE", help="TOML [targets] table adding marks to the default targets")
-    p.add_argument("--use", metavar="LABELS", help="--live: comma-separated targets to visit (default bl,br,tr,tl,centre)")
-    p.add_argument("--places", type=int, default=2, help="--point --live: places to aim at each target from (default 2)")
-    p.add_argument("--fixed-size", action="store_true", help="keep the configured display size instead of solving for it")
+    p.add_argument(
+        "--use", metavar="LABELS", help="--live: comma-separated targets to visit (default bl,br,tr,tl,centre)"
+    )
+    p.add_argument(
+        "--places", type=int, default=2, help="--point --live: places to aim at each target from (default 2)"
+    )
+    p.add_argument(
+        "--fixed-size", action="store_true", help="keep the configured display size instead of solving for it"
+    )
     p.set_defaults(handler=wall_command)
 
-    p = steps.add_parser("check", help="ray gaps and reprojection errors of the waved pointer",
-                         description="Check a calibration: wave the pointer around in view of both cameras.")
+    p = steps.add_parser(
+        "check",
+        help="ray gaps and reprojection errors of the waved pointer",
+        description="Check a calibration: wave the pointer around in view of both cameras.",
+    )
     p.add_argument("--config", required=True, help="rig TOML file")
     p.add_argument("--pairs", metavar="DIR", help="folder of pointer images named <name>-<camera>.<ext>")
     _sources(p, snapshots=False)
@@ -148,25 +189,46 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _sources(p: argparse.ArgumentParser, snapshots: bool = True) -> None:
-    p.add_argument("--live", action="store_true", help="use the rig's cameras (the daemon's source) and guide the operator")
+    p.add_argument(
+        "--live", action="store_true", help="use the rig's cameras (the daemon's source) and guide the operator"
+    )
     p.add_argument("--recording", metavar="R", help="read frames from a recording (not available yet)")
-    p.add_argument("--source", choices=("cameras", "simulated"), default="cameras",
-                   help="--live: the rig's cameras (default), or frames the simulator renders from the rig's"
-                        " own (inline) geometry, to try the procedure without cameras")
+    p.add_argument(
+        "--source",
+        choices=("cameras", "simulated"),
+        default="cameras",
+        help="--live: the rig's cameras (default), or frames the simulator renders from the rig's"
+        " own (inline) geometry, to try the procedure without cameras",
+    )
     p.add_argument("--duration", type=float, help="--live: stop after this many seconds")
     if snapshots:
-        p.add_argument("--snapshots", metavar="DIR",
-                       help="--live: save accepted frames here (default calibration-snapshots/<step>-<time>)")
+        p.add_argument(
+            "--snapshots",
+            metavar="DIR",
+            help="--live: save accepted frames here (default calibration-snapshots/<step>-<time>)",
+        )
 
 
 def _quality(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--max-blur", type=float, default=MAX_SHARPNESS_PX,
-                   help=f"reject views whose edges rise over more pixels (default {MAX_SHARPNESS_PX})")
-    p.add_argument("--min-change", type=float, default=MIN_VIEW_CHANGE,
-                   help=f"reject views whose corners moved less than this fraction of the image diagonal"
-                        f" from an accepted view (default {MIN_VIEW_CHANGE})")
-    p.add_argument("--max-rms", type=float, default=1.0,
-                   help="refuse to write a result whose RMS reprojection error exceeds this (px, default 1.0)")
+    p.add_argument(
+        "--max-blur",
+        type=float,
+        default=MAX_SHARPNESS_PX,
+        help=f"reject views whose edges rise over more pixels (default {MAX_SHARPNESS_PX})",
+    )
+    p.add_argument(
+        "--min-change",
+        type=float,
+        default=MIN_VIEW_CHANGE,
+        help=f"reject views whose corners moved less than this fraction of the image diagonal"
+        f" from an accepted view (default {MIN_VIEW_CHANGE})",
+    )
+    p.add_argument(
+        "--max-rms",
+        type=float,
+        default=1.0,
+        help="refuse to write a result whose RMS reprojection error exceeds this (px, default 1.0)",
+    )
 
 
 # --------------------------------------------------------------------------- helpers
@@ -190,8 +252,15 @@ class Output:
 
 def _check_source(args: argparse.Namespace, offline: list[str]) -> str:
     """Which input the step reads: 'live', 'recording' or 'files'; errors for none or several."""
-    chosen = [name for name, given in (("--live", args.live), ("--recording", args.recording is not None),
-                                       *((o, True) for o in offline)) if given]
+    chosen = [
+        name
+        for name, given in (
+            ("--live", args.live),
+            ("--recording", args.recording is not None),
+            *((o, True) for o in offline),
+        )
+        if given
+    ]
     if not chosen:
         raise CalibrationError("give the input: images or --pairs DIR, --live, or --recording R")
     if len(chosen) > 1:
@@ -213,8 +282,9 @@ def _camera(rig: RigConfig, camera_id: str) -> tuple[int, CameraConfig]:
 
 def _lens(cam: CameraConfig) -> Lens:
     if cam.intrinsics is None:
-        raise CalibrationError(f"camera '{cam.id}' has no intrinsics yet; run `trackerd calibrate intrinsics"
-                               f" --camera {cam.id}` first")
+        raise CalibrationError(
+            f"camera '{cam.id}' has no intrinsics yet; run `trackerd calibrate intrinsics --camera {cam.id}` first"
+        )
     posed = cam.model_copy(update={"extrinsics": PoseExtrinsics(kind="pose", position_m=(0.0, 0.0, 0.0))})
     model = CameraModel.from_config(posed)
     return Lens(model.matrix.copy(), model.distortion.copy())
@@ -229,8 +299,9 @@ def _snapshot_dir(args: argparse.Namespace, step: str) -> Path:
     return Path("calibration-snapshots") / f"{step}-{dt.datetime.now():%Y%m%d-%H%M%S}"
 
 
-def _write(context: RigContext, calibration, header: str, dry_run: bool, notes: list[str],
-           check_wall: bool = True) -> dict[str, Any]:
+def _write(
+    context: RigContext, calibration, header: str, dry_run: bool, notes: list[str], check_wall: bool = True
+) -> dict[str, Any]:
     """Write the calibration file (unless a dry run); what happened is appended to ``notes``."""
     if dry_run:
         notes.append("dry run: nothing written")
@@ -239,12 +310,18 @@ def _write(context: RigContext, calibration, header: str, dry_run: bool, notes: 
     backup = write_calibration(context, calibration, header, check_wall=check_wall)
     notes.append(f"written: {path}" + (f" (previous calibration kept as {backup.name})" if backup else ""))
     if context.rig.calibration is None or (context.rig_path.parent / context.rig.calibration).resolve() != path:
-        notes.append(f"note: the rig does not name this file; add calibration = \"{path}\" to {context.rig_path}")
+        notes.append(f'note: the rig does not name this file; add calibration = "{path}" to {context.rig_path}')
     return {"written": str(path), "backup": str(backup) if backup else None}
 
 
-def _live(context: RigContext, rig_for_source: RigConfig, args: argparse.Namespace, session,
-          out: Output, simulated: Callable[[], Any] | None) -> None:
+def _live(
+    context: RigContext,
+    rig_for_source: RigConfig,
+    args: argparse.Namespace,
+    session,
+    out: Output,
+    simulated: Callable[[], Any] | None,
+) -> None:
     """Run a session on the live source; Ctrl-C ends collection and keeps what was collected."""
     if args.source == "simulated":
         if simulated is None:
@@ -271,8 +348,9 @@ def _simulation_truth(context: RigContext) -> RigConfig:
     rig = context.rig
     missing = [c.id for c in rig.cameras if c.intrinsics is None or c.extrinsics is None]
     if missing:
-        raise CalibrationError("--source simulated renders the rig file's inline geometry, and camera(s)"
-                               f" {', '.join(missing)} have none")
+        raise CalibrationError(
+            f"--source simulated renders the rig file's inline geometry, and camera(s) {', '.join(missing)} have none"
+        )
     return rig
 
 
@@ -288,13 +366,23 @@ def intrinsics_command(args: argparse.Namespace) -> int:
     spec: BoardSpec = args.board
     out.say(f"board: {spec.describe()}")
     if mode == "live":
-        session = IntrinsicsSession(spec, index, cam.id, cam.width_px, cam.height_px, wanted_views=args.views,
-                                    min_views=args.min_views, quality=quality, min_change=args.min_change,
-                                    snapshots=_snapshot_dir(args, f"intrinsics-{cam.id}"),
-                                    distortion_terms=args.distortion)
+        session = IntrinsicsSession(
+            spec,
+            index,
+            cam.id,
+            cam.width_px,
+            cam.height_px,
+            wanted_views=args.views,
+            min_views=args.min_views,
+            quality=quality,
+            min_change=args.min_change,
+            snapshots=_snapshot_dir(args, f"intrinsics-{cam.id}"),
+            distortion_terms=args.distortion,
+        )
         out.say(f"show the board to camera {cam.id}; next: {session.selector.guidance(args.views)}")
-        _live(context, context.rig, args, session, out,
-              lambda: _simulated_boards(context, spec, [index], args.views * 2))
+        _live(
+            context, context.rig, args, session, out, lambda: _simulated_boards(context, spec, [index], args.views * 2)
+        )
         rejected = [("live", kind) for kind, count in session.rejections.items() for _ in range(count)]
         collected = Collected(views=list(session.views), frames=session.frames, rejected=rejected)
     else:
@@ -305,24 +393,30 @@ def intrinsics_command(args: argparse.Namespace) -> int:
     if not collected.views:
         raise CalibrationError(
             f"no usable view of the board in {collected.frames} image(s)"
-            + (" (no board found in any: check --board, which counts squares, not inner corners)"
-               if all(r.startswith("no board") for _, r in collected.rejected) else "")
+            + (
+                " (no board found in any: check --board, which counts squares, not inner corners)"
+                if all(r.startswith("no board") for _, r in collected.rejected)
+                else ""
+            )
         )
-    result = calibrate_intrinsics(collected.views, distortion_terms=args.distortion, min_views=args.min_views,
-                                  drop_outliers=args.drop_outliers)
+    result = calibrate_intrinsics(
+        collected.views, distortion_terms=args.distortion, min_views=args.min_views, drop_outliers=args.drop_outliers
+    )
     report = intrinsics_json(result, collected.rejected)
     text = intrinsics_text(cam.id, result, collected.rejected)
     if result.rms_px > args.max_rms:
         out.result(text, {"camera": cam.id, **report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
-    calibration = apply_intrinsics(context.calibration, cam.id, result, spec,
-                                   "live" if mode == "live" else f"{len(args.images)} images")
+    calibration = apply_intrinsics(
+        context.calibration, cam.id, result, spec, "live" if mode == "live" else f"{len(args.images)} images"
+    )
     entry = context.calibration.cameras.get(cam.id)
     notes: list[str] = []
     written = _write(context, calibration, f"trackerd calibrate intrinsics --camera {cam.id}", args.dry_run, notes)
     if entry is not None and entry.extrinsics is not None and not args.dry_run:
-        notes.append(f"note: {cam.id}'s extrinsics were found with its old intrinsics;"
-                     " run `trackerd calibrate stereo` again")
+        notes.append(
+            f"note: {cam.id}'s extrinsics were found with its old intrinsics; run `trackerd calibrate stereo` again"
+        )
     out.result(text, {"camera": cam.id, **report, **written})
     for note in notes:
         out.say(note)
@@ -363,9 +457,17 @@ def stereo_command(args: argparse.Namespace) -> int:
             " number of squares on one side and even on the other (e.g. 10x7), or a ChArUco board"
         )
     if mode == "live":
-        session = StereoSession(spec, (cam1.id, cam2.id), cam1.width_px, cam1.height_px, wanted_pairs=args.views,
-                                quality=quality, min_change=args.min_change,
-                                max_skew_ns=int(args.max_skew_ms * 1e6), snapshots=_snapshot_dir(args, "stereo"))
+        session = StereoSession(
+            spec,
+            (cam1.id, cam2.id),
+            cam1.width_px,
+            cam1.height_px,
+            wanted_pairs=args.views,
+            quality=quality,
+            min_change=args.min_change,
+            max_skew_ns=int(args.max_skew_ms * 1e6),
+            snapshots=_snapshot_dir(args, "stereo"),
+        )
         out.say(f"hold the board where both {cam1.id} and {cam2.id} see its printed face")
         _live(context, rig, args, session, out, lambda: _simulated_boards(context, spec, [0, 1], args.views * 2))
         collected = Collected(pairs=list(session.pairs), frames=session.frames)
@@ -383,21 +485,45 @@ def stereo_command(args: argparse.Namespace) -> int:
             out.say(f"  {name}: {reason}")
     if not collected.pairs and collected.frames:
         raise CalibrationError(f"no pair in {collected.frames} had the board seen by both cameras")
-    result = calibrate_stereo(collected.pairs, lens1, lens2, (cam1.width_px, cam1.height_px),
-                              refine_intrinsics=args.refine_intrinsics, min_pairs=args.min_pairs)
-    calibration, frame = apply_stereo(context.calibration, rig, cam1.id, cam2.id, result, spec,
-                                      "live" if mode == "live" else str(args.pairs),
-                                      keep_frame=args.world == "keep")
+    result = calibrate_stereo(
+        collected.pairs,
+        lens1,
+        lens2,
+        (cam1.width_px, cam1.height_px),
+        refine_intrinsics=args.refine_intrinsics,
+        min_pairs=args.min_pairs,
+    )
+    calibration, frame = apply_stereo(
+        context.calibration,
+        rig,
+        cam1.id,
+        cam2.id,
+        result,
+        spec,
+        "live" if mode == "live" else str(args.pairs),
+        keep_frame=args.world == "keep",
+    )
     if args.refine_intrinsics:
         from trackerd.calibration.store import with_camera
 
         for cam, lens in ((cam1, result.lens1), (cam2, result.lens2)):
-            calibration = with_camera(calibration, cam.id, intrinsics={
-                "model": "opencv", "fx_px": float(lens.matrix[0, 0]), "fy_px": float(lens.matrix[1, 1]),
-                "cx_px": float(lens.matrix[0, 2]), "cy_px": float(lens.matrix[1, 2]),
-                "distortion": [float(d) for d in lens.distortion]}, info={"intrinsics_refined_by": "stereo"})
-    frame_text = {"rig": "the rig's frame (camera 1 kept where the rig has it)",
-                  "wall": "the wall frame (camera 1 kept where the wall calibration put it)"}.get(frame, frame)
+            calibration = with_camera(
+                calibration,
+                cam.id,
+                intrinsics={
+                    "model": "opencv",
+                    "fx_px": float(lens.matrix[0, 0]),
+                    "fy_px": float(lens.matrix[1, 1]),
+                    "cx_px": float(lens.matrix[0, 2]),
+                    "cy_px": float(lens.matrix[1, 2]),
+                    "distortion": [float(d) for d in lens.distortion],
+                },
+                info={"intrinsics_refined_by": "stereo"},
+            )
+    frame_text = {
+        "rig": "the rig's frame (camera 1 kept where the rig has it)",
+        "wall": "the wall frame (camera 1 kept where the wall calibration put it)",
+    }.get(frame, frame)
     if frame.startswith("camera "):
         frame_text = f"{frame}'s frame (as in the report)"
     text = stereo_text((cam1.id, cam2.id), result, collected.rejected, frame_text)
@@ -406,11 +532,19 @@ def stereo_command(args: argparse.Namespace) -> int:
         out.result(text, {**report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
     notes: list[str] = []
-    written = _write(context, calibration, "trackerd calibrate stereo", args.dry_run, notes,
-                     check_wall=not frame.startswith("camera "))
+    written = _write(
+        context,
+        calibration,
+        "trackerd calibrate stereo",
+        args.dry_run,
+        notes,
+        check_wall=not frame.startswith("camera "),
+    )
     if frame.startswith("camera ") and not args.dry_run:
-        notes.append("next: `trackerd calibrate wall`; until then the cameras are in "
-                     f"{frame}'s frame and the rig's wall (in its own frame) does not match them")
+        notes.append(
+            "next: `trackerd calibrate wall`; until then the cameras are in "
+            f"{frame}'s frame and the rig's wall (in its own frame) does not match them"
+        )
     out.result(text, {**report, **written})
     for note in notes:
         out.say(note)
@@ -430,7 +564,7 @@ def wall_command(args: argparse.Namespace) -> int:
     size = (nominal.width_m, nominal.height_m)
     display = nominal.display_width_px, nominal.display_height_px
     display_px = display if nominal.has_display else None
-    targets = (read_targets(args.targets, *size, display_px) if args.targets else default_targets(*size))
+    targets = read_targets(args.targets, *size, display_px) if args.targets else default_targets(*size)
     mode = _check_source(args, ["--pairs"] if args.pairs else [])
     method = "touch" if args.touch else "point"
     radius = rig.pointer.end_diameter_m / 2.0
@@ -441,8 +575,14 @@ def wall_command(args: argparse.Namespace) -> int:
         unknown = [label for label in labels if label not in targets]
         if unknown:
             raise CalibrationError(f"unknown target(s) {', '.join(unknown)}; known: {', '.join(targets)}")
-        session = WallSession(Locator(rig), [targets[label] for label in labels], method, args.places,
-                              snapshots=_snapshot_dir(args, f"wall-{method}"), camera_ids=[c.id for c in rig.cameras])
+        session = WallSession(
+            Locator(rig),
+            [targets[label] for label in labels],
+            method,
+            args.places,
+            snapshots=_snapshot_dir(args, f"wall-{method}"),
+            camera_ids=[c.id for c in rig.cameras],
+        )
         out.say(session.prompt())
         _live(context, rig, args, session, out, lambda: _simulated_wall(context, session))
         touches, pointings = session.touches, session.pointings
@@ -455,16 +595,19 @@ def wall_command(args: argparse.Namespace) -> int:
     notes: list[str] = []
     written = _write(context, calibration, f"trackerd calibrate wall --{method}", args.dry_run, notes)
     if not args.dry_run:
-        notes.append("world frame: the wall frame (origin at the display's bottom-left corner, x right, y up,"
-                     " z into the room); every camera was re-expressed in it")
+        notes.append(
+            "world frame: the wall frame (origin at the display's bottom-left corner, x right, y up,"
+            " z into the room); every camera was re-expressed in it"
+        )
     out.result(text, {**report, "world_frame": "wall", **written})
     for note in notes:
         out.say(note)
     return 0
 
 
-def _wall_from_folder(folder: str, rig: RigConfig, targets: dict[str, Target], method: str, out: Output
-                      ) -> tuple[list[Touch], list[Pointing]]:
+def _wall_from_folder(
+    folder: str, rig: RigConfig, targets: dict[str, Target], method: str, out: Output
+) -> tuple[list[Touch], list[Pointing]]:
     groups = pair_files(folder, [c.id for c in rig.cameras])
     locator: Locator | None = None
     touches: list[Touch] = []
@@ -473,8 +616,9 @@ def _wall_from_folder(folder: str, rig: RigConfig, targets: dict[str, Target], m
         label = split_label(name)
         target = targets.get(label)
         if target is None:
-            raise CalibrationError(f"{folder}: '{name}': no target '{label}' (known: {', '.join(targets)};"
-                                   " add marks with --targets FILE)")
+            raise CalibrationError(
+                f"{folder}: '{name}': no target '{label}' (known: {', '.join(targets)}; add marks with --targets FILE)"
+            )
         frames = read_pair(files, list(rig.cameras))
         formats = [fmt for _, _, fmt in frames]
         if locator is None or locator.pixel_formats != formats:
@@ -503,8 +647,16 @@ def _measured_wall(context: RigContext, args: argparse.Namespace, out: Output) -
     notes: list[str] = []
     written = _write(context, calibration, "trackerd calibrate wall --points", args.dry_run, notes)
     residuals = frame.fit_residuals_m if frame.fit_residuals_m is not None else np.zeros(len(points))
-    out.result(text, {"points": len(points), "residuals_mm": [round(float(r) * 1000, 3) for r in residuals],
-                      "size_m": [frame.width_m, frame.height_m], "world_frame": "unchanged", **written})
+    out.result(
+        text,
+        {
+            "points": len(points),
+            "residuals_mm": [round(float(r) * 1000, 3) for r in residuals],
+            "size_m": [frame.width_m, frame.height_m],
+            "world_frame": "unchanged",
+            **written,
+        },
+    )
     for note in notes:
         out.say(note)
     return 0
@@ -577,18 +729,20 @@ def check_command(args: argparse.Namespace) -> int:
 
 
 def _simulated_pointer(context: RigContext, count: int):
+    """The pointer waved in a figure eight over the display (trackerd.sim.motion), rendered."""
     from trackerd.sim.board import RenderedPairSource
+    from trackerd.sim.motion import make_motion
     from trackerd.sim.render import SceneRenderer
-    from trackerd.sim.scene import random_pose
 
     truth = _simulation_truth(context)
     scene = SceneRenderer(truth)
+    motion = make_motion("figure8", truth)
     rng = np.random.default_rng(13)
     ids = [c.id for c in truth.cameras]
+    frames = count * 2
 
     def render(k: int):
-        pose = random_pose(truth, rng, scene.cameras, scene.wall)
+        pose = motion(k * motion.period_s / frames)
         return [scene.render(i, pose, rng).image for i in range(len(ids))]
 
-    return RenderedPairSource(ids, list(scene.pixel_formats), render, count * 2)
-
+    return RenderedPairSource(ids, list(scene.pixel_formats), render, frames)

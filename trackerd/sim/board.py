@@ -82,8 +82,9 @@ class RenderedBoard:
 class BoardRenderer:
     """Renders a board at any pose into the views of a :class:`SceneRenderer`'s cameras."""
 
-    def __init__(self, scene: SceneRenderer, spec: BoardSpec, *, margin_squares: float = 0.75,
-                 supersampling: int = 4) -> None:
+    def __init__(
+        self, scene: SceneRenderer, spec: BoardSpec, *, margin_squares: float = 0.75, supersampling: int = 4
+    ) -> None:
         self.scene = scene
         self.spec = spec
         self.margin_m = margin_squares * spec.square_m
@@ -124,9 +125,9 @@ class BoardRenderer:
         corners_world = pose.to_world(self.spec.object_points_m)
         corners_px = camera.project(corners_world)
         facing = float((camera.centre_m - pose.origin_m) @ pose.rotation[:, 2]) < 0.0
-        visible = np.all(np.isfinite(corners_px), axis=1) & camera.contains(
-            np.nan_to_num(corners_px, nan=-1e9)
-        ) & facing
+        visible = (
+            np.all(np.isfinite(corners_px), axis=1) & camera.contains(np.nan_to_num(corners_px, nan=-1e9)) & facing
+        )
         return RenderedBoard(image, fmt, corners_px, visible)
 
     # ------------------------------------------------------------------ geometry
@@ -158,9 +159,7 @@ class BoardRenderer:
             return None
         return x0, y0, x1, y1
 
-    def _render_region(
-        self, index: int, pose: BoardPose, x0: int, y0: int, x1: int, y1: int
-    ) -> tuple[Array, Array]:
+    def _render_region(self, index: int, pose: BoardPose, x0: int, y0: int, x1: int, y1: int) -> tuple[Array, Array]:
         """Premultiplied board colour (h, w, 3) and coverage (h, w) over a pixel box.
 
         One ray per pixel centre first; every pixel whose 3 x 3 neighbourhood sees
@@ -222,8 +221,9 @@ class BoardRenderer:
             labels[on_plate] = np.where(black[on_plate], _BLACK, _WHITE)
         else:
             labels[on_plate] = _BACK
-        albedo = np.select([labels == _WHITE, labels == _BLACK, labels == _BACK],
-                           [WHITE_ALBEDO, BLACK_ALBEDO, BACK_ALBEDO], 0.0)
+        albedo = np.select(
+            [labels == _WHITE, labels == _BLACK, labels == _BACK], [WHITE_ALBEDO, BLACK_ALBEDO, BACK_ALBEDO], 0.0
+        )
         light = np.asarray(self.scene.room.light_m) - points
         light /= np.maximum(np.linalg.norm(light, axis=1, keepdims=True), 1e-12)
         facing_normal = -normal if front else normal
@@ -259,8 +259,9 @@ def board_black(spec: BoardSpec, u_m: Array, v_m: Array) -> NDArray[np.bool_]:
 # --------------------------------------------------------------------------- poses
 
 
-def facing_rotation(view_dir: Array, tilt_x_deg: float, tilt_y_deg: float, spin_deg: float,
-                    up: Array | None = None) -> Array:
+def facing_rotation(
+    view_dir: Array, tilt_x_deg: float, tilt_y_deg: float, spin_deg: float, up: Array | None = None
+) -> Array:
     """World-from-board rotation of a board facing along ``view_dir`` (from the viewer to the board).
 
     The board's z (into the board) starts along ``view_dir`` with its y as close
@@ -276,8 +277,11 @@ def facing_rotation(view_dir: Array, tilt_x_deg: float, tilt_y_deg: float, spin_
     y /= np.linalg.norm(y)
     x = np.cross(y, z)
     base = np.column_stack([x, y, z])
-    turn = (rotation_about_z(np.radians(spin_deg)) @ rotation_about_x(np.radians(tilt_x_deg))
-            @ rotation_about_y(np.radians(tilt_y_deg)))
+    turn = (
+        rotation_about_z(np.radians(spin_deg))
+        @ rotation_about_x(np.radians(tilt_x_deg))
+        @ rotation_about_y(np.radians(tilt_y_deg))
+    )
     return base @ turn
 
 
@@ -320,8 +324,7 @@ def poses_for_camera(
         tilt_x, tilt_y = tilt * np.cos(axis), tilt * np.sin(axis)
         spin = rng.uniform(-25.0, 25.0)
         view_dir = centre - camera.centre_m
-        pose = BoardPose.centred(spec, centre, facing_rotation(view_dir, tilt_x, tilt_y, spin,
-                                                                up=-camera.rotation[1]))
+        pose = BoardPose.centred(spec, centre, facing_rotation(view_dir, tilt_x, tilt_y, spin, up=-camera.rotation[1]))
         if board_in_view(scene, spec, pose, [camera_index], margin_px):
             px = camera.project(pose.to_world(spec.object_points_m))
             cells = {(int(x / width * 8), int(y / height * 6)) for x, y in px}
@@ -332,6 +335,7 @@ def poses_for_camera(
     seen: dict[tuple[int, int], int] = {}
     chosen: list[BoardPose] = []
     for _ in range(count):
+
         def gain(item: tuple[BoardPose, set[tuple[int, int]], float]) -> float:
             return sum(weight[c] / (1.0 + seen.get(c, 0)) for c in item[1]) + 0.01 * item[2]
 
@@ -398,8 +402,14 @@ def poses_for_pair(
     return poses
 
 
-def board_in_view(scene: SceneRenderer, spec: BoardSpec, pose: BoardPose, camera_indices: list[int],
-                  margin_px: float, max_obliquity_deg: float = 75.0) -> bool:
+def board_in_view(
+    scene: SceneRenderer,
+    spec: BoardSpec,
+    pose: BoardPose,
+    camera_indices: list[int],
+    margin_px: float,
+    max_obliquity_deg: float = 75.0,
+) -> bool:
     """Every inner corner and the plate's outline inside each camera's image, printed face towards it,
     seen no more than ``max_obliquity_deg`` away from the board's normal."""
     width, height = spec.size_m
@@ -432,9 +442,16 @@ class RenderedPairSource(PairSource):
     consumer should take pairs one by one rather than skip to the newest.
     """
 
-    def __init__(self, camera_ids: list[str], pixel_formats: list[str],
-                 render: Callable[[int], list[NDArray[np.uint8]]], count: int, *,
-                 period_ns: int = 33_333_333, skew_ns: int = 0) -> None:
+    def __init__(
+        self,
+        camera_ids: list[str],
+        pixel_formats: list[str],
+        render: Callable[[int], list[NDArray[np.uint8]]],
+        count: int,
+        *,
+        period_ns: int = 33_333_333,
+        skew_ns: int = 0,
+    ) -> None:
         self.camera_ids = camera_ids
         self.pixel_formats = pixel_formats
         self._render = render
@@ -467,12 +484,14 @@ class RenderedPairSource(PairSource):
         return FramePair(frames, stamp, self.skew_ns, k)
 
     def status(self) -> SourceStatus:
-        return SourceStatus(running=self._running, trigger="software", pairing="rendered",
-                            pairs=self._index, delivered=self._index)
+        return SourceStatus(
+            running=self._running, trigger="software", pairing="rendered", pairs=self._index, delivered=self._index
+        )
 
 
-def board_pair_source(board: BoardRenderer, poses: list[BoardPose], rng: np.random.Generator,
-                      blur_px: float = 0.5) -> RenderedPairSource:
+def board_pair_source(
+    board: BoardRenderer, poses: list[BoardPose], rng: np.random.Generator, blur_px: float = 0.5
+) -> RenderedPairSource:
     """Every camera's view of the board at each pose in turn, as a pair source."""
     scene = board.scene
     ids = [cam.camera_id for cam in scene.cameras]
