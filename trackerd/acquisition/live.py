@@ -33,6 +33,7 @@ from trackerd.acquisition.status import SourceStatus
 from trackerd.acquisition.trigger import TickSchedule, TriggerGate
 from trackerd.acquisition.worker import CameraWorker, OpenHook
 from trackerd.config.models import RigConfig
+from trackerd.errors import CameraError
 
 log = logging.getLogger(__name__)
 
@@ -179,10 +180,17 @@ class AravisPairSource(PairSource):
             self._ready.notify_all()
 
     def next_pair(self, timeout_s: float) -> FramePair | None:
-        """The oldest undelivered pair; waits up to ``timeout_s`` (<= 0: does not wait)."""
+        """The oldest undelivered pair; waits up to ``timeout_s`` (<= 0: does not wait).
+
+        Raises CameraError if an acquisition thread died of an unexpected error,
+        so a consumer never waits forever on a source that cannot deliver.
+        """
         with self._ready:
             if not self._pairs and self._running and timeout_s > 0:
-                self._ready.wait_for(lambda: bool(self._pairs) or not self._running, timeout_s)
+                self._ready.wait_for(lambda: bool(self._pairs) or not self._running or self._crashed(), timeout_s)
+            crash = self._crashed()
+            if crash is not None:
+                raise CameraError(crash)
             if not self._pairs:
                 return None
             self._delivered += 1
@@ -236,6 +244,13 @@ class AravisPairSource(PairSource):
         self._clocks[camera_index].reset()
         with self._lock:
             self._pairer.set_active(camera_index, True)
+
+    def worker_failed(self, camera_index: int) -> None:
+        with self._ready:
+            self._ready.notify_all()
+
+    def _crashed(self) -> str | None:
+        return next((w.crash for w in self._workers if w.crash is not None), None)
 
     def abandon(self, session: CameraSession) -> None:
         self._releaser.put(session)

@@ -67,6 +67,8 @@ class FrameSink(Protocol):
         """Record a frame's timestamps; returns its estimated capture time on the host clock."""
         ...
 
+    def worker_failed(self, camera_index: int) -> None: ...
+
 
 OpenHook = Callable[[str, Any], None]
 """Called as ``hook(camera_id, aravis_camera)`` after a camera is opened and configured."""
@@ -95,6 +97,8 @@ class CameraWorker:
         self.gate = gate
         self._trigger: TriggerThread | None = None
         self._old_triggers: list[TriggerThread] = []
+        self.crash: str | None = None
+        """Set when the acquisition thread died of an unexpected exception (a bug)."""
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._session: CameraSession | None = None
@@ -193,12 +197,15 @@ class CameraWorker:
     def _run(self) -> None:
         try:
             self._loop()
-        except Exception as err:  # a bug: make it visible in the status, never silent
+        except Exception as err:  # a bug: never silent; the source raises it to its consumer
             log.exception("camera %s: acquisition thread failed", self.cam.id)
+            self.crash = f"camera '{self.cam.id}': acquisition thread failed: {err!r}"
             with self._lock:
-                self._last_error = f"acquisition thread failed: {err!r}"
+                self._last_error = self.crash
         finally:
             self._shutdown()
+            if self.crash is not None:
+                self.sink.worker_failed(self.index)
 
     def _loop(self) -> None:
         backoff_s = self.rig.reconnect_min_backoff_ms / 1000.0
