@@ -59,7 +59,9 @@ def test_recovered_calibration_tracks_nearly_as_well_as_the_truth(
             pointings.append(Pointing(targets[split_label(name)], fix.line.front_m, fix.line.back_m))
     assert len(pointings) >= 14
     fit = fit_wall([], pointings, (wall.width_m, wall.height_m), simulated_rig.pointer.end_diameter_m / 2)
-    assert abs(fit.width_m - wall.width_m) < 0.02 and abs(fit.height_m - wall.height_m) < 0.02
+    assert not fit.size_fitted  # pointing keeps the configured size...
+    implied_w, implied_h = fit.implied_size_m  # ...and reports the size the lines imply
+    assert abs(implied_w - wall.width_m) < 0.02 and abs(implied_h - wall.height_m) < 0.02
     calibration = apply_wall_fit(calibration, in_camera_frame, fit, "pointing", (7680, 1920))
     assert set(world_frames(calibration).values()) == {"wall"}
     recovered_rig = merge_calibration(blank, calibration, Path("calibration.toml"))

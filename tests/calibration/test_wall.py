@@ -63,8 +63,9 @@ def test_exact_touches_of_the_corners_give_the_frame_exactly(rvec, origin) -> No
     fit = fit_wall(touches(rotation, o, corner_targets(WIDTH, HEIGHT).values()), [], (WIDTH, HEIGHT), RADIUS)
     assert np.allclose(fit.rotation, rotation, atol=1e-7)
     assert np.allclose(fit.origin_m, o, atol=1e-7)
-    assert fit.size_fitted
+    assert fit.size_fitted  # touched corners pin the size
     assert (fit.width_m, fit.height_m) == pytest.approx((WIDTH, HEIGHT), abs=1e-7)
+    assert fit.implied_size_m == pytest.approx((WIDTH, HEIGHT), abs=1e-7)
     assert all(abs(r.plane_mm) < 1e-4 and r.in_plane_mm < 1e-4 for r in fit.residuals)
 
 
@@ -74,7 +75,11 @@ def test_exact_pointings_from_three_places_give_the_frame_and_the_display_size()
     nominal = default_targets(WIDTH, HEIGHT)
     aimed = pointings(rotation, o, default_targets(*display).values(), PLACES)
     observed = [Pointing(nominal[p.target.label], p.tip_m, p.back_m) for p in aimed]
-    fit = fit_wall([], observed, (WIDTH, HEIGHT), RADIUS)
+    # By default pointing keeps the configured size, and reports the size the targets imply.
+    kept = fit_wall([], observed, (WIDTH, HEIGHT), RADIUS)
+    assert not kept.size_fitted and (kept.width_m, kept.height_m) == (WIDTH, HEIGHT)
+    assert kept.implied_size_m == pytest.approx(display, abs=1e-7)
+    fit = fit_wall([], observed, (WIDTH, HEIGHT), RADIUS, fit_size=True)
     assert np.allclose(fit.rotation, rotation, atol=1e-7)
     assert np.allclose(fit.origin_m, o, atol=1e-7)
     assert (fit.width_m, fit.height_m) == pytest.approx(display, abs=1e-7)
@@ -112,7 +117,7 @@ def test_a_wrong_corner_shows_in_its_residual_and_the_implied_size() -> None:
     fit = fit_wall(observed, [], (WIDTH, HEIGHT), RADIUS, robust=False)
     worst = max(fit.residuals, key=lambda r: r.worst_mm)
     assert worst.worst_mm > 20
-    assert abs(fit.width_m - WIDTH) > 0.02
+    assert abs(fit.implied_size_m[0] - WIDTH) > 0.02
 
 
 def test_touches_without_a_known_place_pin_the_plane_only() -> None:

@@ -317,6 +317,7 @@ def parameter_errors(study: SimulatedCalibration) -> dict[str, Any]:
     )
     stereo = study.stereo
     wall = study.wall
+    implied = wall.implied_size_m
     nominal = scene.wall
     return {
         "cameras": cameras,
@@ -333,11 +334,12 @@ def parameter_errors(study: SimulatedCalibration) -> dict[str, Any]:
             "observations": len(wall.residuals),
             "rms_mm": round(wall.rms_mm, 3),
             "worst_residual_mm": round(max(r.worst_mm for r in wall.residuals), 3),
-            "implied_size_m": [round(wall.width_m, 5), round(wall.height_m, 5)],
-            "size_error_mm": [
-                round((wall.width_m - nominal.width_m) * 1000, 2),
-                round((wall.height_m - nominal.height_m) * 1000, 2),
-            ],
+            "size_m": [round(wall.width_m, 5), round(wall.height_m, 5)],
+            "size_fitted": wall.size_fitted,
+            "implied_size_m": None if implied is None else [round(implied[0], 5), round(implied[1], 5)],
+            "implied_size_error_mm": None
+            if implied is None
+            else [round((implied[0] - nominal.width_m) * 1000, 2), round((implied[1] - nominal.height_m) * 1000, 2)],
         },
     }
 
@@ -366,8 +368,13 @@ def format_summary(summary: dict[str, Any]) -> str:
     w = p["wall"]
     lines.append(
         f"wall: {w['observations']} pointings, RMS {w['rms_mm']:.2f} mm, worst {w['worst_residual_mm']:.2f} mm;"
-        f" implied size {w['implied_size_m'][0]:.4f} x {w['implied_size_m'][1]:.4f} m"
-        f" ({w['size_error_mm'][0]:+.1f}, {w['size_error_mm'][1]:+.1f} mm)"
+        f" size {w['size_m'][0]:.4f} x {w['size_m'][1]:.4f} m ({'solved' if w['size_fitted'] else 'as configured'})"
+        + (
+            f"; the targets imply {w['implied_size_m'][0]:.4f} x {w['implied_size_m'][1]:.4f} m"
+            f" ({w['implied_size_error_mm'][0]:+.1f}, {w['implied_size_error_mm'][1]:+.1f} mm)"
+            if w["implied_size_m"]
+            else ""
+        )
     )
     lines.append("")
     lines.append(f"wall-hit error (mm)      {'median':>8}{'p95':>8}{'max':>8}{'failed':>8}")

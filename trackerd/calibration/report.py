@@ -172,6 +172,7 @@ def wall_fit_json(fit: WallFit, nominal_size_m: tuple[float, float]) -> dict[str
         "rms_mm": _r(fit.rms_mm, 3),
         "size_m": [_r(fit.width_m, 5), _r(fit.height_m, 5)],
         "size_fitted": fit.size_fitted,
+        "implied_size_m": None if fit.implied_size_m is None else [_r(v, 5) for v in fit.implied_size_m],
         "nominal_size_m": [_r(v, 5) for v in nominal_size_m],
         "origin_m": [_r(v, 5) for v in fit.origin_m],
         "normal": [_r(v, 6) for v in fit.rotation[:, 2]],
@@ -201,11 +202,13 @@ def wall_fit_text(fit: WallFit, nominal_size_m: tuple[float, float], flag_mm: fl
             else ""
         ),
         f"  size {w:.4f} x {h:.4f} m"
+        + (" (solved for)" if fit.size_fitted else " (as configured)")
         + (
-            f" (implied by the targets; configured {nw:.4f} x {nh:.4f} m,"
-            f" {(w - nw) * 1000:+.1f} / {(h - nh) * 1000:+.1f} mm)"
-            if fit.size_fitted
-            else " (as configured)"
+            f"; the targets imply {fit.implied_size_m[0]:.4f} x {fit.implied_size_m[1]:.4f} m"
+            f" ({(fit.implied_size_m[0] - nw) * 1000:+.1f} / {(fit.implied_size_m[1] - nh) * 1000:+.1f} mm"
+            f" from the configured {nw:.4f} x {nh:.4f} m)"
+            if fit.implied_size_m is not None
+            else ""
         ),
         f"  bottom-left corner at ({o[0]:+.4f}, {o[1]:+.4f}, {o[2]:+.4f}) m in the cameras' frame so far",
         "  residuals (mm): plane = distance from the fitted plane, in-plane = from the target's place,"
@@ -221,7 +224,8 @@ def wall_fit_text(fit: WallFit, nominal_size_m: tuple[float, float], flag_mm: fl
             parts.append(f"miss {r.miss_mm:6.2f}")
         flag = "  <- left out as an outlier" if not r.used else "  <- check this one" if r.worst_mm > flag_mm else ""
         lines.append(f"    {r.kind:<8} {r.label:<12} {', '.join(parts)}{flag}")
-    if fit.size_fitted and (abs(w - nw) > 0.02 or abs(h - nh) > 0.02):
+    implied = fit.implied_size_m
+    if implied is not None and (abs(implied[0] - nw) > 0.02 or abs(implied[1] - nh) > 0.02):
         lines.append(
             "  WARNING: the implied size differs from the configured one by more than 20 mm:"
             " a target touched in the wrong place, or the display is not where it is said to be"

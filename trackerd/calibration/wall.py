@@ -22,7 +22,7 @@ wrong corner or a moved camera stands out.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -121,6 +121,9 @@ class WallFit:
     """RMS of the residuals of the observations used."""
     scale: Array = field(default_factory=lambda: np.ones(2))
     """Solved size over nominal size, along x and y (ones when the size was not solved for)."""
+    implied_size_m: tuple[float, float] | None = None
+    """The display size the targets imply (solved for whether or not the frame uses it), when the
+    display-defined targets span the display; a wrong corner or a mis-sized display shows here."""
 
     @property
     def frame(self) -> WallFrame:
@@ -161,9 +164,14 @@ def fit_wall(
 ) -> WallFit:
     """Solve the wall frame (and optionally its size) from touches and pointings.
 
-    ``size_m`` is the display's nominal width and height; with ``fit_size`` (by
-    default: when the scalable targets reach across most of the display both
-    ways) the size is solved for and reported as the implied size.
+    ``size_m`` is the display's configured width and height. When the targets
+    defined by the display reach across most of it both ways, the size they
+    imply is always solved for and reported (``implied_size_m``); whether the
+    frame that is returned uses it (``fit_size``) defaults to whether those
+    targets were touched. Pointing fixes a target only through where lines
+    from different places cross, which leaves the wall's distance and its size
+    nearly interchangeable (a wall 4 mm further back and 8 mm wider fits the
+    same lines), so for pointing the configured size is kept.
 
     With ``robust`` the least squares is iteratively reweighted with Cauchy
     weights ``1 / (1 + (r / c)^2)``, ``c`` being 2.4 robust standard deviations
@@ -173,9 +181,26 @@ def fit_wall(
     Raises CalibrationError when the observations cannot fix a wall.
     """
     touches, pointings = list(touches), list(pointings)
-    known = [t.target for t in touches if t.target.wall_xy_m is not None] + [p.target for p in pointings]
+    touched = [t.target for t in touches if t.target.wall_xy_m is not None]
+    spans = _spans_display(touched + [p.target for p in pointings], size_m)
     if fit_size is None:
-        fit_size = _spans_display(known, size_m)
+        fit_size = spans and _spans_display(touched, size_m)
+    fit_size = bool(fit_size)
+    fit = _solve(touches, pointings, size_m, tip_radius_m, fit_size, robust)
+    if spans:
+        implied = fit if fit_size else _solve(touches, pointings, size_m, tip_radius_m, True, robust)
+        fit = replace(fit, implied_size_m=(implied.width_m, implied.height_m))
+    return fit
+
+
+def _solve(
+    touches: list[Touch],
+    pointings: list[Pointing],
+    size_m: tuple[float, float],
+    tip_radius_m: float,
+    fit_size: bool,
+    robust: bool,
+) -> WallFit:
     estimates = _initial_points(touches, pointings)
     if len(estimates) < 3:
         raise CalibrationError(
@@ -210,7 +235,7 @@ def fit_wall(
     magnitudes = _magnitudes(params, rotation, origin, touches, pointings, tip_radius_m)
     rms = float(np.sqrt(np.mean(magnitudes[used] ** 2))) * 1000.0 if np.any(used) else float("nan")
     width, height = size_m[0] * scale_xy[0], size_m[1] * scale_xy[1]
-    return WallFit(rot, org, float(width), float(height), bool(fit_size), residuals, rms, scale_xy)
+    return WallFit(rot, org, float(width), float(height), fit_size, residuals, rms, scale_xy)
 
 
 def _magnitudes(
