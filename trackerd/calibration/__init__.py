@@ -6,15 +6,20 @@ technique" (section 3.1) and measured the wall's three points by hand (section
 
 * board.py       calibration boards (chessboard, ChArUco): definition, detection, quality
 * views.py       which views to keep: similarity, coverage of the image, guidance
+* collect.py     frames in, accepted views or matched pairs out, every rejection with its reason
 * intrinsics.py  one camera's lens (cv2.calibrateCamera) with per-view errors and outliers
-* stereo.py      camera 2 relative to camera 1 (cv2.stereoCalibrate), baseline, epipolar error
-* wall.py        the wall plane and frame: measured points, pointer-tip touches, pointing
+* stereo.py      camera 2 relative to camera 1 (cv2.stereoCalibrate), baseline, epipolar error, sync
+* wall.py        the wall plane and frame: pointer-tip touches and pointing, robust least squares
 * health.py      ray gaps and reprojection errors of tracked pointers: drift detection
+* update.py      results into calibration-file entries; the world frame
 * store.py       reading the rig leniently, writing the calibration file atomically with a backup
 * tomlwrite.py   a small TOML emitter for the calibration file's simple structure
+* inputs.py      image files, folders of pairs, wall targets and measured walls
+* report.py      results as text and JSON
 * live.py        the --live modes on a PairSource, with progress and guidance as text
 
-Everything except live.py and store.py is pure: NumPy arrays in, dataclasses out.
+Everything except live.py, store.py and inputs.py is pure: NumPy arrays in, dataclasses out.
+The steps and the figures to expect are in docs/calibration.md.
 """
 
 from trackerd.errors import TrackerdError
