@@ -54,14 +54,14 @@ def lose_and_recover(virtual, source, consumer: Consumer) -> dict:
     timeout_s = virtual.rig.acquisition.loss_timeout_ms / 1000
     before = source.status().cameras[0].losses
     virtual.kill_camera(0)
-    assert wait_until(lambda: source.status().cameras[0].losses > before, timeout_s + 1.0), source.status()
+    assert wait_until(lambda: source.status().cameras[0].losses > before, timeout_s + 1.0), source.status().to_json()
     other = source.status().cameras[1].frames
     assert wait_until(lambda: source.status().cameras[1].frames > other + 5, 2.0), "camera 1 stopped too"
     assert state(source, 1) == "streaming"
     virtual.restart_camera(0)
-    assert wait_until(lambda: state(source, 0) == "streaming", 5.0), source.status()
+    assert wait_until(lambda: state(source, 0) == "streaming", 5.0), source.status().to_json()
     pairs = len(consumer.pairs)
-    assert wait_until(lambda: len(consumer.pairs) > pairs + 5, 5.0), source.status()
+    assert wait_until(lambda: len(consumer.pairs) > pairs + 5, 5.0), source.status().to_json()
     return {"error": source.status().cameras[0].last_error}
 
 
@@ -84,7 +84,7 @@ def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(vir
     with source:
         consumer = Consumer(source)
         try:
-            assert wait_until(lambda: len(consumer.pairs) > 10, 5.0), source.status()
+            assert wait_until(lambda: len(consumer.pairs) > 10, 5.0), source.status().to_json()
             outcome = lose_and_recover(virtual, source, consumer)
         finally:
             consumer.stop()

@@ -79,3 +79,23 @@ def test_a_stalled_camera_stops_holding_the_others_back() -> None:
     assert decisions == [(False, False), (False, False), (True, False), (True, False)]
     gate.leave(1)
     assert gate.decide(4, 0)
+
+
+def test_a_frame_lost_on_the_way_does_not_stall_triggering() -> None:
+    ticks = TickMap(max_outstanding=1, expiry_ns=100)
+    ticks.fired(0, now_ns=0)
+    assert ticks.frame(10) == 0
+    ticks.fired(1, now_ns=1000)
+    assert not ticks.ready(now_ns=1050)  # its frame may still come
+    assert ticks.ready(now_ns=1200)  # given up on: the next trigger may go
+    ticks.fired(2, now_ns=1200)
+    assert ticks.frame(12) == 2  # id 11 never arrived; its tick is consumed
+
+
+def test_the_first_frame_is_waited_for() -> None:
+    """It fixes which frame answers which tick, so a slow first frame must not be given up on."""
+    ticks = TickMap(max_outstanding=2, expiry_ns=100)
+    ticks.fired(0, now_ns=0)
+    assert not ticks.ready(now_ns=10_000)
+    assert ticks.frame(7) == 0
+    assert ticks.ready(now_ns=10_000)

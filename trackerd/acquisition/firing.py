@@ -32,20 +32,22 @@ class TriggerThread:
         gate: TriggerGate,
         fire: Callable[[], None],
         max_outstanding: int,
+        expiry_ns: int,
+        settle_ns: int = 0,
     ) -> None:
         self.index = index
         self.schedule = schedule
         self.gate = gate
         self._fire = fire
-        self.ticks = TickMap(max_outstanding)
+        self.ticks = TickMap(max_outstanding, expiry_ns)
         """Which tick each frame of this connection answers."""
+        self.settle_ns = settle_ns
         self.failure: str | None = None
         """Why a trigger failed (the thread then stops firing)."""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"trigger-{name}", daemon=True)
 
     def start(self) -> None:
-        self.gate.join(self.index, self.ticks.ready)
         self._thread.start()
 
     def stop(self) -> None:
@@ -63,6 +65,12 @@ class TriggerThread:
         return self._thread.is_alive()
 
     def _run(self) -> None:
+        # Let the connection settle before the first trigger: a frame the camera sends on
+        # its own when acquisition starts (Aravis's simulated camera does) then arrives
+        # before any trigger is fired, and cannot be taken for the answer to the first.
+        if self._stop.wait(self.settle_ns / 1e9):
+            return
+        self.gate.join(self.index, self.ticks.ready)
         last: int | None = None
         tick: int | None = None
         while not self._stop.is_set():

@@ -67,11 +67,13 @@ class Releaser:
             self._threads = [t for t in self._threads if t.is_alive()]
             return len(self._threads)
 
-    def put(self, session: CameraSession) -> None:
+    def put(self, session: CameraSession) -> threading.Thread:
+        """Release ``session`` on a new thread; returns the thread (alive until released)."""
         thread = threading.Thread(target=_release, args=(session,), name=f"camera-release-{session.camera_id}")
         with self._lock:
             self._threads.append(thread)
         thread.start()
+        return thread
 
     def join(self, timeout_s: float) -> bool:
         """Wait for the releases in progress; True if all finished within ``timeout_s``."""
@@ -252,8 +254,8 @@ class AravisPairSource(PairSource):
     def _crashed(self) -> str | None:
         return next((w.crash for w in self._workers if w.crash is not None), None)
 
-    def abandon(self, session: CameraSession) -> None:
-        self._releaser.put(session)
+    def abandon(self, session: CameraSession) -> threading.Thread:
+        return self._releaser.put(session)
 
     def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
         if device_ns == 0:

@@ -62,7 +62,10 @@ class FrameSink(Protocol):
     def deliver(self, arrival: Arrival) -> None: ...
     def camera_lost(self, camera_index: int) -> None: ...
     def camera_back(self, camera_index: int) -> None: ...
-    def abandon(self, session: CameraSession) -> None: ...
+    def abandon(self, session: CameraSession) -> threading.Thread:
+        """Release a connection on another thread; the thread ends when it is released."""
+        ...
+
     def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
         """Record a frame's timestamps; returns its estimated capture time on the host clock."""
         ...
@@ -97,6 +100,7 @@ class CameraWorker:
         self.gate = gate
         self._trigger: TriggerThread | None = None
         self._old_triggers: list[TriggerThread] = []
+        self._releases: list[threading.Thread] = []
         self.crash: str | None = None
         """Set when the acquisition thread died of an unexpected exception (a bug)."""
         self._thread: threading.Thread | None = None
@@ -304,8 +308,18 @@ class CameraWorker:
         self._epoch += 1
         self._unwrap = FrameIdUnwrapper()
         if self.schedule is not None and self.gate is not None:
+            # A frame not in five periods (at least 0.1 s) after its trigger is taken as lost;
+            # the first trigger waits as long after acquisition starts.
+            expiry_ns = max(5 * self.schedule.period_ns, 100_000_000)
             self._trigger = TriggerThread(
-                self.index, self.cam.id, self.schedule, self.gate, session.fire, self.rig.max_outstanding_triggers
+                self.index,
+                self.cam.id,
+                self.schedule,
+                self.gate,
+                session.fire,
+                self.rig.max_outstanding_triggers,
+                expiry_ns,
+                settle_ns=expiry_ns,
             )
             self._ticks = self._trigger.ticks
             if self._thread is not None:  # reconnecting; at start-up, start() starts it
@@ -326,7 +340,9 @@ class CameraWorker:
         session = self._session
         self._session = None
         self._retire_trigger()
-        log.warning("camera %s lost: %s", self.cam.id, reason)
+        ticks = self._ticks
+        detail = f" (triggers unanswered: {ticks.outstanding})" if ticks is not None else ""
+        log.warning("camera %s lost: %s%s", self.cam.id, reason, detail)
         with self._lock:
             self._state = "lost"
             self._losses += 1
@@ -336,7 +352,19 @@ class CameraWorker:
             self._stream_current = {}
         self.sink.camera_lost(self.index)
         if session is not None:
-            self.sink.abandon(session)
+            self._releases.append(self.sink.abandon(session))
+
+    def _previous_connection_quiet(self) -> bool:
+        """Whether nothing of an earlier connection can still talk to the camera.
+
+        Aravis retries a GVCP command to a camera that stopped answering for about
+        2.5 s; a camera that comes back within that time would otherwise receive
+        the old connection's last commands (a trigger, a release of control)
+        after the new connection has configured it.
+        """
+        self._releases = [t for t in self._releases if t.is_alive()]
+        self._old_triggers = [t for t in self._old_triggers if t.alive]
+        return not self._releases and not self._old_triggers
 
     def _try_reconnect(self) -> bool:
         """One attempt: probe the camera, and open it if it answers. True when streaming again."""
@@ -348,6 +376,8 @@ class CameraWorker:
             if self.cam.serial and answer.serial and answer.serial != self.cam.serial:
                 self._set_error(f"{address} answers as serial {answer.serial}, not {self.cam.serial}")
                 return False
+        if not self._previous_connection_quiet():
+            return False
         with self._lock:
             self._state = "reconnecting"
         try:
