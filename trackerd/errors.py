@@ -36,5 +36,9 @@ class CameraError(TrackerdError):
     """A camera that cannot be found, opened, configured or kept streaming."""
 
 
+class CalibrationError(TrackerdError):
+    """Calibration input that cannot give a result: no board found, too few views, pairs out of sync."""
+
+
 class RecordingError(TrackerdError):
     """A recording that cannot be written or read (corrupt, truncated, wrong version, disk full)."""

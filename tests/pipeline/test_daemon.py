@@ -78,6 +78,9 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     last_running = [s for s in statuses if s["state"] == "running"][-1]
     assert last_running["fixes"].get("hit", 0) + last_running["fixes"].get("off_wall", 0) > 0
     assert set(last_running["stages"]) == {"detect", "triangulate", "publish"}
+    # The calibration is the one the frames were rendered with: the cameras agree.
+    health = statuses[-1]["calibration"]
+    assert health["total_fixes"] > 0 and health["ray_gap_mm"]["p50"] < 4.0
     captures = [m["capture_ns"] for _, m in messages if _ != "status"]
     assert captures == sorted(captures)  # published timestamps never go backwards
 

@@ -22,8 +22,6 @@ Everything except live.py, store.py and inputs.py is pure: NumPy arrays in, data
 The steps and the figures to expect are in docs/calibration.md.
 """
 
-from trackerd.errors import TrackerdError
+from trackerd.errors import CalibrationError
 
-
-class CalibrationError(TrackerdError):
-    """Calibration input that cannot give a result: no board found, too few views, pairs out of sync."""
+__all__ = ["CalibrationError"]

@@ -201,19 +201,11 @@ def write_calibration(
 
 
 def check_merged(rig: RigConfig, path: Path, check_wall: bool) -> None:
-    """The loader's geometric checks on a merged rig (ConfigError naming ``path``)."""
-    # The loader keeps these checks private to load_rig; the same functions are used
-    # here so that what is written is exactly what load_rig accepts.
-    from trackerd.config.loader import _check_geometry, _check_lens
+    """The loader's geometric checks on a merged rig (ConfigError naming ``path``), so that what
+    is written is exactly what load_rig accepts."""
+    from trackerd.config.loader import check_rig_geometry
 
-    complete = True
-    for cam in rig.cameras:
-        if cam.intrinsics is None or cam.extrinsics is None:
-            complete = False
-            continue
-        _check_lens(cam, f"{path}: cameras.{cam.id}")
-    if complete and check_wall:
-        _check_geometry(rig, path)
+    check_rig_geometry(rig, path, check_wall=check_wall)
 
 
 def backup_path(path: Path, now: _dt.datetime | None = None) -> Path:

@@ -294,6 +294,19 @@ def _check_lens(cam: CameraConfig, where: str) -> None:
         )
 
 
+def check_rig_geometry(rig: RigConfig, path: Path, *, check_wall: bool = True) -> None:
+    """The geometric checks load_rig makes (lens invertible to the corners, a sane wall in front of
+    the cameras), for a rig assembled in memory, with errors naming ``path``."""
+    complete = True
+    for cam in rig.cameras:
+        if cam.intrinsics is None or cam.extrinsics is None:
+            complete = False
+            continue
+        _check_lens(cam, f"{path}: cameras.{cam.id}")
+    if complete and check_wall:
+        _check_geometry(rig, path)
+
+
 def _resolve_paths(rig: RigConfig, rig_path: Path) -> RigConfig:
     """File names inside a rig file are relative to that file, like ``calibration``."""
     zmq = rig.outputs.zmq

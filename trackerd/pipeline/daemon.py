@@ -27,12 +27,19 @@ from dataclasses import dataclass, field
 import trackerd
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import SourceStatus
+from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
 from trackerd.publish import Publisher, StatusMessage, messages_from_fix
-from trackerd.publish.messages import CameraStatusPart, LatencyPart, Message, PairingPart
+from trackerd.publish.messages import (
+    CalibrationHealthPart,
+    CameraStatusPart,
+    LatencyPart,
+    Message,
+    PairingPart,
+)
 from trackerd.sdnotify import SdNotify
 
 log = logging.getLogger(__name__)
@@ -105,6 +112,7 @@ class Pipeline:
         self.source: PairSource | None = None
         self.publisher: Publisher | None = None
         self.locator = Locator(rig)
+        self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
 
     # ------------------------------------------------------------------ control
 
@@ -186,6 +194,8 @@ class Pipeline:
             capture = pair.timestamp_ns + self.clock_offset_ns
             messages = messages_from_fix(fix, self.locator, sequence=pair.sequence, capture_ns=capture)
             self._fixes[fix.status] = self._fixes.get(fix.status, 0) + 1
+            if fix.found:
+                self.health.add_fix(fix)
             if fix.status == "not_found":
                 # Tracking windows are stale once the pointer is gone.
                 self.locator.reset()
@@ -215,6 +225,9 @@ class Pipeline:
             self._notifier.ready("running (reload failed: previous configuration kept)")
             return
         self.locator = locator
+        if rig.cameras != old.cameras or rig.wall != old.wall:
+            # A new calibration starts a new health record.
+            self.health = CalibrationHealth.for_rig(rig, locator.cameras)
         self.rig = rig
         log.info("reload: configuration applied")
         self._notifier.ready("running (configuration reloaded)")
@@ -336,6 +349,7 @@ class Pipeline:
                 name: LatencyPart(samples=int(values.size), **percentiles_ms(values))
                 for name, values in stages.items()
             },
+            calibration=CalibrationHealthPart.model_validate(self.health.to_json()) if self.health.total else None,
             fixes=dict(self._fixes),
             detail=self._detail,
         )

@@ -173,6 +173,34 @@ class PairingPart(_Part):
     """99th percentile pair skew, microseconds."""
 
 
+class SpreadPart(_Part):
+    """Percentiles of a quantity over recent fixes."""
+
+    p50: float | None = None
+    """Median."""
+    p95: float | None = None
+    """95th percentile."""
+    max: float | None = None
+    """Largest."""
+
+
+class CalibrationHealthPart(_Part):
+    """How well the cameras still agree: a bumped camera shows up here as a jump (docs/calibration.md)."""
+
+    fixes: int = Field(ge=0)
+    """Recent fixes the figures are taken over."""
+    total_fixes: int = Field(ge=0)
+    """Fixes measured since start."""
+    ray_gap_mm: SpreadPart
+    """How far the two cameras' rays through an end miss each other, millimetres."""
+    reprojection_px: SpreadPart
+    """Distance between each detected end and the projection of its triangulated centre, pixels."""
+    suspect: bool
+    """True when the figures exceed the limits a sound calibration stays within."""
+    reason: str | None = None
+    """Why the figures are suspect, or why they cannot be judged yet."""
+
+
 class StatusMessage(Message):
     """The daemon's health: sent about once a second, on every change, and to every new subscriber."""
 
@@ -198,6 +226,8 @@ class StatusMessage(Message):
     stages: dict[str, LatencyPart] = Field(default_factory=dict)
     """Time spent per pair in each stage (``detect``, ``triangulate``, ``publish``) over the last
     status period."""
+    calibration: CalibrationHealthPart | None = None
+    """Calibration health from the pointers tracked recently (null before any fix)."""
     fixes: dict[str, int] = Field(default_factory=dict)
     """Processed pairs since start by outcome: hit, off_wall, away, parallel, rejected, not_found."""
     messages: dict[str, int] = Field(default_factory=dict)
