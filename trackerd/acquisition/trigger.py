@@ -16,7 +16,6 @@ frame before more are fired.
 from __future__ import annotations
 
 import threading
-import time
 from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -50,21 +49,23 @@ class TickSchedule:
 class TickMap:
     """Which fired tick each frame id answers, for one connection of one camera (thread-safe).
 
-    After the first frame, a trigger unanswered for ``expiry_ns`` stops counting
-    against readiness, so one frame lost on the way (no packet of it arrived)
-    cannot stall triggering: the next frame's id shows the gap and consumes the
-    lost frame's tick.
+    A frame that never arrives (not one of its packets reached the host) leaves
+    its trigger unanswered until the next frame's id shows the gap; with
+    ``max_outstanding`` triggers unanswered the camera takes no more, so a camera
+    whose frames stop coming stalls until it is declared lost and reconnected.
+    Unanswered triggers are deliberately never given up on: firing another while
+    the camera may still hold one risks the camera merging the two into one
+    frame, after which every later frame would be matched to the wrong tick.
     """
 
-    def __init__(self, max_outstanding: int = 3, expiry_ns: int = 100_000_000) -> None:
+    def __init__(self, max_outstanding: int = 3) -> None:
         self.max_outstanding = max_outstanding
-        self.expiry_ns = expiry_ns
         self._lock = threading.Lock()
-        self._fired: deque[tuple[int, int]] = deque()  # (tick, fired at ns)
+        self._fired: deque[int] = deque()
         self._next_index = 0  # position (frame ids after the first) of _fired[0]
         self._first_id: int | None = None
         self.unmatched = 0
-        """Frames whose id has no fired tick (a trigger the camera saw twice, or not from us)."""
+        """Frames whose id has no fired tick (a frame the camera sent unasked, say)."""
 
     @property
     def started(self) -> bool:
@@ -76,21 +77,17 @@ class TickMap:
         """Ticks fired whose frame has not arrived yet."""
         return len(self._fired)
 
-    def ready(self, now_ns: int | None = None) -> bool:
+    def ready(self) -> bool:
         """Whether the camera may take another trigger: its first frame is in (or nothing is
-        outstanding yet), and fewer than ``max_outstanding`` recent triggers are unanswered."""
-        now = time.monotonic_ns() if now_ns is None else now_ns
+        outstanding yet), and fewer than ``max_outstanding`` triggers are unanswered."""
         with self._lock:
             if self._first_id is None:
-                # The first frame fixes the correspondence, so it is waited for (a camera may
-                # take a tenth of a second to start streaming); loss detection ends the wait.
                 return not self._fired
-            recent = sum(1 for _, at in self._fired if now - at <= self.expiry_ns)
-            return recent < self.max_outstanding
+            return len(self._fired) < self.max_outstanding
 
-    def fired(self, tick: int, now_ns: int | None = None) -> None:
+    def fired(self, tick: int) -> None:
         with self._lock:
-            self._fired.append((tick, time.monotonic_ns() if now_ns is None else now_ns))
+            self._fired.append(tick)
 
     def frame(self, frame_id: int) -> int | None:
         with self._lock:
@@ -115,7 +112,7 @@ class TickMap:
             self.unmatched += 1
             return None
         self._next_index += 1
-        return self._fired.popleft()[0]
+        return self._fired.popleft()
 
 
 class TriggerGate:

@@ -308,9 +308,8 @@ class CameraWorker:
         self._epoch += 1
         self._unwrap = FrameIdUnwrapper()
         if self.schedule is not None and self.gate is not None:
-            # A frame not in five periods (at least 0.1 s) after its trigger is taken as lost;
-            # the first trigger waits as long after acquisition starts.
-            expiry_ns = max(5 * self.schedule.period_ns, 100_000_000)
+            # The first trigger waits five periods (at least 0.1 s) after acquisition starts.
+            settle_ns = max(5 * self.schedule.period_ns, 100_000_000)
             self._trigger = TriggerThread(
                 self.index,
                 self.cam.id,
@@ -318,8 +317,7 @@ class CameraWorker:
                 self.gate,
                 session.fire,
                 self.rig.max_outstanding_triggers,
-                expiry_ns,
-                settle_ns=expiry_ns,
+                settle_ns,
             )
             self._ticks = self._trigger.ticks
             if self._thread is not None:  # reconnecting; at start-up, start() starts it
