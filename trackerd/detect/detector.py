@@ -14,9 +14,10 @@ Per frame (report section 3.2, eq. 10-12, made robust and sub-pixel):
 3. *Selection* (:mod:`trackerd.detect.select`): blobs that cannot be a ball
    (area, elongation, fill) are dropped, and of the rest the red-blue pair most
    consistent with one pointer wins.
-4. *Centre* (:mod:`trackerd.detect.centroid`): intensity-weighted and
-   sub-pixel (``centroid = "weighted"``), or the report's bounding-box midpoint
-   (eq. 12, ``centroid = "bbox"``).
+4. *Centre* (:mod:`trackerd.detect.centroid`): sub-pixel, from the coverage of
+   the end's own samples and, on a Bayer mosaic, of every pixel around it
+   (:mod:`trackerd.detect.coverage`; ``centroid = "weighted"``), or the report's
+   bounding-box midpoint (eq. 12, ``centroid = "bbox"``).
 
 ``ColourEndDetector`` keeps the tracking state; :func:`detect_ends` is the same
 search without state. Either way the search is NumPy only (docs/detection.md).
@@ -45,18 +46,13 @@ from trackerd.detect.centroid import (
     keep_nearest_blob,
     measure,
     measure_candidate,
+    measure_rims,
     sample,
 )
 from trackerd.detect.colour import Region, SampleGrid, Threshold, coarse_masks, sample_grid
 from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
 from trackerd.detect.select import choose, missing_reason, pair_consistency, rod_evidence
 from trackerd.errors import ImageError
-
-DEFAULT_SEARCH_STEP_PX = 8
-"""Spacing of the subsampled full-frame pass. An end is seen by it from scratch when its
-image is at least about 1.5 times this across (12 px, about 110 px of area); once tracked, a
-smaller end is still followed by the window search. (Not yet a DetectorConfig field: see
-docs/detection.md.)"""
 
 DEFAULT_LENGTH_OVER_DIAMETER = 12.0
 """Pointer length over ball diameter used when no PointerConfig is given."""
@@ -103,7 +99,10 @@ class ColourEndDetector:
 
     Cheap to build; keep one per camera, since it remembers the previous frame's
     result. Call :meth:`reset` when the frames stop being consecutive (pointer
-    lost, new recording).
+    lost, new recording). ``search_step_px`` overrides ``cfg.search_step_px``;
+    ``rim_pixels=False`` keeps the centre from the ends' own colour samples only
+    (faster by about half a count-pass per frame, about twice the error across
+    the pointer; docs/detection.md).
     """
 
     def __init__(
@@ -115,6 +114,7 @@ class ColourEndDetector:
         pointer: PointerConfig | None = None,
         *,
         search_step_px: int | None = None,
+        rim_pixels: bool = True,
     ) -> None:
         self.cfg = cfg
         self.pixel_format = pixel_format
@@ -131,10 +131,11 @@ class ColourEndDetector:
         else:
             self.length_over_diameter = DEFAULT_LENGTH_OVER_DIAMETER
             self.rod_over_diameter = DEFAULT_ROD_OVER_DIAMETER
-        step_px = search_step_px or getattr(cfg, "search_step_px", None) or DEFAULT_SEARCH_STEP_PX
+        step_px = search_step_px or cfg.search_step_px
         self.step_cells = max(1, round(step_px / self.grid.cell_px))
         self._track: dict[str, _Track] | None = None
         self._crowded: set[str] = set()
+        self.rim_pixels = rim_pixels and self.weighted and self.grid.is_bayer
 
     def reset(self) -> None:
         """Forget the previous frame: the next frame is searched in full."""
@@ -217,7 +218,7 @@ class ColourEndDetector:
                 return None
             assert m is not None
             found[colour] = m
-        red, blue = found["red"], found["blue"]
+        red, blue = self._centres(frame, [found["red"], found["blue"]])
         pair = pair_consistency(
             red.area_px,
             blue.area_px,
@@ -375,21 +376,26 @@ class ColourEndDetector:
         if need_pair and not choice.paired:
             return None
         ends = {}
-        for colour, cand, score in (
-            ("red", choice.red, choice.red_score),
-            ("blue", choice.blue, choice.blue_score),
-        ):
+        measured = {}
+        for colour, cand in (("red", choice.red), ("blue", choice.blue)):
             if cand is None:
                 s = found[colour]
                 ends[colour] = EndDetection.missing(
                     missing_reason(colour, s.seeds, s.too_large_seeds, s.rejects, s.examined_all)
                 )
             else:
-                m = measure_candidate(
+                measured[colour] = measure_candidate(
                     frame, self.grid, cand, self.thresholds[colour], self.weighted
                 )
-                ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, score, None)
+        refined = self._centres(frame, list(measured.values()))
+        scores = {"red": choice.red_score, "blue": choice.blue_score}
+        for colour, m in zip(measured, refined, strict=True):
+            ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, scores[colour], None)
         return ImageDetections(ends["red"], ends["blue"], search)  # type: ignore[arg-type]
+
+    def _centres(self, frame: NDArray[np.uint8], found: list[Measurement]) -> list[Measurement]:
+        """The ends' centres and areas from every pixel of their rims (or as measured)."""
+        return measure_rims(frame, self.grid, found) if self.rim_pixels else found
 
     def _remember(self, result: ImageDetections) -> None:
         if not result.both_found:

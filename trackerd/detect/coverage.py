@@ -1,0 +1,187 @@
+"""The sub-pixel centre of an end from the coverage of every pixel around it (Bayer mosaics).
+
+The centroid of an end's visible area is the coverage-weighted mean of pixel
+centres. Estimating coverage only at the end's own colour samples (one pixel in
+four for red or blue), as :func:`trackerd.detect.centroid.measure` does, samples
+the anti-aliased rim on a 2-pixel lattice, and that alone puts about 0.07 px (1
+sigma) of error across the pointer's image line into the centroid however good
+the estimate at those samples: the renderer's *exact* coverage summed over the
+own samples only is that far off, over all pixels 0.001 px (docs/detection.md).
+So here each Bayer cell's other three pixels (two greens and the other colour)
+get a coverage estimate of their own, each from its own channel.
+
+A pixel is a mix of the ball and what lies behind it: in its own channel
+``v = a * ball + (1 - a) * back``. In the other channels the ball is dark
+(red 0.86/0.10/0.08, blue 0.10/0.20/0.86), so against a lit background they
+resolve the rim at full resolution, which is most of a rim in a lit room. The
+two samples of the pixel's channel one Bayer period (2 px) to either side of
+it, along its row or its column, whichever pair differs more (that pair
+straddles the rim), are the ball (the darker) and the background (the
+brighter) right there, whatever the ball's shading and whatever the
+background. A pixel is solved that way unless
+
+* the pair differs by less than MIN_CONTRAST (no lit background: a dark
+  display, the rod, or the pixel is inside the ball);
+* the pixel lies outside the pair's range by more than MIX_SLACK (a third
+  colour is in it);
+* an own-colour sample next to it is darker than DARK_FRACTION of the end's own
+  level: the rod (dark in every channel) may be in the pixel, and the other
+  channels cannot tell rod from ball. Only the own channel can, which is why the
+  rod's edges and dark backgrounds stay on the own samples' 2-pixel lattice.
+
+An unsolved pixel takes the mean of the own samples beside it (their coverage
+from the colour test). Cells surrounded by thresholded samples count as full
+and cells more than one cell from any as empty.
+
+Measured on rendered frames of the simulated rig (/tmp/centroid_err.py style,
+truth: the renderer's visible-area centroid): error across the pointer's image
+line 0.040-0.043 px (1 sigma), against 0.078-0.082 px from the own samples
+alone; the cost is about 45 NumPy calls per end (docs/detection.md, Measured).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.detect.colour import SampleGrid
+
+MIN_CONTRAST = 40.0
+"""Grey levels by which the background must be brighter than the ball in a pixel's channel for
+that pixel to be solved on its own (2-3 grey levels of sensor noise then cost 0.05 of
+coverage; lowering it lets background texture in)."""
+
+MIX_SLACK = 0.25
+"""How far outside [ball, background], as a fraction of their difference, a pixel may lie and
+still be taken as their mix."""
+
+DARK_FRACTION = 0.45
+"""An own-colour sample at most this fraction of the end's mean own level is dark: the rod or a
+dark background (the rod is about 0.1 of the ball's level, a grey wall 0.6-0.9)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Rim:
+    """One end as the colour test of its own samples left it (cells)."""
+
+    colour: str
+    origin: tuple[int, int]
+    """Frame cell (row, col) of element (0, 0) of the arrays."""
+    strong: NDArray[np.bool_]
+    """The end's own samples passing the threshold (other blobs' cleared), (rows, cols)."""
+    cover: NDArray[np.float32]
+    """Coverage of the end's own samples, same shape (0 where no end)."""
+    own_level: float
+    """Mean own-colour value of the thresholded samples, grey levels."""
+
+
+def rim_centre(
+    frame: NDArray[np.uint8], grid: SampleGrid, end: Rim
+) -> tuple[float, float, float] | None:
+    """Centre (x, y) and area of an end from the coverage of every pixel, full-resolution pixels.
+
+    ``end.strong`` must hold every thresholded sample of the end with a cell of
+    margin (measure's box does). None when the cells and a ring around them do
+    not fit in the frame, or nothing is covered: keep the own samples' estimate.
+    """
+    h, w = end.strong.shape
+    r0, c0 = end.origin
+    if r0 < 1 or c0 < 1 or r0 + h + 1 > grid.rows or c0 + w + 1 > grid.cols:
+        return None
+    dr, dc = grid.offset(end.colour)
+    # The cells and a ring of cells around them, the end's own colour at each cell's top-left
+    # pixel. Red and blue are diagonal in every Bayer layout, so the other colour is then
+    # bottom-right and the greens are right of and below the own sample, for either end.
+    patch = frame[2 * r0 - 2 + dr : 2 * (r0 + h) + 2 + dr, 2 * c0 - 2 + dc : 2 * (c0 + w) + 2 + dc]
+    others = np.stack((patch[0::2, 1::2], patch[1::2, 0::2], patch[1::2, 1::2])).astype(np.float32)
+
+    # Each other sample against the pair of its channel's samples two pixels to either side,
+    # along the row or the column, whichever differ more.
+    value = others[:, 1:-1, 1:-1]
+    left, right = others[:, 1:-1, :-2], others[:, 1:-1, 2:]
+    above, below = others[:, :-2, 1:-1], others[:, 2:, 1:-1]
+    ball_h = np.minimum(left, right)
+    back_h = np.maximum(left, right)
+    ball_v = np.minimum(above, below)
+    back_v = np.maximum(above, below)
+    contrast_h = back_h - ball_h
+    contrast_v = back_v - ball_v
+    across_row = contrast_h >= contrast_v
+    ball = np.where(across_row, ball_h, ball_v)
+    back = np.where(across_row, back_h, back_v)
+    contrast = np.maximum(contrast_h, contrast_v)
+    solved = contrast >= MIN_CONTRAST
+    slack = contrast * MIX_SLACK
+    solved &= value >= ball - slack
+    solved &= value <= back + slack
+    # The own samples next to a cell's other pixels: its own, right, below and diagonal.
+    dark = patch[0::2, 0::2] <= DARK_FRACTION * end.own_level
+    near_dark = dark[1:-1, 1:-1] | dark[1:-1, 2:]
+    near_dark |= dark[2:, 1:-1]
+    near_dark |= dark[2:, 2:]
+    solved &= ~near_dark
+    mixed = back - value
+    mixed /= np.maximum(contrast, 1.0)
+
+    # Unsolved: the mean of the own samples beside (the green right of the own sample has one
+    # left and one right of it, the green below one above and one below, the other colour four
+    # at the diagonals).
+    own = np.zeros((h + 1, w + 1), dtype=np.float32)
+    own[:-1, :-1] = end.cover
+    beside = np.empty_like(value)
+    np.add(own[:-1, :-1], own[:-1, 1:], out=beside[0])
+    np.add(own[:-1, :-1], own[1:, :-1], out=beside[1])
+    np.add(beside[0], own[1:, :-1], out=beside[2])
+    beside[2] += own[1:, 1:]
+    beside[:2] *= 0.5
+    beside[2] *= 0.25
+    cover = np.where(solved, mixed, beside)
+    np.clip(cover, 0.0, 1.0, out=cover)
+
+    # Per cell: its four pixels' coverage, and how much of it lies one pixel right or down.
+    strong = np.zeros((h + 2, w + 2), dtype=np.float32)
+    strong[1:-1, 1:-1] = end.strong
+    near = _box3(strong)
+    per_cell = cover.sum(axis=0)
+    per_cell += end.cover
+    right_px = cover[0] + cover[2]
+    down_px = cover[1] + cover[2]
+    inside = near >= 9.0
+    per_cell[inside] = 4.0
+    right_px[inside] = 2.0
+    down_px[inside] = 2.0
+    empty = near == 0.0
+    per_cell[empty] = 0.0
+    right_px[empty] = 0.0
+    down_px[empty] = 0.0
+    total = float(per_cell.sum())
+    if not total > 0.0:
+        return None
+    x = 2.0 * float(per_cell.sum(axis=0) @ _ramp(w)) + float(right_px.sum())
+    y = 2.0 * float(per_cell.sum(axis=1) @ _ramp(h)) + float(down_px.sum())
+    return x / total + 2 * c0 + dc, y / total + 2 * r0 + dr, total
+
+
+def _box3(values: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Sum over the 3x3 neighbourhood of every element not on the border: shape (h-2, w-2)."""
+    rows = values[:, :-2] + values[:, 1:-1]
+    rows += values[:, 2:]
+    out = rows[:-2] + rows[1:-1]
+    out += rows[2:]
+    return out
+
+
+_RAMPS: dict[int, NDArray[np.float32]] = {}
+
+
+def _ramp(n: int) -> NDArray[np.float32]:
+    """0, 1, ..., n - 1 as float32 (cached: boxes come in few sizes)."""
+    ramp = _RAMPS.get(n)
+    if ramp is None:
+        ramp = np.arange(n, dtype=np.float32)
+        ramp.setflags(write=False)
+        if len(_RAMPS) < 4096:
+            _RAMPS[n] = ramp
+    return ramp
