@@ -13,14 +13,23 @@ pytestmark = pytest.mark.slow
 
 def test_bench_detector_json(capsys) -> None:
     args = ["bench", "detector", "--frames", "3", "--poses", "1", "--repeats", "1", "--json"]
-    assert main([*args, "--min-excess", "70", "60"]) == 0
+    assert main([*args, "--min-excess", "75", "65"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert set(report["median_ms"]) == {"full", "tracked", "opencv", "floor"}
+    assert set(report["median_ms"]) == {
+        "full",
+        "tracked",
+        "opencv",
+        "floor",
+        "full_own",
+        "tracked_own",
+    }
     assert all(v > 0 for v in report["median_ms"].values())
-    assert set(report["ratios"]) == {"opencv_over_full", "full_over_floor", "tracked_over_floor"}
-    assert report["min_excess"] == {"red": 70, "blue": 60}
+    assert {"opencv_over_full", "full_over_floor", "tracked_over_floor"} <= set(report["ratios"])
+    assert report["min_excess"] == {"red": 75, "blue": 65}
     accuracy = report["accuracy_px"]
     assert {"weighted", "tracked", "opencv", "bbox (eq. 12, chosen blob)"} <= set(accuracy)
+    assert "weighted, own samples only" in accuracy
+    assert accuracy["weighted"]["across_std"] >= 0
     assert accuracy["weighted"]["ends"] == 2 * 2 * (3 + 1)
     assert accuracy["weighted"]["missed"] == 0
 
@@ -29,5 +38,6 @@ def test_bench_detector_table_and_bad_option(capsys) -> None:
     assert main(["bench", "detector", "--frames", "2", "--poses", "0", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
     assert "(a) full-frame search" in out and "(c)/(a)" in out and "weighted" in out
+    assert "own samples only" in out and "across sd" in out
     assert main(["bench", "detector", "--frames", "2", "--min-excess", "0", "300"]) == 2
     assert "--min-excess 0 300" in capsys.readouterr().err

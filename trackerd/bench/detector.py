@@ -8,12 +8,15 @@ set of independent random poses through the rig's cameras
   (b) tracked  ColourEndDetector fed the trajectory in order (window search)
   (c) opencv   demosaic + HSV + inRange + moments per end (detect.reference)
   (d) floor    np.count_nonzero(frame > t): one vectorized pass over the frame
+  (a') (b')    as (a) and (b), centres from the ends' own colour samples only
+               (``rim_pixels=False``: what the every-pixel centre costs)
 
 Times are medians per frame; ratios are of medians from the same run. Targets
 (issue): (a) at least 8x faster than (c) and at most 4x (d); (b) no slower than (d).
 Detection error is the distance, in pixels, to the true centroid of each
-ball's visible image; also for the report's bounding-box midpoint (eq. 12) on
-the chosen blob, and for the report's method over the whole image.
+ball's visible image, and its component across the pointer's true image line
+(what the wall hit depends on); also for the report's bounding-box midpoint
+(eq. 12) on the chosen blob, and for the report's method over the whole image.
 """
 
 from __future__ import annotations
@@ -171,6 +174,12 @@ def run(args: argparse.Namespace) -> int:
             "bbox": ColourEndDetector(
                 bbox_cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer
             ),
+            "full_own": ColourEndDetector(
+                cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer, rim_pixels=False
+            ),
+            "tracked_own": ColourEndDetector(
+                cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer, rim_pixels=False
+            ),
         }
     formats = [rig.cameras[cam].pixel_format for cam in range(n_cams)]
 
@@ -180,7 +189,14 @@ def run(args: argparse.Namespace) -> int:
         for cam in range(n_cams)
         for i in list(range(args.frames)) + list(range(args.frames - 2, 0, -1))
     ]
-    times: dict[str, list[float]] = {"full": [], "tracked": [], "opencv": [], "floor": []}
+    times: dict[str, list[float]] = {
+        "full": [],
+        "tracked": [],
+        "opencv": [],
+        "floor": [],
+        "full_own": [],
+        "tracked_own": [],
+    }
     windowed = 0
     results: dict[str, list[tuple[Frame, ImageDetections]]] = {"tracked": []}
     for _ in range(args.repeats):
@@ -192,11 +208,13 @@ def run(args: argparse.Namespace) -> int:
                 "full": lambda image, d=det["full"]: _fresh(d, image),
                 "tracked": lambda image, d=det["tracked"]: d.detect(image),
                 "opencv": lambda image, f=formats[cam]: opencv_reference(image, f, cfg),
+                "full_own": lambda image, d=det["full_own"]: _fresh(d, image),
+                "tracked_own": lambda image, d=det["tracked_own"]: d.detect(image),
             }
             # Rotate the order every frame: each method in turn finds the frame already in
             # cache (after another read it) or not, so none is flattered by its place.
             names = list(steps)
-            names = names[n % 4 :] + names[: n % 4]
+            names = names[n % len(names) :] + names[: n % len(names)]
             for name in names:
                 t0 = time.perf_counter()
                 result = steps[name](frame.image)
@@ -211,6 +229,7 @@ def run(args: argparse.Namespace) -> int:
     every = [f for seq in sequences for f in seq] + independent
     methods = {
         "weighted": lambda f: _fresh(detectors[f.camera]["full"], f.image),
+        "weighted, own samples only": lambda f: _fresh(detectors[f.camera]["full_own"], f.image),
         "bbox (eq. 12, chosen blob)": lambda f: _fresh(detectors[f.camera]["bbox"], f.image),
         "report (eq. 12, whole image)": lambda f: report_baseline(f.image, formats[f.camera], cfg),
         "opencv": lambda f: opencv_reference(f.image, formats[f.camera], cfg),
@@ -222,6 +241,8 @@ def run(args: argparse.Namespace) -> int:
         "opencv_over_full": median_ms["opencv"] / median_ms["full"],
         "full_over_floor": median_ms["full"] / median_ms["floor"],
         "tracked_over_floor": median_ms["tracked"] / median_ms["floor"],
+        "full_own_over_floor": median_ms["full_own"] / median_ms["floor"],
+        "tracked_own_over_floor": median_ms["tracked_own"] / median_ms["floor"],
     }
     report = {
         "rig": str(args.rig),
@@ -267,9 +288,14 @@ def _errors(pairs: list[tuple[Frame, ImageDetections]]) -> dict[str, object]:
     An end further from the truth than the ball's radius (or 3 px) is counted as
     a wrong blob and left out of median/p95/max; ``median_all`` keeps them.
     """
-    errors, every = [], []
+    errors, every, across = [], [], []
     missed = wrong = visible = 0
     for frame, result in pairs:
+        red, blue = frame.truth["red"], frame.truth["blue"]
+        normal = None
+        if np.all(np.isfinite(red)) and np.all(np.isfinite(blue)) and np.any(red != blue):
+            along = (red - blue) / np.linalg.norm(red - blue)
+            normal = np.array([-along[1], along[0]])
         for colour in COLOURS:
             truth = frame.truth[colour]
             if not np.all(np.isfinite(truth)) or frame.area[colour] <= 0:
@@ -285,7 +311,10 @@ def _errors(pairs: list[tuple[Frame, ImageDetections]]) -> dict[str, object]:
                 wrong += 1
             else:
                 errors.append(error)
+                if normal is not None:
+                    across.append(float((end.centroid_px - truth) @ normal))
     e = np.array(errors) if errors else np.array([np.nan])
+    a = np.array(across) if across else np.array([np.nan])
     return {
         "ends": visible,
         "missed": missed,
@@ -294,6 +323,8 @@ def _errors(pairs: list[tuple[Frame, ImageDetections]]) -> dict[str, object]:
         "p95": round(float(np.percentile(e, 95)), 3),
         "max": round(float(np.max(e)), 3),
         "median_all": round(float(np.median(every)), 3) if every else None,
+        "across_std": round(float(np.std(a)), 4),
+        "across_p95": round(float(np.percentile(np.abs(a), 95)), 4),
     }
 
 
@@ -313,6 +344,8 @@ def _print_table(r: dict) -> None:
         "tracked": "(b) tracked search",
         "opencv": "(c) OpenCV reference",
         "floor": "(d) count_nonzero(frame > t)",
+        "full_own": "(a') full, own samples only",
+        "tracked_own": "(b') tracked, own samples only",
     }
     for key, label in labels.items():
         print(f"  {label:<32}{r['median_ms'][key]:>10.3f}")
@@ -331,6 +364,10 @@ def _print_table(r: dict) -> None:
         f"{'met' if met['tracked_within_floor'] else 'NOT met'}"
     )
     print(
+        f"  (a')/(d) = {ratios['full_own_over_floor']:.2f}x, (b')/(d) ="
+        f" {ratios['tracked_own_over_floor']:.2f}x   (centres from own samples only)"
+    )
+    print(
         "  tracked frames answered by the window search:"
         f" {100 * r['tracked_window_fraction']:.1f} %"
     )
@@ -343,10 +380,11 @@ def _print_table(r: dict) -> None:
     header = (
         f"  {'method':<30}{'ends':>6}{'missed':>8}{'wrong':>7}{'median':>9}{'p95':>8}{'max':>8}"
     )
-    print(header + f"{'all':>9}")
+    print(header + f"{'all':>9}{'across sd':>11}{'p95':>8}")
     for name, a in r["accuracy_px"].items():
         every = f"{a['median_all']:>9.3f}" if a["median_all"] is not None else f"{'-':>9}"
         print(
             f"  {name:<30}{a['ends']:>6}{a['missed']:>8}{a['wrong_blob']:>7}"
             f"{a['median']:>9.3f}{a['p95']:>8.3f}{a['max']:>8.3f}{every}"
+            f"{a['across_std']:>11.3f}{a['across_p95']:>8.3f}"
         )
