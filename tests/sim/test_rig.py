@@ -131,7 +131,7 @@ def _simrig(*args: str, **kwargs) -> subprocess.Popen[str]:
 def test_simrig_refuses_a_bad_rig_file_with_exit_2(tmp_path: Path) -> None:
     bad = tmp_path / "rig.toml"
     bad.write_text("version = 1\n[[cameras]]\nid = 'left'\n")
-    out, err = _simrig("--config", str(bad)).communicate(timeout=60)
+    _out, err = _simrig("--config", str(bad)).communicate(timeout=60)
     assert err.startswith(f"trackerd simrig: {bad}: ")
     assert "Traceback" not in err
 

@@ -224,7 +224,7 @@ class CameraWorker:
             self._turn(self._session)
 
     def _turn(self, session: CameraSession) -> None:
-        """One pass: wait for a buffer (or the next trigger tick), handle it, check health."""
+        """One pass: wait for a buffer, handle it, check the camera's health."""
         buffer = session.pop(int(POLL_S * 1e6))
         if buffer is not None:
             try:

@@ -204,7 +204,7 @@ class FillServer:
         # Runs on Aravis's camera thread for every frame; any exception would be lost in ctypes.
         try:
             self._serve(buffer)
-        except Exception as err:  # pragma: no cover - reported, never raised into C
+        except Exception as err:  # noqa: BLE001 - an exception cannot cross into C; report it
             print(f"gvcamera {self.label}: fill failed: {err!r}", file=sys.stderr, flush=True)
 
     def _serve(self, buffer: int) -> None:
