@@ -171,3 +171,15 @@ def test_simrig_measures_a_run_and_cleans_up_on_sigterm(tmp_path: Path) -> None:
         serving.communicate(timeout=60)
     assert serving.returncode == 130
     assert not {f"{PREFIX}-cam0", f"{PREFIX}-cam1"} & _namespaces()
+
+
+def test_the_cache_keeps_the_most_recently_used_loops(simulated_rig: RigConfig, tmp_path: Path) -> None:
+    import os
+
+    from trackerd.sim import rig as rig_module
+
+    for name in ("a", "b", "c"):
+        (tmp_path / name).mkdir()
+    os.utime(tmp_path / "a", (1, 1))  # the oldest
+    rig_module._prune(tmp_path, keep=2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "c"]

@@ -3,7 +3,8 @@
 Rendering a 1920x1080 view takes 0.05-0.3 s in Python, far from 60 frames per
 second, so a motion is rendered once as a loop of one period at
 ``content_fps`` loop frames per second (in worker processes) and cached on disk
-(``~/.cache/trackerd/simrig/<hash of rig, motion, renderer>``). The cameras
+(``~/.cache/trackerd/simrig/<hash of rig, motion, renderer>``, the four most
+recently used loops kept). The cameras
 then serve the loop at whatever frame rate the client configures: each frame
 shows the loop frame of the current instant, so at 60 fps and 30 loop frames
 per second every scene is sent twice.
@@ -46,6 +47,8 @@ from trackerd.sim.motion import DEFAULT_PERIOD_S, make_motion
 LOOP_VERSION = 1
 """Bump when the loop format changes, so cached loops are not reused."""
 READY_TIMEOUT_S = 15.0
+KEEP_LOOPS = 4
+"""Rendered loops kept in the cache; older ones are deleted when a new one is rendered."""
 FAKE_DEVICE_ID = "Fake_1"
 Network = Literal["auto", "netns", "loopback"]
 
@@ -139,6 +142,7 @@ def render_loop(
     truth_path = cache / "truth.json"
     n_frames = max(1, round(period_s * content_fps))
     if truth_path.exists() and all(p.exists() for p in frame_paths):
+        os.utime(cache)  # most recently used: the last to be pruned
         return RenderedLoop(cache, frame_paths, truth_path, n_frames, content_fps, 0.0)
     for cam in rig.cameras:
         if cam.pixel_format not in ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8"):
@@ -193,6 +197,7 @@ def render_loop(
         meta = {"motion": motion, "period_s": period_s, "content_fps": content_fps, "frames": truth}
         (work / "truth.json").write_text(json.dumps(meta))
         os.rename(work, cache)
+        _prune(cache.parent, keep=KEEP_LOOPS)
     except FileExistsError:
         pass  # another process finished the same loop first
     except OSError as err:
@@ -202,6 +207,17 @@ def render_loop(
         if work.exists():
             shutil.rmtree(work, ignore_errors=True)
     return RenderedLoop(cache, frame_paths, truth_path, n_frames, content_fps, time.monotonic() - started)
+
+
+def _prune(root: Path, keep: int) -> None:
+    """Delete all but the ``keep`` most recently used loops under ``root`` (each is hundreds of MB)."""
+    loops = sorted(
+        (p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")),
+        key=lambda p: p.stat().st_mtime,
+        reverse=True,
+    )
+    for old in loops[keep:]:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def _render_worker(work: Path, motion: str, period_s: float, content_fps: float, k: int, workers: int) -> None:
