@@ -13,6 +13,7 @@ pytestmark = pytest.mark.slow
 
 def test_bench_detector_json(capsys) -> None:
     args = ["bench", "detector", "--frames", "3", "--poses", "1", "--repeats", "1", "--json"]
+    args.append("--own-samples")
     assert main([*args, "--min-excess", "75", "65"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert set(report["median_ms"]) == {
@@ -39,5 +40,6 @@ def test_bench_detector_table_and_bad_option(capsys) -> None:
     out = capsys.readouterr().out
     assert "(a) full-frame search" in out and "(c)/(a)" in out and "weighted" in out
     assert "own samples only" in out and "across sd" in out
+    assert "(a')" not in out  # timed only with --own-samples
     assert main(["bench", "detector", "--frames", "2", "--min-excess", "0", "300"]) == 2
     assert "--min-excess 0 300" in capsys.readouterr().err
