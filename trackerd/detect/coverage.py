@@ -33,10 +33,10 @@ An unsolved pixel takes the mean of the own samples beside it (their coverage
 from the colour test). Cells surrounded by thresholded samples count as full
 and cells more than one cell from any as empty.
 
-Measured on rendered frames of the simulated rig (/tmp/centroid_err.py style,
-truth: the renderer's visible-area centroid): error across the pointer's image
-line 0.040-0.043 px (1 sigma), against 0.078-0.082 px from the own samples
-alone; the cost is about 45 NumPy calls per end (docs/detection.md, Measured).
+On rendered frames of the simulated rig (truth: the renderer's visible-area
+centroid) the error across the pointer's image line is 0.041-0.045 px (1 sigma)
+against 0.071-0.082 px from the own samples alone; the cost is about 45 NumPy
+calls, 0.12-0.16 ms, per end (docs/detection.md, Measured).
 """
 
 from __future__ import annotations
@@ -95,7 +95,10 @@ def rim_centre(
     # pixel. Red and blue are diagonal in every Bayer layout, so the other colour is then
     # bottom-right and the greens are right of and below the own sample, for either end.
     patch = frame[2 * r0 - 2 + dr : 2 * (r0 + h) + 2 + dr, 2 * c0 - 2 + dc : 2 * (c0 + w) + 2 + dc]
-    others = np.stack((patch[0::2, 1::2], patch[1::2, 0::2], patch[1::2, 1::2])).astype(np.float32)
+    # One copy: the four samples of each cell as four planes (own, right, below, diagonal).
+    planes = patch.reshape(h + 2, 2, w + 2, 2).transpose(1, 3, 0, 2).astype(np.float32)
+    planes = planes.reshape(4, h + 2, w + 2)
+    others = planes[1:]
 
     # Each other sample against the pair of its channel's samples two pixels to either side,
     # along the row or the column, whichever differ more.
@@ -117,13 +120,15 @@ def rim_centre(
     solved &= value >= ball - slack
     solved &= value <= back + slack
     # The own samples next to a cell's other pixels: its own, right, below and diagonal.
-    dark = patch[0::2, 0::2] <= DARK_FRACTION * end.own_level
+    dark = planes[0] <= DARK_FRACTION * end.own_level
     near_dark = dark[1:-1, 1:-1] | dark[1:-1, 2:]
     near_dark |= dark[2:, 1:-1]
     near_dark |= dark[2:, 2:]
     solved &= ~near_dark
     mixed = back - value
     mixed /= np.maximum(contrast, 1.0)
+    np.minimum(mixed, 1.0, out=mixed)
+    np.maximum(mixed, 0.0, out=mixed)
 
     # Unsolved: the mean of the own samples beside (the green right of the own sample has one
     # left and one right of it, the green below one above and one below, the other colour four
@@ -137,8 +142,7 @@ def rim_centre(
     beside[2] += own[1:, 1:]
     beside[:2] *= 0.5
     beside[2] *= 0.25
-    cover = np.where(solved, mixed, beside)
-    np.clip(cover, 0.0, 1.0, out=cover)
+    cover = np.where(solved, mixed, beside)  # own-sample coverage is in [0, 1], so is beside
 
     # Per cell: its four pixels' coverage, and how much of it lies one pixel right or down.
     strong = np.zeros((h + 2, w + 2), dtype=np.float32)
