@@ -30,10 +30,11 @@ from trackerd.errors import GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.pointer_line import (
     PointerLine,
+    cross3,
     estimate_pointer_line,
-    interpretation_plane_normals,
     line_from_planes,
     sphere_centre_direction,
+    two_plane_lines,
 )
 from trackerd.geometry.wall import WallFrame, intersect_line_plane
 
@@ -254,30 +255,36 @@ class Locator:
         change of a few percent is ignored: this is an estimate).
         """
         sigma_px = self.rig.locator.centroid_sigma_px
+        n_cameras = len(self.cameras)
+        # Variant 0 is the measurement; then each end of each camera moved across the pointer.
+        variants = np.repeat(normalised[None], 1 + 2 * n_cameras, axis=0)
+        for index, cam in enumerate(self.cameras):
+            along = normalised[index, 0] - normalised[index, 1]
+            across = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
+            for end in (0, 1):
+                variants[1 + 2 * index + end, index, end] += across * sigma_px / cam.focal_px
         try:
-            base_xy = self._plane_hit_xy(normalised)
-            variance = 0.0
-            for index, cam in enumerate(self.cameras):
-                along = normalised[index, 0] - normalised[index, 1]
-                across = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
-                step = across * sigma_px / cam.focal_px
-                for end in (0, 1):
-                    moved = normalised.copy()
-                    moved[index, end] += step
-                    variance += float(np.sum((self._plane_hit_xy(moved) - base_xy) ** 2))
+            hits = self._plane_hits_xy(variants)
         except GeometryError:
             return None
-        return float(np.sqrt(variance))
+        return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
 
-    def _plane_hit_xy(self, normalised: Array) -> Array:
-        """Wall hit (2,) of the interpretation planes' line only: the cheap path for error propagation."""
-        rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
-        world = np.einsum("cej,cjk->cek", rays, self._rotations)
-        normals = interpretation_plane_normals(world[:, 0], world[:, 1])
-        point, direction, _ = line_from_planes(self._centres, normals)
+    def _plane_hits_xy(self, variants: Array) -> Array:
+        """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
+        coordinates (B, C, 2 ends, 2): the cheap, batched path for error propagation."""
+        rays = np.concatenate([variants, np.ones((*variants.shape[:3], 1))], axis=3)
+        world = np.einsum("bcej,cjk->bcek", rays, self._rotations)
+        normals = cross3(world[:, :, 0], world[:, :, 1])
+        normals /= np.sqrt(np.sum(normals * normals, axis=-1, keepdims=True))
+        if normals.shape[1] == 2:
+            points, directions, _ = two_plane_lines(self._centres, normals)
+        else:
+            lines = [line_from_planes(self._centres, n) for n in normals]
+            points = np.array([line[0] for line in lines])
+            directions = np.array([line[1] for line in lines])
         plane = self._plane
-        denominator = float(direction @ plane.normal)
-        if abs(denominator) < 1e-9:
+        denominator = directions @ plane.normal
+        if np.any(np.abs(denominator) < 1e-9):
             raise GeometryError("the pointer is parallel to the wall")
-        hit = point - (plane.signed_distance_m(point) / denominator) * direction
-        return self.wall.to_wall_m(hit)
+        hits = points - (plane.signed_distance_m(points) / denominator)[:, None] * directions
+        return self.wall.to_wall_m(hits)

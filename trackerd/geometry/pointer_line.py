@@ -72,7 +72,7 @@ class PointerLine:
         return max(self.front_gap_m, self.back_gap_m)
 
 
-def _cross(a: Array, b: Array) -> Array:
+def cross3(a: Array, b: Array) -> Array:
     """Cross product of (..., 3) arrays; np.cross is slow for the handful of vectors used here."""
     return np.stack([
         a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
@@ -83,7 +83,7 @@ def _cross(a: Array, b: Array) -> Array:
 
 def interpretation_plane_normals(front_dirs: Array, back_dirs: Array) -> Array:
     """Unit normals (C, 3) of the planes spanned by each camera's two end rays (C, 3) and (C, 3)."""
-    normals = _cross(front_dirs, back_dirs)
+    normals = cross3(front_dirs, back_dirs)
     norms = np.sqrt(np.sum(normals * normals, axis=1, keepdims=True))
     if np.any(norms < 1e-12):
         raise GeometryError("the pointer's two ends coincide in an image: it is seen end-on")
@@ -95,14 +95,20 @@ def line_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, fl
 
     Returns (point (3,), unit direction (3,), conditioning): the direction is the
     vector most nearly perpendicular to every normal, and conditioning is the sine
-    of the angle that separates the planes (0 when they are parallel).
+    of the angle that separates the planes (0 when they are parallel). Raises
+    GeometryError when the planes are parallel.
     """
+    if len(normals) == 2:
+        points, directions, conditioning = two_plane_lines(centres_m, normals[None])
+        return points[0], directions[0], float(conditioning[0])
     scatter = normals.T @ normals
     eigenvalues, eigenvectors = np.linalg.eigh(scatter)
     direction = eigenvectors[:, 0]
     # Two planes whose normals are theta apart give eigenvalues 0, 1 - cos, 1 + cos,
     # so sqrt(l1 * l2) is sin(theta); dividing by C / 2 extends that to C planes.
     conditioning = float(np.sqrt(max(eigenvalues[1], 0.0) * eigenvalues[2]) / (len(normals) / 2.0))
+    if conditioning < 1e-12:
+        raise GeometryError("the cameras' planes through the pointer are parallel: no line")
     # Point: least squares on n_i . x = n_i . c_i, regularised along the free direction.
     offsets = np.sum(normals * centres_m, axis=1)
     lhs = scatter + np.outer(direction, direction)
@@ -111,27 +117,43 @@ def line_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, fl
     return point, direction, conditioning
 
 
-def _along_line(point: Array, direction: Array, origins: Array, dirs: Array) -> tuple[Array, float]:
-    """Where rays (C, 3) come closest to a line: the point on the line (weighted mean) and the worst miss.
+def two_plane_lines(centres_m: Array, normals: Array) -> tuple[Array, Array, Array]:
+    """Lines where pairs of planes meet, in closed form, for B pairs at once.
 
-    For the line p + s u and a ray o + t d (both unit), the closest points have
-    s = (b e - d1) / (1 - b^2) and t = (e - b d1) / (1 - b^2) with b = u.d,
-    d1 = u.(p - o), e = d.(p - o): the common perpendicular of eq. 17.
+    Shapes: plane points (2, 3), unit normals (B, 2, 3) -> points (B, 3), unit
+    directions (B, 3), conditioning (B,) = |n0 x n1|, the sine of the angle
+    between the planes. The point is the one nearest the two plane points' midpoint.
     """
-    unit = dirs / np.sqrt(np.sum(dirs * dirs, axis=1, keepdims=True))
+    n0, n1 = normals[:, 0], normals[:, 1]
+    cross = cross3(n0, n1)
+    conditioning = np.sqrt(np.sum(cross * cross, axis=1))
+    if np.any(conditioning < 1e-12):
+        raise GeometryError("the cameras' planes through the pointer are parallel: no line")
+    direction = cross / conditioning[:, None]
+    middle = 0.5 * (centres_m[0] + centres_m[1])
+    lhs = np.stack([n0, n1, direction], axis=1)
+    rhs = np.stack([n0 @ centres_m[0], n1 @ centres_m[1], direction @ middle], axis=1)
+    return np.linalg.solve(lhs, rhs[..., None])[..., 0], direction, conditioning
+
+
+def _ends_along_line(point: Array, direction: Array, origins: Array, dirs: Array) -> Array:
+    """Where each end's rays come closest to a line: one point on the line per end.
+
+    Shapes: line point and unit direction (3,), ray origins (C, 3), rays (E, C, 3)
+    -> (E, 3). For the line p + s u and a unit ray o + t d, the closest point has
+    s = (b e - d1) / (1 - b^2) with b = u.d, d1 = u.(p - o), e = d.(p - o) (the
+    common perpendicular of eq. 17); the cameras' s are averaged with weights
+    1 - b^2, since a ray nearly parallel to the line fixes the position along it poorly.
+    """
+    unit = dirs / np.sqrt(np.sum(dirs * dirs, axis=-1, keepdims=True))
     rel = point - origins
     b = unit @ direction
     d1 = rel @ direction
-    e = np.sum(unit * rel, axis=1)
+    e = np.sum(unit * rel, axis=-1)
     sin2 = np.maximum(1.0 - b * b, 1e-18)
     s = (b * e - d1) / sin2
-    t = (e - b * d1) / sin2
-    feet_line = point + s[:, None] * direction
-    feet_ray = origins + t[:, None] * unit
-    gaps = np.sqrt(np.sum((feet_line - feet_ray) ** 2, axis=1))
-    # A ray nearly parallel to the line fixes the position along it poorly.
-    s_mean = float(np.sum(s * sin2) / np.sum(sin2))
-    return point + s_mean * direction, float(gaps.max())
+    s_mean = np.sum(s * sin2, axis=-1) / np.sum(sin2, axis=-1)
+    return point + s_mean[:, None] * direction
 
 
 def estimate_pointer_line(
@@ -153,34 +175,42 @@ def estimate_pointer_line(
     if not (np.all(np.isfinite(front_dirs)) and np.all(np.isfinite(back_dirs))):
         raise GeometryError("an end's ray is undefined (NaN): every camera must see both ends")
     normals = interpretation_plane_normals(front_dirs, back_dirs)
-    point, direction, conditioning = line_from_planes(centres, normals)
+    try:
+        point, direction, conditioning = line_from_planes(centres, normals)
+    except GeometryError:
+        conditioning = 0.0
     if conditioning < min_plane_sin:
         return _line_from_points(centres, front_dirs, back_dirs, conditioning)
-    front, _ = _along_line(point, direction, centres, front_dirs)
-    back, _ = _along_line(point, direction, centres, back_dirs)
+    ends = np.stack([front_dirs, back_dirs])
+    front, back = _ends_along_line(point, direction, centres, ends)
     # The planes fix the line; the ends' own rays fix where on it they are. The
     # gaps are those of the ends' rays, which the line cannot hide.
-    return PointerLine(front, back, ray_gap_m(centres, front_dirs), ray_gap_m(centres, back_dirs),
-                       "planes", conditioning)
+    gaps = ray_gaps_m(centres, ends)
+    return PointerLine(front, back, float(gaps[0]), float(gaps[1]), "planes", conditioning)
+
+
+def ray_gaps_m(origins_m: Array, directions: Array) -> Array:
+    """How far rays through one point miss each other: the largest pairwise closest-approach distance.
+
+    Shapes: ray origins (C, 3), rays (E, C, 3) for E points -> (E,). For two rays
+    this is the length of their common perpendicular (eq. 16 is the case where it
+    is zero): ``|(C2 - C1) . (A x B)| / |A x B|``.
+    """
+    worst = np.zeros(directions.shape[0])
+    n = origins_m.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            normals = cross3(directions[:, i], directions[:, j])
+            norms = np.sqrt(np.sum(normals * normals, axis=-1))
+            offsets = np.abs(normals @ (origins_m[j] - origins_m[i]))
+            gap = np.where(norms > 1e-12, offsets / np.maximum(norms, 1e-300), 0.0)
+            worst = np.maximum(worst, gap)
+    return worst
 
 
 def ray_gap_m(origins_m: Array, directions: Array) -> float:
-    """How far rays (C, 3) through one point miss each other: the largest pairwise closest-approach distance.
-
-    For two rays this is the length of their common perpendicular (eq. 16 is
-    the case where it is zero): ``|(C2 - C1) . (A x B)| / |A x B|``.
-    """
-    worst = 0.0
-    for i in range(len(origins_m)):
-        normals = _cross(directions[i], directions[i + 1 :])
-        if not len(normals):
-            continue
-        norms = np.sqrt(np.sum(normals * normals, axis=1))
-        offsets = np.abs(np.sum((origins_m[i + 1 :] - origins_m[i]) * normals, axis=1))
-        valid = norms > 1e-12
-        if np.any(valid):
-            worst = max(worst, float(np.max(offsets[valid] / norms[valid])))
-    return worst
+    """:func:`ray_gaps_m` for the rays (C, 3) of a single point."""
+    return float(ray_gaps_m(np.asarray(origins_m, float), np.asarray(directions, float)[None])[0])
 
 
 def _line_from_points(centres: Array, front_dirs: Array, back_dirs: Array, conditioning: float) -> PointerLine:
@@ -200,7 +230,7 @@ def pointer_from_points(centres_m: Array, front_dirs: Array, back_dirs: Array) -
     centres = np.asarray(centres_m, dtype=np.float64).reshape(-1, 3)
     front_dirs = np.asarray(front_dirs, dtype=np.float64).reshape(-1, 3)
     back_dirs = np.asarray(back_dirs, dtype=np.float64).reshape(-1, 3)
-    conditioning = float(np.linalg.norm(_cross(*interpretation_plane_normals(front_dirs, back_dirs)[:2])))
+    conditioning = float(np.linalg.norm(cross3(*interpretation_plane_normals(front_dirs, back_dirs)[:2])))
     return _line_from_points(centres, front_dirs, back_dirs, conditioning)
 
 

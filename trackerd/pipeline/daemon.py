@@ -47,6 +47,9 @@ log = logging.getLogger(__name__)
 STATE_POLL_S = 0.2
 """How often the publisher looks for a change of camera state (a change sends a status at once)."""
 PAIR_WAIT_S = 0.05
+HEALTH_EVERY = 4
+"""Calibration health is measured on every fourth pair: drift is slow, and each
+measurement reprojects every end into every camera (about 0.2 ms)."""
 """How long the processing thread waits for a pair before checking for stop or reload."""
 
 
@@ -194,7 +197,7 @@ class Pipeline:
             capture = pair.timestamp_ns + self.clock_offset_ns
             messages = messages_from_fix(fix, self.locator, sequence=pair.sequence, capture_ns=capture)
             self._fixes[fix.status] = self._fixes.get(fix.status, 0) + 1
-            if fix.found:
+            if fix.found and self.pairs_processed % HEALTH_EVERY == 0:
                 self.health.add_fix(fix)
             if fix.status == "not_found":
                 # Tracking windows are stale once the pointer is gone.

@@ -16,11 +16,24 @@ class Window:
         self._lock = threading.Lock()
         self.total = 0
         """Samples added since creation."""
+        self._recording: list[int] | None = None
 
     def add(self, value_ns: int) -> None:
         with self._lock:
             self._values.append(value_ns)
             self.total += 1
+            if self._recording is not None:
+                self._recording.append(value_ns)
+
+    def record(self) -> None:
+        """Also keep every sample from now on, whatever drains the window (for benchmarks)."""
+        with self._lock:
+            self._recording = []
+
+    def recorded(self) -> np.ndarray:
+        """Every sample since :meth:`record`, in ns."""
+        with self._lock:
+            return np.asarray(self._recording or [], dtype=np.int64)
 
     def drain(self) -> np.ndarray:
         """The samples so far, in ns, and forget them (for figures per status period)."""
