@@ -65,7 +65,7 @@ class Measurement:
     fill: float
     """Samples passing the threshold over their bounding box, in samples."""
     rim: Rim | None = None
-    """What :func:`refine` needs to measure the centre from every pixel (Bayer, weighted)."""
+    """What :func:`measure_rims` needs to measure the centre from every pixel (Bayer, weighted)."""
 
     @property
     def centre_px(self) -> NDArray[np.float64]:
@@ -230,8 +230,10 @@ def measure_candidate(
     """Measure a chosen candidate around its blob (box grown by a cell), other blobs left out."""
     x0, y0, x1, y1 = c.frame_cells()
     lo_r, hi_r, lo_c, hi_c = grid.interior()
-    # One cell around the blob (one strip cell, in a window measured at a coarser scale).
-    grow = c.scale
+    # One cell around the blob (one strip cell, in a window measured at a coarser scale), and
+    # one more on a mosaic: the colour test here can reach a cell beyond the blob found in the
+    # strip, and the centre from every pixel needs a ring of cells around all of it.
+    grow = c.scale + (1 if grid.is_bayer else 0)
     region = (
         max(lo_r, y0 - grow),
         min(hi_r, y1 + 1 + grow),

@@ -82,14 +82,18 @@ def rim_centre(
 ) -> tuple[float, float, float] | None:
     """Centre (x, y) and area of an end from the coverage of every pixel, full-resolution pixels.
 
-    ``end.strong`` must hold every thresholded sample of the end with a cell of
-    margin (measure's box does). None when the cells and a ring around them do
-    not fit in the frame, or nothing is covered: keep the own samples' estimate.
+    ``end.strong`` should hold every thresholded sample of the end with a cell
+    of margin (measure's box does, unless the end reaches its window's border).
+    None when it does not, when the cells and a ring around them do not fit in
+    the frame, or when nothing is covered: keep the own samples' estimate then.
     """
     h, w = end.strong.shape
     r0, c0 = end.origin
     if r0 < 1 or c0 < 1 or r0 + h + 1 > grid.rows or c0 + w + 1 > grid.cols:
         return None
+    edge = end.strong[0].any() or end.strong[-1].any() or end.strong[:, 0].any()
+    if edge or end.strong[:, -1].any():
+        return None  # part of the rim would be outside the arrays
     dr, dc = grid.offset(end.colour)
     # The cells and a ring of cells around them, the end's own colour at each cell's top-left
     # pixel. Red and blue are diagonal in every Bayer layout, so the other colour is then
