@@ -59,9 +59,10 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
           publisher_factory=zmq_publisher, banner: str | None = None) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it."""
     from trackerd.pipeline.daemon import Pipeline
+    from trackerd.pipeline.extensions import for_rig
 
     notifier = SdNotify()
-    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier)
+    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig))
     stop = threading.Event()
     reload_requested = threading.Event()
 

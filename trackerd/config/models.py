@@ -26,6 +26,8 @@ from pydantic import Field, field_validator, model_validator
 
 from trackerd.config.acquisition import CameraAcquisition, RigAcquisition
 from trackerd.config.base import ConfigModel
+from trackerd.config.interaction import InteractionConfig
+from trackerd.config.recording import RecordingConfig
 
 Vec3 = tuple[float, float, float]
 
@@ -508,6 +510,10 @@ class RigConfig(_Model):
     """Line estimation and quality gates."""
     outputs: OutputsConfig = OutputsConfig()
     """Output settings."""
+    recording: RecordingConfig = RecordingConfig()
+    """Recording from the running daemon (docs/recording.md)."""
+    interaction: InteractionConfig = InteractionConfig()
+    """Smoothing, pointing events, gestures and TUIO output (docs/protocol.md)."""
     simulation: SimulationConfig = SimulationConfig()
     """Scene simulator settings (only used when rendering)."""
 

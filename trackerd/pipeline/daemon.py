@@ -21,7 +21,7 @@ import logging
 import threading
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import trackerd
@@ -30,6 +30,7 @@ from trackerd.acquisition.status import SourceStatus
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator
+from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
 from trackerd.publish import Publisher, StatusMessage, messages_from_fix
@@ -83,6 +84,7 @@ class Pipeline:
         *,
         queue_length: int = 16,
         clock_offset_ns: int | None = None,
+        extensions: Sequence[PipelineExtension] | None = None,
     ) -> None:
         self.rig = rig
         self._source_factory = source_factory
@@ -115,6 +117,7 @@ class Pipeline:
         self.source: PairSource | None = None
         self.publisher: Publisher | None = None
         self.locator = Locator(rig)
+        self.extensions: list[PipelineExtension] = list(extensions or [])
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
 
     # ------------------------------------------------------------------ control
@@ -147,6 +150,8 @@ class Pipeline:
             self.source.stop()
         if self.publisher is not None:
             self.publisher.close()
+        for extension in self.extensions:
+            extension.close()
         self._done.set()
 
     def request_reload(self, rig: RigConfig) -> None:
@@ -193,9 +198,13 @@ class Pipeline:
                 continue
             start = time.monotonic_ns()
             received = max(frame.host_timestamp_ns for frame in pair.frames)
+            for extension in self.extensions:
+                extension.on_pair(pair)
             fix = self.locator.locate(pair.images)
             capture = pair.timestamp_ns + self.clock_offset_ns
             messages = messages_from_fix(fix, self.locator, sequence=pair.sequence, capture_ns=capture)
+            for extension in self.extensions:
+                messages = extension.on_fix(fix, pair, messages)
             self._fixes[fix.status] = self._fixes.get(fix.status, 0) + 1
             if fix.found and self.pairs_processed % HEALTH_EVERY == 0:
                 self.health.add_fix(fix)
@@ -228,6 +237,8 @@ class Pipeline:
             self._notifier.ready("running (reload failed: previous configuration kept)")
             return
         self.locator = locator
+        for extension in self.extensions:
+            extension.reload(rig)
         if rig.cameras != old.cameras or rig.wall != old.wall:
             # A new calibration starts a new health record.
             self.health = CalibrationHealth.for_rig(rig, locator.cameras)
@@ -355,6 +366,7 @@ class Pipeline:
             calibration=CalibrationHealthPart.model_validate(self.health.to_json()) if self.health.total else None,
             fixes=dict(self._fixes),
             detail=self._detail,
+            **{name: figures for name, figures in ((e.name, e.status()) for e in self.extensions) if figures},
         )
 
 
