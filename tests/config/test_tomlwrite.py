@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from trackerd.calibration.tomlwrite import dumps
+from trackerd.config.tomlwrite import dumps
 
 finite = st.floats(allow_nan=False, allow_infinity=False)
 keys = st.text(min_size=1, max_size=12)
@@ -70,3 +70,16 @@ def test_nan_and_infinity_are_refused(bad: float) -> None:
 def test_unknown_types_are_refused() -> None:
     with pytest.raises(TypeError, match="object"):
         dumps({"x": object()})
+
+
+def test_a_whole_rig_round_trips_through_arrays_of_tables() -> None:
+    import tomllib
+    from pathlib import Path
+
+    from trackerd.config.loader import load_rig
+    from trackerd.config.models import RigConfig
+
+    rig = load_rig(Path(__file__).resolve().parents[2] / "config" / "simulated.toml").config
+    text = dumps(rig.model_dump(mode="json", exclude_none=True, exclude_defaults=True))
+    assert text.count("[[cameras]]") == 2
+    assert RigConfig.model_validate(tomllib.loads(text)) == rig

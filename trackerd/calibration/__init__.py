@@ -13,7 +13,6 @@ technique" (section 3.1) and measured the wall's three points by hand (section
 * health.py      ray gaps and reprojection errors of tracked pointers: drift detection
 * update.py      results into calibration-file entries; the world frame
 * store.py       reading the rig leniently, writing the calibration file atomically with a backup
-* tomlwrite.py   a small TOML emitter for the calibration file's simple structure
 * inputs.py      image files, folders of pairs, wall targets and measured walls
 * report.py      results as text and JSON
 * live.py        the --live modes on a PairSource, with progress and guidance as text

@@ -27,7 +27,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.tomlwrite import dumps
+from trackerd.config.tomlwrite import dumps
 from trackerd.config.loader import describe_validation_error, load_calibration, merge_calibration, parse_rig, read_toml
 from trackerd.config.models import CalibrationFile, RigConfig
 from trackerd.errors import ConfigError

@@ -373,3 +373,14 @@ def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) 
         raise ConfigError(
             f"{path}: after merging into the rig: {describe_validation_error(err, RigConfig)}"
         ) from err
+
+
+def dump_rig(rig: RigConfig, header: str = "") -> str:
+    """A rig as TOML text that load_rig reads back to the same rig (defaults left out).
+
+    The ``calibration`` path is written as it is; make it absolute first if the text
+    is saved somewhere else than the original rig file's directory.
+    """
+    from trackerd.config.tomlwrite import dumps
+
+    return dumps(rig.model_dump(mode="json", exclude_none=True, exclude_defaults=True), header=header)

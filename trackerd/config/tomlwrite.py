@@ -1,14 +1,14 @@
-"""A small TOML writer for the calibration file's simple structure.
+"""A small TOML writer for trackerd's own files (calibration files, rig files it generates).
 
 Python's standard library reads TOML (tomllib) but does not write it. The
-calibration file needs only tables, strings, integers, booleans, floats and
+files need only tables, strings, integers, booleans, floats and
 (nested) arrays of those, so this emitter covers exactly that:
 
 * floats are written with ``repr``, the shortest text that reads back to the
   same double, so a value survives a write and a read bit for bit; NaN and
   infinity are refused (no calibration value can take them);
-* a table's plain values come first, then its sub-tables as ``[a.b]`` headers;
-  arrays of tables are not supported (the calibration file has none);
+* a table's plain values come first, then its sub-tables as ``[a.b]`` headers,
+  then its arrays of tables as ``[[a.b]]`` (a rig file's cameras);
 * keys that are not bare (letters, digits, ``_`` and ``-``) are quoted.
 """
 
@@ -36,19 +36,36 @@ def dumps(data: Mapping[str, Any], header: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def _table(data: Mapping[str, Any], path: list[str], lines: list[str]) -> None:
-    values = [(k, v) for k, v in data.items() if not isinstance(v, Mapping)]
+def _table(data: Mapping[str, Any], path: list[str], lines: list[str], element: bool = False) -> None:
+    """Write a table: its plain values under its header, then its sub-tables and arrays of tables.
+
+    ``element``: the table is one element of an array of tables (``[[path]]``), whose
+    header must be written even when it holds only sub-tables.
+    """
+    def is_table_array(v: Any) -> bool:
+        return isinstance(v, Sequence) and not isinstance(v, str) and bool(v) and all(
+            isinstance(item, Mapping) for item in v
+        )
+
+    values = [(k, v) for k, v in data.items() if not isinstance(v, Mapping) and not is_table_array(v)]
     tables = [(k, v) for k, v in data.items() if isinstance(v, Mapping)]
-    if path and (values or not tables):
-        lines.append("[" + ".".join(_key(p) for p in path) + "]")
+    arrays = [(k, v) for k, v in data.items() if is_table_array(v)]
+    header = ".".join(_key(p) for p in path)
+    if element:
+        lines.append(f"[[{header}]]")
+    elif path and (values or not (tables or arrays)):
+        lines.append(f"[{header}]")
     for key, value in values:
         if value is None:
             continue
         lines.append(f"{_key(key)} = {_value(value, [*path, key])}")
-    if values or (path and not tables):
+    if values or element or (path and not (tables or arrays)):
         lines.append("")
     for key, value in tables:
         _table(value, [*path, key], lines)
+    for key, items in arrays:
+        for item in items:
+            _table(item, [*path, key], lines, element=True)
 
 
 def _key(key: str) -> str:
