@@ -46,6 +46,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--synthetic", action="store_true", help="serve a moving square, no rendering")
     parser.add_argument("--measure", action="store_true", help="also acquire pairs and print the figures")
     parser.add_argument("--json", action="store_true", help="with --measure: print the figures as JSON")
+    parser.add_argument(
+        "--write-rig", type=Path, metavar="FILE",
+        help="write the rig as the daemon must open it (the simulated cameras' addresses) to FILE,"
+        " for `trackerd run --config FILE` in another terminal",
+    )
     parser.set_defaults(handler=simrig_command)
 
 
@@ -92,6 +97,10 @@ def simrig_command(args: argparse.Namespace) -> int:
             print(f"preparing the '{args.motion}' loop ({args.period:g} s at {args.content_fps:g} fps)...", file=log)
         with virtual:
             print(describe(virtual), file=log, flush=True)
+            if args.write_rig is not None:
+                _write_rig(virtual.daemon_rig, args.write_rig, Path(args.config))
+                print(f"rig for the daemon written to {args.write_rig}: trackerd run --config {args.write_rig}",
+                      file=log, flush=True)
             started = time.monotonic()
             if args.measure:
                 figures = measure(virtual, args.seconds or 60.0)
@@ -105,6 +114,18 @@ def simrig_command(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGTERM, previous)
     return 0
+
+
+def _write_rig(rig: Any, path: Path, source: Path) -> None:
+    """The daemon's view of the rig, loadable by `trackerd run --config` from anywhere."""
+    from trackerd.config.loader import dump_rig
+
+    if rig.calibration is not None:
+        rig = rig.model_copy(update={"calibration": (source.parent / rig.calibration).resolve()})
+    header = f"Written by `trackerd simrig --config {source}`: the simulated cameras' addresses replace the\n" \
+        "serials, and acquisition settings are adapted to the simulated cameras (docs/acquisition.md)."
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(dump_rig(rig, header=header))
 
 
 def _wait(seconds: float | None) -> None:
