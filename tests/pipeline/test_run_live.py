@@ -1,0 +1,140 @@
+"""`trackerd run` as systemd would run it: a real process on the virtual GigE Vision rig.
+
+The simulated cameras run in their own network namespaces (root), the daemon in
+a subprocess with its own NOTIFY_SOCKET standing in for systemd, and a ZeroMQ
+subscriber in this process checks what it publishes. Signals are sent to the
+daemon's process: SIGHUP with a broken and then a good file, SIGTERM at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zmq
+
+from trackerd.acquisition.arv import aravis_missing_reason
+from trackerd.config.loader import dump_rig
+from trackerd.geometry.wall import WallFrame
+from trackerd.sim.netns import netns_missing_reason
+from trackerd.sim.rig import loop_truth
+
+pytestmark = [
+    pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
+    pytest.mark.skipif(netns_missing_reason() is not None,
+                       reason=f"needs network namespaces (root): {netns_missing_reason()}"),
+]
+
+ENDPOINT = "tcp://127.0.0.1:5577"
+
+
+def _notifications(sock: socket.socket) -> list[str]:
+    out = []
+    while True:
+        try:
+            out.append(sock.recv(4096).decode())
+        except BlockingIOError:
+            return out
+
+
+def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> None:
+    from trackerd.sim.rig import VirtualRig
+
+    zmq_cfg = simulated_rig.outputs.zmq.model_copy(update={"endpoints": (ENDPOINT,), "status_interval_ms": 250.0})
+    rig = simulated_rig.model_copy(update={"outputs": simulated_rig.outputs.model_copy(update={"zmq": zmq_cfg})})
+    notify_path = tmp_path / "notify.sock"
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    notify.bind(str(notify_path))
+    notify.setblocking(False)
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(ENDPOINT)
+    with VirtualRig(rig, motion="figure8", prefix="trkdr", subnet="10.213.210.0/24",
+                    out_dir=tmp_path / "simrig") as virtual:
+        rig_file = tmp_path / "rig.toml"
+        rig_file.write_text(dump_rig(virtual.daemon_rig))
+        env = dict(os.environ, NOTIFY_SOCKET=str(notify_path), WATCHDOG_USEC="2000000")
+        daemon = subprocess.Popen(
+            [sys.executable, "-m", "trackerd", "--log-level", "info", "run", "--config", str(rig_file)],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        messages: list[tuple[str, dict]] = []
+        notes: list[str] = []
+        try:
+            def collect(seconds: float) -> None:
+                end = time.monotonic() + seconds
+                while time.monotonic() < end:
+                    if sub.poll(50):
+                        topic, payload = sub.recv_multipart()
+                        messages.append((topic.decode(), json.loads(payload)))
+                    notes.extend(_notifications(notify))
+
+            collect(6.0)
+            # A broken file on SIGHUP: the daemon keeps running on the old configuration.
+            rig_file.write_text(rig_file.read_text().replace('pixel_format = "BayerRG8"', 'pixel_format = "Mono8"', 1))
+            daemon.send_signal(signal.SIGHUP)
+            collect(1.5)
+            assert daemon.poll() is None
+            hits_before = sum(t == "hit" for t, _ in messages)
+            # A good file: applied between two pairs, tracking goes on.
+            rig_file.write_text(dump_rig(virtual.daemon_rig.model_copy(update={"name": "reloaded"})))
+            daemon.send_signal(signal.SIGHUP)
+            collect(2.0)
+            assert sum(t == "hit" for t, _ in messages) > hits_before
+            stop_sent = time.monotonic()
+            daemon.send_signal(signal.SIGTERM)
+            code = daemon.wait(timeout=10)
+            stop_took = time.monotonic() - stop_sent
+            collect(0.3)
+        finally:
+            if daemon.poll() is None:
+                daemon.kill()
+            out, err = daemon.communicate()
+            sub.close(0)
+            ctx.term()
+            notify.close()
+    assert code == 0, err
+    # Cameras released, sockets closed, within about a second (systemd's stop is not a kill).
+    assert stop_took < 1.5, f"stop took {stop_took:.2f} s"
+
+    # systemd saw READY only once both cameras streamed, then the watchdog from real work, then STOPPING.
+    ready = next(i for i, n in enumerate(notes) if "READY=1" in n)
+    assert "left streaming" in notes[ready] and "right streaming" in notes[ready]
+    assert any("WATCHDOG=1" in n for n in notes[ready:])
+    assert any("RELOADING=1" in n for n in notes)
+    assert "STOPPING=1" in "".join(notes[-3:])
+
+    statuses = [m for t, m in messages if t == "status"]
+    assert statuses[0]["state"] in ("starting", "running")
+    running = [s for s in statuses if s["state"] == "running"]
+    assert running and all(c["state"] == "streaming" for c in running[-1]["cameras"])
+    assert statuses[-1]["state"] == "stopping"
+    assert any(s["rig"] == "reloaded" for s in statuses), "the good SIGHUP reload was not applied"
+    assert "keeping the running configuration" in err and "Mono8" in err
+
+    # Hits lie on the rendered figure eight (the motion's true wall hits), to within the accuracy budget.
+    truth = np.array([f["wall_xy_m"] for f in loop_truth(virtual.rig, "figure8", virtual.period_s,
+                                                           virtual.content_fps) if f.get("wall_xy_m")])
+    dense = np.concatenate([truth[i] + np.linspace(0, 1, 20)[:, None] * (truth[(i + 1) % len(truth)] - truth[i])
+                            for i in range(len(truth))])
+    hits = np.array([[m["wall_x_m"], m["wall_y_m"]] for t, m in messages if t == "hit"])
+    assert len(hits) > 200
+    distance = np.min(np.linalg.norm(hits[:, None, :] - dense[None, :, :], axis=2), axis=1)
+    assert np.median(distance) < 0.005 and np.percentile(distance, 95) < 0.015
+
+    # Sequence numbers: every pair between the first and last received is accounted for.
+    pointers = sorted({m["sequence"] for t, m in messages if t == "pointer"})
+    missing = (pointers[-1] - pointers[0] + 1) - len(pointers)
+    fixes = statuses[-1]["fixes"]
+    explained = fixes.get("not_found", 0) + fixes.get("rejected", 0) + statuses[-1]["pairing"]["dropped_pairs"]
+    assert missing <= explained
+    assert WallFrame.from_config(rig.wall).on_wall(hits).mean() > 0.9
