@@ -98,7 +98,7 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
         finally:
             if daemon.poll() is None:
                 daemon.kill()
-            out, err = daemon.communicate()
+            _, err = daemon.communicate()
             sub.close(0)
             ctx.term()
             notify.close()
