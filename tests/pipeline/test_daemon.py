@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import threading
 import time
 
@@ -100,14 +101,46 @@ def test_a_subscriber_that_never_reads_does_not_slow_the_pipeline(simulated_rig,
     try:
         pipeline.start()
         deadline = time.monotonic() + 60
+        while pipeline.pairs_processed < 50 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        rss_start = _rss_bytes()
         while pipeline.pairs_processed < 300 and time.monotonic() < deadline and pipeline.failure is None:
             time.sleep(0.05)
+        rss_growth = _rss_bytes() - rss_start
     finally:
         pipeline.stop()
         stalled.close(0)
         ctx.term()
     assert pipeline.failure is None
     assert pipeline.pairs_processed == 300
+    # Messages for the stalled subscriber are dropped at its high-water mark, not queued forever.
+    assert rss_growth < 30e6, f"memory grew by {rss_growth / 1e6:.0f} MB"
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/statm") as handle:
+        return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+class _FailingSource(MemoryPairSource):
+    """A source with a bug: it raises after a few pairs, as any broken stage might."""
+
+    def next_pair(self, timeout_s):
+        pair = super().next_pair(timeout_s)
+        if pair is not None and pair.sequence >= 5:
+            raise RuntimeError("simulated bug in a pair source")
+        return pair
+
+
+def test_a_crashed_thread_stops_the_daemon_with_a_non_zero_exit(simulated_rig, rendered_sweep, tmp_path):
+    from trackerd.cli.run import serve
+
+    image_sets, _ = rendered_sweep
+    rig = _rig_on(simulated_rig, f"ipc://{tmp_path}/pub.sock")
+    started = time.monotonic()
+    code = serve(rig, None, lambda r: _FailingSource(r, image_sets, rate_hz=50.0), seconds=20)
+    assert code == 1
+    assert time.monotonic() - started < 5
 
 
 def test_watchdog_and_ready_reach_systemd_only_when_pairs_flow(simulated_rig, rendered_sweep, tmp_path):
