@@ -314,8 +314,12 @@ class DetectorConfig(_Model):
     may be missed by a full search (a tracked end is followed smaller)."""
     track_window_px: int = Field(default=96, ge=8)
     """Half-size of the window searched first around the previous frame's position."""
-    centroid: Literal["weighted", "bbox"] = "weighted"
-    """weighted: intensity-weighted sub-pixel centroid; bbox: the report's bounding-box midpoint (eq. 12)."""
+    centroid: Literal["coverage", "weighted", "bbox"] = "coverage"
+    """How an end's centre is measured. coverage: the centroid of every pixel's estimated coverage by
+    the ball (on Bayer frames each pixel's own channel is used, so the rim is resolved at full
+    resolution; the most accurate); weighted: coverage-weighted centroid of the end's own colour
+    samples only (cheaper, about twice the error across the pointer on Bayer frames); bbox: the
+    report's bounding-box midpoint (eq. 12)."""
 
     @model_validator(mode="after")
     def _area_range(self) -> DetectorConfig:
@@ -339,7 +343,7 @@ class LocatorConfig(_Model):
     sphere_correction: bool = True
     """Correct each ball's image centroid for perspective (an imaged sphere's centre is not the
     projection of its centre) before estimating the line."""
-    centroid_sigma_px: float = Field(default=0.15, gt=0.0)
+    centroid_sigma_px: float = Field(default=0.05, gt=0.0)
     """Assumed standard deviation of a centroid across the pointer, used for the hit's uncertainty."""
 
 

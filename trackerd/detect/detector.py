@@ -114,7 +114,7 @@ class ColourEndDetector:
         pointer: PointerConfig | None = None,
         *,
         search_step_px: int | None = None,
-        rim_pixels: bool = True,
+        rim_pixels: bool | None = None,
     ) -> None:
         self.cfg = cfg
         self.pixel_format = pixel_format
@@ -124,7 +124,7 @@ class ColourEndDetector:
             "blue": Threshold(cfg.blue.min_excess, cfg.blue.min_value),
         }
         self.limits = Limits(cfg.min_area_px, cfg.max_area_px, cfg.max_elongation, cfg.min_fill)
-        self.weighted = cfg.centroid == "weighted"
+        self.weighted = cfg.centroid != "bbox"
         if pointer is not None:
             self.length_over_diameter = pointer.length_m / pointer.end_diameter_m
             self.rod_over_diameter = pointer.rod_diameter_m / pointer.end_diameter_m
@@ -135,7 +135,9 @@ class ColourEndDetector:
         self.step_cells = max(1, round(step_px / self.grid.cell_px))
         self._track: dict[str, _Track] | None = None
         self._crowded: set[str] = set()
-        self.rim_pixels = rim_pixels and self.weighted and self.grid.is_bayer
+        # None: as the configuration says (centroid = "coverage" uses every pixel of the rim).
+        every_pixel = cfg.centroid == "coverage" if rim_pixels is None else rim_pixels
+        self.rim_pixels = every_pixel and self.weighted and self.grid.is_bayer
 
     def reset(self) -> None:
         """Forget the previous frame: the next frame is searched in full."""
