@@ -56,13 +56,20 @@ def run_command(args: argparse.Namespace) -> int:
 
 
 def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
-          publisher_factory=zmq_publisher, banner: str | None = None) -> int:
-    """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it."""
+          publisher_factory=zmq_publisher, banner: str | None = None, clock_offset_ns: int | None = None,
+          until=None) -> int:
+    """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
+
+    ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
+    recorded capture times with it); ``until(pipeline)``, checked every 0.1 s, ends the run when
+    it returns True (a replay that has published its last pair).
+    """
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import for_rig
 
     notifier = SdNotify()
-    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig))
+    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig),
+                        clock_offset_ns=clock_offset_ns)
     stop = threading.Event()
     reload_requested = threading.Event()
 
@@ -90,6 +97,8 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
                 reload_requested.clear()
                 _reload(pipeline, path)
             if deadline is not None and time.monotonic() >= deadline:
+                break
+            if until is not None and until(pipeline):
                 break
     except TrackerdError:
         raise

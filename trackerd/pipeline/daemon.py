@@ -114,6 +114,8 @@ class Pipeline:
         """Last frame of the pair received to messages published (ns)."""
         self.stages = {name: Window() for name in ("detect", "triangulate", "publish")}
         self.pairs_processed = 0
+        self.pairs_published = 0
+        """Pairs whose messages the publishing thread has handed to the publisher."""
         self.source: PairSource | None = None
         self.publisher: Publisher | None = None
         self.locator = Locator(rig)
@@ -174,6 +176,13 @@ class Pipeline:
     @property
     def state(self) -> str:
         return self._state
+
+    @property
+    def backlog(self) -> int:
+        """Pairs processed whose messages are neither published nor dropped yet (0: nothing in flight).
+
+        A finite source (a replay) is done once it has delivered its last pair and this is 0."""
+        return self.pairs_processed - self.pairs_published - self._queue.dropped
 
     def _guard(self, loop: Callable[[], None]) -> None:
         try:
@@ -278,6 +287,7 @@ class Pipeline:
             for message in item.messages:
                 self.publisher.publish(message)
             done = time.monotonic_ns()
+            self.pairs_published += 1
             self.stages["publish"].add(done - start)
             for name in ("detect", "triangulate"):
                 self.stages[name].add(item.stage_ns[name])

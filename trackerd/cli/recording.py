@@ -1,0 +1,111 @@
+"""`trackerd recording check|import|export`: inspect, build and unpack recordings (docs/recording.md).
+
+check PATH          how much of a recording is intact: pairs readable, recovered past the
+                    index after a crash, damaged frames, each problem with its file and byte
+import FOLDER OUT   a recording from a folder of image pairs (<name>-<camera>.png ...), with
+                    timestamps from an optional CSV, so images from other tools can be replayed
+export REC OUT      frames as viewable PNGs with the detections drawn, and hits.csv with one
+                    row per pair: the hits `trackerd replay` publishes for the same recording
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from trackerd.config.loader import load_rig
+from trackerd.recording.reader import Recording
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "recording", help="check, import and export recordings",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="recording_command", metavar="ACTION", required=True)
+
+    check = sub.add_parser("check", help="report how much of a recording is intact")
+    check.add_argument("path", metavar="PATH", help="a recording folder (*.trec)")
+    check.add_argument("--no-verify", action="store_true", help="skip the frame checksums (headers only; fast)")
+    check.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    check.set_defaults(handler=check_command)
+
+    imp = sub.add_parser("import", help="build a recording from a folder of image pairs")
+    imp.add_argument("folder", metavar="FOLDER", help="images named <name>-<camera>.<ext> (or <camera>/<name>.<ext>)")
+    imp.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
+    imp.add_argument("--config", required=True, help="rig TOML file the images come from (cameras, calibration)")
+    imp.add_argument("--timestamps", metavar="CSV",
+                     help="CSV with name and timestamp_ns|_us|_ms|_s columns (optionally camera)")
+    imp.add_argument("--rate", type=float, metavar="HZ",
+                     help="without --timestamps: pairs per second (default: the rig's frame_rate_hz)")
+    imp.add_argument("--compression", choices=("none", "deflate"), default="none",
+                     help="store frames raw (default) or deflated (lossless, smaller, slower to write)")
+    imp.set_defaults(handler=import_command)
+
+    exp = sub.add_parser("export", help="write viewable PNGs with detections drawn, and hits.csv")
+    exp.add_argument("recording", metavar="REC", help="a recording folder (*.trec)")
+    exp.add_argument("out", metavar="OUT", help="folder to write into (created if missing)")
+    exp.add_argument("--config", help="rig TOML file to use instead of the recorded rig")
+    exp.add_argument("--every", type=int, default=1, metavar="N", help="write images of every N-th pair (default 1)")
+    exp.add_argument("--first", type=int, default=0, metavar="N", help="start at pair N (default 0)")
+    exp.add_argument("--count", type=int, metavar="N", help="export N pairs (default: to the end)")
+    exp.add_argument("--no-images", action="store_true", help="write hits.csv only")
+    exp.set_defaults(handler=export_command)
+
+
+def _progress(label: str):
+    from trackerd.recording.progress import ProgressLine
+
+    line = ProgressLine()
+
+    def show(done: int, total: int) -> None:
+        line.show(f"{label}: {done}/{total} pairs", force=done == total)
+
+    return line, show
+
+
+def check_command(args: argparse.Namespace) -> int:
+    from trackerd.recording.check import check_recording, format_report
+
+    with Recording.open(args.path) as recording:
+        line, show = _progress("checking")
+        report = check_recording(recording, verify=not args.no_verify, progress=show)
+        line.done()
+    print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
+    return 0 if report.intact else 1
+
+
+def import_command(args: argparse.Namespace) -> int:
+    from trackerd.recording.importer import import_folder
+
+    loaded = load_rig(args.config)
+    line, show = _progress("importing")
+    writer = import_folder(args.folder, args.out, loaded.config, timestamps=args.timestamps, rate_hz=args.rate,
+                           compression=args.compression, rig_file=loaded.path, progress=show)
+    line.done()
+    formats = ", ".join(f"{c.id} {c.pixel_format} {c.width_px}x{c.height_px}" for c in writer.metadata.cameras)
+    print(f"{writer.path}: {writer.pairs} pairs imported from {args.folder} ({formats}),"
+          f" {writer.data_bytes / 1e6:.1f} MB")
+    return 0
+
+
+def export_command(args: argparse.Namespace) -> int:
+    from trackerd.cli.replay import replay_rig
+    from trackerd.recording.export import export_recording
+
+    with Recording.open(args.recording) as recording:
+        for problem in recording.problems:
+            print(f"trackerd recording export: warning: {problem}", file=sys.stderr)
+        rig, notes = replay_rig(recording, args.config, None)
+        for note in notes:
+            print(f"  {note}", file=sys.stderr)
+        line, show = _progress("exporting")
+        summary = export_recording(recording, args.out, rig, every=args.every, first=args.first, count=args.count,
+                                   images=not args.no_images, progress=show)
+        line.done()
+    for problem in summary.skipped:
+        print(f"trackerd recording export: error: {problem}", file=sys.stderr)
+    print(f"{summary.csv_path}: {summary.pairs} pairs ({', '.join(f'{k} {v}' for k, v in summary.statuses.items())});"
+          f" {summary.images} images in {args.out}")
+    return 1 if summary.skipped else 0

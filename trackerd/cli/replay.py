@@ -1,0 +1,199 @@
+"""`trackerd replay RECORDING`: run a recording through the daemon's pipeline and publish what it finds.
+
+The recording takes the place of the cameras behind the same source interface,
+and everything else is `trackerd run`: the same pipeline, extensions, ZeroMQ
+publishing, signals and systemd notifications. Replaying the same recording
+with the same configuration publishes the same messages, bit for bit, apart
+from ``publish_ns`` (capture times are the recorded ones).
+
+--speed 1.0 (the default) keeps the recorded pace, 2.0 twice as fast, and
+--speed max as fast as the pipeline goes (the summary then gives the
+throughput). By default the rig recorded with the frames is used; --config
+replaces it (a newer calibration, other detector thresholds), and the output
+says so. The frames' pixel formats and sizes always come from the recording.
+Replay starts --delay seconds after the publisher binds, so subscribers can
+connect first (ZeroMQ drops what is published before they are connected).
+A replay does not reload its configuration on SIGHUP.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
+from trackerd.config.recording import RecordingConfig
+from trackerd.errors import ConfigError
+from trackerd.recording.reader import Recording
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "replay", help="replay a recording through the daemon's pipeline, publishing as `trackerd run` does",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("recording", metavar="RECORDING", help="a recording folder (*.trec)")
+    parser.add_argument("--config", help="rig TOML file to use instead of the recorded rig")
+    parser.add_argument("--speed", type=parse_speed, default=1.0, metavar="S",
+                        help="1.0: recorded pace (default); 2.0: twice as fast; max: as fast as possible")
+    parser.add_argument("--loop", action="store_true", help="start again from the first pair at the end")
+    parser.add_argument("--endpoint", action="append", metavar="E",
+                        help="publish on this ZeroMQ endpoint instead of the rig's (repeatable)")
+    parser.add_argument("--delay", type=float, default=1.0, metavar="S",
+                        help="seconds between binding the publisher and the first pair (default 1.0)")
+    parser.add_argument("--first", type=int, default=0, metavar="N", help="start at pair N (default 0)")
+    parser.add_argument("--count", type=int, metavar="N", help="replay N pairs (default: to the end)")
+    parser.add_argument("--no-verify", action="store_true",
+                        help="skip the frame checksums (faster at --speed max; record headers are still checked)")
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    parser.set_defaults(handler=replay_command)
+
+
+def parse_speed(text: str) -> float | None:
+    """'max' -> None (as fast as possible), else a positive factor of the recorded pace."""
+    if text.strip().lower() == "max":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number or 'max'") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError("the speed must be a positive number (or 'max')")
+    return value
+
+
+def replay_rig(recording: Recording, config: str | None, endpoints: list[str] | None) -> tuple[RigConfig, list[str]]:
+    """The rig a replay runs with, and one note per thing changed from what was asked for.
+
+    Cameras take the recording's pixel formats and sizes; recording is switched off
+    (a replay must not record itself); --endpoint replaces the publishing endpoints.
+    """
+    notes: list[str] = []
+    if config is None:
+        rig = recording.rig()
+        notes.append(f"configuration: the recorded rig '{rig.name}'")
+    else:
+        rig = load_rig(config).config
+        recorded = recording.metadata.rig.get("name", "?")
+        notes.append(f"configuration: OVERRIDDEN by {config} (rig '{rig.name}'; the recording's rig was '{recorded}')")
+    ids = [c.id for c in rig.cameras]
+    recorded_ids = [c.id for c in recording.cameras]
+    if ids[: len(recorded_ids)] != recorded_ids or len(ids) != len(recorded_ids):
+        raise ConfigError(
+            f"{config or recording.path}: cameras {', '.join(ids)} do not match the recording's"
+            f" {', '.join(recorded_ids)} (same ids, same order)"
+        )
+    cameras = []
+    for cam, meta in zip(rig.cameras, recording.cameras, strict=True):
+        if (cam.width_px, cam.height_px) != (meta.width_px, meta.height_px):
+            raise ConfigError(
+                f"{config or recording.path}: camera '{cam.id}' is configured for {cam.width_px}x{cam.height_px}"
+                f" but the recording's frames are {meta.width_px}x{meta.height_px}"
+            )
+        if cam.pixel_format != meta.pixel_format:
+            notes.append(f"camera '{cam.id}': frames are {meta.pixel_format} (the rig says {cam.pixel_format})")
+            cam = cam.model_copy(update={"pixel_format": meta.pixel_format})
+        cameras.append(cam)
+    update: dict[str, Any] = {"cameras": tuple(cameras)}
+    if rig.recording.enabled:
+        notes.append("recording on demand: switched off for the replay")
+    update["recording"] = RecordingConfig()
+    if endpoints:
+        zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": tuple(endpoints)})
+        try:
+            zmq_cfg = type(zmq_cfg).model_validate(zmq_cfg.model_dump())
+        except ValueError as err:
+            raise ConfigError(f"--endpoint: {err}") from err
+        update["outputs"] = rig.outputs.model_copy(update={"zmq": zmq_cfg})
+    return rig.model_copy(update=update), notes
+
+
+def replay_command(args: argparse.Namespace) -> int:
+    from trackerd.cli.run import serve, zmq_publisher
+    from trackerd.recording.progress import ProgressLine
+    from trackerd.recording.replay import ReplayPairSource
+
+    recording = Recording.open(args.recording)
+    for problem in recording.problems:
+        print(f"trackerd replay: warning: {problem}", file=sys.stderr)
+    rig, notes = replay_rig(recording, args.config, args.endpoint)
+    source = ReplayPairSource(
+        recording, speed=args.speed, loop=args.loop, verify=not args.no_verify, start_delay_s=args.delay,
+        first=args.first, count=args.count,
+    )
+    pace = "max speed" if args.speed is None else f"{args.speed:g}x the recorded pace"
+    meta = recording.metadata
+    print(f"trackerd replay {recording.path}: pairs {source.first}-{source.stop_at - 1} of {len(recording)}"
+          f" ({recording.duration_s:.1f} s recorded {meta.created_utc} by {meta.producer}), {pace}"
+          + (", looping" if args.loop else ""), file=sys.stderr)
+    for note in notes:
+        print(f"  {note}", file=sys.stderr)
+    publishers: list[Any] = []
+    progress = ProgressLine()
+    total = source.stop_at - source.first
+
+    def publisher_factory(r: RigConfig):
+        publishers.append(zmq_publisher(r))
+        return publishers[-1]
+
+    def until(pipeline) -> bool:
+        if progress.due():
+            hits = publishers[-1].counts.get("hit", 0) if publishers else 0
+            rate = source.status().pair_rate_hz
+            progress.show(f"replay: {source.delivered}/{total} pairs, {rate:.0f} pairs/s, {hits} hits,"
+                          f" lag {source.lag_ms:.0f} ms")
+        return source.finished and pipeline.pairs_processed >= source.delivered and pipeline.backlog <= 0
+
+    code = serve(rig, None, lambda _r: source, publisher_factory=publisher_factory,
+                 clock_offset_ns=source.pipeline_clock_offset_ns(), until=until)
+    progress.done()
+    summary = _summary(source, publishers, recording)
+    for problem in source.problems:
+        print(f"trackerd replay: error: {problem}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(_format(summary))
+    recording.close()
+    if code == 0 and source.skipped:
+        print(f"trackerd replay: {source.skipped} damaged pair(s) skipped (listed above)", file=sys.stderr)
+        return 1
+    return code
+
+
+def _summary(source, publishers: list[Any], recording: Recording) -> dict[str, Any]:
+    counts: dict[str, int] = {}
+    for publisher in publishers:
+        for topic, n in publisher.counts.items():
+            counts[topic] = counts.get(topic, 0) + n
+    first, last = source.first_delivery_ns, source.last_delivery_ns
+    elapsed = (last - first) / 1e9 if first is not None and last is not None else 0.0
+    rate = (source.delivered - 1) / elapsed if elapsed > 0 else None
+    return {
+        "recording": str(recording.path),
+        "pairs": source.delivered,
+        "skipped_damaged": source.skipped,
+        "messages": counts,
+        "hits": counts.get("hit", 0),
+        "seconds": round(elapsed, 3),
+        "pair_rate_hz": None if rate is None else round(rate, 1),
+        "speed": "max" if source.speed is None else source.speed,
+        "max_lag_ms": round(source.max_lag_ms, 1),
+        "finished": source.finished,
+        "published_dropped": sum(p.dropped for p in publishers),
+        "at": time.strftime("%Y-%m-%d %H:%M:%S"),
+    }
+
+
+def _format(s: dict[str, Any]) -> str:
+    rate = "-" if s["pair_rate_hz"] is None else f"{s['pair_rate_hz']:.1f}"
+    line = (f"replayed {s['pairs']} pairs in {s['seconds']:.2f} s ({rate} pairs/s"
+            + (" at max speed" if s["speed"] == "max" else f", max lag {s['max_lag_ms']} ms") + ")"
+            + f"; {s['hits']} hits, messages {s['messages']}")
+    if s["skipped_damaged"]:
+        line += f"; {s['skipped_damaged']} damaged pairs skipped"
+    return line

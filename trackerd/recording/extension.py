@@ -1,0 +1,135 @@
+"""Recording on demand from the running daemon: the pipeline extension behind the rig's ``[recording]``.
+
+Available when ``[recording] directory`` is set; ``enabled`` switches it. The
+daemon applies a changed rig file on SIGHUP, and every reload while recording
+closes the current recording: each recording then holds one configuration
+(the one in its metadata) and one unbroken run of the locator, which starts
+afresh at a reload, so replaying it reproduces the hits the daemon published.
+If the rig still says ``enabled = true``, the next recording starts with the
+first pair after the reload.
+
+``on_pair`` only queues the pair (the writer thread does the I/O), so the
+processing thread never waits for the disk; a full queue drops its oldest pair
+and the drop is counted in the status message's ``recording`` object.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import threading
+from pathlib import Path
+from typing import Any
+
+from trackerd.acquisition.frame import FramePair
+from trackerd.config.models import RigConfig
+from trackerd.locator import PointerFix
+from trackerd.publish.messages import Message
+from trackerd.recording.recorder import Recorder
+
+log = logging.getLogger(__name__)
+
+STOP_TIMEOUT_S = 2.0
+
+
+def create(rig: RigConfig) -> RecordingExtension | None:
+    """The extension when the rig makes recording available (``[recording] directory``), else None."""
+    if rig.recording.directory is None:
+        return None
+    return RecordingExtension(rig)
+
+
+def recording_path(directory: Path, rig_name: str) -> Path:
+    """A new ``<rig>-<local time>.trec`` folder name under ``directory`` (suffixed -2, -3... if taken)."""
+    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in rig_name) or "rig"
+    path = directory / f"{safe}-{stamp}.trec"
+    n = 2
+    while path.exists():
+        path = directory / f"{safe}-{stamp}-{n}.trec"
+        n += 1
+    return path
+
+
+class RecordingExtension:
+    """Implements trackerd.pipeline.extensions.PipelineExtension."""
+
+    name = "recording"
+
+    def __init__(self, rig: RigConfig) -> None:
+        self._rig = rig
+        self._armed = rig.recording.enabled
+        self._recorder: Recorder | None = None
+        self._finishing: list[Recorder] = []
+        self._last: Recorder | None = None
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ processing thread
+
+    def on_pair(self, pair: FramePair) -> None:
+        recorder = self._recorder
+        if recorder is None:
+            if not self._armed:
+                return
+            self._armed = False
+            recorder = self._start()
+            if recorder is None:
+                return
+        recorder.put(pair)
+
+    def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]:
+        return messages
+
+    def reload(self, rig: RigConfig) -> None:
+        """A reload closes the current recording (without waiting); enabled starts the next one."""
+        with self._lock:
+            if self._recorder is not None:
+                log.info("recording: closing %s (configuration reloaded)", self._recorder.path)
+                self._recorder.finish()
+                self._finishing.append(self._recorder)
+                self._recorder = None
+            self._rig = rig
+            self._armed = rig.recording.enabled and rig.recording.directory is not None
+
+    def _start(self) -> Recorder | None:
+        cfg = self._rig.recording
+        assert cfg.directory is not None
+        try:
+            cfg.directory.mkdir(parents=True, exist_ok=True)
+            path = recording_path(cfg.directory, self._rig.name)
+        except OSError as err:
+            log.error("recording: cannot create %s: %s", cfg.directory, err.strerror)
+            return None
+        recorder = Recorder(path, self._rig, producer="trackerd run (recording on demand)", config=cfg).start()
+        log.info("recording: started %s", path)
+        with self._lock:
+            self._recorder = recorder
+            self._last = recorder
+        return recorder
+
+    # ------------------------------------------------------------------ publishing thread
+
+    def status(self) -> dict[str, Any] | None:
+        with self._lock:
+            recorder = self._recorder or self._last
+            armed = self._armed
+            self._finishing = [r for r in self._finishing if not r.done]
+        if recorder is None:
+            detail = "starts with the next pair" if armed else "enabled = false"
+            return {"state": "idle", "detail": detail}
+        figures = recorder.status().to_dict()
+        if armed:
+            upcoming = "the next recording starts with the next pair"
+            figures["detail"] = "; ".join(filter(None, [figures["detail"], upcoming]))
+        return figures
+
+    # ------------------------------------------------------------------ stop
+
+    def close(self) -> None:
+        with self._lock:
+            recorders = [*self._finishing, *([self._recorder] if self._recorder else [])]
+            self._recorder = None
+            self._finishing = []
+        for recorder in recorders:
+            if not recorder.stop(STOP_TIMEOUT_S):
+                log.warning("recording: %s is still being written after %.0f s", recorder.path, STOP_TIMEOUT_S)

@@ -1,0 +1,182 @@
+"""`trackerd recording import`: a recording from a folder of image pairs, so any images can be replayed.
+
+Pairing by name: every file ``<name>-<camera>.<ext>`` or ``<name>_<camera>.<ext>``
+(``07-left.png``, ``07-right.png``; the convention of tests/data/pairs, of
+`trackerd snap` and of the calibration snapshots), ``<camera>-<name>.<ext>``, or
+``<camera>/<name>.<ext>`` in one sub-folder per camera. Moments are ordered by
+name, numbers compared as numbers. Images are read as camera frames by
+:func:`trackerd.images.read_frame` (single channel: the camera's Bayer mosaic;
+three channels: BGR8; ``.npy``: the raw frame), and must have the camera's size.
+
+Timestamps come from an optional CSV with a header row: a ``name`` column, one
+of ``timestamp_ns``, ``timestamp_us``, ``timestamp_ms`` or ``timestamp_s``, and
+optionally ``camera`` (then one row per image, else one row per moment). Times
+that look like UNIX epoch times (after 2001) keep their date as the capture
+time; others count from the import. Without a CSV, moments are spaced at
+``rate_hz``.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.config.models import RigConfig
+from trackerd.errors import ImageError, RecordingError
+from trackerd.images import read_frame
+from trackerd.recording.format import Compression
+from trackerd.recording.writer import RecordingWriter, build_metadata
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp", ".npy")
+_UNITS_NS = {"timestamp_ns": 1, "timestamp_us": 1_000, "timestamp_ms": 1_000_000, "timestamp_s": 1_000_000_000}
+EPOCH_AFTER_NS = 1_000_000_000 * 1_000_000_000
+"""Timestamps from this (September 2001, in ns since 1970) on are read as UNIX epoch times."""
+
+
+@dataclass(frozen=True)
+class Moment:
+    """One moment of the folder: its name and one image per camera."""
+
+    name: str
+    files: dict[str, Path]
+
+
+def natural_key(text: str) -> list[object]:
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", text)]
+
+
+def find_pairs(folder: Path, camera_ids: Sequence[str]) -> list[Moment]:
+    """Group a folder's images into moments; RecordingError for no images or an incomplete moment."""
+    if not folder.is_dir():
+        raise RecordingError(f"{folder}: no such folder")
+    groups: dict[str, dict[str, Path]] = {}
+    ids = sorted(camera_ids, key=len, reverse=True)  # 'left2' before 'left'
+
+    def add(name: str, cam: str, path: Path) -> None:
+        if cam in groups.setdefault(name, {}):
+            raise RecordingError(f"{folder}: two images of camera '{cam}' for '{name}': {groups[name][cam].name}"
+                                 f" and {path.name}")
+        groups[name][cam] = path
+
+    for path in sorted(folder.iterdir()):
+        if path.is_dir() and path.name in camera_ids:
+            for inner in sorted(path.iterdir()):
+                if inner.is_file() and inner.suffix.lower() in IMAGE_SUFFIXES:
+                    add(inner.stem, path.name, inner)
+            continue
+        if not path.is_file() or path.suffix.lower() not in IMAGE_SUFFIXES:
+            continue
+        stem = path.stem
+        for cam in ids:
+            if any(stem.endswith(sep + cam) for sep in "-_"):
+                add(stem[: -len(cam) - 1], cam, path)
+                break
+            if any(stem.startswith(cam + sep) for sep in "-_"):
+                add(stem[len(cam) + 1:], cam, path)
+                break
+    if not groups:
+        raise RecordingError(f"{folder}: no images named <name>-<camera>.<ext> (or <camera>/<name>.<ext>) for"
+                             f" cameras {', '.join(camera_ids)}")
+    moments = []
+    for name in sorted(groups, key=natural_key):
+        files = groups[name]
+        missing = [cam for cam in camera_ids if cam not in files]
+        if missing:
+            raise RecordingError(f"{folder}: '{name}' has {', '.join(p.name for p in files.values())} but no image"
+                                 f" from {', '.join(missing)}; every moment needs one image per camera")
+        moments.append(Moment(name, files))
+    return moments
+
+
+def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, str | None], int]:
+    """{(name, camera or None): time in ns} from the CSV; RecordingError naming the line of a bad row."""
+    try:
+        handle = path.open(newline="")
+    except OSError as err:
+        raise RecordingError(f"{path}: cannot read ({err.strerror})") from err
+    with handle:
+        reader = csv.DictReader(handle)
+        fields = [f.strip() for f in reader.fieldnames or []]
+        unit = next((f for f in fields if f in _UNITS_NS), None)
+        if "name" not in fields or unit is None:
+            raise RecordingError(f"{path}: needs a header with 'name' and one of {', '.join(_UNITS_NS)};"
+                                 f" found {', '.join(fields) or 'none'}")
+        out: dict[tuple[str, str | None], int] = {}
+        for row in reader:
+            row = {k.strip(): (v or "").strip() for k, v in row.items() if k is not None}
+            camera = row.get("camera") or None
+            if camera is not None and camera not in camera_ids:
+                raise RecordingError(f"{path}:{reader.line_num}: camera '{camera}' is not one of"
+                                     f" {', '.join(camera_ids)}")
+            try:
+                value = float(row[unit]) if unit == "timestamp_s" else int(row[unit])
+            except ValueError:
+                raise RecordingError(f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not a number") from None
+            out[(row["name"], camera)] = round(value * _UNITS_NS[unit])
+    return out
+
+
+def import_folder(
+    folder: str | Path,
+    out: str | Path,
+    rig: RigConfig,
+    *,
+    timestamps: str | Path | None = None,
+    rate_hz: float | None = None,
+    compression: Compression = "none",
+    compression_level: int = 6,
+    rig_file: str | Path | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RecordingWriter:
+    """Write the folder's image pairs as a recording at ``out``; returns the (closed) writer."""
+    folder = Path(folder)
+    ids = [c.id for c in rig.cameras]
+    moments = find_pairs(folder, ids)
+    times = read_timestamps(Path(timestamps), ids) if timestamps is not None else None
+    period_ns = round(1e9 / (rate_hz or rig.acquisition.frame_rate_hz))
+    capture = [[_time(times, m.name, cam, k, period_ns, timestamps) for cam in ids] for k, m in enumerate(moments)]
+    t0 = min(min(c) for c in capture)
+    clock_offset = t0 if t0 >= EPOCH_AFTER_NS else time.time_ns()
+    writer: RecordingWriter | None = None
+    formats: dict[str, tuple[str, tuple[int, ...]]] = {}
+    try:
+        for k, moment in enumerate(moments):
+            frames = []
+            for cam, stamp in zip(rig.cameras, capture[k], strict=True):
+                image, fmt = read_frame(moment.files[cam.id], cam)
+                first = formats.setdefault(cam.id, (fmt, image.shape))
+                if first != (fmt, image.shape):
+                    raise ImageError(f"{moment.files[cam.id]}: a {fmt} image, but camera '{cam.id}''s earlier images"
+                                     f" are {first[0]}; a recording keeps one pixel format per camera")
+                frames.append(Frame(cam.id, k, 0, stamp - t0, fmt, image))
+            stamps = capture[k]
+            pair = FramePair(tuple(frames), sum(stamps) // len(stamps) - t0, max(stamps) - min(stamps), k)
+            if writer is None:
+                metadata = build_metadata(rig, pair, producer="trackerd recording import", clock_offset_ns=clock_offset,
+                                          rig_file=rig_file, notes=f"imported from {folder.resolve()}")
+                writer = RecordingWriter(out, metadata, compression=compression, compression_level=compression_level)
+            writer.write(pair)
+            if progress is not None:
+                progress(k + 1, len(moments))
+    except BaseException:
+        if writer is not None:
+            writer.close("error: import interrupted")
+        raise
+    assert writer is not None
+    writer.close("imported")
+    return writer
+
+
+def _time(times: dict[tuple[str, str | None], int] | None, name: str, cam: str, k: int, period_ns: int,
+          path: str | Path | None) -> int:
+    if times is None:
+        return k * period_ns
+    for key in ((name, cam), (name, None)):
+        if key in times:
+            return times[key]
+    raise RecordingError(f"{path}: no timestamp for '{name}' (camera '{cam}')")

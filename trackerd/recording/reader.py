@@ -1,0 +1,333 @@
+"""Reading a recording: metadata, the intact pairs, and a precise account of any damage.
+
+:meth:`Recording.open` checks the metadata and the version, reads the index,
+and scans pairs.dat past the last indexed pair for complete pairs the recorder
+wrote before it died but had not indexed yet. Everything it cannot use is
+described in :attr:`Recording.problems`, one line each naming the file, the
+pair and the byte offset; the pairs before a problem stay readable. Frames are
+served as read-only NumPy views into a memory map of pairs.dat (no copy), so
+replay costs only the pixels the detector actually looks at.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import mmap
+import os
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import ValidationError
+
+from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.config.models import RigConfig
+from trackerd.errors import ConfigError, RecordingError
+from trackerd.recording.format import (
+    DATA_FILE,
+    DATA_MAGIC,
+    ENCODING_DEFLATE,
+    ENCODING_RAW,
+    FILE_HEADER,
+    FORMAT_MAJOR,
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    INDEX_ENTRY,
+    INDEX_FILE,
+    INDEX_MAGIC,
+    METADATA_FILE,
+    IndexEntry,
+    RecordHeader,
+    RecordingMetadata,
+    header_size,
+    parse_version,
+    unpack_file_header,
+    unpack_index_entry,
+    unpack_record_header,
+)
+
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {}
+"""Metadata upgrades: ``UPGRADES[n]`` turns MAJOR n's recording.json into MAJOR n+1's. Empty while
+1 is the only MAJOR; a reader reads an older MAJOR by applying them in turn."""
+
+
+@dataclass
+class Recording:
+    """An open recording. Use :meth:`open`; close() (or ``with``) releases the memory map."""
+
+    path: Path
+    metadata: RecordingMetadata
+    entries: list[IndexEntry]
+    """The intact pairs in order: every valid index entry, then complete pairs found past the index."""
+    indexed: int
+    """How many of ``entries`` came from the index (the rest were found by scanning)."""
+    data_size: int
+    problems: list[str] = field(default_factory=list)
+    """What is damaged or missing, one line each (empty for a recording closed cleanly and intact)."""
+    _map: mmap.mmap | None = None
+
+    # ------------------------------------------------------------------ opening
+
+    @classmethod
+    def open(cls, path: str | Path) -> Recording:
+        """Open a recording folder; RecordingError when nothing of it can be read."""
+        folder = Path(path)
+        if not folder.exists():
+            raise RecordingError(f"{folder}: no such recording")
+        if not folder.is_dir():
+            raise RecordingError(f"{folder}: not a recording (a recording is a folder holding {METADATA_FILE},"
+                                 f" {DATA_FILE} and {INDEX_FILE})")
+        metadata = read_metadata(folder)
+        data_path = folder / DATA_FILE
+        try:
+            data_fd = os.open(data_path, os.O_RDONLY | os.O_CLOEXEC)
+        except FileNotFoundError:
+            raise RecordingError(f"{data_path}: missing; the recording holds no frames") from None
+        except OSError as err:
+            raise RecordingError(f"{data_path}: cannot read: {err.strerror}") from err
+        try:
+            size = os.fstat(data_fd).st_size
+            head = os.pread(data_fd, FILE_HEADER.size, 0)
+            major, _minor, _ = unpack_file_header(head, DATA_MAGIC, str(data_path))
+            _check_major(major, str(data_path))
+            mapped = mmap.mmap(data_fd, size, prot=mmap.PROT_READ) if size > FILE_HEADER.size else None
+        finally:
+            os.close(data_fd)
+        recording = cls(folder, metadata, [], 0, size, [], mapped)
+        recording._load_index()
+        recording._recover_unindexed()
+        if metadata.end is None:
+            recording.problems.append(
+                f"{folder / METADATA_FILE}: no end record: the recorder stopped without closing the recording"
+                " (killed, crashed or power lost)"
+            )
+        elif metadata.end.pairs != len(recording.entries):
+            recording.problems.append(
+                f"{folder / METADATA_FILE}: says {metadata.end.pairs} pairs were written, {len(recording.entries)}"
+                " are readable"
+            )
+        if mapped is not None:
+            mapped.madvise(mmap.MADV_SEQUENTIAL)
+        return recording
+
+    def _load_index(self) -> None:
+        index_path = self.path / INDEX_FILE
+        try:
+            raw = index_path.read_bytes()
+        except FileNotFoundError:
+            self.problems.append(f"{index_path}: missing; pairs found by scanning {DATA_FILE}")
+            return
+        except OSError as err:
+            self.problems.append(f"{index_path}: cannot read ({err.strerror}); pairs found by scanning {DATA_FILE}")
+            return
+        try:
+            major, _minor, entry_bytes = unpack_file_header(raw, INDEX_MAGIC, str(index_path))
+            _check_major(major, str(index_path))
+            if entry_bytes < INDEX_ENTRY.size:
+                raise RecordingError(f"{index_path}: entries of {entry_bytes} bytes, fewer than {INDEX_ENTRY.size}")
+        except RecordingError as err:
+            self.problems.append(f"{err}; pairs found by scanning {DATA_FILE}")
+            return
+        body = memoryview(raw)[FILE_HEADER.size:]
+        count = len(body) // entry_bytes
+        expected_offset = FILE_HEADER.size
+        for k in range(count):
+            where = f"{index_path}: entry {k} (byte {FILE_HEADER.size + k * entry_bytes})"
+            try:
+                entry = unpack_index_entry(body[k * entry_bytes:(k + 1) * entry_bytes], entry_bytes, where)
+            except RecordingError as err:
+                self.problems.append(f"{err}; the index is used up to pair {k - 1}")
+                return
+            if entry.pair_index != k or entry.offset != expected_offset:
+                self.problems.append(f"{where}: says pair {entry.pair_index} at byte {entry.offset}, expected pair"
+                                     f" {k} at byte {expected_offset}; the index is used up to pair {k - 1}")
+                return
+            if entry.end > self.data_size:
+                self.problems.append(f"{where}: pair {k} ends at byte {entry.end} but {DATA_FILE} has"
+                                     f" {self.data_size} bytes (truncated)")
+                return
+            self.entries.append(entry)
+            expected_offset = entry.end
+        self.indexed = len(self.entries)
+        if len(body) % entry_bytes:
+            self.problems.append(f"{index_path}: ends with a partial entry ({len(body) % entry_bytes} bytes), ignored")
+
+    def _recover_unindexed(self) -> None:
+        """Scan past the last indexed pair for complete records (written, not yet indexed)."""
+        offset = self.entries[-1].end if self.entries else FILE_HEADER.size
+        data_path = self.path / DATA_FILE
+        while offset < self.data_size:
+            k = len(self.entries)
+            where = f"{data_path}: pair {k} at byte {offset}"
+            available = self.data_size - offset
+            try:
+                header = unpack_record_header(self._view(offset, min(available, 1 << 16)), where)
+            except RecordingError as err:
+                if "cut short" in str(err):
+                    self.problems.append(f"{where}: incomplete ({available} bytes of its header written); ignored")
+                else:
+                    self.problems.append(f"{err}; the {available} bytes from there on are ignored")
+                return
+            if header.pair_index != k:
+                self.problems.append(f"{where}: the record there says it is pair {header.pair_index}; the"
+                                     f" {available} bytes from there on are ignored")
+                return
+            if header.record_bytes > available:
+                self.problems.append(f"{where}: incomplete ({available} of {header.record_bytes} bytes written);"
+                                     " ignored")
+                return
+            self.entries.append(IndexEntry(offset, header.record_bytes, k, header.sequence, header.timestamp_ns))
+            offset += header.record_bytes
+        if len(self.entries) > self.indexed:
+            self.problems.append(f"{data_path}: {len(self.entries) - self.indexed} complete pair(s) past the end of"
+                                 f" the index (pairs {self.indexed}-{len(self.entries) - 1}), recovered")
+
+    # ------------------------------------------------------------------ reading
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    @property
+    def cameras(self):
+        return self.metadata.cameras
+
+    @property
+    def duration_s(self) -> float:
+        if len(self.entries) < 2:
+            return 0.0
+        return (self.entries[-1].timestamp_ns - self.entries[0].timestamp_ns) / 1e9
+
+    def _view(self, offset: int, length: int) -> memoryview:
+        if self._map is None:
+            raise RecordingError(f"{self.path}: the recording is closed")
+        return memoryview(self._map)[offset:offset + length]
+
+    def header(self, index: int) -> RecordHeader:
+        """Pair ``index``'s record header, checked against the index; RecordingError naming the damage."""
+        entry = self.entries[index]
+        where = f"{self.path / DATA_FILE}: pair {index} at byte {entry.offset}"
+        header = unpack_record_header(self._view(entry.offset, header_size(len(self.cameras)) + 4096), where)
+        if (header.pair_index, header.record_bytes) != (entry.pair_index, entry.record_bytes):
+            raise RecordingError(f"{where}: the record (pair {header.pair_index}, {header.record_bytes} bytes) does"
+                                 f" not match its index entry (pair {entry.pair_index}, {entry.record_bytes} bytes)")
+        if len(header.frames) != len(self.cameras):
+            raise RecordingError(f"{where}: {len(header.frames)} frames, the recording has {len(self.cameras)} cameras")
+        return header
+
+    def images(self, index: int, header: RecordHeader | None = None, *, verify: bool = True) -> list[NDArray[np.uint8]]:
+        """Pair ``index``'s frames in camera order, read-only; with ``verify``, checksums are checked
+        (RecordingError naming the camera and byte offset of a damaged frame)."""
+        header = header or self.header(index)
+        entry = self.entries[index]
+        offset = entry.offset + header.header_bytes
+        out = []
+        for cam, frame in zip(self.cameras, header.frames, strict=True):
+            where = f"{self.path / DATA_FILE}: pair {index}, camera '{cam.id}' (byte {offset})"
+            stored = self._view(offset, frame.stored_bytes)
+            if verify and zlib.crc32(stored) != frame.payload_crc32:
+                raise RecordingError(f"{where}: frame checksum mismatch (the pixels are damaged)")
+            if frame.encoding == ENCODING_RAW:
+                if frame.stored_bytes != cam.frame_bytes:
+                    raise RecordingError(f"{where}: {frame.stored_bytes} bytes, a {cam.pixel_format}"
+                                         f" {cam.width_px}x{cam.height_px} frame has {cam.frame_bytes}")
+                image = np.frombuffer(self._map, np.uint8, cam.frame_bytes, offset).reshape(cam.shape)
+            elif frame.encoding == ENCODING_DEFLATE:
+                try:
+                    raw = zlib.decompress(stored)
+                except zlib.error as err:
+                    raise RecordingError(f"{where}: compressed frame does not decompress ({err})") from err
+                if len(raw) != cam.frame_bytes:
+                    raise RecordingError(f"{where}: decompresses to {len(raw)} bytes, expected {cam.frame_bytes}")
+                image = np.frombuffer(raw, np.uint8).reshape(cam.shape)
+            else:
+                raise RecordingError(f"{where}: unknown frame encoding {frame.encoding} (a newer trackerd's?)")
+            out.append(image)
+            offset += frame.stored_bytes
+        return out
+
+    def pair(self, index: int, *, verify: bool = True) -> FramePair:
+        """Pair ``index`` exactly as recorded (timestamps on the recording host's monotonic clock)."""
+        header = self.header(index)
+        images = self.images(index, header, verify=verify)
+        return make_pair(self, header, images)
+
+    def rig(self) -> RigConfig:
+        """The rig recorded with the frames; ConfigError when this trackerd cannot read it."""
+        try:
+            return RigConfig.model_validate(self.metadata.rig)
+        except ValidationError as err:
+            from trackerd.config.loader import describe_validation_error
+
+            raise ConfigError(
+                f"{self.path / METADATA_FILE}: the recorded rig does not validate with this trackerd"
+                f" ({describe_validation_error(err, RigConfig)}); give one with --config"
+            ) from err
+
+    def close(self) -> None:
+        if self._map is not None:
+            mapped, self._map = self._map, None
+            # Frames handed out may still view it; it then closes when the last one is gone.
+            with contextlib.suppress(BufferError):
+                mapped.close()
+
+    def __enter__(self) -> Recording:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+
+def make_pair(recording: Recording, header: RecordHeader, images: list[NDArray[np.uint8]],
+              *, shift_ns: int = 0, host_ns: int | None = None, sequence: int | None = None) -> FramePair:
+    """A FramePair from a record: timestamps moved by ``shift_ns``; ``host_ns`` replaces the frames'
+    host timestamps (the replay's delivery time) when given."""
+    frames = tuple(
+        Frame(cam.id, entry.frame_id, entry.device_timestamp_ns,
+              entry.host_timestamp_ns + shift_ns if host_ns is None else host_ns, cam.pixel_format, image)
+        for cam, entry, image in zip(recording.cameras, header.frames, images, strict=True)
+    )
+    return FramePair(frames, header.timestamp_ns + shift_ns, header.skew_ns,
+                     header.sequence if sequence is None else sequence)
+
+
+def read_metadata(folder: Path) -> RecordingMetadata:
+    """recording.json, version-checked and upgraded; RecordingError naming what is wrong."""
+    path = folder / METADATA_FILE
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise RecordingError(f"{path}: missing: {folder} is not a trackerd recording") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise RecordingError(f"{path}: not readable JSON ({err})") from err
+    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
+        found = data.get("format") if isinstance(data, dict) else type(data).__name__
+        raise RecordingError(f"{path}: format is {found!r}, not {FORMAT_NAME!r}: not a trackerd recording")
+    major, _minor = parse_version(data.get("format_version", ""), str(path))
+    _check_major(major, str(path))
+    while major < FORMAT_MAJOR:
+        upgrade = UPGRADES.get(major)
+        if upgrade is None:
+            raise RecordingError(f"{path}: format {major}.x is older than any this trackerd reads")
+        data = upgrade(data)
+        major += 1
+    try:
+        return RecordingMetadata.model_validate(data)
+    except ValidationError as err:
+        first = err.errors()[0]
+        key = ".".join(str(p) for p in first["loc"])
+        raise RecordingError(f"{path}: {key}: {first['msg']}") from err
+
+
+def _check_major(major: int, where: str) -> None:
+    if major > FORMAT_MAJOR:
+        raise RecordingError(
+            f"{where}: recording format {major}.x is newer than this trackerd reads ({FORMAT_VERSION});"
+            " upgrade trackerd to read it"
+        )
+    if major < 1:
+        raise RecordingError(f"{where}: recording format {major}.x does not exist")

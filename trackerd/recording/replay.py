@@ -1,0 +1,264 @@
+"""Replay: a recording as a :class:`~trackerd.acquisition.source.PairSource`, so the pipeline cannot tell.
+
+Pacing: at ``speed`` 1.0 each pair is delivered when it is due by the recorded
+capture times (``speed`` 2.0 twice as fast); with ``speed=None`` ("max") every
+pair is delivered as soon as the consumer asks. Replay never drops a pair: a
+consumer slower than the recorded pace gets every pair late (the lag is in
+:attr:`ReplayPairSource.lag_ms`), which keeps a replay deterministic at any speed.
+
+Timestamps: the pipeline publishes ``pair.timestamp_ns + clock_offset_ns`` as
+each message's capture time. The source moves every recorded monotonic time by
+``shift_ns`` (so pairs look as if captured now, and latency figures mean
+something at speed 1), and :meth:`ReplayPairSource.pipeline_clock_offset_ns`
+gives the offset that undoes the shift: the capture times published are the
+recorded ones, to the nanosecond, in every replay. Frames' host timestamps are
+the moment the replay delivered them (the pipeline's processing latency then
+measures the pipeline alone).
+
+Damaged pairs (a record or frame checksum that does not match) are skipped,
+counted and described in :attr:`ReplayPairSource.problems`; the rest replays.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.acquisition.frame import FramePair
+from trackerd.acquisition.source import PairSource
+from trackerd.acquisition.status import CameraStatus, SourceStatus
+from trackerd.errors import RecordingError
+from trackerd.recording.format import RecordHeader
+from trackerd.recording.reader import Recording, make_pair
+
+RATE_WINDOW_NS = 1_000_000_000
+READ_AHEAD_PAIRS = 8
+"""Pairs the reader thread checks ahead of the consumer (views into the memory map: no copies)."""
+STOP_TIMEOUT_S = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class _Read:
+    """One pair as the reader thread found it: its header and frames, or what is wrong with it."""
+
+    index: int
+    loop_pass: int
+    header: RecordHeader | None
+    images: list[NDArray[np.uint8]] | None
+    error: RecordingError | None
+
+
+class ReplayPairSource(PairSource):
+    """Serves the pairs of ``recording`` in order; ``first``/``count`` select a range of pairs."""
+
+    def __init__(
+        self,
+        recording: Recording | str | Path,
+        *,
+        speed: float | None = 1.0,
+        loop: bool = False,
+        verify: bool = True,
+        start_delay_s: float = 0.0,
+        first: int = 0,
+        count: int | None = None,
+        shift_ns: int | None = None,
+    ) -> None:
+        """``speed`` None replays as fast as the consumer takes pairs. ``shift_ns`` moves recorded
+        timestamps (default: so that the first pair is due at construction plus ``start_delay_s``)."""
+        if speed is not None and speed <= 0:
+            raise ValueError("speed must be positive (None: as fast as possible)")
+        self.recording = recording if isinstance(recording, Recording) else Recording.open(recording)
+        n = len(self.recording)
+        self.first = min(max(first, 0), n)
+        self.stop_at = n if count is None else min(n, self.first + count)
+        if self.first >= self.stop_at:
+            raise RecordingError(f"{self.recording.path}: no intact pairs to replay"
+                                 + (f" from pair {first}" if first else ""))
+        self.speed = speed
+        self.loop = loop
+        self.verify = verify
+        self.start_delay_s = start_delay_s
+        entries = self.recording.entries
+        self._t0_rec = entries[self.first].timestamp_ns
+        # One pass lasts from the first pair to one typical period after the last.
+        span = entries[self.stop_at - 1].timestamp_ns - self._t0_rec
+        pairs = self.stop_at - self.first
+        self._pass_ns = span + (span // (pairs - 1) if pairs > 1 else 16_666_667)
+        self._sequence_step = max(entries[self.stop_at - 1].sequence, 0) + 1
+        default_shift = time.monotonic_ns() + int(start_delay_s * 1e9) - self._t0_rec
+        self.shift_ns = default_shift if shift_ns is None else shift_ns
+        self._lock = threading.Lock()
+        self._running = False
+        self._finished = False
+        self._pending: _Read | None = None
+        self._reader: threading.Thread | None = None
+        self._halt = threading.Event()
+        self._ahead: queue.Queue[_Read] = queue.Queue(maxsize=READ_AHEAD_PAIRS)
+        self._start_ns = 0
+        self.delivered = 0
+        self.skipped = 0
+        """Pairs not delivered because they are damaged."""
+        self.problems: list[str] = []
+        self.lag_ms = 0.0
+        """How late the last pair was delivered against the recorded pace (0 at max speed)."""
+        self.max_lag_ms = 0.0
+        self.first_delivery_ns: int | None = None
+        self.last_delivery_ns: int | None = None
+        """Monotonic times of the first and the last delivery (the replay's throughput)."""
+        self._times: deque[int] = deque()
+        self._skews: deque[int] = deque(maxlen=256)
+
+    # ------------------------------------------------------------------ clocks
+
+    def pipeline_clock_offset_ns(self) -> int:
+        """The Pipeline's ``clock_offset_ns`` that makes published capture times the recorded ones."""
+        return self.recording.metadata.clock_offset_ns - self.shift_ns
+
+    @property
+    def finished(self) -> bool:
+        """True once every pair was delivered (never when looping)."""
+        return self._finished
+
+    # ------------------------------------------------------------------ PairSource
+
+    def start(self) -> None:
+        self.stop()
+        with self._lock:
+            self._running = True
+            self._finished = False
+            self._pending = None
+            self._start_ns = time.monotonic_ns() + int(self.start_delay_s * 1e9)
+        self._halt = threading.Event()
+        self._ahead = queue.Queue(maxsize=READ_AHEAD_PAIRS)
+        self._reader = threading.Thread(target=self._read_ahead, args=(self._halt, self._ahead),
+                                        name="trackerd-replay-reader", daemon=True)
+        self._reader.start()
+
+    def stop(self) -> None:
+        with self._lock:
+            self._running = False
+        if self._reader is not None:
+            self._halt.set()
+            self._reader.join(STOP_TIMEOUT_S)
+            self._reader = None
+
+    def _due_ns(self, index: int, loop_pass: int) -> int:
+        if self.speed is None:
+            return self._start_ns
+        recorded = self.recording.entries[index].timestamp_ns - self._t0_rec + loop_pass * self._pass_ns
+        return self._start_ns + int(recorded / self.speed)
+
+    def next_pair(self, timeout_s: float) -> FramePair | None:
+        deadline = time.monotonic_ns() + int(max(timeout_s, 0.0) * 1e9)
+        while True:
+            with self._lock:
+                if not self._running or self._finished:
+                    return None
+            item = self._pending
+            if item is None:
+                try:
+                    item = self._ahead.get(timeout=max(0.0, (deadline - time.monotonic_ns()) / 1e9))
+                except queue.Empty:
+                    return None
+                self._pending = item
+            due = self._due_ns(item.index, item.loop_pass)
+            now = time.monotonic_ns()
+            if due > now:
+                if due > deadline:
+                    time.sleep(max(0.0, (deadline - now) / 1e9))
+                    return None
+                time.sleep((due - now) / 1e9)
+            self._pending = None
+            last = item.index == self.stop_at - 1 and not self.loop
+            pair = self._deliver(item)
+            if last:
+                with self._lock:
+                    self._finished = True
+            if pair is not None:
+                return pair
+            if time.monotonic_ns() >= deadline:
+                return None
+
+    def _deliver(self, item: _Read) -> FramePair | None:
+        if item.error is not None:
+            with self._lock:
+                self.skipped += 1
+                if len(self.problems) < 100:
+                    self.problems.append(f"{item.error}; pair skipped")
+            return None
+        assert item.header is not None and item.images is not None
+        now = time.monotonic_ns()
+        shift = self.shift_ns + item.loop_pass * self._pass_ns
+        sequence = item.header.sequence + item.loop_pass * self._sequence_step
+        pair = make_pair(self.recording, item.header, item.images, shift_ns=shift, host_ns=now, sequence=sequence)
+        self.lag_ms = 0.0 if self.speed is None else max(0.0, (now - self._due_ns(item.index, item.loop_pass)) / 1e6)
+        self.max_lag_ms = max(self.max_lag_ms, self.lag_ms)
+        with self._lock:
+            if self.first_delivery_ns is None:
+                self.first_delivery_ns = now
+            self.last_delivery_ns = now
+            self.delivered += 1
+            self._times.append(now)
+            self._skews.append(pair.skew_ns)
+        return pair
+
+    def _read_ahead(self, halt: threading.Event, ahead: queue.Queue[_Read]) -> None:
+        """The reader thread: checks each pair (checksums: zlib releases the GIL, so this runs beside the
+        pipeline on another core) and queues it, up to READ_AHEAD_PAIRS ahead of the consumer."""
+        loop_pass = 0
+        while not halt.is_set():
+            for index in range(self.first, self.stop_at):
+                try:
+                    header = self.recording.header(index)
+                    images = self.recording.images(index, header, verify=self.verify)
+                    item = _Read(index, loop_pass, header, images, None)
+                except RecordingError as err:
+                    item = _Read(index, loop_pass, None, None, err)
+                while not halt.is_set():
+                    try:
+                        ahead.put(item, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if halt.is_set():
+                    return
+            if not self.loop:
+                return
+            loop_pass += 1
+
+    def status(self) -> SourceStatus:
+        now = time.monotonic_ns()
+        with self._lock:
+            while self._times and now - self._times[0] > RATE_WINDOW_NS:
+                self._times.popleft()
+            rate = len(self._times) / (RATE_WINDOW_NS / 1e9) if self._running else 0.0
+            skews = sorted(self._skews)
+            state = "streaming" if self._running else "stopped"
+            delivered = self.delivered
+        p50 = skews[len(skews) // 2] / 1e3 if skews else None
+        p99 = skews[min(len(skews) - 1, int(0.99 * len(skews)))] / 1e3 if skews else None
+        return SourceStatus(
+            running=self._running and not self._finished,
+            trigger="replay",
+            pairing="recorded",
+            pairs=delivered,
+            pair_rate_hz=round(rate, 3),
+            delivered=delivered,
+            dropped_frames={"damaged": self.skipped * len(self.recording.cameras)} if self.skipped else {},
+            dropped_pairs=0,
+            skew_p50_us=p50,
+            skew_p99_us=p99,
+            skew_max_us=skews[-1] / 1e3 if skews else None,
+            cameras=tuple(
+                CameraStatus(cam.id, state, f"recording {self.recording.path}", frames=delivered,
+                             frame_rate_hz=round(rate, 3))
+                for cam in self.recording.cameras
+            ),
+        )

@@ -1,0 +1,275 @@
+"""Writing a recording: one pair at a time, append-only, crash-safe, stopping cleanly on a full disk.
+
+:class:`RecordingWriter` is used by one thread (the recorder's writer thread,
+or an import). Each pair becomes one ``os.writev`` of its record header and the
+frames' own buffers (no copy of the pixels in Python), then one 48-byte write
+of its index entry. Nothing is ever rewritten except recording.json, which is
+replaced by an atomic rename when the recording is closed. Data is not fsynced:
+a recorder that dies (even by SIGKILL) loses nothing the kernel already has, and
+what a power cut loses is whatever the kernel had not yet written back (about
+the last 30 s by default); `trackerd recording check` reports what survived.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import errno
+import json
+import os
+import zlib
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import trackerd
+from trackerd.acquisition.frame import FramePair
+from trackerd.config.models import RigConfig
+from trackerd.errors import RecordingError
+from trackerd.recording.format import (
+    DATA_FILE,
+    DATA_MAGIC,
+    ENCODING_DEFLATE,
+    ENCODING_RAW,
+    FILE_HEADER,
+    INDEX_ENTRY,
+    INDEX_FILE,
+    INDEX_MAGIC,
+    METADATA_FILE,
+    CameraMeta,
+    Compression,
+    EndMeta,
+    FrameEntry,
+    IndexEntry,
+    RecordHeader,
+    RecordingMetadata,
+    pack_file_header,
+    pack_index_entry,
+    pack_record_header,
+)
+
+_DISK_FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+class DiskFullError(RecordingError):
+    """The disk (or the free-space limit) has no room for the next pair; what was written stays readable."""
+
+
+def utc_now() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def free_space_bytes(path: Path) -> int:
+    """Bytes an unprivileged writer may still use on the filesystem holding ``path``."""
+    stats = os.statvfs(path)
+    return stats.f_bavail * stats.f_frsize
+
+
+def rig_snapshot(rig: RigConfig) -> dict[str, Any]:
+    """The rig as JSON for recording.json: calibration merged in, so the file name is dropped."""
+    return rig.model_copy(update={"calibration": None}).model_dump(mode="json")
+
+
+def build_metadata(
+    rig: RigConfig,
+    pair: FramePair,
+    *,
+    producer: str,
+    clock_offset_ns: int,
+    camera_info: Mapping[str, Mapping[str, str | None]] | None = None,
+    rig_file: str | Path | None = None,
+    calibration_file: str | Path | None = None,
+    notes: str | None = None,
+) -> RecordingMetadata:
+    """Metadata for a recording whose first pair is ``pair``: formats and sizes come from its frames,
+    serials from the rig, and vendor/model/serial from ``camera_info`` (by camera id) when known."""
+    by_id = {cam.id: cam for cam in rig.cameras}
+    cameras = []
+    for frame in pair.frames:
+        cfg = by_id.get(frame.camera_id)
+        info = dict((camera_info or {}).get(frame.camera_id, {}))
+        height, width = frame.image.shape[:2]
+        cameras.append(CameraMeta(
+            id=frame.camera_id,
+            pixel_format=frame.pixel_format,
+            width_px=width,
+            height_px=height,
+            serial=info.get("serial") or (cfg.serial if cfg else None),
+            vendor=info.get("vendor"),
+            model=info.get("model"),
+            device=info.get("device") or (cfg and (cfg.address or cfg.device_id)) or None,
+        ))
+    return RecordingMetadata(
+        created_utc=utc_now(),
+        trackerd_version=trackerd.__version__,
+        producer=producer,
+        clock_offset_ns=clock_offset_ns,
+        cameras=tuple(cameras),
+        rig=rig_snapshot(rig),
+        rig_file=None if rig_file is None else str(rig_file),
+        calibration_file=None if calibration_file is None else str(calibration_file),
+        notes=notes,
+    )
+
+
+def write_metadata(folder: Path, metadata: RecordingMetadata) -> None:
+    """Replace recording.json atomically (a reader sees the old or the new file, never half of one)."""
+    text = json.dumps(metadata.model_dump(mode="json"), indent=2) + "\n"
+    tmp = folder / (METADATA_FILE + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, folder / METADATA_FILE)
+
+
+class RecordingWriter:
+    """Creates the recording at ``path`` and appends pairs to it; close() finishes it."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        metadata: RecordingMetadata,
+        *,
+        compression: Compression = "none",
+        compression_level: int = 1,
+        min_free_space_mb: float = 0.0,
+    ) -> None:
+        self.path = Path(path)
+        self.metadata = metadata
+        self._encoding = ENCODING_DEFLATE if compression == "deflate" else ENCODING_RAW
+        self._level = compression_level
+        self._min_free = int(min_free_space_mb * 1e6)
+        self._cameras = metadata.cameras
+        self.pairs = 0
+        """Pairs written."""
+        self.data_bytes = 0
+        """Bytes of pairs.dat, file header included."""
+        self.payload_bytes = 0
+        """Bytes of frames written, as stored."""
+        self.closed = False
+        if self.path.exists() and (not self.path.is_dir() or any(self.path.iterdir())):
+            raise RecordingError(f"{self.path}: already exists; give a new name for the recording")
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+            if free_space_bytes(self.path) < self._min_free:
+                raise DiskFullError(
+                    f"{self.path}: only {free_space_bytes(self.path) / 1e6:.0f} MB free, less than the"
+                    f" {min_free_space_mb:.0f} MB the recording must leave"
+                )
+            write_metadata(self.path, metadata)
+            flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC
+            self._data = os.open(self.path / DATA_FILE, flags, 0o644)
+            self._index = os.open(self.path / INDEX_FILE, flags, 0o644)
+            _write_all(self._data, [pack_file_header(DATA_MAGIC, 0)])
+            _write_all(self._index, [pack_file_header(INDEX_MAGIC, INDEX_ENTRY.size)])
+        except OSError as err:
+            raise _os_error(self.path, "cannot create the recording", err) from err
+        self.data_bytes = FILE_HEADER.size
+        self._index_bytes = FILE_HEADER.size
+
+    @property
+    def compression(self) -> Compression:
+        return "deflate" if self._encoding == ENCODING_DEFLATE else "none"
+
+    def write(self, pair: FramePair, dropped_before: int = 0) -> int:
+        """Append one pair; returns the bytes it took. DiskFullError when there is no room (the
+        recording then ends at the previous pair), RecordingError for a frame that does not fit."""
+        if self.closed:
+            raise RecordingError(f"{self.path}: the recording is closed")
+        payloads = self._payloads(pair)
+        entries = tuple(
+            FrameEntry(frame.frame_id, frame.device_timestamp_ns, frame.host_timestamp_ns, len(payload),
+                       zlib.crc32(payload), self._encoding)
+            for frame, payload in zip(pair.frames, payloads, strict=True)
+        )
+        header = RecordHeader(self.pairs, pair.sequence, pair.timestamp_ns, pair.skew_ns, dropped_before, entries)
+        record_bytes = header.record_bytes
+        if self._min_free:
+            free = free_space_bytes(self.path)
+            if free - record_bytes < self._min_free:
+                raise DiskFullError(
+                    f"{self.path}: stopped at {self.pairs} pairs: {free / 1e6:.0f} MB left on the disk, and"
+                    f" the recording must leave {self._min_free / 1e6:.0f} MB (min_free_space_mb)"
+                )
+        start = self.data_bytes
+        try:
+            _write_all(self._data, [pack_record_header(header), *payloads])
+        except OSError as err:
+            _truncate(self._data, start)
+            raise _os_error(self.path / DATA_FILE, f"stopped at {self.pairs} pairs", err) from err
+        entry = IndexEntry(start, record_bytes, self.pairs, pair.sequence, pair.timestamp_ns)
+        try:
+            _write_all(self._index, [pack_index_entry(entry)])
+        except OSError as err:
+            _truncate(self._index, self._index_bytes)
+            _truncate(self._data, start)
+            raise _os_error(self.path / INDEX_FILE, f"stopped at {self.pairs} pairs", err) from err
+        self.data_bytes = start + record_bytes
+        self._index_bytes += INDEX_ENTRY.size
+        self.payload_bytes += record_bytes - header.header_bytes
+        self.pairs += 1
+        return record_bytes
+
+    def _payloads(self, pair: FramePair) -> list[memoryview | bytes]:
+        if len(pair.frames) != len(self._cameras):
+            raise RecordingError(
+                f"{self.path}: a pair of {len(pair.frames)} frames; this recording holds {len(self._cameras)} cameras"
+            )
+        out: list[memoryview | bytes] = []
+        for frame, cam in zip(pair.frames, self._cameras, strict=True):
+            image = frame.image
+            if frame.camera_id != cam.id or frame.pixel_format != cam.pixel_format or image.shape != cam.shape:
+                height, width = image.shape[:2]
+                raise RecordingError(
+                    f"{self.path}: camera '{frame.camera_id}' sent a {frame.pixel_format} {width}x{height} frame;"
+                    f" this recording holds {cam.pixel_format} {cam.width_px}x{cam.height_px} frames from"
+                    f" '{cam.id}' (a reconfigured camera needs a new recording)"
+                )
+            raw = memoryview(np.ascontiguousarray(image, dtype=np.uint8)).cast("B")
+            out.append(zlib.compress(raw, self._level) if self._encoding == ENCODING_DEFLATE else raw)
+        return out
+
+    def close(self, reason: str = "stopped", dropped_pairs: int = 0) -> None:
+        """Close the files and record how and why the recording ended; idempotent."""
+        if self.closed:
+            return
+        self.closed = True
+        for fd in (self._data, self._index):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        end = EndMeta(closed_utc=utc_now(), pairs=self.pairs, dropped_pairs=dropped_pairs,
+                      data_bytes=self.data_bytes, reason=reason)
+        self.metadata = self.metadata.model_copy(update={"end": end})
+        try:
+            write_metadata(self.path, self.metadata)
+        except OSError:
+            # A full disk may not even take the small metadata file: the recording stays readable
+            # without its end record (it reads as not closed cleanly).
+            (self.path / (METADATA_FILE + ".tmp")).unlink(missing_ok=True)
+
+
+def _write_all(fd: int, buffers: Sequence[bytes | memoryview]) -> None:
+    """writev until every byte is written (a regular file may take a write in parts)."""
+    views = [memoryview(b).cast("B") for b in buffers]
+    while views:
+        written = os.writev(fd, views)
+        while views and written >= len(views[0]):
+            written -= len(views[0])
+            views.pop(0)
+        if views and written:
+            views[0] = views[0][written:]
+
+
+def _truncate(fd: int, size: int) -> None:
+    """Cut a file back to its last complete item, so a failed write leaves no torn remains."""
+    try:
+        os.ftruncate(fd, size)
+        os.lseek(fd, size, os.SEEK_SET)
+    except OSError:
+        pass  # the reader ignores a torn tail anyway
+
+
+def _os_error(path: Path, doing: str, err: OSError) -> RecordingError:
+    if err.errno in _DISK_FULL_ERRNOS:
+        return DiskFullError(f"{path}: disk full, {doing} ({err.strerror}); what was written stays readable")
+    return RecordingError(f"{path}: {doing}: {err.strerror or err}")
