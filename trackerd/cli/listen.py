@@ -152,17 +152,22 @@ def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str) -> int:
 
 
 def format_message(topic: str, data: dict[str, Any]) -> str:
-    """One readable line for a message; tolerant of missing and unknown fields."""
+    """One readable line for a message; tolerant of missing and unknown fields (an event without
+    the field its line is built around is printed raw, like an unknown topic)."""
     head = f"{topic:<8} #{data.get('sequence', '?')}"
-    formatter = {"hit": _hit, "pointer": _pointer, "status": _status}.get(topic)
-    if formatter is None:
+    formatter = {"hit": _hit, "pointer": _pointer, "status": _status, "enter": _enter, "leave": _leave,
+                 "dwell": _dwell, "gesture": _gesture, "command": _command, "hand": _hand}.get(topic)
+    line = None
+    if formatter is not None:
+        try:
+            line = formatter(data)
+        except (TypeError, ValueError, KeyError, IndexError):
+            return f"{head}  {json.dumps(data, separators=(',', ':'))}"
+    if line is None:
         envelope = {"schema_version", "topic", "sequence", "capture_ns", "publish_ns"}
         rest = {k: v for k, v in data.items() if k not in envelope}
         return f"{head}  {json.dumps(rest, separators=(',', ':'))}"
-    try:
-        return f"{head}  {formatter(data)}"
-    except (TypeError, ValueError, KeyError, IndexError):
-        return f"{head}  {json.dumps(data, separators=(',', ':'))}"
+    return f"{head}  {line}"
 
 
 def _num(value: Any, fmt: str, unit: str = "") -> str:
@@ -176,8 +181,63 @@ def _hit(d: dict[str, Any]) -> str:
     parts.append("on wall" if d.get("on_wall") else "off wall")
     if d.get("uncertainty_mm") is not None:
         parts.append(f"+-{d['uncertainty_mm']:.1f} mm")
+    if d.get("raw_wall_x_m") is not None and d.get("raw_wall_y_m") is not None:
+        parts.append(f"raw {d['raw_wall_x_m']:.3f}, {d['raw_wall_y_m']:.3f} m")
     parts.append(f"gap {_num(d.get('ray_gap_mm'), '.1f', ' mm')}")
     return "  ".join(parts)
+
+
+def _where(d: dict[str, Any]) -> str:
+    text = f"x {_num(d.get('wall_x_m'), '.3f', ' m')}  y {_num(d.get('wall_y_m'), '.3f', ' m')}"
+    if d.get("display_x_px") is not None and d.get("display_y_px") is not None:
+        text += f"  ({d['display_x_px']:.0f}, {d['display_y_px']:.0f} px)"
+    return text
+
+
+def _enter(d: dict[str, Any]) -> str | None:
+    if "cursor_id" not in d:
+        return None
+    return f"cursor {d['cursor_id']}  {_where(d)}"
+
+
+def _leave(d: dict[str, Any]) -> str | None:
+    if "cursor_id" not in d:
+        return None
+    after = _num(d.get("duration_ms"), ".0f", " ms")
+    return f"cursor {d['cursor_id']}  {d.get('reason', '?')}  after {after}  {_where(d)}"
+
+
+def _dwell(d: dict[str, Any]) -> str | None:
+    if "cursor_id" not in d:
+        return None
+    return f"cursor {d['cursor_id']}  {_num(d.get('dwell_ms'), '.0f', ' ms')}  {_where(d)}"
+
+
+def _gesture(d: dict[str, Any]) -> str | None:
+    if "name" not in d:
+        return None
+    text = f"{d['name']}  score {_num(d.get('score'), '.2f')}  {_num(d.get('duration_ms'), '.0f', ' ms')}" \
+        f"  {_num(d.get('path_m'), '.2f', ' m')}  cursor {d.get('cursor_id', '?')}  {_where(d)}"
+    if d.get("runner_up"):
+        text += f"  (next: {d['runner_up']} {_num(d.get('runner_up_score'), '.2f')})"
+    return text
+
+
+def _command(d: dict[str, Any]) -> str | None:
+    if "command" not in d:
+        return None
+    text = f"{d['command']}  <- {d.get('trigger', '?')}"
+    if d.get("wall_x_m") is not None:
+        text += f"  {_where(d)}"
+    return text
+
+
+def _hand(d: dict[str, Any]) -> str | None:
+    if "fingers" not in d:
+        return None
+    state = "" if d.get("present", True) else "  gone"
+    return f"{d['fingers']} fingers (now {d.get('fingers_now', '?')})  {d.get('camera', '?')}" \
+        f"  ({_num(d.get('image_x_px'), '.0f')}, {_num(d.get('image_y_px'), '.0f')} px){state}"
 
 
 def _vec(values: Any) -> str:

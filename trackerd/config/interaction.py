@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -30,9 +29,9 @@ class SmoothingConfig(ConfigModel):
 
     enabled: bool = True
     """Publish smoothed positions in ``hit`` (the raw ones go alongside, as ``raw_*``)."""
-    min_cutoff_hz: float = Field(default=0.6, gt=0.0, le=100.0)
+    min_cutoff_hz: float = Field(default=0.3, gt=0.0, le=100.0)
     """Cut-off frequency for a still pointer: lower is steadier, but slow drifts lag more."""
-    beta_per_m: float = Field(default=20.0, ge=0.0, le=1000.0)
+    beta_per_m: float = Field(default=15.0, ge=0.0, le=1000.0)
     """How fast the cut-off rises with speed: hertz of cut-off added per m/s of the hit's speed on
     the wall. Higher means less lag when moving."""
     derivative_cutoff_hz: float = Field(default=1.0, gt=0.0, le=100.0)
@@ -81,9 +80,9 @@ class GesturesConfig(ConfigModel):
     """Load the templates shipped with trackerd (swipes in four directions, circles both ways)."""
     only: tuple[str, ...] = ()
     """Recognise only these gestures (by name); empty: every loaded template."""
-    min_score: float = Field(default=0.80, gt=0.0, lt=1.0)
+    min_score_ratio: float = Field(default=0.80, gt=0.0, lt=1.0)
     """Smallest match score (0 to 1) for a stroke to count as a gesture."""
-    min_margin: float = Field(default=0.04, ge=0.0, lt=1.0)
+    min_margin_ratio: float = Field(default=0.04, ge=0.0, lt=1.0)
     """The best gesture's score must beat the best other gesture's by this much; ambiguous strokes
     are no gesture."""
     start_speed_m_s: float = Field(default=0.35, gt=0.0, le=100.0)
@@ -126,11 +125,11 @@ class HandConfig(ConfigModel):
     """Hue of the hand's colour, degrees on the colour wheel (0 red, 60 yellow, 120 green, 240
     blue); a range whose first value is larger wraps through red (``[340, 30]``). The default
     is skin; a coloured glove is far more reliable (docs/interaction.md)."""
-    saturation_range: tuple[float, float] = (0.18, 0.75)
+    saturation_range_ratio: tuple[float, float] = (0.18, 0.75)
     """Saturation range (0 grey to 1 pure colour)."""
-    min_value: float = Field(default=0.25, ge=0.0, le=1.0)
+    min_value_ratio: float = Field(default=0.25, ge=0.0, le=1.0)
     """Smallest brightness (0 to 1) of a hand pixel."""
-    background_difference: float = Field(default=0.1, ge=0.0, le=1.0)
+    background_difference_ratio: float = Field(default=0.1, ge=0.0, le=1.0)
     """A hand pixel must also differ from the learnt empty scene by this much (0 to 1 of full
     scale, largest channel): skin-coloured things that never move are not hands. 0 turns the
     background model off."""
@@ -146,7 +145,7 @@ class HandConfig(ConfigModel):
             raise ValueError("hues are degrees from 0 to 360")
         return value
 
-    @field_validator("saturation_range")
+    @field_validator("saturation_range_ratio")
     @classmethod
     def _saturation(cls, value: tuple[float, float]) -> tuple[float, float]:
         if not 0.0 <= value[0] < value[1] <= 1.0:
@@ -178,7 +177,7 @@ class InteractionConfig(ConfigModel):
     """``dwell`` (select) events."""
     gestures: GesturesConfig = GesturesConfig()
     """``gesture`` events from the hit's trajectory."""
-    commands: dict[str, str] = {}
+    commands: dict[str, str] = Field(default_factory=dict)
     """The grammar: trigger name to command name, published as ``command`` messages. Triggers are
     gesture names (``swipe_left = "previous_slide"``), ``enter``, ``leave``, ``dwell``, and
     ``hand_0`` to ``hand_5`` (a hand showing that many fingers)."""

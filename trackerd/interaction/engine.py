@@ -91,6 +91,8 @@ class InteractionEngine:
         self.rejections: list[Rejection] = []
         """Recent strokes that were no gesture (the last REJECTIONS_KEPT)."""
         self.counts: dict[str, int] = {}
+        self.rejected_total = 0
+        """Strokes that were no gesture, since start."""
         self.cursor_id = 0
         self._last_hit_ns: int | None = None
         self._inside = False
@@ -103,6 +105,11 @@ class InteractionEngine:
         self._dwell_sum = np.zeros(2)
         self._dwell_count = 0
         self._dwell_armed = True
+
+    @property
+    def inside(self) -> bool:
+        """Whether the pointer is entered on the display."""
+        return self._inside
 
     # ------------------------------------------------------------------ per pair
 
@@ -224,10 +231,10 @@ class InteractionEngine:
         scores = score_all(stroke.points_m, self._shapes)
         best_name, best = scores[0]
         runner_up, second = scores[1] if len(scores) > 1 else (None, 0.0)
-        if best < cfg.min_score:
-            self._reject(stroke, f"best match {best_name} scores {best:.2f} < {cfg.min_score:.2f}", scores)
+        if best < cfg.min_score_ratio:
+            self._reject(stroke, f"best match {best_name} scores {best:.2f} < {cfg.min_score_ratio:.2f}", scores)
             return
-        if best - second < cfg.min_margin:
+        if best - second < cfg.min_margin_ratio:
             self._reject(stroke, f"ambiguous: {best_name} {best:.2f} vs {runner_up} {second:.2f}", scores)
             return
         why_not = self.templates[best_name].admits(features)
@@ -244,6 +251,7 @@ class InteractionEngine:
         ))
 
     def _reject(self, stroke: Stroke, reason: str, scores: list[tuple[str, float]]) -> None:
+        self.rejected_total += 1
         self.rejections.append(Rejection(stroke, reason, scores))
         del self.rejections[:-REJECTIONS_KEPT]
         log.debug("stroke of %.2f m is no gesture: %s", stroke.path_m, reason)

@@ -55,7 +55,7 @@ def minimum_jerk(fraction: Array) -> Array:
 
 
 def _samples(duration_s: float, rate_hz: float) -> Array:
-    return np.arange(max(2, int(round(duration_s * rate_hz)) + 1)) / rate_hz
+    return np.arange(max(2, round(duration_s * rate_hz) + 1)) / rate_hz
 
 
 def swipe_path(name: str, start_m: Array, length_m: float, duration_s: float, rng: np.random.Generator,

@@ -11,7 +11,7 @@ hit's speed:
 
 Still, fc is low and the jitter is averaged away; moving at a steady speed v,
 the filter trails the hit by ``v / (2 pi fc)``, which tends to ``1 / (2 pi beta)``
-metres as v grows (8 mm for beta = 20 per metre): the lag is a bounded distance,
+metres as v grows (11 mm for beta = 15 per metre): the lag is a bounded distance,
 not a bounded time. The hit is filtered as one 2D point
 (the speed is the norm of the 2D velocity), so both axes get the same cut-off and
 a diagonal movement is not smoothed differently from a horizontal one.
