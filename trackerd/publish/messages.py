@@ -245,6 +245,34 @@ class InteractionStatusPart(_Part):
     """Largest of that time (a hand look lands on one pair in every_n_pairs)."""
 
 
+class RecordingStatusPart(_Part):
+    """The daemon's recorder (docs/recording.md); present when the rig sets ``[recording] directory``."""
+
+    state: Literal["idle", "recording", "finishing", "stopped", "failed"]
+    """idle: available, not recording; recording; finishing: writing what is queued after a stop
+    request; stopped: on request or at a limit; failed: a full disk or an error stopped it (see detail)."""
+    path: str | None = None
+    """The recording being written, or the last one."""
+    pairs: int = Field(default=0, ge=0)
+    """Pairs written to it."""
+    written_mb: float = Field(default=0.0, ge=0.0)
+    """Its size so far, MB (10^6 bytes)."""
+    write_rate_mb_s: float = Field(default=0.0, ge=0.0)
+    """Write rate over the last two seconds, MB/s."""
+    pair_rate_hz: float = Field(default=0.0, ge=0.0)
+    """Pairs written per second over the last two seconds."""
+    dropped_pairs: int = Field(default=0, ge=0)
+    """Pairs not recorded because the disk fell behind (the recorder's queue dropped its oldest)."""
+    queued_pairs: int = Field(default=0, ge=0)
+    """Pairs waiting to be written."""
+    recorded_s: float = Field(default=0.0, ge=0.0)
+    """Recorded time, from its first pair to the last written, seconds."""
+    free_space_mb: float | None = None
+    """Free space left on the recording's disk, MB."""
+    detail: str | None = None
+    """Why it stopped or failed, in one line."""
+
+
 class StatusMessage(Message):
     """The daemon's health: sent about once a second, on every change, and to every new subscriber."""
 
@@ -283,6 +311,8 @@ class StatusMessage(Message):
     interaction: InteractionStatusPart | None = None
     """(1.1) Smoothing, events, gestures, hand poses and TUIO (docs/interaction.md); null when
     the interaction stage is off."""
+    recording: RecordingStatusPart | None = None
+    """(1.1) The daemon's recorder (docs/recording.md); null when the rig makes no recording available."""
 
 
 class _WallPoint(Message):
