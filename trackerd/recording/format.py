@@ -58,7 +58,8 @@ skew_ns, dropped_before, reserved: 56 bytes."""
 FRAME_ENTRY = struct.Struct("<QQqQIB3x")
 """frame_id, device_timestamp_ns, host_timestamp_ns, stored_bytes, payload_crc32, encoding: 40 bytes."""
 RECORD_TRAILER = struct.Struct("<II")
-"""header_crc32 (of every header byte before it), reserved: 8 bytes."""
+"""reserved, header_crc32 (of every header byte before it): 8 bytes; the checksum is always the
+header's last four bytes."""
 
 INDEX_ENTRY = struct.Struct("<QQQqqII")
 """offset, record_bytes, pair_index, sequence, timestamp_ns, reserved, entry_crc32 (of the 44
@@ -222,7 +223,8 @@ def pack_record_header(header: RecordHeader) -> bytes:
                          f.payload_crc32, f.encoding)
         for f in header.frames
     )
-    return body + RECORD_TRAILER.pack(zlib.crc32(body), 0)
+    body += struct.pack("<I", 0)
+    return body + struct.pack("<I", zlib.crc32(body))
 
 
 def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
@@ -245,8 +247,8 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
         raise RecordingError(f"{where}: record header is damaged (claims {header_bytes} bytes, needs {expected})")
     if len(data) < header_bytes:
         raise RecordingError(f"{where}: record header cut short ({len(data)} of {header_bytes} bytes)")
-    crc_at = header_bytes - RECORD_TRAILER.size
-    (crc, _) = RECORD_TRAILER.unpack_from(data, crc_at)
+    crc_at = header_bytes - 4
+    (crc,) = struct.unpack_from("<I", data, crc_at)
     if zlib.crc32(memoryview(data)[:crc_at]) != crc:
         raise RecordingError(f"{where}: record header checksum mismatch (the header is damaged)")
     frames = []

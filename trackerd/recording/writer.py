@@ -68,8 +68,10 @@ def free_space_bytes(path: Path) -> int:
 
 
 def rig_snapshot(rig: RigConfig) -> dict[str, Any]:
-    """The rig as JSON for recording.json: calibration merged in, so the file name is dropped."""
-    return rig.model_copy(update={"calibration": None}).model_dump(mode="json")
+    """The rig as JSON for recording.json, as a rig file would say it: calibration merged in (so the
+    file name is dropped) and defaults left out (so a later trackerd that adds or renames a setting
+    still reads it, as it reads the rig file)."""
+    return rig.model_copy(update={"calibration": None}).model_dump(mode="json", exclude_defaults=True)
 
 
 def build_metadata(

@@ -1,0 +1,162 @@
+"""The recorder: drops counted instead of waiting, a full disk stops it cleanly, limits, recording on demand."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import subprocess
+import time
+
+import pytest
+import zmq
+from rec_helpers import one_line_error, trackerd
+
+from trackerd.acquisition.memory import MemoryPairSource
+from trackerd.config.recording import RecordingConfig
+from trackerd.pipeline.daemon import Pipeline
+from trackerd.pipeline.extensions import for_rig
+from trackerd.publish import Publisher
+from trackerd.recording.reader import Recording
+from trackerd.recording.recorder import Recorder
+from trackerd.recording.writer import DiskFullError
+
+
+@pytest.fixture(scope="module")
+def bundle_pairs(bundle):
+    with Recording.open(bundle) as recording:
+        rig = recording.rig()
+        pairs = [recording.pair(i) for i in range(len(recording))]
+    return rig, pairs
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A real 12 MB filesystem (tmpfs) to fill: three raw pairs of two 1080p Bayer frames."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small filesystem needs root")
+    mount = tmp_path / "small"
+    mount.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=12m", "tmpfs", str(mount)], check=True)
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=False)
+
+
+def test_a_writer_that_falls_behind_drops_the_oldest_pairs_and_counts_them(bundle_pairs, tmp_path) -> None:
+    rig, pairs = bundle_pairs
+    recorder = Recorder(tmp_path / "burst.trec", rig, producer="test",
+                        config=RecordingConfig(queue_pairs=2, compression="deflate", compression_level=9)).start()
+    for pair in pairs:  # all at once: far faster than deflate at level 9 can write them
+        recorder.put(pair)
+    assert recorder.stop(30.0)
+    status = recorder.status()
+    assert status.dropped_pairs > 0
+    assert status.pairs + status.dropped_pairs == len(pairs)
+    with Recording.open(tmp_path / "burst.trec") as recording:
+        headers = [recording.header(i) for i in range(len(recording))]
+        assert recording.metadata.end is not None and recording.metadata.end.dropped_pairs == status.dropped_pairs
+    # Each record says how many pairs were dropped just before it (the bundle's sequences count up by one).
+    assert sum(h.dropped_before for h in headers) == status.dropped_pairs
+    assert all(b.sequence - a.sequence - 1 == b.dropped_before for a, b in itertools.pairwise(headers))
+
+
+def test_a_full_disk_stops_the_recording_cleanly_and_what_was_written_stays_readable(bundle_pairs, small_disk) -> None:
+    rig, pairs = bundle_pairs
+    path = small_disk / "full.trec"
+    recorder = Recorder(path, rig, producer="test", config=RecordingConfig(min_free_space_mb=0)).start()
+    for pair in pairs:
+        recorder.put(pair)
+    recorder.stop(10.0)
+    assert isinstance(recorder.error, DiskFullError)
+    status = recorder.status()
+    assert status.state == "failed" and "disk full" in (status.detail or "")
+    assert 1 <= status.pairs < len(pairs)
+    with Recording.open(path) as recording:
+        assert len(recording) == status.pairs
+        assert recording.metadata.end is not None and recording.metadata.end.reason.startswith("disk full")
+        for i in range(len(recording)):
+            recording.images(i, verify=True)
+    check = trackerd("recording", "check", path)
+    assert check.returncode == 0, check.stdout  # closed cleanly: nothing is damaged, it just ends early
+    assert f"pairs: {status.pairs} readable" in check.stdout and "closed: disk full" in check.stdout
+
+
+def test_the_free_space_limit_stops_before_the_disk_is_full(bundle_pairs, small_disk) -> None:
+    rig, pairs = bundle_pairs
+    recorder = Recorder(small_disk / "limited.trec", rig, producer="test",
+                        config=RecordingConfig(min_free_space_mb=6.0)).start()
+    for pair in pairs[:3]:
+        recorder.put(pair)
+    recorder.stop(10.0)
+    assert isinstance(recorder.error, DiskFullError)
+    assert "must leave 6 MB (min_free_space_mb)" in str(recorder.error)
+    assert recorder.status().pairs == 1
+
+
+def test_import_onto_a_full_disk_says_so_in_one_line(bundle_pairs, small_disk, tmp_path) -> None:
+    import cv2
+
+    _, pairs = bundle_pairs
+    folder = tmp_path / "images"
+    folder.mkdir()
+    for k, pair in enumerate(pairs[:4]):
+        for frame in pair.frames:
+            cv2.imwrite(str(folder / f"{k:02d}-{frame.camera_id}.png"), frame.image)
+    run = trackerd("recording", "import", folder, small_disk / "imported.trec", "--config", "config/simulated.toml")
+    one_line_error(run, "recording", "imported.trec", "disk full")
+    with Recording.open(small_disk / "imported.trec") as recording:
+        assert 1 <= len(recording) < 4
+
+
+def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_path) -> None:
+    """[recording] enabled switched by reloads (SIGHUP in the daemon): one recording per enabled span,
+    and the published status tells its state."""
+    rig, pairs = bundle_pairs
+    directory = tmp_path / "recordings"
+    endpoint = f"ipc://{tmp_path}/pub.sock"
+    zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 100.0})
+    outputs = rig.outputs.model_copy(update={"zmq": zmq_cfg})
+    off = rig.model_copy(update={"outputs": outputs, "recording": RecordingConfig(directory=directory)})
+    on = off.model_copy(update={"recording": RecordingConfig(directory=directory, enabled=True)})
+    images = [pair.images for pair in pairs]
+    pipeline = Pipeline(off, lambda r: MemoryPairSource(r, images, rate_hz=60.0), lambda r: Publisher(r.outputs.zmq),
+                        extensions=for_rig(off))
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"status")
+    sub.connect(endpoint)
+    states: list[str] = []
+
+    def listen(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            if sub.poll(20):
+                status = json.loads(sub.recv_multipart()[1])
+                recording = status.get("recording") or {}
+                if not states or states[-1] != recording.get("state"):
+                    states.append(recording.get("state"))
+
+    try:
+        pipeline.start()
+        listen(0.5)
+        pipeline.request_reload(on)
+        listen(0.6)
+        pipeline.request_reload(off)
+        listen(0.5)
+        pipeline.request_reload(on)
+        listen(0.4)
+    finally:
+        pipeline.stop()
+        sub.close(0)
+        ctx.term()
+    assert pipeline.failure is None
+    assert [s for s in states if s != "finishing"] == ["idle", "recording", "stopped", "recording"]
+    recordings = sorted(directory.glob("*.trec"))
+    assert len(recordings) == 2
+    for path in recordings:
+        with Recording.open(path) as recording:
+            assert recording.problems == [] and len(recording) > 5
+            assert recording.metadata.producer.startswith("trackerd run")
+            assert recording.metadata.rig["recording"]["enabled"] is True

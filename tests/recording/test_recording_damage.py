@@ -1,0 +1,103 @@
+"""Truncated, half-indexed, corrupt and wrong-version recordings: a clear account, and the intact part replays."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from rec_helpers import one_line_error, trackerd
+
+from trackerd.recording.format import INDEX_ENTRY
+from trackerd.recording.reader import Recording
+from trackerd.recording.replay import ReplayPairSource
+
+
+def _copy(bundle: Path, tmp_path: Path) -> Path:
+    copy = tmp_path / "copy.trec"
+    shutil.copytree(bundle, copy)
+    return copy
+
+
+def _replay_summary(path: Path) -> tuple[dict, str, int]:
+    run = trackerd("replay", path, "--speed", "max", "--delay", "0", "--endpoint", "tcp://127.0.0.1:*", "--json")
+    assert "Traceback" not in run.stderr, run.stderr
+    return json.loads(run.stdout), run.stderr, run.returncode
+
+
+def _replayed_sequences(path: Path) -> list[int]:
+    source = ReplayPairSource(path, speed=None)
+    with source:
+        sequences = []
+        while (pair := source.next_pair(1.0)) is not None:
+            sequences.append(pair.sequence)
+    return sequences
+
+
+def test_a_recording_cut_in_the_middle_of_a_pair_replays_up_to_the_last_whole_pair(bundle, tmp_path) -> None:
+    copy = _copy(bundle, tmp_path)
+    with Recording.open(bundle) as whole:
+        cut = whole.entries[9].offset + whole.entries[9].record_bytes // 2
+    with (copy / "pairs.dat").open("r+b") as handle:
+        handle.truncate(cut)
+    check = trackerd("recording", "check", copy)
+    assert check.returncode == 1
+    assert "pairs: 9 readable" in check.stdout
+    assert f"pair 9 at byte {whole.entries[9].offset}: incomplete" in check.stdout
+    assert "pairs.idx: entry 9" in check.stdout and "truncated" in check.stdout
+    summary, _, code = _replay_summary(copy)
+    assert code == 0 and summary["pairs"] == 9 and summary["hits"] == 9
+    assert _replayed_sequences(copy) == list(range(1, 10))
+
+
+def test_pairs_written_but_not_yet_indexed_are_recovered(bundle, tmp_path) -> None:
+    """A recorder killed between writing a pair and indexing it; or an index lost altogether."""
+    copy = _copy(bundle, tmp_path)
+    index = copy / "pairs.idx"
+    index.write_bytes(index.read_bytes()[: 16 + 13 * INDEX_ENTRY.size + 20])  # 13 entries and a torn one
+    with Recording.open(copy) as recording:
+        assert (len(recording), recording.indexed) == (16, 13)
+        assert any("3 complete pair(s) past the end of the index (pairs 13-15), recovered" in p
+                   for p in recording.problems)
+        assert any("partial entry (20 bytes)" in p for p in recording.problems)
+    index.unlink()
+    check = trackerd("recording", "check", copy, "--json")
+    report = json.loads(check.stdout)
+    assert (report["pairs"], report["indexed"], report["recovered"], report["replayable"]) == (16, 0, 16, 16)
+    assert _replayed_sequences(copy) == list(range(1, 17))
+
+
+def test_a_damaged_frame_is_named_and_skipped_and_the_rest_replays(bundle, tmp_path) -> None:
+    copy = _copy(bundle, tmp_path)
+    with Recording.open(bundle) as whole:
+        header = whole.header(5)
+        frame_at = whole.entries[5].offset + header.header_bytes
+        header_at = whole.entries[3].offset
+    data = bytearray((copy / "pairs.dat").read_bytes())
+    data[frame_at + 1000] ^= 0x5A
+    data[header_at + 30] ^= 0x01  # inside pair 3's timestamp
+    (copy / "pairs.dat").write_bytes(bytes(data))
+    check = trackerd("recording", "check", copy)
+    assert check.returncode == 1
+    assert f"pair 5, camera 'left' (byte {frame_at}): frame checksum mismatch" in check.stdout
+    assert f"pair 3 at byte {header_at}: record header checksum mismatch" in check.stdout
+    assert "14 of 16 pairs pass their checksums" in check.stdout
+    summary, stderr, code = _replay_summary(copy)
+    assert code == 1
+    assert summary["pairs"] == 14 and summary["skipped_damaged"] == 2
+    assert "frame checksum mismatch (the pixels are damaged); pair skipped" in stderr
+    assert "2 damaged pair(s) skipped" in stderr
+    assert _replayed_sequences(copy) == [s for s in range(1, 17) if s not in (4, 6)]
+
+
+def test_a_wrong_version_or_a_foreign_folder_is_one_clear_line(bundle, tmp_path) -> None:
+    copy = _copy(bundle, tmp_path)
+    meta = json.loads((copy / "recording.json").read_text())
+    (copy / "recording.json").write_text(json.dumps({**meta, "format_version": "3.1"}))
+    one_line_error(trackerd("replay", copy), "replay", "recording.json", "format 3.x is newer than this trackerd")
+    (copy / "recording.json").write_text(json.dumps({**meta, "format": "something-else"}))
+    one_line_error(trackerd("recording", "export", copy, tmp_path / "out"), "recording",
+                   "format is 'something-else'", "not a trackerd recording")
+    (copy / "recording.json").write_text(json.dumps(meta))
+    (copy / "pairs.dat").write_bytes(b"GIF89a" + bytes(100))
+    one_line_error(trackerd("replay", copy), "replay", "pairs.dat: does not begin with TRKDDATA")

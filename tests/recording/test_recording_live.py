@@ -1,0 +1,181 @@
+"""Recording from the virtual GigE Vision rig: the daemon records on demand, a recorder is killed mid-write.
+
+The simulated cameras run in their own network namespaces (root) and serve the
+rendered figure eight with exact ground truth per frame. The daemon, the
+recorder and the replays are real processes; this one subscribes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import zmq
+from rec_helpers import replay_and_listen, trackerd, unsmoothed_xy
+
+from trackerd.acquisition.arv import aravis_missing_reason
+from trackerd.config.loader import dump_rig
+from trackerd.config.recording import RecordingConfig
+from trackerd.recording.format import FILE_HEADER, INDEX_ENTRY
+from trackerd.recording.reader import Recording
+from trackerd.sim.netns import netns_missing_reason
+
+pytestmark = [
+    pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
+    pytest.mark.skipif(netns_missing_reason() is not None,
+                       reason=f"needs network namespaces (root): {netns_missing_reason()}"),
+    pytest.mark.root,
+    pytest.mark.aravis,
+]
+
+PREFIX, SUBNET = "trkdrec", "10.213.220.0/24"
+
+
+@pytest.fixture(scope="module")
+def virtual(simulated_rig, tmp_path_factory):
+    from trackerd.sim.rig import VirtualRig
+
+    with VirtualRig(simulated_rig, motion="figure8", prefix=PREFIX, subnet=SUBNET,
+                    out_dir=tmp_path_factory.mktemp("simrig")) as rig:
+        yield rig
+
+
+def _rig_file(virtual, path: Path, endpoint: str, recording: RecordingConfig) -> Path:
+    zmq_cfg = virtual.daemon_rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 250.0})
+    rig = virtual.daemon_rig.model_copy(update={
+        "outputs": virtual.daemon_rig.outputs.model_copy(update={"zmq": zmq_cfg}), "recording": recording,
+    })
+    path.write_text(dump_rig(rig))
+    return path
+
+
+def _truth_by_device_time(virtual) -> dict[int, dict[str, Any]]:
+    out = {}
+    for index in range(len(virtual.rig.cameras)):
+        for line in virtual.truth_path(index).read_text().splitlines():
+            record = json.loads(line)
+            out[record["device_timestamp_ns"]] = record
+    return out
+
+
+def _errors_to_truth_mm(virtual, recording_path: Path, hits: list[dict[str, Any]]) -> np.ndarray:
+    """Each hit against the true hit, for pairs whose two frames show the same rendered scene (at
+    60 fps and 30 loop frames a second, with the cameras' phases apart, the two frames of some
+    pairs straddle a loop frame: those views disagree, and no true hit fits them)."""
+    truth = _truth_by_device_time(virtual)
+    with Recording.open(recording_path) as recording:
+        shown = {}
+        for i, entry in enumerate(recording.entries):
+            views = [truth[f.device_timestamp_ns] for f in recording.header(i).frames]
+            if len({v["loop_index"] for v in views}) == 1:
+                shown[entry.sequence] = views[0]["wall_xy_m"]
+    errors = [1000 * np.hypot(*np.subtract(unsmoothed_xy(h), shown[h["sequence"]]))
+              for h in hits if h["sequence"] in shown]
+    assert len(errors) > 0.25 * len(hits)
+    return np.array(errors)
+
+
+def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path) -> None:
+    directory = tmp_path / "recordings"
+    endpoint = f"ipc://{tmp_path}/live.sock"
+    rig_file = _rig_file(virtual, tmp_path / "rig.toml", endpoint, RecordingConfig(directory=directory))
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(endpoint)
+    live: list[tuple[str, dict[str, Any]]] = []
+
+    def collect(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            if sub.poll(50):
+                topic, payload = sub.recv_multipart()
+                live.append((topic.decode(), json.loads(payload)))
+
+    daemon = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        collect(3.0)
+        _rig_file(virtual, rig_file, endpoint, RecordingConfig(directory=directory, enabled=True))
+        daemon.send_signal(signal.SIGHUP)
+        collect(4.0)
+        _rig_file(virtual, rig_file, endpoint, RecordingConfig(directory=directory, enabled=False))
+        daemon.send_signal(signal.SIGHUP)
+        collect(1.5)
+        daemon.send_signal(signal.SIGTERM)
+        code = daemon.wait(timeout=10)
+        collect(0.3)
+    finally:
+        if daemon.poll() is None:
+            daemon.kill()
+        _, err = daemon.communicate()
+        sub.close(0)
+        ctx.term()
+    assert code == 0 and "Traceback" not in err, err
+    states = [m["recording"]["state"] for t, m in live if t == "status" and m.get("recording")]
+    assert states[0] == "idle" and "recording" in states and states[-1] == "stopped"
+    (path,) = directory.glob("*.trec")
+    check = trackerd("recording", "check", path, "--json")
+    report = json.loads(check.stdout)
+    assert check.returncode == 0 and report["intact"] and report["dropped_by_recorder"] == 0, check.stdout
+    assert report["pairs"] > 40
+
+    replayed_run, replayed = replay_and_listen(path, "--speed", "max", endpoint=f"ipc://{tmp_path}/replay.sock")
+    assert replayed_run.returncode == 0, replayed_run.stderr
+    with Recording.open(path) as recording:
+        recorded = {e.sequence for e in recording.entries}
+    live_pointers = {m["sequence"]: m for t, m in live if t == "pointer" and m["sequence"] in recorded}
+    replay_pointers = {m["sequence"]: m for t, m in replayed if t == "pointer"}
+    assert len(live_pointers) > 30 and set(replay_pointers) == set(live_pointers)
+    for sequence, live_pointer in live_pointers.items():
+        again = replay_pointers[sequence]
+        # Capture times: the daemon's clock offset and the recorder's were read microseconds apart.
+        assert abs(again["capture_ns"] - live_pointer["capture_ns"]) < 1_000_000
+        strip = ("publish_ns", "capture_ns")
+        assert {k: v for k, v in again.items() if k not in strip} == {
+            k: v for k, v in live_pointer.items() if k not in strip}
+    live_hits = {m["sequence"]: unsmoothed_xy(m) for t, m in live if t == "hit" and m["sequence"] in recorded}
+    replay_hits = [m for t, m in replayed if t == "hit"]
+    assert {m["sequence"]: unsmoothed_xy(m) for m in replay_hits} == live_hits  # the same hits, bit for bit
+    errors = _errors_to_truth_mm(virtual, path, replay_hits)
+    assert np.median(errors) < 5.0 and np.percentile(errors, 95) < 15.0, errors
+
+
+def test_a_recorder_killed_mid_write_leaves_a_recording_that_replays(virtual, tmp_path) -> None:
+    rig_file = _rig_file(virtual, tmp_path / "rig.toml", "tcp://127.0.0.1:*", RecordingConfig())
+    out = tmp_path / "killed.trec"
+    recorder = subprocess.Popen([sys.executable, "-m", "trackerd", "record", "--config", str(rig_file), str(out)],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    index = out / "pairs.idx"
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and recorder.poll() is None:
+            if index.exists() and index.stat().st_size >= FILE_HEADER.size + 30 * INDEX_ENTRY.size:
+                break
+            time.sleep(0.02)
+        os.kill(recorder.pid, signal.SIGKILL)
+    finally:
+        recorder.wait(10)
+        recorder.communicate()
+    assert recorder.returncode == -signal.SIGKILL
+    check = trackerd("recording", "check", out, "--json")
+    report = json.loads(check.stdout)
+    assert check.returncode == 1 and not report["closed"]
+    assert report["pairs"] >= 30 and report["replayable"] == report["pairs"]
+    assert any("no end record" in p for p in report["problems"])
+    run, replayed = replay_and_listen(out, "--speed", "max", "--json", endpoint=f"ipc://{tmp_path}/replay.sock")
+    assert run.returncode == 0, run.stderr
+    assert "warning" in run.stderr and "no end record" in run.stderr
+    assert json.loads(run.stdout)["pairs"] == report["pairs"]
+    hits = [m for t, m in replayed if t == "hit"]
+    assert len(hits) > 0.8 * report["pairs"]
+    errors = _errors_to_truth_mm(virtual, out, hits)
+    assert np.median(errors) < 5.0 and np.percentile(errors, 95) < 15.0, errors
