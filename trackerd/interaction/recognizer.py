@@ -15,7 +15,7 @@ same steps:
    (a swipe, where left and up differ only by rotation) is compared only within
    +-``max_rotation_deg`` of its recorded orientation;
 4. **distance**: the mean distance between corresponding points, minimised over
-   the rotation by golden-section search; the **score** is ``1 - d / sqrt(2)``
+   the rotation (every 2 degrees); the **score** is ``1 - d / sqrt(2)``
    (1: identical; a circle against its mirror image scores about 0.1).
 
 Pure functions on NumPy arrays; the templates themselves are data
@@ -37,7 +37,6 @@ POINTS = 64
 INVARIANT_SEARCH_DEG = 45.0
 """Rotation searched around the indicative angle for rotation-invariant templates ($1's choice)."""
 SEARCH_PRECISION_DEG = 2.0
-_PHI = 0.5 * (math.sqrt(5.0) - 1.0)
 SCORE_SCALE = math.sqrt(2.0)
 """Distance at which the score reaches 0: the half-diagonal of the square around a unit circle."""
 
@@ -101,23 +100,19 @@ def mean_distance(a: Array, b: Array) -> float:
 
 
 def distance_at_best_angle(candidate: Array, template: Array, limit_rad: float) -> float:
-    """Smallest mean distance over rotations of ``candidate`` within +-``limit_rad`` (golden-section search)."""
-    lo, hi = -limit_rad, limit_rad
-    x1 = _PHI * lo + (1.0 - _PHI) * hi
-    x2 = (1.0 - _PHI) * lo + _PHI * hi
-    f1 = mean_distance(rotate(candidate, x1), template)
-    f2 = mean_distance(rotate(candidate, x2), template)
-    precision = math.radians(SEARCH_PRECISION_DEG)
-    while abs(hi - lo) > precision:
-        if f1 < f2:
-            hi, x2, f2 = x2, x1, f1
-            x1 = _PHI * lo + (1.0 - _PHI) * hi
-            f1 = mean_distance(rotate(candidate, x1), template)
-        else:
-            lo, x1, f1 = x1, x2, f2
-            x2 = (1.0 - _PHI) * lo + _PHI * hi
-            f2 = mean_distance(rotate(candidate, x2), template)
-    return min(f1, f2, mean_distance(candidate, template))
+    """Smallest mean distance over rotations of ``candidate`` within +-``limit_rad``.
+
+    Every rotation on a grid of SEARCH_PRECISION_DEG steps is tried in one vectorised pass:
+    as precise as $1's golden-section search at this step and, in NumPy, several times faster
+    than its sequential evaluations (the recogniser runs in the processing thread).
+    """
+    steps = max(3, math.ceil(2.0 * math.degrees(limit_rad) / SEARCH_PRECISION_DEG) + 1)
+    angles = np.linspace(-limit_rad, limit_rad, steps)
+    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    x, y = candidate[None, :, 0], candidate[None, :, 1]
+    dx = x * c - y * s - template[None, :, 0]
+    dy = x * s + y * c - template[None, :, 1]
+    return float(np.min(np.mean(np.sqrt(dx * dx + dy * dy), axis=1)))
 
 
 @dataclass(frozen=True)
