@@ -13,7 +13,7 @@ import pytest
 
 from tests.publish.conftest import hit_message, status_message
 from trackerd.config.models import ZmqOutput
-from trackerd.publish import Publisher
+from trackerd.publish import SCHEMA_VERSION, Publisher
 
 PROTOCOL = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 
@@ -65,5 +65,5 @@ def test_c_subscriber(tmp_path):
     binary = tmp_path / "subscriber"
     subprocess.run(["cc", "-Wall", "-Werror", str(source), "-o", str(binary), *flags.stdout.split()], check=True)
     lines = _first_lines([str(binary)], 2)
-    assert lines[0].startswith('status {"schema_version":"1.0","topic":"status"')
-    assert lines[1].startswith('hit {"schema_version":"1.0","topic":"hit"')
+    assert lines[0].startswith(f'status {{"schema_version":"{SCHEMA_VERSION}","topic":"status"')
+    assert lines[1].startswith(f'hit {{"schema_version":"{SCHEMA_VERSION}","topic":"hit"')

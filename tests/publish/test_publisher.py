@@ -23,7 +23,7 @@ from tests.publish.schema_check import SchemaError, validate
 from trackerd.config.loader import load_rig
 from trackerd.config.models import ZmqOutput
 from trackerd.errors import ConfigError
-from trackerd.publish import Publisher, PublishError, decode
+from trackerd.publish import SCHEMA_VERSION, Publisher, PublishError, decode
 
 
 def _endpoint(kind: str, tmp_path: Path) -> str:
@@ -48,7 +48,7 @@ def test_every_topic_round_trips_and_matches_its_schema(kind, tmp_path, context,
             assert topic == original.topic.encode()
             data = json.loads(payload)
             validate(data, schemas[original.topic])
-            assert data["schema_version"] == "1.0"
+            assert data["schema_version"] == SCHEMA_VERSION
             assert 1_000_000_000 <= data["publish_ns"] < 2_000_000_000  # stamped with the given clock
             received = decode(topic, payload)
             expected = original.model_dump(exclude={"publish_ns", "messages", "dropped_messages"})

@@ -75,7 +75,7 @@ class GesturesConfig(ConfigModel):
     """Recognise gestures and publish ``gesture``."""
     template_dir: Path | None = None
     """A directory of extra templates (``NAME.json`` from ``trackerd gesture record NAME``); a
-    template there replaces a built-in one of the same name. Give an absolute path."""
+    template there replaces a built-in one of the same name. A relative path is relative to the rig file."""
     builtin: bool = True
     """Load the templates shipped with trackerd (swipes in four directions, circles both ways)."""
     only: tuple[str, ...] = ()

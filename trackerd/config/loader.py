@@ -309,16 +309,25 @@ def check_rig_geometry(rig: RigConfig, path: Path, *, check_wall: bool = True) -
 
 def _resolve_paths(rig: RigConfig, rig_path: Path) -> RigConfig:
     """File names inside a rig file are relative to that file, like ``calibration``."""
+    def resolved(model, keys):
+        return {
+            key: (rig_path.parent / value).resolve()
+            for key in keys
+            if (value := getattr(model, key)) is not None and not Path(value).is_absolute()
+        }
+
     zmq = rig.outputs.zmq
-    update = {
-        key: (rig_path.parent / value).resolve()
-        for key in ("curve_secret_key_file", "curve_authorized_keys_dir")
-        if (value := getattr(zmq, key)) is not None and not Path(value).is_absolute()
-    }
-    if not update:
-        return rig
-    outputs = rig.outputs.model_copy(update={"zmq": zmq.model_copy(update=update)})
-    return rig.model_copy(update={"outputs": outputs})
+    zmq_update = resolved(zmq, ("curve_secret_key_file", "curve_authorized_keys_dir"))
+    gestures = rig.interaction.gestures
+    gestures_update = resolved(gestures, ("template_dir",))
+    update: dict[str, Any] = {}
+    if zmq_update:
+        update["outputs"] = rig.outputs.model_copy(update={"zmq": zmq.model_copy(update=zmq_update)})
+    if gestures_update:
+        update["interaction"] = rig.interaction.model_copy(
+            update={"gestures": gestures.model_copy(update=gestures_update)}
+        )
+    return rig.model_copy(update=update) if update else rig
 
 
 def _check_geometry(rig: RigConfig, wall_path: Path | None) -> None:
