@@ -37,7 +37,8 @@ from numpy.typing import NDArray
 from trackerd.detect.blobs import find_runs, label_runs
 from trackerd.detect.candidates import Candidate
 from trackerd.detect.colour import EXCESS_SCALE, Region, SampleGrid, Threshold, excess_window
-from trackerd.detect.coverage import Rim, rim_centre
+from trackerd.detect.coverage import Rim, rim_centres
+from trackerd.detect.flat import WorkspaceCache
 
 COVERAGE_FLOOR = 0.1
 """A sample whose excess is below this fraction of its neighbourhood's largest weighs nothing
@@ -157,16 +158,24 @@ def measure(samples: Samples, weighted: bool, *, shape: bool = False) -> Measure
 
 
 def measure_rims(
-    frame: NDArray[np.uint8], grid: SampleGrid, measurements: list[Measurement]
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    measurements: list[Measurement],
+    cache: WorkspaceCache,
 ) -> list[Measurement]:
     """The measurements with centre and area from every pixel around the end (Bayer frames).
 
-    See :mod:`trackerd.detect.coverage`; a measurement without a rim (RGB8,
-    BGR8, the bounding-box centre) or too near the frame's edge is kept as it is.
+    See :mod:`trackerd.detect.coverage` (all ends at once); a measurement without
+    a rim (RGB8, BGR8, the bounding-box centre) or too near the frame's edge is
+    kept as it is.
     """
+    rims = [m.rim for m in measurements if m.rim is not None]
+    if not rims:
+        return measurements
+    centres = iter(rim_centres(frame, grid, rims, cache))
     out = []
     for m in measurements:
-        centre = rim_centre(frame, grid, m.rim) if m.rim is not None else None
+        centre = next(centres) if m.rim is not None else None
         if centre is None:
             out.append(m)
         else:
@@ -224,22 +233,30 @@ def keep_nearest_blob(samples: Samples, near_px: tuple[float, float]) -> None:
     samples.strong = keep
 
 
-def measure_candidate(
-    frame: NDArray[np.uint8], grid: SampleGrid, c: Candidate, threshold: Threshold, weighted: bool
-) -> Measurement:
-    """Measure a chosen candidate around its blob (box grown by a cell), other blobs left out."""
+def candidate_region(grid: SampleGrid, c: Candidate) -> Region:
+    """The cells :func:`measure_candidate` measures: the blob's box grown, inside the interior.
+
+    One cell around the blob (one strip cell, in a window measured at a coarser
+    scale), and one more on a mosaic: the colour test here can reach a cell
+    beyond the blob found in the strip, and the centre from every pixel needs a
+    ring of cells around all of it.
+    """
     x0, y0, x1, y1 = c.frame_cells()
     lo_r, hi_r, lo_c, hi_c = grid.interior()
-    # One cell around the blob (one strip cell, in a window measured at a coarser scale), and
-    # one more on a mosaic: the colour test here can reach a cell beyond the blob found in the
-    # strip, and the centre from every pixel needs a ring of cells around all of it.
     grow = c.scale + (1 if grid.is_bayer else 0)
-    region = (
+    return (
         max(lo_r, y0 - grow),
         min(hi_r, y1 + 1 + grow),
         max(lo_c, x0 - grow),
         min(hi_c, x1 + 1 + grow),
     )
+
+
+def measure_candidate(
+    frame: NDArray[np.uint8], grid: SampleGrid, c: Candidate, threshold: Threshold, weighted: bool
+) -> Measurement:
+    """Measure a chosen candidate around its blob (box grown by a cell), other blobs left out."""
+    region = candidate_region(grid, c)
     samples = sample(frame, grid, c.colour, threshold, region)
     if c.scale > 1:
         keep_nearest_blob(samples, (c.x_px, c.y_px))

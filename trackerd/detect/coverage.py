@@ -36,7 +36,8 @@ and cells more than one cell from any as empty.
 On rendered frames of the simulated rig (truth: the renderer's visible-area
 centroid) the error across the pointer's image line is 0.041-0.045 px (1 sigma)
 against 0.071-0.082 px from the own samples alone; the cost is about 45 NumPy
-calls, 0.12-0.16 ms, per end (docs/detection.md, Measured).
+calls per end when done end by end (0.12-0.16 ms each); here both ends are done
+together on flat arrays (:mod:`trackerd.detect.flat`), about 50 calls for both.
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.detect.colour import SampleGrid
+from trackerd.detect.flat import Ops, Workspace, WorkspaceCache, round_up, run
 
 MIN_CONTRAST = 40.0
 """Grey levels by which the background must be brighter than the ball in a pixel's channel for
@@ -77,119 +79,165 @@ class Rim:
     """Mean own-colour value of the thresholded samples, grey levels."""
 
 
-def rim_centre(
-    frame: NDArray[np.uint8], grid: SampleGrid, end: Rim
-) -> tuple[float, float, float] | None:
-    """Centre (x, y) and area of an end from the coverage of every pixel, full-resolution pixels.
+def rim_centres(
+    frame: NDArray[np.uint8], grid: SampleGrid, rims: list[Rim], cache: WorkspaceCache
+) -> list[tuple[float, float, float] | None]:
+    """Centre (x, y) and area of each end from the coverage of every pixel, full-resolution pixels.
 
-    ``end.strong`` should hold every thresholded sample of the end with a cell
+    All ends are measured at once (their boxes padded to a common size). Each
+    ``rim.strong`` should hold every thresholded sample of the end with a cell
     of margin (measure's box does, unless the end reaches its window's border).
-    None when it does not, when the cells and a ring around them do not fit in
-    the frame, or when nothing is covered: keep the own samples' estimate then.
+    An end gets None when it does not, when its cells and a ring around them do
+    not fit in the frame, or when nothing is covered: keep the own samples'
+    estimate then.
     """
-    h, w = end.strong.shape
-    r0, c0 = end.origin
-    if r0 < 1 or c0 < 1 or r0 + h + 1 > grid.rows or c0 + w + 1 > grid.cols:
-        return None
-    edge = end.strong[0].any() or end.strong[-1].any() or end.strong[:, 0].any()
-    if edge or end.strong[:, -1].any():
-        return None  # part of the rim would be outside the arrays
-    dr, dc = grid.offset(end.colour)
-    # The cells and a ring of cells around them, the end's own colour at each cell's top-left
-    # pixel. Red and blue are diagonal in every Bayer layout, so the other colour is then
-    # bottom-right and the greens are right of and below the own sample, for either end.
-    patch = frame[2 * r0 - 2 + dr : 2 * (r0 + h) + 2 + dr, 2 * c0 - 2 + dc : 2 * (c0 + w) + 2 + dc]
-    # One copy: the four samples of each cell as four planes (own, right, below, diagonal).
-    planes = patch.reshape(h + 2, 2, w + 2, 2).transpose(1, 3, 0, 2).astype(np.float32)
-    planes = planes.reshape(4, h + 2, w + 2)
-    others = planes[1:]
-
-    # Each other sample against the pair of its channel's samples two pixels to either side,
-    # along the row or the column, whichever differ more.
-    value = others[:, 1:-1, 1:-1]
-    left, right = others[:, 1:-1, :-2], others[:, 1:-1, 2:]
-    above, below = others[:, :-2, 1:-1], others[:, 2:, 1:-1]
-    ball_h = np.minimum(left, right)
-    back_h = np.maximum(left, right)
-    ball_v = np.minimum(above, below)
-    back_v = np.maximum(above, below)
-    contrast_h = back_h - ball_h
-    contrast_v = back_v - ball_v
-    across_row = contrast_h >= contrast_v
-    ball = np.where(across_row, ball_h, ball_v)
-    back = np.where(across_row, back_h, back_v)
-    contrast = np.maximum(contrast_h, contrast_v)
-    solved = contrast >= MIN_CONTRAST
-    slack = contrast * MIX_SLACK
-    solved &= value >= ball - slack
-    solved &= value <= back + slack
-    # The own samples next to a cell's other pixels: its own, right, below and diagonal.
-    dark = planes[0] <= DARK_FRACTION * end.own_level
-    near_dark = dark[1:-1, 1:-1] | dark[1:-1, 2:]
-    near_dark |= dark[2:, 1:-1]
-    near_dark |= dark[2:, 2:]
-    solved &= ~near_dark
-    mixed = back - value
-    mixed /= np.maximum(contrast, 1.0)
-    np.minimum(mixed, 1.0, out=mixed)
-    np.maximum(mixed, 0.0, out=mixed)
-
-    # Unsolved: the mean of the own samples beside (the green right of the own sample has one
-    # left and one right of it, the green below one above and one below, the other colour four
-    # at the diagonals).
-    own = np.zeros((h + 1, w + 1), dtype=np.float32)
-    own[:-1, :-1] = end.cover
-    beside = np.empty_like(value)
-    np.add(own[:-1, :-1], own[:-1, 1:], out=beside[0])
-    np.add(own[:-1, :-1], own[1:, :-1], out=beside[1])
-    np.add(beside[0], own[1:, :-1], out=beside[2])
-    beside[2] += own[1:, 1:]
-    beside[:2] *= 0.5
-    beside[2] *= 0.25
-    cover = np.where(solved, mixed, beside)  # own-sample coverage is in [0, 1], so is beside
-
-    # Per cell: its four pixels' coverage, and how much of it lies one pixel right or down.
-    strong = np.zeros((h + 2, w + 2), dtype=np.float32)
-    strong[1:-1, 1:-1] = end.strong
-    near = _box3(strong)
-    per_cell = cover.sum(axis=0)
-    per_cell += end.cover
-    right_px = cover[0] + cover[2]
-    down_px = cover[1] + cover[2]
-    inside = near >= 9.0
-    per_cell[inside] = 4.0
-    right_px[inside] = 2.0
-    down_px[inside] = 2.0
-    empty = near == 0.0
-    per_cell[empty] = 0.0
-    right_px[empty] = 0.0
-    down_px[empty] = 0.0
-    total = float(per_cell.sum())
-    if not total > 0.0:
-        return None
-    x = 2.0 * float(per_cell.sum(axis=0) @ _ramp(w)) + float(right_px.sum())
-    y = 2.0 * float(per_cell.sum(axis=1) @ _ramp(h)) + float(down_px.sum())
-    return x / total + 2 * c0 + dc, y / total + 2 * r0 + dr, total
-
-
-def _box3(values: NDArray[np.float32]) -> NDArray[np.float32]:
-    """Sum over the 3x3 neighbourhood of every element not on the border: shape (h-2, w-2)."""
-    rows = values[:, :-2] + values[:, 1:-1]
-    rows += values[:, 2:]
-    out = rows[:-2] + rows[1:-1]
-    out += rows[2:]
+    out: list[tuple[float, float, float] | None] = [None] * len(rims)
+    usable = [k for k, rim in enumerate(rims) if _clear_of_edges(rim.strong)]
+    if not usable:
+        return out
+    # The measured region of every end (its box, padded) and a ring of cells around it.
+    rows = round_up(max(rims[k].strong.shape[0] for k in usable)) + 2
+    cols = round_up(max(rims[k].strong.shape[1] for k in usable)) + 2
+    height_px, width_px = frame.shape[:2]
+    placed = []
+    for k in usable:
+        rim = rims[k]
+        h, w = rim.strong.shape
+        dr, dc = grid.offset(rim.colour)
+        # The region starts at the box unless that would run off the frame's bottom or right.
+        r0 = min(rim.origin[0], (height_px - dr) // 2 - rows + 1)
+        c0 = min(rim.origin[1], (width_px - dc) // 2 - cols + 1)
+        pr, pc = rim.origin[0] - r0, rim.origin[1] - c0
+        if r0 >= 1 and c0 >= 1 and pr + h <= rows - 2 and pc + w <= cols - 2:
+            placed.append((k, r0, c0, pr, pc, dr, dc))
+    if not placed:
+        return out
+    ws = cache.get(len(placed), rows, cols)
+    ws.strong.fill(0.0)
+    ws.cover.fill(0.0)
+    for e, (k, r0, c0, pr, pc, dr, dc) in enumerate(placed):
+        rim = rims[k]
+        h, w = rim.strong.shape
+        y, x = 2 * r0 - 2 + dr, 2 * c0 - 2 + dc
+        ws.pixels[e] = frame[y : y + 2 * rows, x : x + 2 * cols]
+        ws.strong_3d[e, 1 + pr : 1 + pr + h, 1 + pc : 1 + pc + w] = rim.strong
+        ws.cover_3d[e, 1 + pr : 1 + pr + h, 1 + pc : 1 + pc + w] = rim.cover
+    np.copyto(ws.planes_5d, ws.pixels_as_planes)
+    sums = solve(ws, [rims[k].own_level for k, *_ in placed])
+    for (k, r0, c0, _, _, dr, dc), (total, x_sum, y_sum) in zip(placed, sums, strict=True):
+        if total > 0.0:
+            out[k] = (x_sum / total + 2 * c0 + dc, y_sum / total + 2 * r0 + dr, total)
     return out
 
 
-_RAMPS: dict[int, NDArray[np.float32]] = {}
+def _clear_of_edges(strong: NDArray[np.bool_]) -> bool:
+    """Whether no sample on the array's edges passed (else part of the rim lies outside it)."""
+    if strong[0].any() or strong[-1].any():
+        return False
+    return not (strong[:, 0].any() or strong[:, -1].any())
 
 
-def _ramp(n: int) -> NDArray[np.float32]:
-    """0, 1, ..., n - 1 as float32 (cached: boxes come in few sizes)."""
-    ramp = _RAMPS.get(n)
-    if ramp is None:
-        ramp = np.arange(n, dtype=np.float32)
-        ramp.setflags(write=False)
-        if len(_RAMPS) < 4096:
-            _RAMPS[n] = ramp
-    return ramp
+def solve(ws: Workspace, own_levels: list[float]) -> list[tuple[float, float, float]]:
+    """Every pixel's coverage, and the centroid sums of each window in a filled workspace.
+
+    ``ws.planes`` holds the pixels, ``ws.strong`` the end's thresholded samples
+    (none on the ring or on the measured region's border) and ``ws.cover`` its
+    own samples' coverage (0 away from the end and outside ``lo:hi``), window by
+    window; ``own_levels`` the end's mean own-colour value in each. Returns per
+    window (summed coverage in pixels, sum of coverage x (2 x column + 1 for a
+    pixel right of the own sample), the same for rows), columns and rows counted
+    from the measured region's first cell: a centre is sum / coverage from there.
+    """
+    for e, level in enumerate(own_levels):
+        ws.level_2d[e] = DARK_FRACTION * level
+    run(ws.ops("solve", _solve_ops))
+    # Per window and pixel of the cell (the other pixels, then the own sample): summed
+    # coverage, and its moments about the region's first cell in columns and rows.
+    m = np.dot(ws.coverage_2d, ws.moments).tolist()
+    n = ws.n
+    out = []
+    for e in range(n):
+        right, below, diagonal, own = m[e], m[n + e], m[2 * n + e], m[3 * n + e]
+        total = right[0] + below[0] + diagonal[0] + own[0]
+        # The pixels right of the own sample (the right green, the other colour) sit one pixel
+        # further right; those below it, one pixel further down.
+        x = right[1] + below[1] + diagonal[1] + own[1] + right[0] + diagonal[0]
+        y = right[2] + below[2] + diagonal[2] + own[2] + below[0] + diagonal[0]
+        out.append((total, x, y))
+    return out
+
+
+def _solve_ops(ws: Workspace) -> Ops:
+    """The computation of :func:`solve` for one layout (see trackerd.detect.flat)."""
+    lo, hi, s, size = ws.lo, ws.hi, ws.cols, ws.size
+    own, level, strong, cover = ws.own, ws.level, ws.strong, ws.cover
+    bright, pairs, rows3, near, keep, inside = ws.cell[6:12]
+    # Per pixel: the three other planes end to end, and the range with all four neighbours.
+    end = 3 * size - lo
+    other = ws.planes[1:4].reshape(-1)
+    left, right = other[lo - 1 : end - 1], other[lo + 1 : end + 1]
+    up, down = other[lo - s : end - s], other[lo + s : end + s]
+    a, b, c, d, first, near_bright = (p[lo:end] for p in ws.pixel)
+    near_bright_3 = ws.pixel[5].reshape(3, size)
+    ones, zeros = ws.ones[lo:end], ws.zeros[lo:end]
+    every = ws.coverage.reshape(-1)
+    beside = every[lo:end]
+    weights = np.repeat(np.array([0.5, 0.5, 0.25], dtype=np.float32), size)[lo:end]
+    n_cells = hi - lo
+    return [
+        # Own samples darker than DARK_FRACTION of the end's level may be the rod (dark in
+        # every channel): a cell's other pixels are not solved on their own next to one.
+        (np.greater, own, level, bright),
+        (np.multiply, bright[:-1], bright[1:], pairs[:-1]),
+        (np.multiply, pairs[lo:hi], pairs[lo + s : hi + s], near_bright_3[0, lo:hi]),
+        (np.positive, near_bright_3[0], near_bright_3[1:]),  # the same for all three
+        # Each other pixel against its channel's two samples two pixels to either side, along
+        # the row and along the column, the pair that differs more: the darker is the ball,
+        # the brighter what is behind it.
+        (np.minimum, left, right, a),
+        (np.maximum, left, right, b),
+        (np.minimum, up, down, c),
+        (np.maximum, up, down, d),
+        (np.subtract, b, a, a),  # contrast along the row
+        (np.subtract, d, c, c),  # along the column
+        (np.greater_equal, a, c, first),  # 1 where the row's pair straddles the rim
+        (np.maximum, a, c, a),  # contrast
+        (np.subtract, b, d, b),
+        (np.multiply, b, first, b),
+        (np.add, b, d, b),  # background
+        (np.subtract, b, other[lo:end], b),
+        (np.maximum, a, ones, c),
+        (np.divide, b, c, b),  # the ball's share of the pixel: (background - value) / contrast
+        # Solved: contrast enough, the pixel within [ball, background] give or take MIX_SLACK
+        # (share in [-MIX_SLACK, 1 + MIX_SLACK]), no dark own sample next to it.
+        (np.greater_equal, a, MIN_CONTRAST, first),
+        (np.subtract, b, 0.5, c),
+        (np.absolute, c, c),
+        (np.less_equal, c, 0.5 + MIX_SLACK, d),
+        (np.multiply, first, d, first),
+        (np.multiply, first, near_bright, first),  # solved
+        (np.minimum, b, ones, b),
+        (np.maximum, b, zeros, b),
+        # Unsolved: the mean of the own samples beside (the green right of the own sample has
+        # one left and one right of it, the green below one above and one below, the other
+        # colour four at the diagonals).
+        (np.add, cover[lo : hi + s], cover[lo + 1 : hi + s + 1], every[lo : hi + s]),
+        (np.add, cover[lo:hi], cover[lo + s : hi + s], every[size + lo : size + hi]),
+        (np.add, every[lo:hi], every[lo + s : hi + s], every[2 * size + lo : 2 * size + hi]),
+        (np.multiply, beside, weights, beside),
+        (np.subtract, b, beside, b),
+        (np.multiply, b, first, b),
+        (np.add, beside, b, beside),  # every other pixel's coverage
+        # Cells surrounded by thresholded samples count fully, cells further than one cell
+        # from any count for nothing (this also clears the ring, where neighbours wrapped).
+        (np.add, strong[:-2], strong[1:-1], rows3[1:-1]),
+        (np.add, rows3[1:-1], strong[2:], rows3[1:-1]),
+        (np.add, rows3[lo - s : hi - s], rows3[lo:hi], near[lo:hi]),
+        (np.add, near[lo:hi], rows3[lo + s : hi + s], near[lo:hi]),
+        (np.minimum, near[lo:hi], ones[:n_cells], keep[lo:hi]),
+        (np.subtract, near[lo:hi], 8.0, inside[lo:hi]),
+        (np.maximum, inside[lo:hi], zeros[:n_cells], inside[lo:hi]),
+        (np.subtract, keep[lo:hi], inside[lo:hi], keep[lo:hi]),
+        (np.multiply, ws.coverage, keep, ws.coverage),
+        (np.add, ws.coverage, inside, ws.coverage),
+    ]

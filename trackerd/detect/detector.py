@@ -43,6 +43,7 @@ from trackerd.detect.candidates import (
 )
 from trackerd.detect.centroid import (
     Measurement,
+    candidate_region,
     keep_nearest_blob,
     measure,
     measure_candidate,
@@ -50,6 +51,8 @@ from trackerd.detect.centroid import (
     sample,
 )
 from trackerd.detect.colour import Region, SampleGrid, Threshold, coarse_masks, sample_grid
+from trackerd.detect.flat import WorkspaceCache
+from trackerd.detect.quick import ANY_SHAPE, Plain, measure_windows
 from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
 from trackerd.detect.select import choose, missing_reason, pair_consistency, rod_evidence
 from trackerd.errors import ImageError
@@ -73,14 +76,25 @@ a jump) goes through the blob search."""
 
 @dataclass(slots=True)
 class _Track:
-    """What the previous frame said about one end."""
+    """What the previous frame said about one end (plain floats: read a few times a frame)."""
 
-    centre_px: NDArray[np.float64]
-    velocity_px: NDArray[np.float64]
+    x_px: float
+    y_px: float
+    vx_px: float
+    """Motion since the frame before, pixels per frame."""
+    vy_px: float
     area_px: float
     crowded: bool = False
     """Whether the quick measurement had to pick the end out of other blobs of its colour
     (then it does so straight away next time)."""
+
+    @property
+    def centre_px(self) -> NDArray[np.float64]:
+        return np.array([self.x_px, self.y_px])
+
+    @property
+    def velocity_px(self) -> NDArray[np.float64]:
+        return np.array([self.vx_px, self.vy_px])
 
 
 @dataclass(slots=True)
@@ -138,6 +152,8 @@ class ColourEndDetector:
         # None: as the configuration says (centroid = "coverage" uses every pixel of the rim).
         every_pixel = cfg.centroid == "coverage" if rim_pixels is None else rim_pixels
         self.rim_pixels = every_pixel and self.weighted and self.grid.is_bayer
+        self._work = WorkspaceCache()
+        self._plain = Plain(QUICK_MAX_ELONGATION, QUICK_MIN_FILL)
 
     def reset(self) -> None:
         """Forget the previous frame: the next frame is searched in full."""
@@ -195,8 +211,12 @@ class ColourEndDetector:
         This is the common case while tracking, and costs a few dozen NumPy calls
         per end; None sends the frame to the blob search.
         """
-        found: dict[str, Measurement] = {}
         crowded = {c for c in COLOURS if track[c].crowded}
+        if self.rim_pixels and not crowded:
+            both = self._quick_both(frame, track)
+            if both is not None:
+                return self._quick_result(both[0], both[1], crowded)
+        found: dict[str, Measurement] = {}
         for colour in COLOURS:
             t = track[colour]
             thr = self.thresholds[colour]
@@ -221,6 +241,37 @@ class ColourEndDetector:
             assert m is not None
             found[colour] = m
         red, blue = self._centres(frame, [found["red"], found["blue"]])
+        return self._quick_result(red, blue, crowded)
+
+    def _quick_both(
+        self, frame: NDArray[np.uint8], track: dict[str, _Track]
+    ) -> tuple[Measurement, Measurement] | None:
+        """Both ends measured together in windows of one size (trackerd.detect.quick), if plain."""
+        ends = []
+        half_px = 0.0
+        for colour in COLOURS:
+            t = track[colour]
+            x, y = t.x_px + t.vx_px, t.y_px + t.vy_px
+            if not (math.isfinite(x) and math.isfinite(y)):
+                return None
+            radius = math.sqrt(t.area_px / math.pi)
+            half_px = max(half_px, 1.25 * radius + 0.5 * math.hypot(t.vx_px, t.vy_px) + 4.0)
+            ends.append((colour, x, y))
+        half_cells = math.ceil(half_px / self.grid.cell_px)
+        found = measure_windows(
+            frame, self.grid, ends, half_cells, self.thresholds, self._plain, self._work
+        )
+        if found is None:
+            return None
+        for colour, m in zip(COLOURS, found, strict=True):
+            if not self._plainly(m, track[colour].area_px):
+                return None
+        return found[0], found[1]
+
+    def _quick_result(
+        self, red: Measurement, blue: Measurement, crowded: set[str]
+    ) -> ImageDetections | None:
+        """The quick path's answer if the two ends are consistent as a pair, else None."""
         pair = pair_consistency(
             red.area_px,
             blue.area_px,
@@ -378,7 +429,7 @@ class ColourEndDetector:
         if need_pair and not choice.paired:
             return None
         ends = {}
-        measured = {}
+        chosen = {}
         for colour, cand in (("red", choice.red), ("blue", choice.blue)):
             if cand is None:
                 s = found[colour]
@@ -386,18 +437,54 @@ class ColourEndDetector:
                     missing_reason(colour, s.seeds, s.too_large_seeds, s.rejects, s.examined_all)
                 )
             else:
-                measured[colour] = measure_candidate(
-                    frame, self.grid, cand, self.thresholds[colour], self.weighted
-                )
-        refined = self._centres(frame, list(measured.values()))
+                chosen[colour] = cand
+        measured = self._measure_chosen(frame, list(chosen.values()))
         scores = {"red": choice.red_score, "blue": choice.blue_score}
-        for colour, m in zip(measured, refined, strict=True):
-            ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, scores[colour], None)
+        for colour, m in zip(chosen, measured, strict=True):
+            score = scores[colour]
+            ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, score, None)
         return ImageDetections(ends["red"], ends["blue"], search)  # type: ignore[arg-type]
+
+    def _measure_chosen(
+        self, frame: NDArray[np.uint8], chosen: list[Candidate]
+    ) -> list[Measurement]:
+        """The chosen candidates' centres, areas and boxes, all at once when that is the same.
+
+        Measured together (trackerd.detect.quick) in square windows around each
+        blob's region when each blob was alone in its search window and each
+        window's thresholded samples all lie in the region :func:`measure_candidate`
+        would measure (then both see the same samples); otherwise one by one, other
+        blobs in the region left out.
+        """
+        if self.rim_pixels and chosen and all(c.alone and c.scale == 1 for c in chosen):
+            regions = [candidate_region(self.grid, c) for c in chosen]
+            ends, half_cells = [], 0
+            for c, (r0, r1, c0, c1) in zip(chosen, regions, strict=True):
+                row, col = (r0 + r1 - 1) // 2, (c0 + c1 - 1) // 2
+                half_cells = max(half_cells, row - r0, r1 - 1 - row, col - c0, c1 - 1 - col)
+                dr, dc = self.grid.offset(c.colour)
+                ends.append((c.colour, float(2 * col + dc), float(2 * row + dr)))
+            found = measure_windows(
+                frame,
+                self.grid,
+                ends,
+                half_cells + 1,
+                self.thresholds,
+                ANY_SHAPE,
+                self._work,
+                within=regions,
+            )
+            if found is not None:
+                return found
+        measured = [
+            measure_candidate(frame, self.grid, c, self.thresholds[c.colour], self.weighted)
+            for c in chosen
+        ]
+        return self._centres(frame, measured)
 
     def _centres(self, frame: NDArray[np.uint8], found: list[Measurement]) -> list[Measurement]:
         """The ends' centres and areas from every pixel of their rims (or as measured)."""
-        return measure_rims(frame, self.grid, found) if self.rim_pixels else found
+        return measure_rims(frame, self.grid, found, self._work) if self.rim_pixels else found
 
     def _remember(self, result: ImageDetections) -> None:
         if not result.both_found:
@@ -408,13 +495,12 @@ class ColourEndDetector:
         for colour in COLOURS:
             end = result.end(colour)
             assert end.centroid_px is not None
-            velocity = (
-                end.centroid_px - previous[colour].centre_px
-                if previous is not None
-                else np.zeros(2)
-            )
+            x, y = end.centroid_px.tolist()
+            vx = vy = 0.0
+            if previous is not None:
+                vx, vy = x - previous[colour].x_px, y - previous[colour].y_px
             crowded = result.search == "window" and colour in self._crowded
-            track[colour] = _Track(end.centroid_px, velocity, end.area_px, crowded)
+            track[colour] = _Track(x, y, vx, vy, end.area_px, crowded)
         self._track = track
 
 

@@ -1,0 +1,140 @@
+"""The centre from every pixel, both ends at once on flat arrays, against the plain reference.
+
+trackerd.detect.coverage and trackerd.detect.quick measure both ends together on
+flat arrays where a neighbour is an index offset; a wrong offset or a stale
+buffer shifts centres by hundredths of a pixel, which the accuracy tests would
+not single out. So on synthetic frames that exercise every rule (a rod across a
+ball, a dark background behind part of a rim, shading, all four Bayer layouts)
+the results must equal those of the first, plain implementation
+(coverage_reference.py) to float32 rounding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from coverage_reference import rim_centre
+from detect_synthetic import BLUE, RED, Scene, Shape, pointer
+
+from trackerd.config.models import DetectorConfig, PointerConfig
+from trackerd.detect import ColourEndDetector
+from trackerd.detect.centroid import measure, sample
+from trackerd.detect.colour import Threshold, sample_grid
+from trackerd.detect.coverage import rim_centres
+from trackerd.detect.flat import WorkspaceCache
+from trackerd.detect.quick import ANY_SHAPE, measure_windows
+
+BAYER = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8")
+CFG = DetectorConfig()
+POINTER = PointerConfig(length_m=0.45, end_diameter_m=0.04)
+THRESHOLDS = {
+    "red": Threshold(CFG.red.min_excess, CFG.red.min_value),
+    "blue": Threshold(CFG.blue.min_excess, CFG.blue.min_value),
+}
+DARK = (0.08, 0.08, 0.09)
+WHITE = (0.98, 0.98, 0.98)
+REDDISH = (0.55, 0.38, 0.36)
+
+
+def scenes(rng: np.random.Generator) -> list[Scene]:
+    """Pointers with a rod into each ball, some shaded, a dark or a reddish panel behind the lower
+    half of the red ball, a thin white line touching the blue ball (pixels brighter than the
+    background beside them)."""
+    out = []
+    for k in range(4):
+        x, y = 60.0 + 5.0 * rng.random(), 55.0 + 5.0 * rng.random()
+        dx, dy = 70.0 + 10.0 * rng.random(), 20.0 * rng.random() - 10.0
+        radius = 6.0 + 4.0 * rng.random()
+        shapes = pointer(x, y, dx, dy, radius, shading=0.3 * (k % 2))
+        if k >= 2:  # a dark display behind the lower half of the red ball's rim
+            panel = Shape(x, y + 2.0 * radius, DARK, half_size=(2.0 * radius, 1.5 * radius))
+            shapes.insert(0, panel)
+        else:  # a reddish surface there, faintly of the end's colour
+            panel = Shape(x, y + 2.0 * radius, REDDISH, half_size=(2.0 * radius, 1.5 * radius))
+            shapes.insert(0, panel)
+        line = Shape(x + dx + radius + 0.8, y + dy, WHITE, half_size=(0.6, 0.7 * radius))
+        shapes.insert(0, line)
+        out.append(Scene(width=200, height=130, shapes=shapes, rods=[(x, y, x + dx, y + dy, 2.0)]))
+    return out
+
+
+def reference(frame, grid, colour: str, region) -> tuple[float, float, float]:
+    """The end in ``region`` measured as the detector did end by end: own samples, then rim."""
+    samples = sample(frame, grid, colour, THRESHOLDS[colour], region)
+    m = measure(samples, True)
+    assert m is not None and m.rim is not None and not m.on_border
+    centre = rim_centre(frame, grid, m.rim)
+    assert centre is not None
+    return centre
+
+
+@pytest.mark.parametrize("pixel_format", BAYER)
+def test_flat_arrays_compute_what_the_plain_reference_computes(
+    pixel_format: str, detect_rng
+) -> None:
+    for scene in scenes(detect_rng):
+        frame, _ = scene.render(pixel_format, detect_rng)
+        grid = sample_grid(pixel_format, scene.width, scene.height)
+        cache = WorkspaceCache()
+        half = 9
+        ends, regions, expected = [], [], []
+        for colour in ("red", "blue"):
+            shape = next(s for s in scene.shapes if s.rgb == (RED if colour == "red" else BLUE))
+            dr, dc = grid.offset(colour)
+            row, col = round((shape.y - dr) / 2.0), round((shape.x - dc) / 2.0)
+            region = (row - half, row + half + 1, col - half, col + half + 1)
+            ends.append((colour, float(2 * col + dc), float(2 * row + dr)))
+            regions.append(region)
+            expected.append(reference(frame, grid, colour, region))
+
+        # Both ends at once from the windows (the tracking path and the chosen blobs).
+        found = measure_windows(frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, cache)
+        assert found is not None
+        for m, (x, y, area) in zip(found, expected, strict=True):
+            assert abs(m.x_px - x) < 2e-4 and abs(m.y_px - y) < 2e-4, (m.x_px - x, m.y_px - y)
+            assert abs(m.area_px - area) < 1e-3 * area
+
+        # Both ends at once from what the own samples left (the other blobs' path).
+        rims = [
+            measure(sample(frame, grid, c, THRESHOLDS[c], r), True).rim
+            for (c, *_), r in zip(ends, regions, strict=True)
+        ]
+        for got, (x, y, area) in zip(rim_centres(frame, grid, rims, cache), expected, strict=True):
+            assert got is not None
+            assert abs(got[0] - x) < 2e-4 and abs(got[1] - y) < 2e-4
+            assert abs(got[2] - area) < 1e-3 * area
+
+
+def test_the_detector_gives_the_reference_centres_searching_and_tracking(detect_rng) -> None:
+    """Full search (chosen blobs measured together) and tracking (windows) match the reference."""
+    det = None
+    for step in range(4):
+        shapes = pointer(70.3 + 2.1 * step, 60.7 + 1.2 * step, 80.0, 15.0, 8.0)
+        scene = Scene(width=240, height=150, shapes=shapes)
+        frame, _ = scene.render("BayerRG8", detect_rng)
+        det = det or ColourEndDetector(CFG, "BayerRG8", scene.width, scene.height, POINTER)
+        result = det.detect(frame)
+        assert result.search == ("full" if step == 0 else "window")
+        grid = det.grid
+        for colour in ("red", "blue"):
+            end = result.end(colour)
+            dr, dc = grid.offset(colour)
+            x, y = end.centroid_px
+            row, col = round((y - dr) / 2.0), round((x - dc) / 2.0)
+            x, y, area = reference(frame, grid, colour, (row - 8, row + 9, col - 8, col + 9))
+            assert np.allclose(end.centroid_px, (x, y), atol=2e-4)
+            assert abs(end.area_px - area) < 1e-3 * area
+
+
+def test_rims_at_the_frame_edge_keep_the_own_samples_centre(detect_rng) -> None:
+    """An end whose ring of cells would leave the frame is not measured from every pixel."""
+    scene = Scene(width=120, height=90, shapes=pointer(9.0, 45.3, 90.0, 5.0, 7.0))
+    frame, _ = scene.render("BayerRG8", detect_rng)
+    grid = sample_grid("BayerRG8", scene.width, scene.height)
+    rims = [
+        measure(sample(frame, grid, "red", THRESHOLDS["red"], (14, 32, 1, 12)), True).rim,
+        measure(sample(frame, grid, "blue", THRESHOLDS["blue"], (14, 32, 40, 59)), True).rim,
+    ]
+    got = rim_centres(frame, grid, rims, WorkspaceCache())
+    assert got[0] is None  # the red ball's rim reaches the region's (and frame's) left edge
+    assert got[1] is not None
