@@ -192,7 +192,8 @@ def _sources(p: argparse.ArgumentParser, snapshots: bool = True) -> None:
     p.add_argument(
         "--live", action="store_true", help="use the rig's cameras (the daemon's source) and guide the operator"
     )
-    p.add_argument("--recording", metavar="R", help="read frames from a recording (not available yet)")
+    p.add_argument("--recording", metavar="R",
+                   help="read the pairs of a recording (trackerd record), as --live reads the cameras")
     p.add_argument(
         "--source",
         choices=("cameras", "simulated"),
@@ -265,12 +266,8 @@ def _check_source(args: argparse.Namespace, offline: list[str]) -> str:
         raise CalibrationError("give the input: images or --pairs DIR, --live, or --recording R")
     if len(chosen) > 1:
         raise CalibrationError(f"give one input, not {' and '.join(chosen)}")
-    if args.recording is not None:
-        raise CalibrationError(
-            f"{args.recording}: reading recordings is not available yet (it arrives with trackerd's"
-            " recording format); save images and use --pairs DIR or image files instead"
-        )
-    return "live" if args.live else "files"
+    # A recording is read like the cameras, pair after pair, by the step's live session.
+    return "live" if args.live or args.recording is not None else "files"
 
 
 def _camera(rig: RigConfig, camera_id: str) -> tuple[int, CameraConfig]:
@@ -323,7 +320,12 @@ def _live(
     simulated: Callable[[], Any] | None,
 ) -> None:
     """Run a session on the live source; Ctrl-C ends collection and keeps what was collected."""
-    if args.source == "simulated":
+    if args.recording is not None:
+        from trackerd.recording.replay import ReplayPairSource
+
+        source = ReplayPairSource(args.recording, speed=None)
+        newest = False
+    elif args.source == "simulated":
         if simulated is None:
             raise CalibrationError("--source simulated is not available for this step")
         source = simulated()
@@ -408,7 +410,8 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         out.result(text, {"camera": cam.id, **report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
     calibration = apply_intrinsics(
-        context.calibration, cam.id, result, spec, "live" if mode == "live" else f"{len(args.images)} images"
+        context.calibration, cam.id, result, spec,
+        (args.recording or "live") if mode == "live" else f"{len(args.images)} images"
     )
     entry = context.calibration.cameras.get(cam.id)
     notes: list[str] = []
@@ -500,7 +503,7 @@ def stereo_command(args: argparse.Namespace) -> int:
         cam2.id,
         result,
         spec,
-        "live" if mode == "live" else str(args.pairs),
+        (args.recording or "live") if mode == "live" else str(args.pairs),
         keep_frame=args.world == "keep",
     )
     if args.refine_intrinsics:

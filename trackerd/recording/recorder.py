@@ -95,6 +95,8 @@ class Recorder:
         self._first_ns: int | None = None
         self._last_ns: int | None = None
         self._rate: deque[tuple[float, int, int]] = deque()
+        self.peak_queued = 0
+        """The most pairs that were waiting for the writer at once (benchmarks: how close to a drop)."""
         self.error: RecordingError | None = None
         """What stopped the recording, when it was not asked to stop (disk full, a bad frame)."""
         self._thread = threading.Thread(target=self._run, name="trackerd-recorder", daemon=True)
@@ -146,6 +148,7 @@ class Recorder:
                         break
                     continue
                 pair, put_index = item
+                self.peak_queued = max(self.peak_queued, len(self._queue) + 1)
                 limit = self._limit_reached(pair)
                 if limit is not None:
                     reason = limit

@@ -13,6 +13,7 @@ the last 30 s by default); `trackerd recording check` reports what survived.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import datetime as dt
 import errno
 import json
@@ -51,6 +52,21 @@ from trackerd.recording.format import (
 )
 
 _DISK_FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+SYNC_FILE_RANGE_WRITE = 2
+
+
+def _sync_file_range() -> Any:
+    """Linux's sync_file_range(2) through ctypes (Python's os module lacks it), or None."""
+    try:
+        function = ctypes.CDLL(None, use_errno=True).sync_file_range
+    except (OSError, AttributeError):
+        return None
+    function.argtypes = (ctypes.c_int, ctypes.c_int64, ctypes.c_int64, ctypes.c_uint)
+    function.restype = ctypes.c_int
+    return function
+
+
+_START_WRITEBACK = _sync_file_range()
 
 
 class DiskFullError(RecordingError):
@@ -208,6 +224,11 @@ class RecordingWriter:
             raise _os_error(self.path / INDEX_FILE, f"stopped at {self.pairs} pairs", err) from err
         self.data_bytes = start + record_bytes
         self._index_bytes += INDEX_ENTRY.size
+        if _START_WRITEBACK is not None:
+            # Start writing the pair to the disk now rather than when the kernel's dirty-page limit
+            # is reached: at ~250 MB/s that limit is hit after some 20 s, and the kernel then stalls
+            # the writer for most of a second (47 pairs queued at 60 pairs/s, measured) to catch up.
+            _START_WRITEBACK(self._data, start, record_bytes, SYNC_FILE_RANGE_WRITE)
         self.payload_bytes += record_bytes - header.header_bytes
         self.pairs += 1
         return record_bytes
