@@ -27,6 +27,7 @@ def test_bench_detector_json(capsys) -> None:
     assert all(v > 0 for v in report["median_ms"].values())
     assert {"opencv_over_full", "full_over_floor", "tracked_over_floor"} <= set(report["ratios"])
     assert report["min_excess"] == {"red": 75, "blue": 65}
+    assert report["load_average"] >= 0  # the machine is shared: each run says how busy it was
     accuracy = report["accuracy_px"]
     assert {"weighted", "tracked", "opencv", "bbox (eq. 12, chosen blob)"} <= set(accuracy)
     assert "weighted, own samples only" in accuracy
@@ -39,6 +40,7 @@ def test_bench_detector_table_and_bad_option(capsys) -> None:
     assert main(["bench", "detector", "--frames", "2", "--poses", "0", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
     assert "(a) full-frame search" in out and "(c)/(a)" in out and "weighted" in out
+    assert "load average" in out
     assert "own samples only" in out and "across sd" in out
     assert "(a')" not in out  # timed only with --own-samples
     assert main(["bench", "detector", "--frames", "2", "--min-excess", "0", "300"]) == 2

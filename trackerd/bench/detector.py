@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -227,6 +228,8 @@ def run(args: argparse.Namespace) -> int:
                     if len(results["tracked"]) < len(order):
                         results["tracked"].append((frame, result))
     median_ms = {k: 1e3 * float(np.median(v)) for k, v in times.items()}
+    # The machine is shared: say how busy it was while timing (1-minute load average).
+    load = os.getloadavg()[0]
 
     # Accuracy on every distinct frame (trajectory and independent poses).
     every = [f for seq in sequences for f in seq] + independent
@@ -255,6 +258,7 @@ def run(args: argparse.Namespace) -> int:
         "trajectory_frames_per_camera": args.frames,
         "independent_poses_per_camera": args.poses,
         "timed_frames": len(order) * args.repeats,
+        "load_average": round(load, 2),
         "opencv_threads": cv2.getNumThreads(),
         "min_excess": {"red": cfg.red.min_excess, "blue": cfg.blue.min_excess},
         "render_s": round(t_render, 1),
@@ -341,6 +345,7 @@ def _print_table(r: dict) -> None:
         f" OpenCV threads {r['opencv_threads']},"
         f" min_excess red {r['min_excess']['red']} blue {r['min_excess']['blue']}"
     )
+    print(f"  load average (1 min) after timing: {r['load_average']:.2f} on {os.cpu_count()} cores")
     print()
     print("  method                          median ms/frame")
     labels = {
