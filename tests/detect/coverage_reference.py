@@ -1,9 +1,10 @@
 """The centre from every pixel of the rim, one end at a time, written plainly: the reference.
 
 This is the first implementation of :mod:`trackerd.detect.coverage` (2-D arrays,
-one end per call, about 45 NumPy calls). The detector now measures both ends at
-once on flat arrays (:mod:`trackerd.detect.flat`), which is faster and much
-harder to read; the tests check that it computes the same thing as this.
+one end per call, about 45 NumPy calls), with the unsolved pixels' estimate
+since steepened (BESIDE_SLOPE). The detector now measures both ends at once on
+flat arrays (:mod:`trackerd.detect.flat`), which is faster and much harder to
+read; the tests check that it computes the same thing as this.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.detect.colour import SampleGrid
-from trackerd.detect.coverage import DARK_FRACTION, MIN_CONTRAST, MIX_SLACK, Rim
+from trackerd.detect.coverage import BESIDE_SLOPE, DARK_FRACTION, MIN_CONTRAST, MIX_SLACK, Rim
 
 
 def rim_centre(
@@ -84,6 +85,7 @@ def rim_centre(
     beside[2] += own[1:, 1:]
     beside[:2] *= 0.5
     beside[2] *= 0.25
+    beside = np.clip(0.5 + BESIDE_SLOPE * (beside - 0.5), 0.0, 1.0)
     cover = np.where(solved, mixed, beside)  # own-sample coverage is in [0, 1], so is beside
 
     # Per cell: its four pixels' coverage, and how much of it lies one pixel right or down.
