@@ -89,6 +89,11 @@ def export_recording(
     stop = len(recording) if count is None else min(len(recording), first + count)
     if first >= stop:
         raise RecordingError(f"{recording.path}: no pairs to export from pair {first}")
+    tuio = getattr(rig.interaction, "tuio", None)
+    if tuio is not None and tuio.enabled:
+        # An export computes what would be published; it sends nothing (TUIO is sent by the extension).
+        rig = rig.model_copy(update={"interaction": rig.interaction.model_copy(
+            update={"tuio": tuio.model_copy(update={"enabled": False})})})
     locator = Locator(rig)
     extensions = for_rig(rig)
     offset = recording.metadata.clock_offset_ns
