@@ -468,7 +468,7 @@ class ColourEndDetector:
                 frame,
                 self.grid,
                 ends,
-                half_cells + 1,
+                half_cells,
                 self.thresholds,
                 ANY_SHAPE,
                 self._work,
