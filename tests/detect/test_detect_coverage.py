@@ -94,6 +94,18 @@ def test_flat_arrays_compute_what_the_plain_reference_computes(
             assert abs(m.x_px - x) < 2e-4 and abs(m.y_px - y) < 2e-4, (m.x_px - x, m.y_px - y)
             assert abs(m.area_px - area) < 1e-3 * area
 
+        # The own samples' centre alone (rim_pixels=False), both ends at once.
+        own = measure_windows(
+            frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, cache, every_pixel=False
+        )
+        assert own is not None
+        for m, (colour, *_), region in zip(own, ends, regions, strict=True):
+            expected_own = measure(sample(frame, grid, colour, THRESHOLDS[colour], region), True)
+            assert expected_own is not None
+            assert abs(m.x_px - expected_own.x_px) < 2e-4 and abs(m.y_px - expected_own.y_px) < 2e-4
+            assert abs(m.area_px - expected_own.area_px) < 1e-3 * expected_own.area_px
+            assert m.bbox_px == expected_own.bbox_px
+
         # Both ends at once from what the own samples left (the other blobs' path).
         rims = [
             measure(sample(frame, grid, c, THRESHOLDS[c], r), True).rim

@@ -152,6 +152,9 @@ class ColourEndDetector:
         # None: as the configuration says (centroid = "coverage" uses every pixel of the rim).
         every_pixel = cfg.centroid == "coverage" if rim_pixels is None else rim_pixels
         self.rim_pixels = every_pixel and self.weighted and self.grid.is_bayer
+        # Weighted centres on a mosaic are measured for both ends at once (trackerd.detect.quick)
+        # wherever that gives what measuring them one by one gives.
+        self.flat = self.weighted and self.grid.is_bayer
         self._work = WorkspaceCache()
         self._plain = Plain(QUICK_MAX_ELONGATION, QUICK_MIN_FILL)
 
@@ -212,7 +215,7 @@ class ColourEndDetector:
         per end; None sends the frame to the blob search.
         """
         crowded = {c for c in COLOURS if track[c].crowded}
-        if self.rim_pixels and not crowded:
+        if self.flat and not crowded:
             both = self._quick_both(frame, track)
             if both is not None:
                 return self._quick_result(both[0], both[1], crowded)
@@ -259,7 +262,14 @@ class ColourEndDetector:
             ends.append((colour, x, y))
         half_cells = math.ceil(half_px / self.grid.cell_px)
         found = measure_windows(
-            frame, self.grid, ends, half_cells, self.thresholds, self._plain, self._work
+            frame,
+            self.grid,
+            ends,
+            half_cells,
+            self.thresholds,
+            self._plain,
+            self._work,
+            every_pixel=self.rim_pixels,
         )
         if found is None:
             return None
@@ -456,7 +466,7 @@ class ColourEndDetector:
         would measure (then both see the same samples); otherwise one by one, other
         blobs in the region left out.
         """
-        if self.rim_pixels and chosen and all(c.alone and c.scale == 1 for c in chosen):
+        if self.flat and chosen and all(c.alone and c.scale == 1 for c in chosen):
             regions = [candidate_region(self.grid, c) for c in chosen]
             ends, half_cells = [], 0
             for c, (r0, r1, c0, c1) in zip(chosen, regions, strict=True):
@@ -473,6 +483,7 @@ class ColourEndDetector:
                 ANY_SHAPE,
                 self._work,
                 within=regions,
+                every_pixel=self.rim_pixels,
             )
             if found is not None:
                 return found

@@ -12,7 +12,8 @@ measures the ends' windows together, in one set of flat arrays
    its window's border or is not round and full enough ends the attempt here;
 3. the coverage of the end's own samples, in its box grown by a cell (as
    :func:`trackerd.detect.centroid.measure`);
-4. every pixel's coverage and the centre (:func:`trackerd.detect.coverage.solve`).
+4. every pixel's coverage and the centre (:func:`trackerd.detect.coverage.solve`),
+   or the centre of the own samples' coverage alone.
 
 It computes what the end-by-end path computes (tests compare them); about 80
 NumPy calls for both ends instead of about 170.
@@ -53,13 +54,15 @@ def measure_windows(
     plain: Plain,
     cache: WorkspaceCache,
     within: list[Region] | None = None,
+    every_pixel: bool = True,
 ) -> list[Measurement] | None:
     """Each (colour, x_px, y_px) end measured in the cells within ``half_cells`` of that point.
 
-    Returns one measurement per end (centre and area from every pixel), or None
-    as soon as one end is not plainly there: nothing of its colour, touching the
-    window's border, not ``plain``, outside its region of ``within`` (frame
-    cells, one per end), or the window not fitting in the frame.
+    Returns one measurement per end (centre and area from every pixel, or with
+    ``every_pixel=False`` from the own samples alone), or None as soon as one end
+    is not plainly there: nothing of its colour, touching the window's border,
+    not ``plain``, outside its region of ``within`` (frame cells, one per end),
+    or the window not fitting in the frame.
     """
     n = len(ends)
     size = 2 * half_cells + 1
@@ -115,7 +118,13 @@ def measure_windows(
         ws.level_2d[e] = 0.5 * excess_sums[e] / counts[e]
     run(ws.ops("own coverage", _own_coverage_ops))
 
-    sums = solve(ws, [own_sums[e] / counts[e] for e in range(n)])
+    if every_pixel:
+        sums = solve(ws, [own_sums[e] / counts[e] for e in range(n)])
+    else:
+        # The own samples alone, as trackerd.detect.centroid.measure: each at its own pixel,
+        # a cell's worth of area (four pixels) each.
+        moments = np.dot(ws.cover.reshape(n, ws.cells), ws.moments).tolist()
+        sums = [(4.0 * total, 4.0 * x, 4.0 * y) for total, x, y in moments]
     out = []
     for (r0, c0, dr, dc), (i0, i1, j0, j1, elongation, fill), (total, x_sum, y_sum) in zip(
         origins, boxes, sums, strict=True
