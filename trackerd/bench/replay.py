@@ -71,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
         if args.recording:
             path = Path(args.recording)
         else:
+            if args.dir:
+                Path(args.dir).mkdir(parents=True, exist_ok=True)
             workdir = Path(tempfile.mkdtemp(prefix="trackerd-bench-replay-", dir=args.dir))
             path, figures["record"], truth = _record(rig, args, workdir)
         with Recording.open(path) as recording:

@@ -111,8 +111,8 @@ class Recording:
                 f"{folder / METADATA_FILE}: says {metadata.end.pairs} pairs were written, {len(recording.entries)}"
                 " are readable"
             )
-        if mapped is not None:
-            mapped.madvise(mmap.MADV_SEQUENTIAL)
+        # No MADV_SEQUENTIAL: the kernel would drop each page once read, so a second replay (a loop,
+        # a benchmark, a test) would read the disk again instead of the page cache.
         return recording
 
     def _load_index(self) -> None:
