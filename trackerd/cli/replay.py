@@ -41,6 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--speed", type=parse_speed, default=1.0, metavar="S",
                         help="1.0: recorded pace (default); 2.0: twice as fast; max: as fast as possible")
     parser.add_argument("--loop", action="store_true", help="start again from the first pair at the end")
+    parser.add_argument("--seconds", type=float, help="stop after this many seconds (default: at the end)")
     parser.add_argument("--endpoint", action="append", metavar="E",
                         help="publish on this ZeroMQ endpoint instead of the rig's (repeatable)")
     parser.add_argument("--delay", type=float, default=1.0, metavar="S",
@@ -148,7 +149,7 @@ def replay_command(args: argparse.Namespace) -> int:
                           f" lag {source.lag_ms:.0f} ms")
         return source.finished and pipeline.pairs_processed >= source.delivered and pipeline.backlog <= 0
 
-    code = serve(rig, None, lambda _r: source, publisher_factory=publisher_factory,
+    code = serve(rig, None, lambda _r: source, seconds=args.seconds, publisher_factory=publisher_factory,
                  clock_offset_ns=source.pipeline_clock_offset_ns(), until=until)
     progress.done()
     summary = _summary(source, publishers, recording)
