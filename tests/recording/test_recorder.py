@@ -86,7 +86,7 @@ def test_a_full_disk_stops_the_recording_cleanly_and_what_was_written_stays_read
 def test_the_free_space_limit_stops_before_the_disk_is_full(bundle_pairs, small_disk) -> None:
     rig, pairs = bundle_pairs
     recorder = Recorder(small_disk / "limited.trec", rig, producer="test",
-                        config=RecordingConfig(min_free_space_mb=6.0)).start()
+                        config=RecordingConfig(min_free_space_mb=6)).start()
     for pair in pairs[:3]:
         recorder.put(pair)
     recorder.stop(10.0)

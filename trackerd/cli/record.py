@@ -54,7 +54,7 @@ def record_command(args: argparse.Namespace) -> int:
         raise RecordingError(f"{out}: already exists; give a new name for the recording")
     if (args.pairs is not None and args.pairs < 1) or (args.seconds is not None and args.seconds <= 0):
         raise RecordingError("--pairs and --seconds must be positive")
-    update: dict[str, object] = {"max_pairs": args.pairs, "max_seconds": args.seconds}
+    update: dict[str, object] = {"max_pairs": args.pairs, "max_duration_s": args.seconds}
     if args.compression:
         update["compression"] = args.compression
     config = loaded.config.recording.model_copy(update=update)

@@ -38,9 +38,9 @@ class RecordingConfig(ConfigModel):
     """Pairs waiting for the writer thread. When the disk falls behind, the oldest waiting pair is
     dropped and counted (the daemon never waits for the disk); each pair of two 1080p Bayer
     frames holds about 4 MB of memory here."""
-    min_free_space_mb: float = Field(default=1024.0, ge=0.0)
+    min_free_space_mb: int = Field(default=1024, ge=0)
     """Stop recording cleanly when the disk would have less than this much free space left."""
-    max_seconds: float | None = Field(default=None, gt=0.0)
+    max_duration_s: float | None = Field(default=None, gt=0.0)
     """Finish each recording after this many seconds of recorded time; omit for no limit."""
     max_pairs: int | None = Field(default=None, gt=0)
     """Finish each recording after this many pairs; omit for no limit."""

@@ -198,7 +198,7 @@ class Recorder:
         )
 
     def _limit_reached(self, pair: FramePair) -> str | None:
-        limit = self.config.max_seconds
+        limit = self.config.max_duration_s
         if limit is not None and self._first_ns is not None and (pair.timestamp_ns - self._first_ns) / 1e9 >= limit:
             return "time limit"
         return None
