@@ -141,7 +141,11 @@ def replay_command(args: argparse.Namespace) -> int:
         publishers.append(zmq_publisher(r))
         return publishers[-1]
 
+    pipelines: list[Any] = []
+
     def until(pipeline) -> bool:
+        if not pipelines:
+            pipelines.append(pipeline)
         if progress.due():
             hits = publishers[-1].counts.get("hit", 0) if publishers else 0
             rate = source.status().pair_rate_hz
@@ -153,6 +157,9 @@ def replay_command(args: argparse.Namespace) -> int:
                  clock_offset_ns=source.pipeline_clock_offset_ns(), until=until)
     progress.done()
     summary = _summary(source, publishers, recording)
+    if pipelines:
+        # Pairs processed but never handed to the publisher: its queue dropped them (should be 0).
+        summary["dropped_before_publishing"] = pipelines[0].pairs_processed - pipelines[0].pairs_published
     for problem in source.problems:
         print(f"trackerd replay: error: {problem}", file=sys.stderr)
     if args.json:
