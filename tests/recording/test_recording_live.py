@@ -179,3 +179,45 @@ def test_a_recorder_killed_mid_write_leaves_a_recording_that_replays(virtual, tm
     assert len(hits) > 0.8 * report["pairs"]
     errors = _errors_to_truth_mm(virtual, out, hits)
     assert np.median(errors) < 5.0 and np.percentile(errors, 95) < 15.0, errors
+
+
+def test_record_stops_at_its_limit_with_the_cameras_described(virtual, tmp_path) -> None:
+    rig_file = _rig_file(virtual, tmp_path / "rig.toml", "tcp://127.0.0.1:*", RecordingConfig())
+    run = trackerd("record", "--config", rig_file, tmp_path / "ten.trec", "--pairs", "10")
+    assert run.returncode == 0, run.stderr
+    assert "10 pairs" in run.stderr and "[stopped: pair limit]" in run.stderr
+    with Recording.open(tmp_path / "ten.trec") as recording:
+        assert recording.problems == [] and len(recording) == 10
+        assert recording.metadata.end is not None and recording.metadata.end.reason == "pair limit"
+        for cam in recording.cameras:
+            assert cam.serial == f"SIM-{cam.id.upper()}" and cam.vendor and cam.model
+        assert recording.metadata.rig_file == str(rig_file.resolve())
+
+
+def test_snap_saves_one_pair_raw_and_annotated_and_prints_its_hit(virtual, tmp_path) -> None:
+    import cv2
+
+    from trackerd.config.loader import load_rig
+    from trackerd.images import read_frame
+    from trackerd.locator import Locator
+
+    rig_file = _rig_file(virtual, tmp_path / "rig.toml", "tcp://127.0.0.1:*", RecordingConfig())
+    run = trackerd("snap", "--config", rig_file, tmp_path / "snaps", "--name", "aim")
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("snap aim: hit: wall (")
+    record = json.loads((tmp_path / "snaps" / "aim.json").read_text())
+    rig = load_rig(rig_file).config
+    frames = []
+    for cam, saved in zip(rig.cameras, record["cameras"], strict=True):
+        view = cv2.imread(str(tmp_path / "snaps" / saved["view"]))
+        assert view.shape == (1080, 1920, 3)
+        frame, fmt = read_frame(tmp_path / "snaps" / saved["raw"], cam)
+        assert fmt == "BayerRG8" and frame.shape == (1080, 1920)
+        frames.append(frame)
+        assert f"{cam.id}: red (" in run.stdout
+    # The raw files are the pair exactly: located again, they give the same ends and hit.
+    fix = Locator(rig).locate(frames)
+    assert fix.status == record["status"] == "hit"
+    assert [float(v) for v in fix.hit.wall_xy_m] == record["wall_xy_m"]
+    for k, saved in enumerate(record["cameras"]):
+        assert [float(v) for v in fix.centroids_px[k]["red"]] == saved["ends"]["red"]["centroid_px"]
