@@ -114,6 +114,18 @@ def test_a_new_installation_end_to_end(workspace: Path) -> None:
     assert not [r for r in stereo["rejected"] if "sync" in r["reason"]]
     assert "next: `trackerd calibrate wall`" in run.stderr
 
+    # The same pairs as a recording (imported, as an operator would record the board): the same stereo result.
+    run = trackerd("recording", "import", "--config", "rig.toml", "pairs", "board.trec", cwd=workspace)
+    assert run.returncode == 0, run.stderr
+    run = trackerd(
+        "calibrate", "stereo", "--config", "rig.toml", "--board", "chessboard:10x7:100",
+        "--recording", "board.trec", "--json", cwd=workspace,
+    )
+    assert run.returncode == 0, run.stderr
+    from_recording = json.loads(run.stdout)
+    assert abs(from_recording["baseline_m"] - stereo["baseline_m"]) < 0.001
+    assert from_recording["epipolar_rms_px"] < 0.2 and len(from_recording["pairs"]) >= 8
+
     run = trackerd("calibrate", "wall", "--config", "rig.toml", "--point", "--pairs", "pointing", cwd=workspace)
     assert run.returncode == 0, run.stderr
     assert "(as configured); the targets imply 3.6" in run.stdout and "world frame: the wall frame" in run.stdout
@@ -134,7 +146,7 @@ def test_a_new_installation_end_to_end(workspace: Path) -> None:
     figures = json.loads(run.stdout)
     assert figures["fixes"] >= 10 and not figures["suspect"]
     assert figures["ray_gap_mm"]["p50"] < 3.0
-    assert len(list(workspace.glob("new-wall-calibration.toml.bak-*"))) == 3
+    assert len(list(workspace.glob("new-wall-calibration.toml.bak-*"))) == 4  # one per step that wrote
 
 
 @pytest.fixture
@@ -191,7 +203,7 @@ def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path)
     unchanged = _unchanged(ws)
     run = trackerd(*base, "--board", "chessboard:10x7:60", *images(ws / "intrinsics-left"), "small.png", cwd=ws)
     one_line_error(run, "small.png: image is 960x540 but camera 'left' is configured for 1920x1080")
-    # An unknown camera, and recordings (not available yet).
+    # An unknown camera, and a recording that is not there.
     run = trackerd(
         "calibrate",
         "intrinsics",
@@ -206,7 +218,7 @@ def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path)
     )
     one_line_error(run, "no camera 'middle' in the rig; it has left, right")
     run = trackerd(*base, "--board", "chessboard:10x7:60", "--recording", "session.trec", cwd=ws)
-    one_line_error(run, "session.trec: reading recordings is not available yet")
+    one_line_error(run, "session.trec: no such recording")
     unchanged()
 
 
