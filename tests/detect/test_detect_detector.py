@@ -170,6 +170,20 @@ def test_tracking_searches_a_window_and_follows_the_pointer(detect_rng) -> None:
     assert det.detect(frame).search == "full"
 
 
+def test_a_jump_predicted_off_the_frame_falls_back_to_the_full_search(detect_rng) -> None:
+    """Unrelated images in a row (imported stills): a jump across the frame predicts the next
+    position far beyond its edge, where only the near window still reaches in."""
+    det = None
+    for x, y in ((60.0, 60.0), (400.0, 250.0), (70.0, 80.0), (75.0, 82.0)):
+        scene = Scene(width=480, height=320, shapes=pointer(x, y, 40.0, 10.0, 8.0))
+        frame, truth = scene.render("BayerRG8", detect_rng)
+        det = det or detector("BayerRG8", scene)
+        result = det.detect(frame)
+        assert result.red.found and result.blue.found
+        assert np.hypot(*(result.red.centroid_px - truth[0])) < 0.3
+        assert np.hypot(*(result.blue.centroid_px - truth[1])) < 0.3
+
+
 def test_tracking_picks_the_end_out_of_a_crowded_window(detect_rng) -> None:
     """A red sticker right next to where the red ball moves: the ball is still the one measured."""
     det = None

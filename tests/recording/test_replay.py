@@ -171,9 +171,6 @@ def test_each_imported_still_replays_to_its_true_hit(imported, name: str) -> Non
         assert "frames are BGR8 (the rig says BayerRG8)" in run.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="detector bug: after a jump, ColourEndDetector._window_search's wide window"
-                   " ignores the speed that put the near window on the frame, so `assert wide is not None` fails"
-                   " and the pipeline thread dies (remove this mark once fixed)")
 def test_unrelated_stills_in_a_row_replay_without_crashing_the_pipeline(imported) -> None:
     run, messages = replay_and_listen(imported / "bayer.trec", "--speed", "max", endpoint=f"ipc://{imported}/row.sock")
     assert run.returncode == 0, run.stderr

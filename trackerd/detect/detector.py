@@ -328,7 +328,7 @@ class ColourEndDetector:
             radius = math.sqrt(t.area_px / math.pi)
             speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
             # Just around the ball first: it moves little between frames.
-            near = self._window_around(t.centre_px + t.velocity_px, 2.0 * radius + speed + 8.0)
+            near = self._window_around(t.centre_px + t.velocity_px, _near_half_px(radius, speed))
             if near is None:
                 return None
             jobs.append((colour, near))
@@ -339,11 +339,16 @@ class ColourEndDetector:
             if not candidates:
                 # Then the whole tracking window, with the subsampled pass.
                 t = track[colour]
+                radius = math.sqrt(t.area_px / math.pi)
+                speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
+                # Never smaller than the near window: after a jump the prediction can lie off
+                # the frame by more than track_window_px while the near window still reaches in.
                 wide = self._window_around(
                     t.centre_px + t.velocity_px,
-                    max(self.cfg.track_window_px, 4.0 * math.sqrt(t.area_px / math.pi)),
+                    max(self.cfg.track_window_px, 4.0 * radius, _near_half_px(radius, speed)),
                 )
-                assert wide is not None
+                if wide is None:
+                    return None
                 thr = self.thresholds[colour]
                 mask = coarse_masks(
                     frame,
@@ -513,6 +518,11 @@ class ColourEndDetector:
             crowded = result.search == "window" and colour in self._crowded
             track[colour] = _Track(x, y, vx, vy, end.area_px, crowded)
         self._track = track
+
+
+def _near_half_px(radius_px: float, speed_px: float) -> float:
+    """Half-size of the first window a tracked end is looked for in (the blob search's near window)."""
+    return 2.0 * radius_px + speed_px + 8.0
 
 
 def detect_ends(
