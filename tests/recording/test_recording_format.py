@@ -138,6 +138,64 @@ def test_a_newer_major_version_is_refused_by_name(bundle, tmp_path) -> None:
         assert len(recording) == 16
 
 
+def _as_newer_minor(bundle, folder, frame_entry_bytes: int, index_entry_bytes: int) -> None:
+    """Rewrite a 1.0 recording as the 1.1 docs/recording.md allows: longer frame and index entries
+    (new fields at their ends, here filled with 0xAA/0xBB), a new flag, a new metadata key."""
+    folder.mkdir()
+    meta = json.loads((bundle / "recording.json").read_text())
+    data = (bundle / "pairs.dat").read_bytes()
+    index = (bundle / "pairs.idx").read_bytes()
+    out = bytearray(b"TRKDDATA" + struct.pack("<HHI", 1, 1, 0))
+    idx = bytearray(b"TRKDINDX" + struct.pack("<HHI", 1, 1, index_entry_bytes))
+    for k in range((len(index) - 16) // INDEX_ENTRY.size):
+        offset, length, pair_index, sequence, timestamp_ns, _, _ = INDEX_ENTRY.unpack_from(index, 16 + 48 * k)
+        header_bytes, n_frames, entry_bytes = struct.unpack_from("<IHH", data, offset + 4)
+        fixed = bytearray(data[offset:offset + RECORD_FIXED.size])
+        new_header_bytes = RECORD_FIXED.size + n_frames * frame_entry_bytes + 8
+        struct.pack_into("<IHHI", fixed, 4, new_header_bytes, n_frames, frame_entry_bytes, 0x4)
+        entries = b"".join(data[offset + 56 + i * entry_bytes:offset + 56 + (i + 1) * entry_bytes]
+                           + b"\xAA" * (frame_entry_bytes - entry_bytes) for i in range(n_frames))
+        body = bytes(fixed) + entries + struct.pack("<I", 0)
+        payloads = data[offset + header_bytes:offset + length]
+        record = body + struct.pack("<I", zlib.crc32(body)) + payloads
+        entry = struct.pack("<QQQqqI", len(out), len(record), pair_index, sequence, timestamp_ns, 0)
+        entry += b"\xBB" * (index_entry_bytes - 4 - len(entry))
+        idx += entry + struct.pack("<I", zlib.crc32(entry))
+        out += record
+    meta.update(format_version="1.1", lens_model={"left": "unknown"})
+    meta["end"]["data_bytes"] = len(out)
+    (folder / "recording.json").write_text(json.dumps(meta))
+    (folder / "pairs.dat").write_bytes(bytes(out))
+    (folder / "pairs.idx").write_bytes(bytes(idx))
+
+
+def test_a_newer_minor_with_longer_entries_reads_the_fields_it_knows(bundle, tmp_path) -> None:
+    """docs/recording.md's version rule: longer frame entries and index entries are skipped past."""
+    newer = tmp_path / "newer.trec"
+    _as_newer_minor(bundle, newer, frame_entry_bytes=48, index_entry_bytes=56)
+    with Recording.open(bundle) as original, Recording.open(newer) as copy:
+        assert copy.problems == []
+        assert (len(copy), copy.indexed) == (16, 16)
+        assert copy.header(0).header_bytes == 56 + 2 * 48 + 8
+        for i in range(len(original)):
+            a, b = original.pair(i), copy.pair(i)
+            assert (a.timestamp_ns, a.skew_ns, a.sequence) == (b.timestamp_ns, b.skew_ns, b.sequence)
+            for fa, fb in zip(a.frames, b.frames, strict=True):
+                assert (fa.frame_id, fa.device_timestamp_ns, fa.host_timestamp_ns) == (
+                    fb.frame_id, fb.device_timestamp_ns, fb.host_timestamp_ns)
+                assert np.array_equal(fa.image, fb.image)
+    # Without an index, the scan past it finds the same pairs from the record headers alone.
+    (newer / "pairs.idx").unlink()
+    with Recording.open(newer) as scanned, Recording.open(bundle) as original:
+        assert (len(scanned), scanned.indexed) == (16, 0)
+        assert np.array_equal(scanned.pair(15).images[1], original.pair(15).images[1])
+    _as_newer_minor(bundle, tmp_path / "again.trec", frame_entry_bytes=48, index_entry_bytes=56)
+    check = trackerd("recording", "check", tmp_path / "again.trec")
+    assert check.returncode == 0, check.stdout
+    assert "16 readable (16 indexed, 0 recovered past the index)" in check.stdout
+    assert "16 of 16 pairs pass their checksums" in check.stdout
+
+
 def test_what_is_not_a_recording_says_so(tmp_path) -> None:
     (tmp_path / "empty.trec").mkdir()
     (tmp_path / "file.trec").write_text("hello")

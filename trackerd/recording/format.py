@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -182,9 +182,15 @@ class RecordHeader:
     dropped_before: int
     """Pairs the recorder had to drop between the previous record and this one."""
     frames: tuple[FrameEntry, ...]
+    stored_header_bytes: int | None = field(default=None, compare=False)
+    """``header_bytes`` as the file says, for a header read from a file: a newer MINOR's frame
+    entries may be longer than this version's, so the header is; None for a header to be written."""
 
     @property
     def header_bytes(self) -> int:
+        """The whole header, trailer included: where the first payload begins."""
+        if self.stored_header_bytes is not None:
+            return self.stored_header_bytes
         return header_size(len(self.frames))
 
     @property
@@ -232,7 +238,8 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
 
     ``data`` may extend past the header. The header must be whole and its
     checksum must match; frame entries longer than this version's (a newer
-    MINOR) are read up to this version's fields.
+    MINOR) are read up to this version's fields and the rest skipped, and the
+    header's stored length (not this version's) says where the payloads begin.
     """
     if len(data) < RECORD_FIXED.size:
         raise RecordingError(f"{where}: record header cut short ({len(data)} of {RECORD_FIXED.size} bytes)")
@@ -255,7 +262,7 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
     for k in range(n_frames):
         values = FRAME_ENTRY.unpack_from(data, RECORD_FIXED.size + k * entry_bytes)
         frames.append(FrameEntry(*values))
-    return RecordHeader(pair_index, sequence, timestamp_ns, skew_ns, dropped_before, tuple(frames))
+    return RecordHeader(pair_index, sequence, timestamp_ns, skew_ns, dropped_before, tuple(frames), header_bytes)
 
 
 @dataclass(frozen=True, slots=True)

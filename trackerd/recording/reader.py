@@ -44,7 +44,6 @@ from trackerd.recording.format import (
     IndexEntry,
     RecordHeader,
     RecordingMetadata,
-    header_size,
     parse_version,
     unpack_file_header,
     unpack_index_entry,
@@ -211,7 +210,8 @@ class Recording:
         """Pair ``index``'s record header, checked against the index; RecordingError naming the damage."""
         entry = self.entries[index]
         where = f"{self.path / DATA_FILE}: pair {index} at byte {entry.offset}"
-        header = unpack_record_header(self._view(entry.offset, header_size(len(self.cameras)) + 4096), where)
+        # The whole record as a view (no copy): a newer MINOR's header may be longer than this version's.
+        header = unpack_record_header(self._view(entry.offset, entry.record_bytes), where)
         if (header.pair_index, header.record_bytes) != (entry.pair_index, entry.record_bytes):
             raise RecordingError(f"{where}: the record (pair {header.pair_index}, {header.record_bytes} bytes) does"
                                  f" not match its index entry (pair {entry.pair_index}, {entry.record_bytes} bytes)")
