@@ -42,7 +42,7 @@ def test_a_recording_cut_in_the_middle_of_a_pair_replays_up_to_the_last_whole_pa
         handle.truncate(cut)
     check = trackerd("recording", "check", copy)
     assert check.returncode == 1
-    assert "pairs: 9 readable" in check.stdout
+    assert "pairs: 9 readable (9 indexed, 0 recovered past the index)" in check.stdout
     assert f"pair 9 at byte {whole.entries[9].offset}: incomplete" in check.stdout
     assert "pairs.idx: entry 9" in check.stdout and "truncated" in check.stdout
     summary, _, code = _replay_summary(copy)
@@ -67,6 +67,22 @@ def test_pairs_written_but_not_yet_indexed_are_recovered(bundle, tmp_path) -> No
     assert _replayed_sequences(copy) == list(range(1, 17))
 
 
+def test_a_damaged_index_entry_ends_the_index_and_the_rest_is_recovered_by_scanning(bundle, tmp_path) -> None:
+    copy = _copy(bundle, tmp_path)
+    index = bytearray((copy / "pairs.idx").read_bytes())
+    index[16 + 7 * INDEX_ENTRY.size + 10] ^= 0x01  # inside entry 7's record length
+    (copy / "pairs.idx").write_bytes(bytes(index))
+    check = trackerd("recording", "check", copy)
+    assert check.returncode == 1
+    assert "pairs: 16 readable (7 indexed, 9 recovered past the index)" in check.stdout
+    assert "entry 7 (byte 352): index entry checksum mismatch" in check.stdout
+    assert "the index is used up to pair 6" in check.stdout
+    report = json.loads(trackerd("recording", "check", copy, "--json").stdout)
+    assert (report["pairs"], report["indexed"], report["recovered"], report["replayable"]) == (16, 7, 9, 16)
+    assert report["sequence_gaps"] == 0
+    assert _replayed_sequences(copy) == list(range(1, 17))
+
+
 def test_a_damaged_frame_is_named_and_skipped_and_the_rest_replays(bundle, tmp_path) -> None:
     copy = _copy(bundle, tmp_path)
     with Recording.open(bundle) as whole:
@@ -81,7 +97,11 @@ def test_a_damaged_frame_is_named_and_skipped_and_the_rest_replays(bundle, tmp_p
     assert check.returncode == 1
     assert f"pair 5, camera 'left' (byte {frame_at}): frame checksum mismatch" in check.stdout
     assert f"pair 3 at byte {header_at}: record header checksum mismatch" in check.stdout
-    assert "14 of 16 pairs pass their checksums" in check.stdout
+    assert "14 of 16 pairs pass their checksums; 2 damaged" in check.stdout
+    # Both pairs are there, damaged: none is missing from the sequence.
+    assert "gaps in the pair sequence: 0" in check.stdout
+    report = json.loads(trackerd("recording", "check", copy, "--json").stdout)
+    assert (report["sequence_gaps"], report["damaged_pairs"], report["replayable"]) == (0, [3, 5], 14)
     summary, stderr, code = _replay_summary(copy)
     assert code == 1
     assert summary["pairs"] == 14 and summary["skipped_damaged"] == 2

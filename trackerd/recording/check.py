@@ -29,7 +29,9 @@ class CheckReport:
     end_reason: str | None
     dropped_by_recorder: int | None
     sequence_gaps: int
-    """Pairs missing between recorded sequence numbers (dropped by the cameras, the pipeline or the recorder)."""
+    """Pairs missing between recorded sequence numbers (dropped by the cameras, the pipeline or the
+    recorder before they were recorded). A damaged pair is recorded, not missing: it is counted in
+    ``damaged_pairs``, and its sequence number comes from its index entry."""
     verified: bool
     damaged_pairs: list[int] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
@@ -60,13 +62,16 @@ def check_recording(
             header = recording.header(index)
             if verify:
                 recording.images(index, header, verify=True)
+            sequence = header.sequence
         except RecordingError as err:
             damaged.append(index)
             problems.append(str(err))
-            continue
-        if previous_sequence is not None and header.sequence > previous_sequence + 1:
-            gaps += header.sequence - previous_sequence - 1
-        previous_sequence = header.sequence
+            # The pair is there, only damaged: its index entry (checked apart from the record) still
+            # says which pair of the source it was, so it does not count as a gap.
+            sequence = recording.entries[index].sequence
+        if previous_sequence is not None and sequence > previous_sequence + 1:
+            gaps += sequence - previous_sequence - 1
+        previous_sequence = sequence
         if progress is not None:
             progress(index + 1, len(recording))
     end = meta.end
@@ -103,15 +108,16 @@ def format_report(report: CheckReport) -> str:
     rate = (report.pairs - 1) / report.duration_s if report.duration_s > 0 else 0.0
     lines.append(f"  pairs: {report.pairs} readable ({report.indexed} indexed, {report.recovered} recovered past the"
                  f" index), {report.duration_s:.2f} s at {rate:.1f} pairs/s, {report.data_bytes / 1e6:.1f} MB")
+    gaps = f"gaps in the pair sequence: {report.sequence_gaps} (pairs never recorded)"
     if report.closed:
-        lines.append(f"  closed: {report.end_reason}; pairs the recorder dropped: {report.dropped_by_recorder};"
-                     f" gaps in the pair sequence: {report.sequence_gaps}")
+        lines.append(f"  closed: {report.end_reason}; pairs the recorder dropped: {report.dropped_by_recorder}; {gaps}")
     else:
-        lines.append(f"  closed: no (the recorder did not finish); gaps in the pair sequence: {report.sequence_gaps}")
+        lines.append(f"  closed: no (the recorder did not finish); {gaps}")
+    damaged = f"; {len(report.damaged_pairs)} damaged (recorded, unreadable)" if report.damaged_pairs else ""
     if report.verified:
-        lines.append(f"  frames: {report.replayable} of {report.pairs} pairs pass their checksums")
+        lines.append(f"  frames: {report.replayable} of {report.pairs} pairs pass their checksums{damaged}")
     else:
-        lines.append("  frames: checksums not verified (--no-verify); record headers checked")
+        lines.append(f"  frames: checksums not verified (--no-verify); record headers checked{damaged}")
     if report.intact:
         lines.append("  intact")
     else:

@@ -115,6 +115,13 @@ class Recording:
         return recording
 
     def _load_index(self) -> None:
+        try:
+            self._read_index()
+        finally:
+            # Every entry taken counts as indexed, however the index ended (cut short, a damaged entry).
+            self.indexed = len(self.entries)
+
+    def _read_index(self) -> None:
         index_path = self.path / INDEX_FILE
         try:
             raw = index_path.read_bytes()
@@ -152,7 +159,6 @@ class Recording:
                 return
             self.entries.append(entry)
             expected_offset = entry.end
-        self.indexed = len(self.entries)
         if len(body) % entry_bytes:
             self.problems.append(f"{index_path}: ends with a partial entry ({len(body) % entry_bytes} bytes), ignored")
 
