@@ -199,14 +199,14 @@ RIG_EDITS = [
         "wrong_type",
         "horizontal_fov_deg = 60.0 }",
         'horizontal_fov_deg = "wide" }',
-        "cameras[0].intrinsics.horizontal_fov_deg: Input should be a valid number",
-        ["(got 'wide')"],
+        "cameras[0].intrinsics.horizontal_fov_deg: must be a number",
+        ['(got "wide")'],
     ),
     (
         "wrong_type_of_table",
         'name = "minimal"\n',
         'name = "minimal"\nsimulation = 7\n',
-        "simulation: Input should be a valid dictionary or instance of SimulationConfig (got 7)",
+        "simulation: must be a table (got 7)",
         [],
     ),
     (

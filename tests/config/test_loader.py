@@ -222,6 +222,29 @@ def test_calibration_file_version(write: Write) -> None:
     assert load_calibration(write("empty.toml", "")) == CalibrationFile()
 
 
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("height_px = 480\npixel_format = \"RGB8\"", 'height_px = "480"\npixel_format = "RGB8"', r'cameras\[0\]\.height_px: must be an integer \(got "480"\)$'),
+        ("length_m = 0.45", 'length_m = "0.45"', r'pointer\.length_m: must be a number \(got "0\.45"\)$'),
+        ("yaw_deg = 30.0 }", 'yaw_deg = "30" }', r'cameras\[0\]\.extrinsics\.yaw_deg: must be a number \(got "30"\)$'),
+        ("min_area_px = 12.0", "min_area_px = true", r"detector\.min_area_px: must be a number \(got true\)$"),
+        ("min_area_px = 12.0", "min_area_px = 12.0\nsearch_step_px = 4.0", r"detector\.search_step_px: must be an integer \(got 4\.0\)$"),
+    ],
+)
+def test_values_of_the_wrong_type_are_refused_not_converted(
+    write: Write, edit: Edit, minimal_rig: str, old: str, new: str, message: str
+) -> None:
+    # Regression: "1920" was read as 1920, true as 1, 7.0 as 7, "off" as False.
+    with pytest.raises(ConfigError, match=message):
+        load_rig(write("rig.toml", edit(minimal_rig, old, new)))
+
+
+def test_integers_still_stand_for_floats(write: Write, edit: Edit, minimal_rig: str) -> None:
+    rig = load_rig(write("rig.toml", edit(minimal_rig, "length_m = 0.45", "length_m = 1"))).config
+    assert rig.pointer.length_m == 1.0
+
+
 # ----------------------------------------------------------------- reading files
 
 
@@ -269,6 +292,13 @@ def test_unknown_key_lists_the_allowed_keys_and_a_near_miss() -> None:
         "detectr: unknown key 'detectr' (did you mean 'detector'?); allowed keys here: "
     )
     assert "version, name, calibration, cameras, wall, pointer" in message
+
+
+def test_a_misspelt_required_key_is_one_problem(write: Write, edit: Edit, minimal_rig: str) -> None:
+    # Regression: the real key's absence was counted as a second problem.
+    with pytest.raises(ConfigError) as err:
+        load_rig(write("rig.toml", edit(minimal_rig, "length_m = 0.45", "lenght_m = 0.45")))
+    assert str(err.value).endswith("end_diameter_m, rod_diameter_m"), err.value
 
 
 def test_unknown_key_inside_a_tagged_union_lists_that_forms_keys() -> None:

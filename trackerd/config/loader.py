@@ -10,16 +10,20 @@ camera ends up with intrinsics and extrinsics. Any problem raises
 
 from __future__ import annotations
 
+import datetime
 import difflib
+import json
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, get_args, get_origin
+from typing import Any, TypeVar, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
 from trackerd.config.models import CalibrationFile, CameraConfig, RigConfig
 from trackerd.errors import ConfigError
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
 @dataclass(frozen=True)
@@ -155,6 +159,10 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         allowed = ", ".join(names) if names else "see docs/configuration.md"
         close = difflib.get_close_matches(str(loc[-1]), names, n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
+        if close:
+            # The misspelt key is also why the real one is missing: one problem, not two.
+            meant = (*loc[:-1], close[0])
+            errors = [e for e in errors if not (e["type"] == "missing" and tuple(e["loc"]) == meant)]
         message = f"unknown key '{loc[-1]}'{hint}; allowed keys here: {allowed}"
     elif kind == "missing" and isinstance(loc[-1], int):
         # A fixed-length array (a 3-vector, the four corners) with too few values: pydantic
@@ -175,6 +183,11 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         tags = _union_tags(root, loc, key)
         allowed = f" (one of {', '.join(repr(t) for t in tags)})" if tags else ""
         message = f"required key '{key}' is missing; it selects the form{allowed}"
+    elif kind in TOML_TYPE_NAMES:
+        message = f"must be {TOML_TYPE_NAMES[kind]}"
+        value = first.get("input")
+        if not isinstance(value, (dict, list)):
+            message += f" (got {_toml_literal(value)})"
     else:
         message = first["msg"]
         if message.startswith("Value error, "):
@@ -187,10 +200,52 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
     return f"{where}: {message}{suffix}"
 
 
+TOML_TYPE_NAMES = {
+    "int_type": "an integer",
+    "int_from_float": "an integer",
+    "float_type": "a number",
+    "bool_type": "true or false",
+    "string_type": "a string",
+    "dict_type": "a table",
+    "model_type": "a table",
+    "model_attributes_type": "a table",
+    "list_type": "an array",
+    "tuple_type": "an array",
+}
+"""pydantic's type errors (JSON-mode wording: "a valid dictionary", "an object") in TOML's terms."""
+
+
+def _toml_literal(value: Any) -> str:
+    """A value as the rig file spells it: ``"0.45"``, ``true``, ``7.0``."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return repr(value)
+
+
+def _strictly(model: type[ModelT], data: dict[str, Any]) -> ModelT:
+    """Validate file data with no type coercion: ``width_px = "1920"`` or ``clutter = true`` is a
+    type error, not a 1920 or a 1.
+
+    Strict validation in pydantic's JSON mode still takes what a file can only spell one way (an
+    array for a tuple, a string for a path, an integer for a float), so the data goes through
+    JSON; TOML's dates and times, which no setting takes, become their ISO strings.
+    """
+    text = json.dumps(data, default=_json_fallback, allow_nan=True)
+    return model.model_validate_json(text, strict=True)
+
+
+def _json_fallback(value: Any) -> str:
+    if isinstance(value, (datetime.date, datetime.time)):
+        return value.isoformat()
+    raise TypeError(f"cannot validate a {type(value).__name__}")
+
+
 def parse_rig(data: dict[str, Any], path: Path) -> RigConfig:
     """Validate rig data read from ``path``; errors name the file."""
     try:
-        return RigConfig.model_validate(data)
+        return _strictly(RigConfig, data)
     except ValidationError as err:
         raise ConfigError(f"{path}: {describe_validation_error(err, RigConfig)}") from err
 
@@ -198,7 +253,7 @@ def parse_rig(data: dict[str, Any], path: Path) -> RigConfig:
 def parse_calibration(data: dict[str, Any], path: Path) -> CalibrationFile:
     """Validate calibration data read from ``path``; errors name the file."""
     try:
-        return CalibrationFile.model_validate(data)
+        return _strictly(CalibrationFile, data)
     except ValidationError as err:
         raise ConfigError(f"{path}: {describe_validation_error(err, CalibrationFile)}") from err
 
