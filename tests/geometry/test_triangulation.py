@@ -62,11 +62,6 @@ def test_closest_approach_works_on_batches() -> None:
         [-1, 0, 0],  # antiparallel
         [1, 1e-9, 0],  # parallel within 1e-9 rad
         [0, 0, 0],  # no direction at all
-        pytest.param(
-            [np.nan, 0, 1],
-            id="nan",  # a NaN must not come back as a NaN point
-            marks=pytest.mark.filterwarnings("ignore:All-NaN axis:RuntimeWarning"),
-        ),
     ],
 )
 def test_parallel_or_degenerate_rays_raise(direction_b: list[float]) -> None:
@@ -123,6 +118,16 @@ def test_least_squares_rejects_parallel_rays() -> None:
         triangulate_least_squares(
             [[0, 0, 0], [0, 1, 0], [0, 2, 0]], [[1, 0, 0], [1, 0, 0], [-1, 0, 0]]
         )
+
+
+def test_rays_without_a_direction_or_with_nan_are_geometry_errors() -> None:
+    # Regression: a zero direction reached np.linalg.solve (LinAlgError), NaN read "parallel within nan".
+    with pytest.raises(GeometryError, match="has no length"):
+        triangulate_least_squares([[0, 0, 0], [1, 0, 0]], [[0, 0, 0], [0, 0, 1]])
+    with pytest.raises(GeometryError, match="direction is not finite"):
+        closest_approach([0, 0, 0], [np.nan, 0, 1], [1, 0, 0], [0, 0, 1])
+    with pytest.raises(GeometryError, match="origin is not finite"):
+        closest_approach([0, 0, 0], [0, 0, 1], [np.inf, 0, 0], [0, 1, 1])
 
 
 def three_cameras() -> list[CameraModel]:

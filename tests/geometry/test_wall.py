@@ -286,6 +286,20 @@ def test_axis_hints_that_do_not_fix_a_frame_are_rejected() -> None:
         WallFrame.from_points(DATAWALL_CORNERS[:3], [0, 0, 0], [1, 0, 0], [2, 0, 0], 1.0, 1.0)
 
 
+def test_axis_hints_nearly_along_the_normal_or_each_other_are_rejected() -> None:
+    # Regression: a wall 1 mm off flat with x_direction = [0, 0, 1] gave an x axis 45 degrees
+    # from anything the operator meant, decided by the bump.
+    bumped = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.001], [2.0, 1.0, 0.0]])
+    with pytest.raises(GeometryError, match=r"x direction points (8\d|90)\.\d degrees out of the wall's plane"):
+        WallFrame.from_points(bumped, [0, 0, 0], [0, 0, 1], [0, 1, 0], 2.0, 1.0, None, 0.01)
+    with pytest.raises(GeometryError, match=r"y direction is 2\d\.\d degrees from its x direction"):
+        WallFrame.from_points(bumped, [0, 0, 0], [1, 0, 0], [1, 0.5, 0], 2.0, 1.0, None, 0.01)
+    # A direction measured a few degrees off is still fine, and squared up in the plane.
+    frame = WallFrame.from_points(bumped, [0, 0, 0], [1, 0.05, 0.08], [0.03, 1, 0], 2.0, 1.0, None, 0.01)
+    assert abs(float(frame.x_axis @ frame.y_axis)) < 1e-12
+    assert float(frame.x_axis[0]) > 0.99
+
+
 def test_display_pixels_of_the_wall_corners(datawall_wall: WallFrame) -> None:
     wall_xy = datawall_wall.to_wall_m(datawall_wall.corners_m)
     np.testing.assert_allclose(

@@ -59,6 +59,9 @@ def closest_approach(
     c2 = np.asarray(origin_b_m, dtype=np.float64)
     a = np.asarray(direction_a, dtype=np.float64)
     b = np.asarray(direction_b, dtype=np.float64)
+    for name, value in (("origin", c1), ("direction", a), ("origin", c2), ("direction", b)):
+        if not np.all(np.isfinite(value)):
+            raise GeometryError(f"a ray's {name} is not finite: nothing to triangulate")
     a_cross_b = np.cross(a, b)
     denom = np.einsum("...i,...i->...", a_cross_b, a_cross_b)
     norms = np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1)
@@ -92,7 +95,10 @@ def triangulate_least_squares(origins_m: Array, directions: Array) -> tuple[Arra
     origins, dirs = origins[valid], dirs[valid]
     if len(origins) < 2:
         raise GeometryError(f"need rays from two or more cameras, got {len(origins)}")
-    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    lengths = np.linalg.norm(dirs, axis=1, keepdims=True)
+    if np.any(lengths < 1e-12):
+        raise GeometryError("a ray's direction has no length: nothing to triangulate")
+    dirs = dirs / lengths
     projectors = np.eye(3)[None, :, :] - dirs[:, :, None] * dirs[:, None, :]
     lhs = projectors.sum(axis=0)
     rhs = np.einsum("nij,nj->i", projectors, origins)

@@ -231,14 +231,8 @@ class WallFrame:
         residuals: Array,
     ) -> WallFrame:
         normal = plane.normal
-        x_axis = x_hint - (x_hint @ normal) * normal
-        if np.linalg.norm(x_axis) < 1e-9:
-            raise GeometryError("the wall's x direction is perpendicular to the wall")
-        x_axis = x_axis / np.linalg.norm(x_axis)
-        y_axis = y_hint - (y_hint @ normal) * normal - (y_hint @ x_axis) * x_axis
-        if np.linalg.norm(y_axis) < 1e-9:
-            raise GeometryError("the wall's y direction is parallel to its x direction or the normal")
-        y_axis = y_axis / np.linalg.norm(y_axis)
+        x_axis = _in_plane_axis(x_hint, normal, None, "x")
+        y_axis = _in_plane_axis(y_hint, normal, x_axis, "y")
         dw, dh = display_px if display_px is not None else (None, None)
         return cls(origin, x_axis, y_axis, width_m, height_m, dw, dh, residuals)
 
@@ -261,6 +255,42 @@ class WallFrame:
             )
         except GeometryError as err:
             raise ConfigError(f"wall: {err}") from err
+
+
+MAX_DIRECTION_TILT_DEG = 30.0
+"""How far a configured wall direction may point out of the wall's plane (or, for y, away from
+square to x) before it is taken for a mistake rather than a measurement's error."""
+
+
+def _in_plane_axis(hint: Array, normal: Array, x_axis: Array | None, name: str) -> Array:
+    """The unit axis in the wall's plane nearest ``hint`` (square to ``x_axis`` when given).
+
+    A hint far out of the plane (x_direction = [0, 0, 1] on a wall facing +z) would still
+    project onto some in-plane direction, but an arbitrary one that the rounding of a nearly
+    flat wall decides; such a hint is refused, as is a y hint close to x.
+    """
+    length = float(np.linalg.norm(hint))
+    if not np.isfinite(length) or length < 1e-12:
+        raise GeometryError(f"the wall's {name} direction has no length")
+    unit = hint / length
+    out_of_plane_deg = float(np.degrees(np.arcsin(min(1.0, abs(float(unit @ normal))))))
+    if out_of_plane_deg > MAX_DIRECTION_TILT_DEG:
+        raise GeometryError(
+            f"the wall's {name} direction points {out_of_plane_deg:.1f} degrees out of the wall's"
+            f" plane (at most {MAX_DIRECTION_TILT_DEG:.0f}); it must run along the wall"
+        )
+    axis = unit - (unit @ normal) * normal
+    if x_axis is not None:
+        along = float(axis @ x_axis) / float(np.linalg.norm(axis))
+        off_square_deg = float(np.degrees(np.arcsin(min(1.0, abs(along)))))
+        if off_square_deg > MAX_DIRECTION_TILT_DEG:
+            raise GeometryError(
+                f"the wall's y direction is {90.0 - off_square_deg:.1f} degrees from its x"
+                f" direction (at least {90.0 - MAX_DIRECTION_TILT_DEG:.0f}); y runs up the wall,"
+                " square to x"
+            )
+        axis = axis - (axis @ x_axis) * x_axis
+    return axis / np.linalg.norm(axis)
 
 
 def _check_planarity(residuals: Array, tolerance_m: float, key: str) -> None:
