@@ -139,3 +139,34 @@ def test_a_third_camera_needs_no_new_math(simulated_rig, renderer, rendered_pose
     truth = true_wall_hit(pose, locator.wall).wall_xy_m
     assert fix.status in ("hit", "off_wall")
     assert np.linalg.norm(fix.hit.wall_xy_m - truth) < 0.003
+
+    # The third camera misses an end (the presenter's hand over it): the two that saw both still
+    # give the hit, from the same math as a two-camera rig.
+    for missed in ("red", "blue"):
+        partial = {**third_centroids, missed: None}
+        fix3 = locator.locate_centroids((*centroids, partial))
+        fix2 = Locator(simulated_rig, cameras=renderer.cameras).locate_centroids(centroids)
+        assert fix3.status == fix2.status
+        np.testing.assert_allclose(fix3.hit.wall_xy_m, fix2.hit.wall_xy_m, atol=1e-12)
+        assert fix3.uncertainty_m == pytest.approx(fix2.uncertainty_m, rel=1e-9)
+    # With only one camera seeing both ends there is nothing to triangulate: say who missed what.
+    right_without_red = {"red": None, "blue": centroids[1]["blue"]}
+    lonely = locator.locate_centroids((centroids[0], right_without_red, {**third_centroids, "blue": None}))
+    assert lonely.status == "not_found"
+    assert lonely.reason == "right: no red end; top: no blue end"
+
+
+def test_a_third_camera_that_sees_nothing_does_not_stop_the_fix(simulated_rig, renderer) -> None:
+    """From images: an empty view from a third camera leaves the other two to locate the pointer."""
+    rng = np.random.default_rng(5)
+    pose = random_pose(simulated_rig, rng)
+    views = [renderer.render(i, pose, rng) for i in range(len(renderer.cameras))]
+    empty = np.zeros_like(views[0].image)
+    top = simulated_rig.cameras[0].model_copy(update={"id": "top"})
+    rig = simulated_rig.model_copy(update={"cameras": (*simulated_rig.cameras, top)})
+    fix3 = Locator(rig).locate([views[0].image, views[1].image, empty])
+    fix2 = Locator(simulated_rig).locate([views[0].image, views[1].image])
+    assert fix2.status in ("hit", "off_wall"), fix2.reason
+    assert fix3.status == fix2.status
+    np.testing.assert_allclose(fix3.hit.wall_xy_m, fix2.hit.wall_xy_m, atol=1e-12)
+    assert not fix3.detections[2].red.found and not fix3.detections[2].blue.found

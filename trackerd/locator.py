@@ -84,6 +84,23 @@ class PointerFix:
         return self.line is not None and self.status != "rejected"
 
 
+@dataclass(frozen=True)
+class _CameraView:
+    """The cameras one fix is computed from, with their stacked centres and rotations."""
+
+    cameras: list[CameraModel]
+    centres_m: Array
+    rotations: Array
+
+    @staticmethod
+    def of(locator: Locator, used: Sequence[int] | None) -> _CameraView:
+        """All the locator's cameras (``used`` None or all of them), or those listed."""
+        if used is None or len(used) == len(locator.cameras):
+            return _CameraView(locator.cameras, locator._centres, locator._rotations)
+        index = np.asarray(used)
+        return _CameraView([locator.cameras[i] for i in used], locator._centres[index], locator._rotations[index])
+
+
 class Locator:
     """Detectors for each camera plus the rig's geometry; one instance per stream of image sets.
 
@@ -147,7 +164,8 @@ class Locator:
             for colour in COLOURS
             if not d.end(colour).found
         ]
-        if missing:
+        seeing = sum(1 for d in detections if all(d.end(colour).found for colour in COLOURS))
+        if seeing < 2:
             fix = PointerFix("not_found", "; ".join(missing), centroids, detections=detections)
         else:
             fix = self.locate_centroids(centroids)
@@ -162,48 +180,62 @@ class Locator:
         """Locate the pointer from end centroids (pixels), one dict per camera keyed by colour."""
         start = time.perf_counter_ns()
         centroids = tuple(centroids)
-        for cam, per_camera in zip(self.cameras, centroids, strict=True):
-            for colour in COLOURS:
-                px = per_camera.get(colour)
-                if px is None or not np.all(np.isfinite(px)):
-                    return PointerFix("not_found", f"{cam.camera_id}: no {colour} end", centroids)
+        used: list[int] = []
+        missing: list[str] = []
+        for index, (cam, per_camera) in enumerate(zip(self.cameras, centroids, strict=True)):
+            absent = [c for c in COLOURS if per_camera.get(c) is None or not np.all(np.isfinite(per_camera[c]))]
+            missing += [f"{cam.camera_id}: no {colour} end" for colour in absent]
+            if not absent:
+                used.append(index)
+        if len(used) < 2:
+            return PointerFix("not_found", "; ".join(missing), centroids)
+        # Cameras that saw both ends; with three or more cameras one may miss an end.
+        view = _CameraView.of(self, used)
         # Undistort once: (C, 2, 2) normalised image coordinates, [camera, front/back, xy].
         normalised = np.stack([
-            cam.normalized_from_pixels(np.array([c[self.front_colour], c[self.back_colour]], dtype=np.float64))
-            for cam, c in zip(self.cameras, centroids, strict=True)
+            view.cameras[k].normalized_from_pixels(
+                np.array([centroids[i][self.front_colour], centroids[i][self.back_colour]], dtype=np.float64)
+            )
+            for k, i in enumerate(used)
         ])
         try:
-            line = self._estimate(normalised, self.rig.locator.sphere_correction)
+            line = self._estimate(normalised, self.rig.locator.sphere_correction, view)
         except GeometryError as err:
             return PointerFix("rejected", str(err), centroids, timings_ns={"triangulate_ns": 0})
-        fix = self._judge(line, centroids, normalised)
+        fix = self._judge(line, centroids, normalised, view)
         fix.timings_ns["triangulate_ns"] = time.perf_counter_ns() - start
         return fix
 
-    def _estimate(self, normalised: Array, sphere_correction: bool) -> PointerLine:
-        """Pointer line from normalised coordinates (C, 2 ends, 2)."""
+    def _estimate(self, normalised: Array, sphere_correction: bool, view: _CameraView | None = None) -> PointerLine:
+        """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``."""
+        view = view or _CameraView.of(self, None)
         rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
         rays /= np.sqrt(np.sum(rays * rays, axis=2, keepdims=True))
-        line = self._line_from_camera_rays(rays[:, 0], rays[:, 1])
+        line = self._line_from_camera_rays(rays[:, 0], rays[:, 1], view)
         if sphere_correction:
             radius = self.rig.pointer.end_diameter_m / 2.0
-            front_depth = np.array([cam.to_camera_frame(line.front_m[None])[0, 2] for cam in self.cameras])
-            back_depth = np.array([cam.to_camera_frame(line.back_m[None])[0, 2] for cam in self.cameras])
+            front_depth = np.array([cam.to_camera_frame(line.front_m[None])[0, 2] for cam in view.cameras])
+            back_depth = np.array([cam.to_camera_frame(line.back_m[None])[0, 2] for cam in view.cameras])
             if np.all(front_depth > radius) and np.all(back_depth > radius):
                 line = self._line_from_camera_rays(
                     sphere_centre_direction(rays[:, 0], front_depth, radius),
                     sphere_centre_direction(rays[:, 1], back_depth, radius),
+                    view,
                 )
         return line
 
-    def _line_from_camera_rays(self, front_cam: Array, back_cam: Array) -> PointerLine:
+    def _line_from_camera_rays(self, front_cam: Array, back_cam: Array, view: _CameraView) -> PointerLine:
         """Line from camera-frame unit rays (C, 3) through the front and back ends."""
-        front_world = np.einsum("cj,cjk->ck", front_cam, self._rotations)
-        back_world = np.einsum("cj,cjk->ck", back_cam, self._rotations)
-        return estimate_pointer_line(self._centres, front_world, back_world, self._min_plane_sin)
+        front_world = np.einsum("cj,cjk->ck", front_cam, view.rotations)
+        back_world = np.einsum("cj,cjk->ck", back_cam, view.rotations)
+        return estimate_pointer_line(view.centres_m, front_world, back_world, self._min_plane_sin)
 
     def _judge(
-        self, line: PointerLine, centroids: tuple[dict[str, Array | None], ...], normalised: Array
+        self,
+        line: PointerLine,
+        centroids: tuple[dict[str, Array | None], ...],
+        normalised: Array,
+        view: _CameraView,
     ) -> PointerFix:
         pointer = self.rig.pointer
         length_error = line.length_m - pointer.length_m
@@ -234,7 +266,7 @@ class Locator:
         if u <= 0.0:
             return PointerFix("away", "the pointer points away from the wall", centroids, line, timings_ns={})
         hit = self._wall_hit(intersection.point_m, line, u)
-        uncertainty = self._uncertainty(normalised)
+        uncertainty = self._uncertainty(normalised, view)
         status = "hit" if hit.on_wall else "off_wall"
         reason = None if hit.on_wall else "the pointer points at the wall outside the display"
         return PointerFix(status, reason, centroids, line, hit, uncertainty, timings_ns={})
@@ -245,7 +277,7 @@ class Locator:
         distance = (u - 1.0) * line.length_m
         return WallHit(xy, point_m, display, bool(self.wall.on_wall(xy)), float(distance))
 
-    def _uncertainty(self, normalised: Array) -> float | None:
+    def _uncertainty(self, normalised: Array, view: _CameraView | None = None) -> float | None:
         """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer.
 
         Only displacements across each camera's image of the pointer move the
@@ -254,32 +286,34 @@ class Locator:
         coordinates with each camera's focal length (distortion's local scale
         change of a few percent is ignored: this is an estimate).
         """
+        view = view or _CameraView.of(self, None)
         sigma_px = self.rig.locator.centroid_sigma_px
-        n_cameras = len(self.cameras)
+        n_cameras = len(view.cameras)
         # Variant 0 is the measurement; then each end of each camera moved across the pointer.
         variants = np.repeat(normalised[None], 1 + 2 * n_cameras, axis=0)
-        for index, cam in enumerate(self.cameras):
+        for index, cam in enumerate(view.cameras):
             along = normalised[index, 0] - normalised[index, 1]
             across = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
             for end in (0, 1):
                 variants[1 + 2 * index + end, index, end] += across * sigma_px / cam.focal_px
         try:
-            hits = self._plane_hits_xy(variants)
+            hits = self._plane_hits_xy(variants, view)
         except GeometryError:
             return None
         return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
 
-    def _plane_hits_xy(self, variants: Array) -> Array:
+    def _plane_hits_xy(self, variants: Array, view: _CameraView | None = None) -> Array:
         """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
         coordinates (B, C, 2 ends, 2): the cheap, batched path for error propagation."""
+        view = view or _CameraView.of(self, None)
         rays = np.concatenate([variants, np.ones((*variants.shape[:3], 1))], axis=3)
-        world = np.einsum("bcej,cjk->bcek", rays, self._rotations)
+        world = np.einsum("bcej,cjk->bcek", rays, view.rotations)
         normals = cross3(world[:, :, 0], world[:, :, 1])
         normals /= np.sqrt(np.sum(normals * normals, axis=-1, keepdims=True))
         if normals.shape[1] == 2:
-            points, directions, _ = two_plane_lines(self._centres, normals)
+            points, directions, _ = two_plane_lines(view.centres_m, normals)
         else:
-            lines = [line_from_planes(self._centres, n) for n in normals]
+            lines = [line_from_planes(view.centres_m, n) for n in normals]
             points = np.array([line[0] for line in lines])
             directions = np.array([line[1] for line in lines])
         plane = self._plane

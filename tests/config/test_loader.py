@@ -225,11 +225,19 @@ def test_calibration_file_version(write: Write) -> None:
 @pytest.mark.parametrize(
     ("old", "new", "message"),
     [
-        ("height_px = 480\npixel_format = \"RGB8\"", 'height_px = "480"\npixel_format = "RGB8"', r'cameras\[0\]\.height_px: must be an integer \(got "480"\)$'),
+        (
+            'height_px = 480\npixel_format = "RGB8"',
+            'height_px = "480"\npixel_format = "RGB8"',
+            r'cameras\[0\]\.height_px: must be an integer \(got "480"\)$',
+        ),
         ("length_m = 0.45", 'length_m = "0.45"', r'pointer\.length_m: must be a number \(got "0\.45"\)$'),
         ("yaw_deg = 30.0 }", 'yaw_deg = "30" }', r'cameras\[0\]\.extrinsics\.yaw_deg: must be a number \(got "30"\)$'),
         ("min_area_px = 12.0", "min_area_px = true", r"detector\.min_area_px: must be a number \(got true\)$"),
-        ("min_area_px = 12.0", "min_area_px = 12.0\nsearch_step_px = 4.0", r"detector\.search_step_px: must be an integer \(got 4\.0\)$"),
+        (
+            "min_area_px = 12.0",
+            "min_area_px = 12.0\nsearch_step_px = 4.0",
+            r"detector\.search_step_px: must be an integer \(got 4\.0\)$",
+        ),
     ],
 )
 def test_values_of_the_wrong_type_are_refused_not_converted(
