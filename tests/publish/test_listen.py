@@ -73,6 +73,24 @@ def test_listen_timeout_exits_1_with_one_clear_line():
                            " there, publishing these topics, with matching CURVE keys?)")
 
 
+def test_listen_refuses_a_topic_trackerd_never_publishes():
+    # Regression: --topic hits (for hit) subscribed to nothing and waited in silence.
+    process = _listen("--endpoint", "tcp://127.0.0.1:9", "--topic", "hits", "--timeout", "0.5")
+    out, err = process.communicate(timeout=20)
+    assert process.returncode == 2
+    assert err.startswith("trackerd listen: --topic hits: trackerd publishes no such topic; topics: hit, pointer,")
+    assert len(err.splitlines()) == 1
+
+
+def test_listen_over_ipv6_loopback():
+    with Publisher(ZmqOutput(endpoints=("tcp://[::1]:*",))) as publisher:
+        process = _listen("--endpoint", publisher.endpoints[0], "--count", "1", "--topic", "hit")
+        _serve_until_done(publisher, process, [hit_message(5)])
+        out, err = process.communicate(timeout=10)
+    assert process.returncode == 0, err
+    assert out.startswith("hit      #5 ")
+
+
 def test_listen_exits_0_on_ctrl_c(publisher):
     process = _listen("--endpoint", publisher.endpoints[0])
     stop = threading.Event()

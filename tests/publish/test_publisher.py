@@ -173,6 +173,16 @@ def test_bind_errors_are_one_line_and_leave_nothing_running(tmp_path):
     assert set(threading.enumerate()) <= threads_before
 
 
+def test_an_ipv6_loopback_endpoint_binds_and_delivers(context):
+    # Regression: 'cannot bind tcp://[::1]:...: No such device' (the socket lacked zmq.IPV6).
+    with Publisher(ZmqOutput(endpoints=("tcp://[::1]:*", "tcp://127.0.0.1:*"))) as publisher:
+        assert publisher.endpoints[0].startswith("tcp://[::1]:")
+        sub = subscriber(context, publisher.endpoints[0], b"hit", IPV6=1)
+        topic, payload = publish_until_received(publisher, sub, hit_message(3))
+        assert topic == b"hit" and json.loads(payload)["sequence"] == 3
+        sub.close()
+
+
 @pytest.mark.parametrize("endpoint", ["tcp://0.0.0.0:5560", "tcp://10.20.30.40:5560", "tcp://*:5560",
                                       "tcp://eth0:5560", "tcp://[::]:5560", "tcp://wall-host:5560"])
 def test_network_endpoints_are_refused_without_curve_or_permission(endpoint):

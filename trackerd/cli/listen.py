@@ -61,10 +61,16 @@ def listen_command(args: argparse.Namespace) -> int:
         raise ConfigError("--count must be 1 or more")
     if args.timeout is not None and args.timeout <= 0:
         raise ConfigError("--timeout must be a positive number of seconds")
+    for topic in args.topic or []:
+        if not any(known.startswith(topic) for known in TOPICS):
+            # ZeroMQ matches topics by prefix, so a typo ('hits') would wait for ever in silence.
+            raise ConfigError(f"--topic {topic}: trackerd publishes no such topic; topics: {', '.join(TOPICS)}")
     endpoint, server_key = _target(args)
     context = zmq.Context()
     sub = context.socket(zmq.SUB)
     sub.setsockopt(zmq.LINGER, 0)
+    # IPv6 endpoints (tcp://[::1]:5560) need it; IPv4 ones still work.
+    sub.setsockopt(zmq.IPV6, 1)
     try:
         if server_key is not None:
             client = load_curve_key_pair(Path(args.client_key)) if args.client_key else zmq.curve_keypair()

@@ -187,6 +187,10 @@ class Publisher:
 
     def _bind(self, keys: tuple[bytes, bytes] | None) -> zmq.Socket:
         xpub = self._context.socket(zmq.XPUB)
+        if any("[" in endpoint for endpoint in self.config.endpoints):
+            # Without it libzmq cannot bind tcp://[::1]:...; only then, since it also makes the
+            # IPv4 endpoints read back as [::ffff:127.0.0.1].
+            xpub.setsockopt(zmq.IPV6, 1)
         xpub.setsockopt(zmq.SNDHWM, self.config.send_hwm_messages)
         xpub.setsockopt(zmq.LINGER, self.config.linger_ms)
         # Pass every subscription and unsubscription upstream, so a second status subscriber is
