@@ -77,7 +77,7 @@ def test_listen_refuses_a_topic_trackerd_never_publishes():
     # Regression: --topic hits (for hit) subscribed to nothing and waited in silence.
     process = _listen("--endpoint", "tcp://127.0.0.1:9", "--topic", "hits", "--timeout", "0.5")
     out, err = process.communicate(timeout=20)
-    assert process.returncode == 2
+    assert process.returncode == 2 and out == ""
     assert err.startswith("trackerd listen: --topic hits: trackerd publishes no such topic; topics: hit, pointer,")
     assert len(err.splitlines()) == 1
 
