@@ -7,6 +7,7 @@ Usage: .venv/bin/python scripts/export_schemas.py
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -16,6 +17,7 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def main() -> int:
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     schema_dir = REPO / "docs" / "schema"
     schema_dir.mkdir(parents=True, exist_ok=True)
     for name, text in schema_files().items():
