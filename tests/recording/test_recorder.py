@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
-import subprocess
 import time
 
 import pytest
@@ -28,20 +26,6 @@ def bundle_pairs(bundle):
         rig = recording.rig()
         pairs = [recording.pair(i) for i in range(len(recording))]
     return rig, pairs
-
-
-@pytest.fixture
-def small_disk(tmp_path):
-    """A real 12 MB filesystem (tmpfs) to fill: three raw pairs of two 1080p Bayer frames."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small filesystem needs root")
-    mount = tmp_path / "small"
-    mount.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=12m", "tmpfs", str(mount)], check=True)
-    try:
-        yield mount
-    finally:
-        subprocess.run(["umount", "-l", str(mount)], check=False)
 
 
 def test_a_writer_that_falls_behind_drops_the_oldest_pairs_and_counts_them(bundle_pairs, tmp_path) -> None:

@@ -221,3 +221,39 @@ def test_snap_saves_one_pair_raw_and_annotated_and_prints_its_hit(virtual, tmp_p
     assert [float(v) for v in fix.hit.wall_xy_m] == record["wall_xy_m"]
     for k, saved in enumerate(record["cameras"]):
         assert [float(v) for v in fix.centroids_px[k]["red"]] == saved["ends"]["red"]["centroid_px"]
+
+
+def test_a_full_disk_ends_record_with_one_line_saying_what_was_kept(virtual, small_disk, tmp_path) -> None:
+    rig_file = _rig_file(virtual, tmp_path / "rig.toml", "tcp://127.0.0.1:*", RecordingConfig(min_free_space_mb=0))
+    out = small_disk / "full.trec"
+    run = trackerd("record", "--config", rig_file, out, "--seconds", "30")
+    assert run.returncode == 1 and "Traceback" not in run.stderr, run.stderr
+    lines = run.stderr.splitlines()
+    # The start line and progress lines, then the outcome: one line, no log record or summary beside it.
+    assert lines[0].startswith(f"trackerd record: recording left, right to {out}")
+    assert all(line.startswith(f"{out}: ") for line in lines[1:-1]), lines
+    assert "ERROR" not in run.stderr and "dropped:" not in run.stderr
+    with Recording.open(out) as recording:
+        kept = len(recording)
+        assert kept >= 1 and recording.metadata.end is not None
+        assert recording.metadata.end.reason.startswith("disk full")
+    assert lines[-1].startswith(f"trackerd record: {out}/pairs.dat: disk full, stopped at {kept} pairs"), lines[-1]
+    assert f"what was written stays readable: {kept} pairs (" in lines[-1] and lines[-1].endswith(f"in {out}")
+    assert trackerd("recording", "check", out).returncode == 0
+
+
+def test_record_and_snap_run_their_own_virtual_rig_beside_another(virtual, tmp_path) -> None:
+    """The module's virtual rig holds PREFIX; --prefix and --subnet give record and snap their own."""
+    own = ("--virtual", "figure8", "--prefix", "trkdrec2", "--subnet", "10.213.221.0/24")
+    run = trackerd("record", "--config", "config/simulated.toml", tmp_path / "beside.trec", "--pairs", "3", *own)
+    assert run.returncode == 0, run.stderr
+    with Recording.open(tmp_path / "beside.trec") as recording:
+        assert len(recording) == 3 and recording.problems == []
+        assert [cam.address for cam in recording.rig().cameras] == ["10.213.221.2", "10.213.221.6"]
+    run = trackerd("snap", "--config", "config/simulated.toml", tmp_path / "snaps", "--name", "beside", *own)
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "snaps" / "beside.json").exists()
+    held = trackerd("record", "--config", "config/simulated.toml", tmp_path / "held.trec", "--pairs", "3",
+                    "--virtual", "figure8", "--prefix", PREFIX, "--subnet", "10.213.222.0/24")
+    assert held.returncode == 1 and "Traceback" not in held.stderr
+    assert f"trackerd-{PREFIX}.lock" in held.stderr and not (tmp_path / "held.trec").exists()

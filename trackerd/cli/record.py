@@ -23,7 +23,7 @@ from pathlib import Path
 
 from trackerd.config.loader import load_rig
 from trackerd.errors import RecordingError
-from trackerd.sim.motion import MOTIONS
+from trackerd.recording.cameras import add_virtual_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -38,26 +38,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     limit.add_argument("--pairs", type=int, help="stop after this many pairs")
     parser.add_argument("--compression", choices=("none", "deflate"),
                         help="frame storage (default: the rig's [recording] compression, normally none)")
-    parser.add_argument("--virtual", metavar="MOTION", choices=MOTIONS,
-                        help=f"record simulated cameras serving a rendered motion ({', '.join(MOTIONS)})")
+    add_virtual_arguments(parser, "record")
     parser.set_defaults(handler=record_command)
 
 
 def record_command(args: argparse.Namespace) -> int:
     from trackerd.recording.cameras import open_cameras
+    from trackerd.recording.outputs import check_new_recording
     from trackerd.recording.progress import ProgressLine, describe
     from trackerd.recording.recorder import Recorder
+    from trackerd.recording.writer import check_free_space
 
     loaded = load_rig(args.config)
     out = Path(args.out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise RecordingError(f"{out}: already exists; give a new name for the recording")
     if (args.pairs is not None and args.pairs < 1) or (args.seconds is not None and args.seconds <= 0):
         raise RecordingError("--pairs and --seconds must be positive")
     update: dict[str, object] = {"max_pairs": args.pairs, "max_duration_s": args.seconds}
     if args.compression:
         update["compression"] = args.compression
     config = loaded.config.recording.model_copy(update=update)
+    # Before the cameras open: where the recording goes, and room for it.
+    check_new_recording(out)
+    check_free_space(out, config.min_free_space_mb)
 
     stop = threading.Event()
 
@@ -68,9 +70,12 @@ def record_command(args: argparse.Namespace) -> int:
     progress = ProgressLine()
     recorder = None
     try:
-        with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd record") as cams:
+        with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd record", prefix=args.prefix,
+                          subnet=args.subnet) as cams:
+            # The recorder's failure is this command's error line below, not a log record as well.
             recorder = Recorder(out, cams.rig, producer="trackerd record", config=config, camera_info=cams.info,
-                                rig_file=loaded.path.resolve(), calibration_file=loaded.calibration_path).start()
+                                rig_file=loaded.path.resolve(), calibration_file=loaded.calibration_path,
+                                log_failure=False).start()
             print(f"trackerd record: recording {', '.join(c.id for c in cams.rig.cameras)} to {out}"
                   " (Ctrl-C to stop)", file=sys.stderr, flush=True)
             while not stop.is_set() and not recorder.done:
@@ -86,15 +91,21 @@ def record_command(args: argparse.Namespace) -> int:
         if recorder is not None:
             # Everything queued is still written: the disk may need a moment after the cameras stop.
             recorder.stop(timeout_s=60.0)
+        progress.done()
     status = recorder.status()
+    kept = (f"{status.pairs} pairs ({status.recorded_s:.1f} s, {status.written_mb:.0f} MB) in {out}"
+            if status.pairs else "nothing was recorded")
+    if recorder.error is not None:
+        # One line: what stopped it and what was kept (readable: the partial pair is cut off).
+        message = str(recorder.error).removesuffix("; what was written stays readable")
+        if "nothing was recorded" not in message:
+            message += f"; what was written stays readable: {kept}" if status.pairs else f"; {kept}"
+        raise RecordingError(message)
     progress.show(describe(status, source_status.dropped_pairs), force=True)
     progress.done()
-    frames_lost = source_status.frames_dropped
-    print(f"trackerd record: {status.pairs} pairs ({status.recorded_s:.1f} s) in {out}, {status.written_mb:.0f} MB;"
-          f" dropped: {status.dropped_pairs} pairs by the writer, {source_status.dropped_pairs} pairs and"
-          f" {frames_lost} unpaired frames at the cameras", file=sys.stderr)
-    if recorder.error is not None:
-        raise recorder.error
     if status.pairs == 0:
         raise RecordingError(f"{out}: no pair arrived from the cameras; nothing was recorded")
+    print(f"trackerd record: {kept}; dropped: {status.dropped_pairs} pairs by the writer,"
+          f" {source_status.dropped_pairs} pairs and {source_status.frames_dropped} unpaired frames at the cameras",
+          file=sys.stderr)
     return 0

@@ -78,8 +78,10 @@ def check_command(args: argparse.Namespace) -> int:
 
 def import_command(args: argparse.Namespace) -> int:
     from trackerd.recording.importer import import_folder
+    from trackerd.recording.outputs import check_new_recording
 
     loaded = load_rig(args.config)
+    check_new_recording(args.out)
     line, show = _progress("importing")
     writer = import_folder(args.folder, args.out, loaded.config, timestamps=args.timestamps, rate_hz=args.rate,
                            compression=args.compression, rig_file=loaded.path, progress=show)
@@ -93,11 +95,14 @@ def import_command(args: argparse.Namespace) -> int:
 def export_command(args: argparse.Namespace) -> int:
     from trackerd.cli.replay import replay_rig
     from trackerd.recording.export import export_recording
+    from trackerd.recording.outputs import output_folder
 
     with Recording.open(args.recording) as recording:
+        rig, notes = replay_rig(recording, args.config, None)
+        # Before any pair is exported: a folder that cannot be written is one line, not a traceback.
+        output_folder(args.out)
         for problem in recording.problems:
             print(f"trackerd recording export: warning: {problem}", file=sys.stderr)
-        rig, notes = replay_rig(recording, args.config, None)
         for note in notes:
             print(f"  {note}", file=sys.stderr)
         line, show = _progress("exporting")

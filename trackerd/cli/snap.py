@@ -28,7 +28,7 @@ import numpy as np
 
 from trackerd.config.loader import load_rig
 from trackerd.errors import CameraError, ImageError
-from trackerd.sim.motion import MOTIONS
+from trackerd.recording.cameras import add_virtual_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -43,18 +43,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="seconds of pairs to discard first, while exposure settles (default 0.5)")
     parser.add_argument("--timeout", type=float, default=10.0, metavar="S",
                         help="give up if no pair arrives within this many seconds (default 10)")
-    parser.add_argument("--virtual", metavar="MOTION", choices=MOTIONS,
-                        help=f"snap simulated cameras serving a rendered motion ({', '.join(MOTIONS)})")
+    add_virtual_arguments(parser, "snap")
     parser.set_defaults(handler=snap_command)
 
 
 def snap_command(args: argparse.Namespace) -> int:
     from trackerd.recording.cameras import open_cameras
+    from trackerd.recording.outputs import output_folder
 
     loaded = load_rig(args.config)
-    folder = Path(args.out)
+    # Before the cameras open: a pair taken and then not saved is lost.
+    folder = output_folder(args.out)
     name = args.name or f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
-    with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd snap") as cams:
+    with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd snap", prefix=args.prefix,
+                      subnet=args.subnet) as cams:
         pair = _take(cams.source, args.settle, args.timeout)
         rig = cams.rig
         info = dict(cams.info)
@@ -76,11 +78,12 @@ def save_snap(pair, rig, folder: Path, name: str, camera_info: dict[str, Any] | 
     """Locate the pointer in ``pair``, write the files, print what was found."""
     from trackerd.locator import Locator
     from trackerd.recording.annotate import annotate, end_summary, fix_summary
+    from trackerd.recording.outputs import output_folder
 
     formats = [frame.pixel_format for frame in pair.frames]
     locator = Locator(rig, pixel_formats=formats)
     fix = locator.locate(pair.images)
-    folder.mkdir(parents=True, exist_ok=True)
+    output_folder(folder)
     summary = fix_summary(fix)
     record: dict[str, Any] = {
         "name": name, "taken_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"), "rig": rig.name,

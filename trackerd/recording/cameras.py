@@ -7,6 +7,7 @@ recording's metadata.
 
 from __future__ import annotations
 
+import argparse
 import logging
 import sys
 from collections.abc import Iterator
@@ -15,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from trackerd.config.models import RigConfig
+from trackerd.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -42,11 +44,31 @@ def describe_camera(camera: Any) -> dict[str, str | None]:
     return out
 
 
+def add_virtual_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
+    """--virtual MOTION, and the network options `trackerd simrig` has, so a virtual rig can run
+    beside another one (each prefix has its own namespaces, links and lock file)."""
+    from trackerd.sim import netns
+    from trackerd.sim.motion import MOTIONS
+
+    parser.add_argument("--virtual", metavar="MOTION", choices=MOTIONS,
+                        help=f"{verb} simulated cameras serving a rendered motion ({', '.join(MOTIONS)})")
+    parser.add_argument("--prefix", default=netns.DEFAULT_PREFIX,
+                        help=f"with --virtual: network namespace name prefix (default {netns.DEFAULT_PREFIX})")
+    parser.add_argument("--subnet", default=netns.DEFAULT_SUBNET,
+                        help=f"with --virtual: addresses for the cameras' links (default {netns.DEFAULT_SUBNET})")
+
+
 @contextmanager
 def open_cameras(
-    rig: RigConfig, *, virtual_motion: str | None = None, label: str = "trackerd"
+    rig: RigConfig,
+    *,
+    virtual_motion: str | None = None,
+    label: str = "trackerd",
+    prefix: str | None = None,
+    subnet: str | None = None,
 ) -> Iterator[CameraSource]:
-    """Start the rig's cameras (or, with ``virtual_motion``, simulated cameras serving that motion)."""
+    """Start the rig's cameras (or, with ``virtual_motion``, simulated cameras serving that motion,
+    networked under ``prefix`` and ``subnet``, by default the virtual rig's)."""
     from trackerd.acquisition.live import AravisPairSource
 
     with ExitStack() as stack:
@@ -56,12 +78,20 @@ def open_cameras(
             from trackerd.sim.rig import VirtualRig
 
             network = "netns" if netns.netns_missing_reason() is None else "loopback"
+            if network == "netns":
+                try:
+                    netns.plan(len(rig.cameras), prefix or netns.DEFAULT_PREFIX, subnet or netns.DEFAULT_SUBNET)
+                except ValueError as err:
+                    raise ConfigError(f"--prefix/--subnet: {err}") from None
             if network == "loopback" and rig.acquisition.trigger == "software":
                 acquisition = rig.acquisition.model_copy(update={"trigger": "free_running"})
                 rig = rig.model_copy(update={"acquisition": acquisition})
             print(f"{label}: starting simulated cameras serving the '{virtual_motion}' motion (rendered once, then"
                   " cached)...", file=sys.stderr, flush=True)
-            virtual = stack.enter_context(VirtualRig(rig, motion=virtual_motion, network=network))
+            virtual = stack.enter_context(VirtualRig(
+                rig, motion=virtual_motion, network=network,
+                prefix=prefix or netns.DEFAULT_PREFIX, subnet=subnet or netns.DEFAULT_SUBNET,
+            ))
             rig = virtual.daemon_rig
         opened = CameraSource(None, rig, virtual=virtual)
 

@@ -23,6 +23,7 @@ from trackerd.locator import COLOURS, Locator, PointerFix
 from trackerd.publish import messages_from_fix
 from trackerd.publish.messages import HitMessage, Message
 from trackerd.recording.annotate import annotate, end_summary, fix_summary
+from trackerd.recording.outputs import output_folder
 from trackerd.recording.reader import Recording, make_pair
 
 CSV_NAME = "hits.csv"
@@ -84,11 +85,10 @@ def export_recording(
     every ``every``-th pair. ``rig`` must match the recording's cameras (see replay_rig)."""
     from trackerd.pipeline.extensions import for_rig
 
-    folder = Path(out)
-    folder.mkdir(parents=True, exist_ok=True)
     stop = len(recording) if count is None else min(len(recording), first + count)
     if first >= stop:
         raise RecordingError(f"{recording.path}: no pairs to export from pair {first}")
+    folder = output_folder(out)
     tuio = getattr(rig.interaction, "tuio", None)
     if tuio is not None and tuio.enabled:
         # An export computes what would be published; it sends nothing (TUIO is sent by the extension).

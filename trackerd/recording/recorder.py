@@ -72,10 +72,13 @@ class Recorder:
         camera_info: Mapping[str, Mapping[str, str | None]] | None = None,
         rig_file: str | Path | None = None,
         calibration_file: str | Path | None = None,
+        log_failure: bool = True,
     ) -> None:
         """``config`` gives compression, queue length and limits (default: the rig's [recording]).
         ``camera_info`` (by camera id: vendor, model, serial, device) is read when the first pair
-        arrives, so a hook filling it while the cameras open is in time."""
+        arrives, so a hook filling it while the cameras open is in time. ``log_failure`` logs a
+        full disk or an error as it happens (the daemon); a command that reports :attr:`error`
+        itself turns it off, so the failure is said once."""
         self.path = Path(path)
         self.rig = rig
         self.config = config or rig.recording
@@ -84,6 +87,7 @@ class Recorder:
         self._camera_info = camera_info
         self._rig_file = rig_file
         self._calibration_file = calibration_file
+        self._log_failure = log_failure
         self._queue: DropOldestQueue[tuple[FramePair, int]] = DropOldestQueue(self.config.queue_pairs)
         self._puts = 0
         self._closing = threading.Event()
@@ -208,7 +212,8 @@ class Recorder:
         with self._lock:
             self._state = "failed"
             self._detail = f"{what}: {err}"
-        log.error("recording %s: %s", what, err)
+        if self._log_failure:
+            log.error("recording %s: %s", what, err)
 
     # ------------------------------------------------------------------ status
 

@@ -83,6 +83,33 @@ def free_space_bytes(path: Path) -> int:
     return stats.f_bavail * stats.f_frsize
 
 
+def check_free_space(path: Path, min_free_space_mb: float) -> None:
+    """DiskFullError when the filesystem ``path`` would be made on has less than ``min_free_space_mb``
+    free (checked before anything is created, so a refused recording leaves nothing behind)."""
+    from trackerd.recording.outputs import existing_ancestor
+
+    if min_free_space_mb <= 0:
+        return
+    try:
+        free = free_space_bytes(existing_ancestor(path))
+    except OSError:
+        return  # the creation that follows says what is wrong with the path
+    if free < min_free_space_mb * 1e6:
+        raise DiskFullError(
+            f"{path}: only {free / 1e6:.0f} MB free, less than the {min_free_space_mb:.0f} MB the recording must"
+            " leave (min_free_space_mb); nothing was recorded"
+        )
+
+
+def _remove_recording(folder: Path) -> None:
+    """Remove the files of a recording this writer began but could not set up, and its folder."""
+    for name in (METADATA_FILE, METADATA_FILE + ".tmp", DATA_FILE, INDEX_FILE):
+        with contextlib.suppress(OSError):
+            (folder / name).unlink()
+    with contextlib.suppress(OSError):
+        folder.rmdir()
+
+
 def rig_snapshot(rig: RigConfig) -> dict[str, Any]:
     """The rig as JSON for recording.json, as a rig file would say it: calibration merged in (so the
     file name is dropped) and defaults left out (so a later trackerd that adds or renames a setting
@@ -167,20 +194,26 @@ class RecordingWriter:
         self.closed = False
         if self.path.exists() and (not self.path.is_dir() or any(self.path.iterdir())):
             raise RecordingError(f"{self.path}: already exists; give a new name for the recording")
+        check_free_space(self.path, min_free_space_mb)
+        created = not self.path.exists()
+        fds: list[int] = []
         try:
             self.path.mkdir(parents=True, exist_ok=True)
-            if free_space_bytes(self.path) < self._min_free:
-                raise DiskFullError(
-                    f"{self.path}: only {free_space_bytes(self.path) / 1e6:.0f} MB free, less than the"
-                    f" {min_free_space_mb:.0f} MB the recording must leave"
-                )
             write_metadata(self.path, metadata)
             flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC
-            self._data = os.open(self.path / DATA_FILE, flags, 0o644)
-            self._index = os.open(self.path / INDEX_FILE, flags, 0o644)
+            fds.append(os.open(self.path / DATA_FILE, flags, 0o644))
+            fds.append(os.open(self.path / INDEX_FILE, flags, 0o644))
+            self._data, self._index = fds
             _write_all(self._data, [pack_file_header(DATA_MAGIC, 0)])
             _write_all(self._index, [pack_file_header(INDEX_MAGIC, INDEX_ENTRY.size)])
         except OSError as err:
+            # Nothing of a recording that could not be begun stays behind: a half-made folder would
+            # read as "not a trackerd recording" and make a second attempt say "already exists".
+            for fd in fds:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+            if created:
+                _remove_recording(self.path)
             raise _os_error(self.path, "cannot create the recording", err) from err
         self.data_bytes = FILE_HEADER.size
         self._index_bytes = FILE_HEADER.size

@@ -1,0 +1,80 @@
+"""Where record, snap, import and export write: a bad output is one line before any work, and a refused
+recording leaves nothing behind."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from rec_helpers import BUNDLE, one_line_error, trackerd
+
+from trackerd.config.recording import RecordingConfig
+from trackerd.recording.reader import Recording
+from trackerd.recording.recorder import Recorder
+from trackerd.recording.writer import DiskFullError, RecordingWriter, build_metadata
+
+RIG = Path(__file__).resolve().parents[2] / "config" / "simulated.toml"
+
+
+@pytest.fixture
+def a_file(tmp_path) -> Path:
+    path = tmp_path / "afile"
+    path.write_text("not a folder\n")
+    return path
+
+
+@pytest.mark.parametrize("where", ["the file", "under the file", "/proc"])
+def test_export_to_a_folder_it_cannot_write_is_one_line(a_file, tmp_path, where: str) -> None:
+    out = {"the file": a_file, "under the file": a_file / "sub", "/proc": Path("/proc/trackerd-export")}[where]
+    run = trackerd("recording", "export", BUNDLE, out, "--no-images")
+    line = one_line_error(run, "recording", str(out))
+    assert "folder" in line
+    assert not (tmp_path / "hits.csv").exists()
+
+
+def test_snap_into_a_file_is_refused_before_the_cameras_open(a_file) -> None:
+    # No --virtual and no cameras on this machine: refused for the folder, it never reaches the cameras
+    # (the pair a snap takes is not lost for a folder it cannot write).
+    run = trackerd("snap", "--config", RIG, a_file)
+    one_line_error(run, "snap", str(a_file), "is not a folder")
+    assert "camera" not in run.stderr.lower()
+
+
+@pytest.mark.parametrize("command", ["record", "import"])
+def test_a_recording_that_cannot_be_created_is_refused_before_any_work(a_file, tmp_path, command: str) -> None:
+    out = a_file / "x.trec"
+    if command == "record":
+        run = trackerd("record", "--config", RIG, out, "--pairs", "1")
+    else:
+        run = trackerd("recording", "import", tmp_path, out, "--config", RIG)
+    label = "record" if command == "record" else "recording"
+    one_line_error(run, label, str(out), f"{a_file} is a file, not a folder")
+    assert "camera" not in run.stderr.lower() and "no images" not in run.stderr
+
+
+def test_record_refused_for_free_space_leaves_no_folder_behind(small_disk) -> None:
+    out = small_disk / "session.trec"
+    run = trackerd("record", "--config", RIG, out, "--seconds", "1")  # the rig leaves 1024 MB free
+    one_line_error(run, "record", str(out), "less than the 1024 MB", "min_free_space_mb", "nothing was recorded")
+    assert "camera" not in run.stderr.lower()
+    assert not out.exists()
+
+
+def test_a_recorder_refused_for_free_space_leaves_no_folder_behind(small_disk) -> None:
+    """The daemon's path: the recorder makes the recording when the first pair arrives."""
+    with Recording.open(BUNDLE) as recording:
+        rig, pair = recording.rig(), recording.pair(0)
+    out = small_disk / "ondemand.trec"
+    recorder = Recorder(out, rig, producer="test", config=RecordingConfig(min_free_space_mb=100)).start()
+    recorder.put(pair)
+    assert recorder.stop(10.0)
+    assert isinstance(recorder.error, DiskFullError) and "nothing was recorded" in str(recorder.error)
+    assert recorder.status().state == "failed"
+    assert not out.exists()
+    # Once there is room the same name records (no "already exists" for a leftover folder).
+    metadata = build_metadata(rig, pair, producer="test", clock_offset_ns=0)
+    writer = RecordingWriter(out, metadata)
+    writer.write(pair)
+    writer.close()
+    with Recording.open(out) as again:
+        assert len(again) == 1 and again.problems == []
