@@ -1,4 +1,4 @@
-"""Enter/leave with hysteresis, dwell once per rest, and gestures vs random pointing on scripted hits."""
+"""Enter/leave with hysteresis, dwell once per rest, gestures vs random pointing, and a reset, on scripted hits."""
 
 from __future__ import annotations
 
@@ -6,7 +6,17 @@ import numpy as np
 
 from tests.interaction.conftest import HEIGHT_M, WIDTH_M, run_track
 from trackerd.config.interaction import InteractionConfig
-from trackerd.interaction.scripted import GESTURES, Track, gesture_session, pointing_session
+from trackerd.interaction.engine import InteractionEngine
+from trackerd.interaction.scripted import (
+    GESTURES,
+    Track,
+    circle_path,
+    gesture_session,
+    pointing_session,
+    rest,
+    swipe_path,
+)
+from trackerd.interaction.templates import load_templates
 
 RATE_HZ = 60.0
 
@@ -75,3 +85,55 @@ def test_gestures_are_recognised_and_random_pointing_is_not_a_gesture(rng):
     engine, events = run_track(pointing_session(180.0, rng, WIDTH_M, HEIGHT_M, noise_mm=2.0))
     assert sum(e.kind == "gesture" for e in events) <= 3  # at most one a minute
     assert engine.rejected_total > 50  # the strokes were seen and turned down, not missed
+
+
+def _loop_track(rng) -> np.ndarray:
+    """Rest, swipe right, rest, counter-clockwise loop, rest: 3.7 s that end 0.75 m right of where they began."""
+    start = np.array([1.0, 0.5])
+    swipe = swipe_path("swipe_right", start, 0.8, 0.25, rng)
+    loop = circle_path("circle_ccw", np.zeros(2), 0.45, 1.2, rng)
+    loop = loop - loop[0] + swipe[-1]
+    points = np.vstack([rest(start, 1.0, rng), swipe, rest(swipe[-1], 0.6, rng), loop, rest(loop[-1], 0.6, rng)])
+    return points + rng.normal(0, 0.0015, points.shape)
+
+
+def _replayed_twice(points: np.ndarray, reset: bool):
+    """The points fed twice, back to back at 60 pairs/s (a looped replay), with or without a reset between."""
+    engine = InteractionEngine(InteractionConfig(), WIDTH_M, HEIGHT_M, load_templates())
+    passes, ending = [], []
+    for index in range(2):
+        if index and reset:
+            ending = engine.reset()
+        start_ns = 10**12 + index * len(points) * 1e9 / RATE_HZ
+        times = (start_ns + np.arange(len(points)) * 1e9 / RATE_HZ).astype(np.int64)
+        passes.append([(e, int(t - times[0])) for t, p in zip(times, points, strict=True)
+                       for e in engine.step(int(t), p).events])
+    return passes, ending
+
+
+def test_after_a_reset_the_same_hits_give_the_same_events_and_the_jump_is_no_gesture(rng):
+    points = _loop_track(rng)
+    # Without a reset the wrap from the last pair back to the first is a fast straight stroke: a swipe.
+    (first, second), _ = _replayed_twice(points, reset=False)
+    assert next(e.detail.get("name") for e, _ in second if e.kind == "gesture") == "swipe_left"
+
+    (first, second), ending = _replayed_twice(points, reset=True)
+    assert _kinds(e for e, _ in first) == ["enter", "dwell", "gesture", "gesture"]
+    assert [e.detail["name"] for e, _ in first if e.kind == "gesture"] == ["swipe_right", "circle_ccw"]
+    # The session in progress ends with a leave at the last pair; the next one has the next id.
+    leave, = ending
+    assert leave.kind == "leave" and leave.cursor_id == 1 and leave.detail["reason"] == "lost"
+    assert leave.time_ns == 10**12 + int((len(points) - 1) * 1e9 / RATE_HZ)
+    assert np.allclose(leave.position_m, points[-1], atol=0.01)
+    assert len(second) == len(first)
+    for (a, at), (b, bt) in zip(first, second, strict=True):
+        assert (a.kind, at, a.cursor_id + 1) == (b.kind, bt, b.cursor_id)
+        assert np.allclose(a.position_m, b.position_m, atol=1e-9)
+        assert a.detail.keys() == b.detail.keys()
+        for key, value in a.detail.items():
+            if key.endswith("_ns"):
+                assert value - a.time_ns == b.detail[key] - b.time_ns
+            elif isinstance(value, float | np.ndarray):
+                assert np.allclose(value, b.detail[key], atol=1e-9)
+            else:
+                assert value == b.detail[key]

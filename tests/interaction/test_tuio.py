@@ -23,7 +23,10 @@ def test_cursor_bundles_follow_tuio_1_1():
         sender.frame(32_000_000, None)
         sender.frame(48_000_000, None)  # nothing new to say within a second: nothing sent
         sender.frame(1_100_000_000, None)  # but once a second the source says it is alive
-        bundles = [decode_bundle(client.recv(2048)) for _ in range(4)]
+        sender.frame(1_116_000_000, (8, 0.5, 0.5, 0.0, 0.0))
+        sender.close()  # the daemon stops with a cursor on the display
+        bundles = [decode_bundle(client.recv(2048)) for _ in range(6)]
+        sender.close()
     finally:
         sender.close()
         client.close()
@@ -37,8 +40,10 @@ def test_cursor_bundles_follow_tuio_1_1():
     # Acceleration: the velocity changed by 0.1 per second in 16 ms.
     assert bundles[1][1][2][1][6] == pytest.approx(0.1 / 0.016, rel=1e-3)
     assert bundles[2][1][1][1] == ["alive"] and bundles[3][1][1][1] == ["alive"]
-    assert [b[1][-1][1][1] for b in bundles] == [1, 2, 3, 4]  # fseq
-    assert sender.packets == 4 and sender.errors == 0
+    assert [b[1][-1][1][1] for b in bundles] == [1, 2, 3, 4, 5, 6]  # fseq
+    # The last word removes the cursor, so no client keeps one nobody moves; a second close sends nothing.
+    assert bundles[4][1][1][1] == ["alive", 8] and bundles[5][1][1][1] == ["alive"]
+    assert sender.packets == 6 and sender.errors == 0
 
 
 def test_an_unknown_host_is_a_config_error():

@@ -16,7 +16,10 @@ smoothed hit and the events the pair completed:
              unambiguously enough, and fits the template's kinematic gates.
 
 No clocks are read here: every time is a capture time from the caller, so the
-same hits give the same events, live or replayed.
+same hits give the same events, live or replayed. :meth:`InteractionEngine.reset`
+forgets the pointer (a recording starts, a looped replay wraps, the stage is
+rebuilt): what follows gives the events a new engine would give, except that
+``cursor_id`` keeps counting, so no client ever sees a session id twice.
 """
 
 from __future__ import annotations
@@ -94,6 +97,8 @@ class InteractionEngine:
         self.rejected_total = 0
         """Strokes that were no gesture, since start."""
         self.cursor_id = 0
+        self._last_step_ns: int | None = None
+        """Capture time of the last pair seen (a reset's leave is decided then)."""
         self._last_hit_ns: int | None = None
         self._inside = False
         self._since_ns: int | None = None
@@ -117,6 +122,7 @@ class InteractionEngine:
         """Process one pair: its capture time and its raw wall hit (2,) in metres, or None."""
         events: list[Event] = []
         smoothed: Array | None = None
+        self._last_step_ns = time_ns
         gap_ns = self.config.smoothing.reset_after_ms * 1e6
         if self._last_hit_ns is not None and time_ns - self._last_hit_ns > gap_ns:
             self._lost(events)
@@ -136,6 +142,34 @@ class InteractionEngine:
         for event in events:
             self.counts[event.kind] = self.counts.get(event.kind, 0) + 1
         return Step(smoothed, events, self._inside, self.filter.velocity_m_s)
+
+    def reset(self) -> list[Event]:
+        """Forget the pointer: smoothing, stroke, dwell and enter/leave state, as a new engine.
+
+        Returns the ``leave`` (reason ``lost``, at the last pair's time) that ends the pointing
+        session when the pointer was entered, else nothing. A stroke in progress is dropped,
+        not recognised: what comes after a reset (the first pair of a looped replay) is not the
+        continuation of what came before it. ``cursor_id`` and the counts carry on.
+        """
+        events: list[Event] = []
+        self.segmenter.reset()
+        if self._inside:
+            assert self._last_step_ns is not None
+            self._leave(self._last_step_ns, "lost", events)
+            self.counts["leave"] = self.counts.get("leave", 0) + 1
+        self.filter.reset()
+        self._last_step_ns = None
+        self._last_hit_ns = None
+        self._inside = False
+        self._since_ns = None
+        self._entered_ns = 0
+        self._last_on_m = None
+        self._dwell_anchor = None
+        self._dwell_start_ns = 0
+        self._dwell_sum = np.zeros(2)
+        self._dwell_count = 0
+        self._dwell_armed = True
+        return events
 
     def _lost(self, events: list[Event]) -> None:
         """No hit for longer than reset_after_ms: end a stroke and start the filter afresh."""

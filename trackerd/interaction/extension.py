@@ -18,12 +18,23 @@ off). In the processing thread, per pair, :meth:`InteractionExtension.on_fix`:
 Event times are capture times on the publishing clock: the offset from the
 pair's monotonic capture time to ``capture_ns`` is read off the pair's own
 messages, so events line up with the hits exactly.
+
+A pointing session never ends silently. A :meth:`~InteractionExtension.reload`
+that rebuilds the stage, and a :meth:`~InteractionExtension.reset` (a recording
+starts, a looped replay wraps), end it as a ``leave`` (reason ``lost``, stamped
+with the session's last pair) and its command, published ahead of the next
+pair's messages, and with an empty TUIO ``alive``; ``cursor_id`` and the TUIO
+frame count carry on. At stop, :meth:`~InteractionExtension.finish` returns the
+session's last messages for the caller to publish, and
+:meth:`~InteractionExtension.close` sends the last empty ``alive``.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -35,8 +46,8 @@ from trackerd.geometry.wall import WallFrame
 from trackerd.interaction.engine import Event, InteractionEngine, Step
 from trackerd.interaction.grammar import Grammar
 from trackerd.interaction.hand import FingerDebouncer, HandDetector, HandObservation
-from trackerd.interaction.templates import load_templates
 from trackerd.interaction.tuio import TuioSender
+from trackerd.interaction.validate import check_interaction
 from trackerd.locator import PointerFix
 from trackerd.pipeline.stats import Window
 from trackerd.publish.messages import (
@@ -60,43 +71,63 @@ def create(rig: RigConfig) -> InteractionExtension | None:
     return InteractionExtension(rig)
 
 
+@dataclass(frozen=True)
+class _Parts:
+    """What a configuration builds (see InteractionExtension._parts)."""
+
+    rig: RigConfig
+    wall: WallFrame
+    grammar: Grammar
+    engine: InteractionEngine
+    hand_camera: int | None
+    tuio: TuioSender | None
+
+
 class InteractionExtension:
     """See the module docstring. ``on_fix`` runs in the processing thread, ``status`` in the publishing one."""
 
     name = "interaction"
 
     def __init__(self, rig: RigConfig) -> None:
-        self._build(rig)
+        self._install(self._parts(rig, None))
         self.cost = Window()
         """Time per pair in on_fix (ns), drained into each status."""
         self._offset_ns = time.time_ns() - time.monotonic_ns()
         self._pairs = 0
         self._event_counts: dict[str, int] = {}
         self._gesture_counts: dict[str, int] = {}
+        self._pending: list[Message] = []
+        """Messages that end a session outside on_fix (reload, reset), published ahead of the next pair's."""
+        self._reset_requested = threading.Event()
+        self._last_sequence = 0
+        self._last_capture_ns = 0
+        """The last pair's sequence and capture time: a session ended between pairs ended with it."""
 
-    def _build(self, rig: RigConfig) -> None:
+    @staticmethod
+    def _parts(rig: RigConfig, previous: InteractionEngine | None) -> _Parts:
+        """Every part for ``rig`` (ConfigError, one line, when the rig cannot run), nothing installed yet."""
         cfg = rig.interaction
-        self.rig = rig
-        self.config = cfg
-        self.wall = WallFrame.from_config(rig.wall)
-        templates = {}
-        if cfg.gestures.enabled:
-            templates = load_templates(cfg.gestures.template_dir, builtin=cfg.gestures.builtin,
-                                       only=cfg.gestures.only)
-        self.grammar = Grammar(cfg.commands, set(templates))
-        self.engine = InteractionEngine(cfg, self.wall.width_m, self.wall.height_m, templates)
-        self.hand_camera: int | None = None
-        self.hand: HandDetector | None = None
-        self.debouncer = FingerDebouncer(cfg.hand.debounce_pairs)
+        checked = check_interaction(rig)
+        wall = WallFrame.from_config(rig.wall)
+        engine = InteractionEngine(cfg, wall.width_m, wall.height_m, checked.templates)
+        if previous is not None:
+            # Session ids go on counting across rebuilds: a client must never see one twice.
+            engine.cursor_id = previous.cursor_id
+            engine.rejected_total = previous.rejected_total
+        tuio = TuioSender(cfg.tuio) if cfg.tuio.enabled else None
+        return _Parts(rig, wall, checked.grammar, engine, checked.hand_camera, tuio)
+
+    def _install(self, parts: _Parts) -> None:
+        self.rig = parts.rig
+        self.config = parts.rig.interaction
+        self.wall = parts.wall
+        self.grammar = parts.grammar
+        self.engine = parts.engine
+        self.hand_camera = parts.hand_camera
+        self.hand = HandDetector(self.config.hand) if self.config.hand.enabled else None
+        self.debouncer = FingerDebouncer(self.config.hand.debounce_pairs)
         self._last_hand: HandObservation | None = None
-        if cfg.hand.enabled:
-            ids = [c.id for c in rig.cameras]
-            camera = cfg.hand.camera or ids[0]
-            if camera not in ids:
-                raise ConfigError(f"interaction.hand.camera: no camera '{camera}'; the rig has {', '.join(ids)}")
-            self.hand_camera = ids.index(camera)
-            self.hand = HandDetector(cfg.hand)
-        self.tuio = TuioSender(cfg.tuio) if cfg.tuio.enabled else None
+        self.tuio = parts.tuio
         self._last_smoothed: np.ndarray | None = None
 
     # ------------------------------------------------------------------ PipelineExtension
@@ -106,6 +137,10 @@ class InteractionExtension:
 
     def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]:
         start = time.perf_counter_ns()
+        if self._reset_requested.is_set():
+            self._reset_requested.clear()
+            self._reset_now()
+        pending, self._pending = self._pending, []
         if messages:
             self._offset_ns = messages[0].capture_ns - pair.timestamp_ns
         capture_ns = pair.timestamp_ns + self._offset_ns
@@ -130,11 +165,11 @@ class InteractionExtension:
             self._look_for_hand(out, pair, capture_ns)
         if self.tuio is not None:
             self._send_tuio(pair.timestamp_ns, step)
-        for message in out[len(messages):]:
-            self._event_counts[message.topic] = self._event_counts.get(message.topic, 0) + 1
+        self._count(out[len(messages):])
         self._pairs += 1
+        self._last_sequence, self._last_capture_ns = pair.sequence, capture_ns
         self.cost.add(time.perf_counter_ns() - start)
-        return out
+        return pending + out if pending else out
 
     def status(self) -> dict[str, Any] | None:
         cost = self.cost.drain()
@@ -157,22 +192,88 @@ class InteractionExtension:
         return figures
 
     def reload(self, rig: RigConfig) -> None:
-        """A new configuration: rebuild everything (a pointing session in progress ends quietly)."""
+        """A new configuration: rebuild everything. A pointing session in progress ends (see the
+        module docstring), and the old TUIO socket says so before it closes."""
         if rig.interaction == self.config and rig.wall == self.rig.wall:
             return
-        old_tuio = self.tuio
         try:
-            self._build(rig)
+            parts = self._parts(rig, self.engine)
         except ConfigError as err:
             log.error("reload: interaction settings kept: %s", err)
             return
-        if old_tuio is not None:
-            old_tuio.close()
+        ending = self._end_session()
+        self._pending += ending
+        self._count(ending)
+        if self.tuio is not None:
+            self.tuio.close()
+            if parts.tuio is not None:
+                # Clients take a bundle numbered below the last one they saw as late, and drop it.
+                parts.tuio.continue_after(self.tuio.frame_count)
+        self._install(parts)
+
+    def reset(self) -> None:
+        """Forget the pointer, as a freshly started stage would: smoothing, stroke, dwell,
+        enter/leave, the hand's count and background, the hand-look schedule.
+
+        Called when a recording starts and when a looped replay wraps, so the replay of a
+        recording gives the events the live run gave, and the jump from the last pair back
+        to the first is no gesture. Safe from any thread: it takes effect before the next
+        pair. The session in progress ends with a ``leave`` (and its command) published
+        ahead of that pair's messages, and the TUIO cursor is removed; ``cursor_id`` and
+        the counts in the status carry on.
+        """
+        self._reset_requested.set()
+
+    def finish(self) -> list[Message]:
+        """The stage's last messages, at stop: the ``leave`` (and command) of a session in
+        progress and any not yet published, for the caller to publish before the publisher
+        closes. Also removes the TUIO cursor. Call it once no ``on_fix`` runs; idempotent."""
+        self._reset_requested.clear()
+        ending = self._pending + self._end_session()
+        self._pending = []
+        self._count(ending)
+        if self.tuio is not None:
+            self.tuio.end()
+        return ending
 
     def close(self) -> None:
+        """Close the TUIO socket, after a last empty ``alive`` so no client keeps the cursor."""
         if self.tuio is not None:
             self.tuio.close()
             self.tuio = None
+
+    def _reset_now(self) -> None:
+        ending = self._end_session()
+        self._pending += ending
+        self._count(ending)
+        if self.hand is not None:
+            self.hand.reset()
+        self._pairs = 0
+        self._last_smoothed = None
+        if self.tuio is not None:
+            self.tuio.end()
+
+    def _end_session(self) -> list[Message]:
+        """Reset the engine and the hand's debouncer; the messages that end what was going on."""
+        out: list[Message] = []
+        for event in self.engine.reset():
+            message = self._event_message(event, self._last_sequence, self._last_capture_ns)
+            out.append(message)
+            self._command(out, event.kind, message, self._last_sequence, self._last_capture_ns)
+        if self.hand_camera is not None and self._last_hand is not None and self.debouncer.stable is not None:
+            last = self._last_hand
+            out.append(HandMessage(sequence=self._last_sequence, capture_ns=self._last_capture_ns,
+                                   camera=self.rig.cameras[self.hand_camera].id, present=False,
+                                   fingers=self.debouncer.stable, fingers_now=last.fingers,
+                                   image_x_px=last.centre_px[0], image_y_px=last.centre_px[1],
+                                   area_px=last.area_px))
+        self._last_hand = None
+        self.debouncer.reset()
+        return out
+
+    def _count(self, messages: list[Message]) -> None:
+        for message in messages:
+            self._event_counts[message.topic] = self._event_counts.get(message.topic, 0) + 1
 
     # ------------------------------------------------------------------ messages
 

@@ -15,9 +15,12 @@ camera pair while the pointer is entered on the display::
 acceleration (normalised units per second squared); ``F`` counts bundles. When the
 pointer leaves, a bundle with an empty ``alive`` removes the cursor, and one is
 repeated every second while nothing points (TUIO clients expect to hear the
-source is alive). The bundles are encoded by python-osc and sent from a
-non-blocking UDP socket: a missing listener or a full buffer costs a counted
-error, never a wait.
+source is alive). :meth:`TuioSender.end` (a reset or a rebuild of the stage) and
+:meth:`TuioSender.close` (the daemon stops) send one too, so a client never keeps
+a cursor nobody moves; a rebuilt sender carries on the frame count, because
+clients drop a bundle whose ``fseq`` is just below the last one as late. The
+bundles are encoded by python-osc and sent from a non-blocking UDP socket: a
+missing listener or a full buffer costs a counted error, never a wait.
 """
 
 from __future__ import annotations
@@ -72,19 +75,28 @@ def encode_frame(source: str, cursors: list[Cursor], frame: int) -> bytes:
     return bundle.build().dgram
 
 
+def resolve(config: TuioConfig) -> tuple[int, int, int, tuple]:
+    """(family, type, protocol, address) of the TUIO client; ConfigError when the host does not resolve."""
+    try:
+        infos = socket.getaddrinfo(config.host, config.port, type=socket.SOCK_DGRAM)
+    except socket.gaierror as err:
+        raise ConfigError(f"interaction.tuio.host: cannot resolve '{config.host}': {err.strerror}") from err
+    family, kind, proto, _, address = infos[0]
+    return family, kind, proto, address
+
+
 class TuioSender:
     """Sends the pointer's cursor to one TUIO client; call :meth:`frame` once per pair."""
 
     def __init__(self, config: TuioConfig) -> None:
         self.config = config
         self.source = f"{config.source}@{socket.gethostname()}"
-        try:
-            infos = socket.getaddrinfo(config.host, config.port, type=socket.SOCK_DGRAM)
-        except socket.gaierror as err:
-            raise ConfigError(f"interaction.tuio.host: cannot resolve '{config.host}': {err.strerror}") from err
-        family, kind, proto, _, self.address = infos[0]
+        family, kind, proto, self.address = resolve(config)
         self._socket = socket.socket(family, kind, proto)
         self._socket.setblocking(False)
+        self._closed = False
+        self._ended = False
+        """The last bundle was end()'s empty alive: saying it again adds nothing."""
         self.packets = 0
         self.errors = 0
         self._frame = 0
@@ -94,9 +106,11 @@ class TuioSender:
 
     def frame(self, time_ns: int, cursor: tuple[int, float, float, float, float] | None) -> None:
         """The cursor for this pair: (session id, x, y, X, Y) normalised, or None when nothing points."""
+        self._ended = False
         if cursor is None:
             self._last_velocity = None
-            idle_due = self._last_sent_ns is None or time_ns - self._last_sent_ns >= IDLE_PERIOD_NS
+            # A time before the last send (a looped replay starting over) is due as well.
+            idle_due = self._last_sent_ns is None or not 0 <= time_ns - self._last_sent_ns < IDLE_PERIOD_NS
             if not self._had_cursor and not idle_due:
                 return
             self._had_cursor = False
@@ -113,6 +127,24 @@ class TuioSender:
         self._had_cursor = True
         self._send(time_ns, [Cursor(session, x, y, vx, vy, acceleration)])
 
+    @property
+    def frame_count(self) -> int:
+        """The last ``fseq`` sent."""
+        return self._frame
+
+    def continue_after(self, frame: int) -> None:
+        """Number the next bundle after ``frame`` (the last ``fseq`` of the sender this one replaces)."""
+        self._frame = max(self._frame, frame)
+
+    def end(self) -> None:
+        """No cursor any more, whatever came before: an empty ``alive`` now, and motion forgotten."""
+        if self._closed or self._ended:
+            return
+        self._last_velocity = None
+        self._had_cursor = False
+        self._send(self._last_sent_ns or 0, [])
+        self._ended = True
+
     def _send(self, time_ns: int, cursors: list[Cursor]) -> None:
         self._frame += 1
         datagram = encode_frame(self.source, cursors, self._frame)
@@ -125,4 +157,9 @@ class TuioSender:
             self.errors += 1
 
     def close(self) -> None:
+        """Send a last empty ``alive`` (the client removes the cursor) and close the socket; idempotent."""
+        if self._closed:
+            return
+        self.end()
+        self._closed = True
         self._socket.close()

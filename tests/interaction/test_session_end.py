@@ -1,0 +1,224 @@
+"""A pointing session never ends silently: reset, reload and stop of the interaction extension.
+
+The extension is fed real pairs and hit messages built from scripted wall hits
+(the locator is not needed to say where the hit is), and a UDP socket on
+loopback decodes the TUIO bundles with the test's own OSC decoder. The last
+test runs the real pipeline on rendered frames and stops it with the pointer
+on the display, as `kill -TERM` does.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import numpy as np
+import pytest
+
+from tests.interaction.osc_decode import decode_bundle
+from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.acquisition.memory import MemoryPairSource
+from trackerd.interaction.extension import InteractionExtension, create
+from trackerd.interaction.scripted import RATE_HZ, rest, swipe_path
+from trackerd.locator import PointerFix
+from trackerd.pipeline.daemon import Pipeline
+from trackerd.publish import Publisher
+from trackerd.publish.messages import HitMessage, Message
+from trackerd.sim.motion import Stage
+from trackerd.sim.scene import pose_aimed_at
+
+EPOCH_NS = 1_800_000_000 * 10**9
+"""The publishing clock at the first pair."""
+IMAGE = np.zeros((8, 8), np.uint8)
+NO_FIX = PointerFix(status="hit", reason=None, centroids_px=())
+
+
+@pytest.fixture
+def udp():
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.bind(("127.0.0.1", 0))
+    client.setblocking(False)
+    yield client
+    client.close()
+
+
+def _bundles(client: socket.socket) -> list[list[tuple[str, list]]]:
+    """Every bundle received so far (loopback UDP is delivered by the time sendto returns)."""
+    out = []
+    while True:
+        try:
+            out.append(decode_bundle(client.recv(65536))[1])
+        except BlockingIOError:
+            return out
+
+
+def _alive(bundle) -> list:
+    return next(args for _, args in bundle if args[0] == "alive")[1:]
+
+
+def _fseq(bundle) -> int:
+    return next(args for _, args in bundle if args[0] == "fseq")[1]
+
+
+def _rig(simulated_rig, tuio_port: int | None, **commands: str):
+    interaction = simulated_rig.interaction.model_validate({
+        "commands": commands,
+        "tuio": {"enabled": tuio_port is not None, "port": tuio_port or 3333},
+    })
+    return simulated_rig.model_copy(update={"interaction": interaction})
+
+
+class Feeder:
+    """Pairs at 60 per second with a hit message where the scripted hit is, through one extension."""
+
+    def __init__(self, extension: InteractionExtension) -> None:
+        self.extension = extension
+        self.sequence = 0
+
+    def feed(self, points: np.ndarray) -> list[Message]:
+        out: list[Message] = []
+        for point in points:
+            time_ns = 10**12 + int(self.sequence * 1e9 / RATE_HZ)
+            capture_ns = time_ns - 10**12 + EPOCH_NS
+            frames = tuple(Frame(camera, self.sequence, 0, time_ns, "Mono8", IMAGE) for camera in ("left", "right"))
+            hit = HitMessage(sequence=self.sequence, capture_ns=capture_ns, wall_x_m=float(point[0]),
+                             wall_y_m=float(point[1]), on_wall=True, distance_m=2.5, front_m=(0.0, 0.0, 2.0),
+                             back_m=(0.0, 0.0, 2.45), ray_gap_mm=0.5)
+            out += self.extension.on_fix(NO_FIX, FramePair(frames, time_ns, 0, self.sequence), [hit])
+            self.sequence += 1
+        return out
+
+
+def _events(messages: list[Message]) -> list[Message]:
+    return [m for m in messages if m.topic != "hit"]
+
+
+def _comparable(message: Message, sequence_shift: int) -> dict:
+    """A message as it would be had it come ``sequence_shift`` pairs earlier, without its session id."""
+    data = message.model_dump(exclude={"cursor_id"})
+    data["sequence"] -= sequence_shift
+    shift_ns = round(sequence_shift * 1e9 / RATE_HZ)
+    for key in ("capture_ns", "start_ns", "end_ns"):
+        if data.get(key) is not None:
+            data[key] -= shift_ns
+    return data
+
+
+def _session(rng) -> np.ndarray:
+    """Rest (enter, dwell), a swipe right, rest: 1.85 s, the pointer still on the display at the end."""
+    start = np.array([1.0, 0.5])
+    swipe = swipe_path("swipe_right", start, 0.8, 0.25, rng)
+    points = np.vstack([rest(start, 1.0, rng), swipe, rest(swipe[-1], 0.6, rng)])
+    return points + rng.normal(0, 0.0015, points.shape)
+
+
+def test_reset_ends_the_session_and_the_same_pairs_then_give_the_same_messages(simulated_rig, udp, rng):
+    rig = _rig(simulated_rig, udp.getsockname()[1], leave="bye", swipe_right="next_slide", swipe_left="back")
+    extension = create(rig)
+    assert extension is not None
+    feeder = Feeder(extension)
+    points = _session(rng)
+    try:
+        first = feeder.feed(points)
+        before_reset = _bundles(udp)
+        extension.reset()
+        second = feeder.feed(points)
+        after_reset = _bundles(udp)
+    finally:
+        extension.close()
+    assert [m.topic for m in _events(first)] == ["enter", "dwell", "gesture", "command"]
+    assert _alive(before_reset[-1]) == [1]
+    # The next pair's messages begin with the end of the session: a leave at its last pair, its command.
+    leave, bye = second[:2]
+    assert leave.topic == "leave" and leave.cursor_id == 1 and leave.reason == "lost"
+    assert leave.sequence == len(points) - 1 and leave.capture_ns == first[-1].capture_ns
+    assert (bye.command, bye.trigger) == ("bye", "leave")
+    # Then exactly what a fresh start gives (no swipe_left from the jump back), in a new session.
+    second = second[2:]
+    assert [_comparable(m, len(points)) for m in second] == [_comparable(m, 0) for m in first]
+    assert {m.cursor_id for m in second if m.topic != "command" and m.cursor_id is not None} == {2}
+    # TUIO: the cursor is removed at the reset, the next session is a new one, fseq keeps counting.
+    assert _alive(after_reset[0]) == []
+    assert {tuple(_alive(b)) for b in after_reset[1:]} >= {(2,)} and (1,) not in {tuple(_alive(b)) for b in after_reset}
+    frames = [_fseq(b) for b in before_reset + after_reset]
+    assert frames == list(range(frames[0], frames[0] + len(frames)))
+
+
+def test_a_reload_ends_the_session_with_a_leave_and_removes_the_tuio_cursor(simulated_rig, udp, rng):
+    rig = _rig(simulated_rig, udp.getsockname()[1], enter="hello", leave="bye")
+    extension = create(rig)
+    assert extension is not None
+    feeder = Feeder(extension)
+    still = rest(np.array([1.5, 0.5]), 0.5, rng)
+    try:
+        entered = _events(feeder.feed(still))
+        extension.reload(_rig(simulated_rig, None, enter="hello", leave="bye"))  # TUIO off
+        bundles = _bundles(udp)
+        after = _events(feeder.feed(still))
+    finally:
+        extension.close()
+    assert [(m.topic, m.cursor_id) for m in entered] == [("enter", 1), ("command", 1)]
+    # The old socket's last word removes the cursor: an empty alive, numbered after the others.
+    assert _alive(bundles[-2]) == [1] and _alive(bundles[-1]) == [] and _fseq(bundles[-1]) == len(bundles)
+    # The session ends with a leave (stamped with its last pair), and the next has a new id.
+    assert [(m.topic, m.cursor_id) for m in after] == [("leave", 1), ("command", 1), ("enter", 2), ("command", 2)]
+    assert after[0].sequence == len(still) - 1 and after[1].command == "bye"
+    assert extension.tuio is None and not _bundles(udp)
+
+
+def test_a_failed_reload_keeps_the_session(simulated_rig, udp, rng):
+    extension = create(_rig(simulated_rig, udp.getsockname()[1], leave="bye"))
+    assert extension is not None
+    feeder = Feeder(extension)
+    still = rest(np.array([1.5, 0.5]), 0.5, rng)
+    try:
+        feeder.feed(still)
+        extension.reload(_rig(simulated_rig, udp.getsockname()[1], leave="bye", bogus_trigger="x"))
+        after = _events(feeder.feed(still))
+    finally:
+        extension.close()
+    # The session goes on: no leave, no new enter, the same id (the rest becomes a dwell).
+    assert [(m.topic, m.cursor_id) for m in after] == [("dwell", 1)] and extension.engine.inside
+
+
+def test_finish_returns_the_leave_and_close_removes_the_cursor(simulated_rig, udp, rng):
+    extension = create(_rig(simulated_rig, udp.getsockname()[1], leave="bye"))
+    assert extension is not None
+    Feeder(extension).feed(rest(np.array([1.5, 0.5]), 0.5, rng))
+    assert _alive(_bundles(udp)[-1]) == [1]
+    ending = extension.finish()
+    assert [(m.topic, m.cursor_id) for m in ending] == [("leave", 1), ("command", 1)]
+    assert extension.finish() == []
+    extension.close()  # nothing more to say: the cursor is already removed
+    assert [_alive(b) for b in _bundles(udp)] == [[]]
+    assert extension.status()["events"]["leave"] == 1
+
+
+def test_stopping_the_pipeline_with_the_pointer_on_the_display_removes_the_tuio_cursor(
+        simulated_rig, renderer, udp, tmp_path):
+    rng = np.random.default_rng(8)
+    stage = Stage.from_rig(simulated_rig)
+    pose = pose_aimed_at(stage.hand_m, renderer.wall.from_wall_m(np.array([1.5, 0.5])), simulated_rig.pointer.length_m)
+    pointing = [renderer.render(i, pose, rng).image for i in range(2)]
+    rig = _rig(simulated_rig, udp.getsockname()[1])
+    rig = rig.model_copy(update={"outputs": rig.outputs.model_copy(update={
+        "zmq": rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})})})
+    extension = create(rig)
+    assert extension is not None
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, [pointing], rate_hz=30.0, count=10**6),
+                        lambda r: Publisher(r.outputs.zmq), extensions=[extension])
+    bundles: list = []
+    pipeline.start()
+    try:
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and not any(_alive(b) for b in bundles):
+            time.sleep(0.02)
+            bundles += _bundles(udp)
+    finally:
+        pipeline.stop()
+    bundles += _bundles(udp)
+    assert pipeline.failure is None
+    assert any(_alive(b) == [1] for b in bundles), "the pointer never entered"
+    assert _alive(bundles[-1]) == []
+    frames = [_fseq(b) for b in bundles]
+    assert frames == sorted(frames) and len(set(frames)) == len(frames)
