@@ -11,6 +11,7 @@ from trackerd.config.loader import LoadedRig, load_rig
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import ypr_from_world_from_camera
 from trackerd.geometry.wall import WallFrame
+from trackerd.interaction.validate import check_interaction
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,6 +27,10 @@ def check_command(args: argparse.Namespace) -> int:
     loaded = load_rig(args.file)
     cameras = [CameraModel.from_config(cam) for cam in loaded.config.cameras]
     wall = WallFrame.from_config(loaded.config.wall)
+    if loaded.config.interaction.any_enabled:
+        # What the daemon's interaction stage checks at start (templates, commands, hand camera,
+        # TUIO host): OK here means `run` and `replay` start.
+        check_interaction(loaded.config)
     if args.json:
         print(json.dumps(resolved_summary(loaded, cameras, wall), indent=2))
     else:
