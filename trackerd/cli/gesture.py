@@ -11,10 +11,14 @@ a moment, and repeat. With the examples it writes ``DIR/NAME.json``
 (docs/interaction.md: the template format), adding to the examples already
 there; the daemon loads it from ``[interaction.gestures] template_dir`` on its
 next start or reload. Each example is also matched against the templates
-already known, so a gesture too like an existing one is flagged.
+already known, so a gesture too like an existing one is flagged, and against
+the gesture's other examples: one the recogniser would not take for them (a
+swipe among circles) is refused, and recording goes on. The directory is made
+and tried with a file before recording starts.
 
 Exit status: 0 when the template was written; 1 when too few strokes arrived
-before --timeout; 2 for bad arguments.
+before --timeout (or in --from), or the directory cannot be written; 2 for bad
+arguments.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -31,7 +36,7 @@ import numpy as np
 from trackerd.config.interaction import RESERVED_TRIGGERS, InteractionConfig
 from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError, TrackerdError
-from trackerd.interaction.recognizer import score_all
+from trackerd.interaction.recognizer import Shape, prepare, score_all, score_shape
 from trackerd.interaction.smoothing import OneEuroFilter
 from trackerd.interaction.strokes import Stroke, StrokeSegmenter
 from trackerd.interaction.templates import (
@@ -113,33 +118,108 @@ def record_command(args: argparse.Namespace) -> int:
     interaction, directory, endpoint = _settings(args)
     if directory is None:
         raise ConfigError("no template directory: give --dir, or --config with [interaction.gestures] template_dir")
-    known = load_templates(directory if directory.is_dir() else None, builtin=interaction.gestures.builtin)
+    own = load_directory(directory) if directory.is_dir() else {}
+    existing = own.pop(args.name, None)
+    if existing is not None and existing.rotation_invariant != args.rotation_invariant:
+        raise ConfigError(f"{existing.source}: {args.name} is {'' if existing.rotation_invariant else 'not '}"
+                          f"rotation-invariant; record it {'with' if existing.rotation_invariant else 'without'}"
+                          " --rotation-invariant, or under another name")
+    known = load_templates(None, builtin=interaction.gestures.builtin)
     known.pop(args.name, None)
-    hits = _hits_from_file(Path(args.from_file)) if args.from_file else _hits_from_zmq(
-        args.endpoint or endpoint or DEFAULT_ENDPOINT, args.timeout)
-    strokes = _strokes(hits, interaction, args.examples)
-    if len(strokes) < args.examples:
-        raise RecordTimeout(f"only {len(strokes)} of {args.examples} strokes"
-                            f" {'in ' + args.from_file if args.from_file else f'within {args.timeout:g} s'}")
-    for index, stroke in enumerate(strokes, 1):
-        f = stroke_features(stroke.times_ns, stroke.points_m)
-        line = f"example {index}/{len(strokes)}: {f.path_m:.2f} m in {f.duration_ms:.0f} ms"
-        if known:
-            best, score = score_all(stroke.points_m, [t.shape for t in known.values()])[0]
-            line += f"; nearest existing gesture {best} ({score:.2f})"
-            if score >= interaction.gestures.min_score_ratio:
-                line += " -- too like it: strokes may be taken for either"
-        print(line, flush=True)
-    template = template_from_strokes(args.name, [(s.times_ns, s.points_m) for s in strokes],
-                                     rotation_invariant=args.rotation_invariant,
-                                     max_rotation_deg=args.max_rotation_deg)
-    existing = load_directory(directory).get(args.name) if directory.is_dir() else None
-    if existing is not None:
-        template = _merge(existing, template)
-    path = save_template(template, directory)
+    known.update(own)
+    # Before any recording: examples drawn for nothing are lost examples.
+    created = _writable_directory(directory)
+    written = False
+    try:
+        hits = _hits_from_file(Path(args.from_file)) if args.from_file else _hits_from_zmq(
+            args.endpoint or endpoint or DEFAULT_ENDPOINT, args.timeout)
+        strokes = _consistent_strokes(args, _strokes(hits, interaction), interaction, known, existing)
+        template = template_from_strokes(args.name, [(s.times_ns, s.points_m) for s in strokes],
+                                         rotation_invariant=args.rotation_invariant,
+                                         max_rotation_deg=args.max_rotation_deg)
+        if existing is not None:
+            template = _merge(existing, template)
+        try:
+            path = save_template(template, directory)
+        except OSError as err:
+            raise TrackerdError(f"{directory}: cannot write {template.name}.json: {err.strerror};"
+                                f" the {len(strokes)} example(s) are not saved") from err
+        written = True
+    finally:
+        if not written:
+            _remove_empty(created)
     print(f"wrote {path} ({len(template.examples)} example(s)); reload trackerd (systemctl reload trackerd)"
           " to use it", flush=True)
     return 0
+
+
+def _consistent_strokes(args: argparse.Namespace, strokes: Iterator[Stroke], interaction: InteractionConfig,
+                        known: dict[str, Template], existing: Template | None) -> list[Stroke]:
+    """The first ``args.examples`` strokes that the recogniser takes for the gesture's other examples.
+
+    Each stroke is scored as the daemon would score it against the examples kept so far (those
+    of the existing template, then the new ones): below ``min_score_ratio`` the daemon would not
+    take one for the others (a swipe among circles), so it is refused, with its score, and
+    recording goes on. The first example of a new gesture has nothing to be compared with."""
+    minimum = interaction.gestures.min_score_ratio
+    kept: list[Stroke] = []
+    references = list(existing.examples) if existing is not None else []
+    refused = 0
+    for stroke in strokes:
+        f = stroke_features(stroke.times_ns, stroke.points_m)
+        line = f"example {len(kept) + 1}/{args.examples}: {f.path_m:.2f} m in {f.duration_ms:.0f} ms"
+        if references:
+            own = Shape(args.name, tuple(references), args.rotation_invariant, args.max_rotation_deg)
+            score = score_shape(stroke.points_m, own)
+            if score < minimum:
+                refused += 1
+                print(f"{line}: refused, it scores {score:.2f} against the other examples of {args.name}"
+                      f" (at least {minimum:.2f} needed): a different gesture? draw it again", flush=True)
+                continue
+            line += f"; {score:.2f} against the other examples"
+        if known:
+            best, score = score_all(stroke.points_m, [t.shape for t in known.values()])[0]
+            line += f"; nearest existing gesture {best} ({score:.2f})"
+            if score >= minimum:
+                line += " -- too like it: strokes may be taken for either"
+        print(line, flush=True)
+        kept.append(stroke)
+        references.append(prepare(stroke.points_m, args.rotation_invariant))
+        if len(kept) >= args.examples:
+            return kept
+    unlike = f", {refused} refused as unlike the others" if refused else ""
+    raise RecordTimeout(f"only {len(kept)} of {args.examples} strokes{unlike}"
+                        f" {'in ' + args.from_file if args.from_file else f'within {args.timeout:g} s'}")
+
+
+def _writable_directory(directory: Path) -> list[Path]:
+    """Make ``directory`` (and missing parents) and prove a file can be written in it; the folders
+    made, newest last. TrackerdError (one line) when it cannot be."""
+    if directory.exists() and not directory.is_dir():
+        raise TrackerdError(f"--dir {directory}: not a directory")
+    missing = [d for d in (directory, *directory.parents) if not d.exists()]
+    created: list[Path] = []
+    try:
+        for folder in reversed(missing):
+            folder.mkdir()
+            created.append(folder)
+        # os.access is not enough: root passes it on read-only mounts and in /proc.
+        with tempfile.TemporaryFile(dir=directory, prefix=".trackerd-probe-"):
+            pass
+    except OSError as err:
+        _remove_empty(created)
+        where = "" if err.filename in (None, str(directory)) else f" ({err.filename})"
+        raise TrackerdError(f"--dir {directory}: cannot write gesture templates there: {err.strerror}{where}") from err
+    return created
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove folders this command made, newest first, as long as they are empty."""
+    for folder in reversed(folders):
+        try:
+            folder.rmdir()
+        except OSError:
+            return
 
 
 def _merge(old: Template, new: Template) -> Template:
@@ -156,14 +236,13 @@ def _merge(old: Template, new: Template) -> Template:
     )
 
 
-def _strokes(hits: Iterator[tuple[int, np.ndarray | None]], interaction: InteractionConfig, wanted: int
-             ) -> list[Stroke]:
+def _strokes(hits: Iterator[tuple[int, np.ndarray | None]], interaction: InteractionConfig) -> Iterator[Stroke]:
     """Strokes from (capture_ns, wall position or None) hits, smoothed and cut as the daemon does."""
     smoothing = OneEuroFilter(interaction.smoothing)
     segmenter = StrokeSegmenter(interaction.gestures)
     gap_ns = interaction.smoothing.reset_after_ms * 1e6
     last_ns: int | None = None
-    strokes: list[Stroke] = []
+    count = 0
     for time_ns, position in hits:
         stroke = None
         if last_ns is not None and (position is None or time_ns - last_ns > gap_ns):
@@ -175,15 +254,12 @@ def _strokes(hits: Iterator[tuple[int, np.ndarray | None]], interaction: Interac
             stroke = stroke or segmenter.add(time_ns, point)
             last_ns = time_ns
         if stroke is not None:
-            strokes.append(stroke)
-            print(f"stroke {len(strokes)}: {stroke.path_m:.2f} m", file=sys.stderr, flush=True)
-            if len(strokes) >= wanted:
-                break
-    else:
-        stroke = segmenter.end()
-        if stroke is not None and len(strokes) < wanted:
-            strokes.append(stroke)
-    return strokes
+            count += 1
+            print(f"stroke {count}: {stroke.path_m:.2f} m", file=sys.stderr, flush=True)
+            yield stroke
+    stroke = segmenter.end()
+    if stroke is not None:
+        yield stroke
 
 
 def _hit_position(data: dict) -> np.ndarray:

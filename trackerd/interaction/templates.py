@@ -267,6 +267,11 @@ def save_template(template: Template, directory: Path) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{template.name}.json"
     tmp = path.with_suffix(f".tmp{os.getpid()}")
-    tmp.write_text(format_template(template), encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(format_template(template), encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        # A full disk: the old file stays as it was, and no half-written one is left beside it.
+        tmp.unlink(missing_ok=True)
+        raise
     return path
