@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from rec_helpers import replay_and_listen, trackerd, unsmoothed_xy, without_publish_time
+from rec_helpers import one_line_error, replay_and_listen, trackerd, unsmoothed_xy, without_publish_time
 
 from trackerd.recording.reader import Recording
 from trackerd.recording.replay import ReplayPairSource
@@ -175,3 +175,35 @@ def test_unrelated_stills_in_a_row_replay_without_crashing_the_pipeline(imported
     run, messages = replay_and_listen(imported / "bayer.trec", "--speed", "max", endpoint=f"ipc://{imported}/row.sock")
     assert run.returncode == 0, run.stderr
     assert len([m for t, m in messages if t == "hit"]) == 3
+
+
+def test_stills_without_timestamps_are_spaced_so_each_is_smoothed_on_its_own(imported, tmp_path) -> None:
+    """The colour import has no timestamps: 1 s apart, past the interaction's reset_after_ms, so the
+    published (smoothed) hit of each still is its own raw hit, not a blend with the still before."""
+    with Recording.open(imported / "colour.trec") as recording:
+        times = [e.timestamp_ns for e in recording.entries]
+    assert times == [0, 1_000_000_000, 2_000_000_000]
+    run = trackerd("recording", "export", imported / "colour.trec", tmp_path / "out", "--no-images")
+    assert run.returncode == 0, run.stderr
+    rows = [r for r in csv.DictReader((tmp_path / "out" / "hits.csv").open()) if r["status"] == "hit"]
+    assert len(rows) >= 2
+    for row in rows:
+        assert (row["wall_x_m"], row["wall_y_m"]) == (row["raw_wall_x_m"], row["raw_wall_y_m"]), row
+    # --rate keeps a real sequence's spacing.
+    run = trackerd("recording", "import", STILLS, tmp_path / "rate.trec", "--config", SIMULATED, "--rate", "50")
+    assert run.returncode == 0, run.stderr
+    with Recording.open(tmp_path / "rate.trec") as recording:
+        assert [e.timestamp_ns for e in recording.entries] == [0, 20_000_000, 40_000_000]
+
+
+def test_timestamps_that_go_backwards_are_refused_naming_the_row(tmp_path) -> None:
+    stamps = tmp_path / "times.csv"
+    stamps.write_text("name,timestamp_ms\n01,5\n02,2\n03,9\n")
+    run = trackerd("recording", "import", STILLS, tmp_path / "back.trec", "--config", SIMULATED,
+                   "--timestamps", stamps)
+    one_line_error(run, "recording", f"{stamps}:3:", "'02'", "is not after '01'", "must increase")
+    assert not (tmp_path / "back.trec").exists()
+    stamps.write_text("name,camera,timestamp_us\n01,left,10\n01,right,11\n02,left,20\n02,right,11\n03,left,30\n03,right,31\n")
+    run = trackerd("recording", "import", STILLS, tmp_path / "back.trec", "--config", SIMULATED,
+                   "--timestamps", stamps)
+    one_line_error(run, "recording", f"{stamps}:5:", "'02' (right)")

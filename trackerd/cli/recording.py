@@ -35,10 +35,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     imp.add_argument("folder", metavar="FOLDER", help="images named <name>-<camera>.<ext> (or <camera>/<name>.<ext>)")
     imp.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
     imp.add_argument("--config", required=True, help="rig TOML file the images come from (cameras, calibration)")
-    imp.add_argument("--timestamps", metavar="CSV",
-                     help="CSV with name and timestamp_ns|_us|_ms|_s columns (optionally camera)")
-    imp.add_argument("--rate", type=float, metavar="HZ",
-                     help="without --timestamps: pairs per second (default: the rig's frame_rate_hz)")
+    timing = imp.add_mutually_exclusive_group()
+    timing.add_argument("--timestamps", metavar="CSV",
+                     help="CSV with name and timestamp_ns|_us|_ms|_s columns (optionally camera); in name order"
+                          " the times must increase")
+    timing.add_argument("--rate", type=float, metavar="HZ",
+                     help="without --timestamps: the images are a real sequence at HZ pairs per second. Without"
+                          " either, they are unrelated stills 1 s apart (longer than the interaction's"
+                          " reset_after_ms, so each is smoothed on its own)")
     imp.add_argument("--compression", choices=("none", "deflate"), default="none",
                      help="store frames raw (default) or deflated (lossless, smaller, slower to write)")
     imp.set_defaults(handler=import_command)

@@ -12,8 +12,12 @@ Timestamps come from an optional CSV with a header row: a ``name`` column, one
 of ``timestamp_ns``, ``timestamp_us``, ``timestamp_ms`` or ``timestamp_s``, and
 optionally ``camera`` (then one row per image, else one row per moment). Times
 that look like UNIX epoch times (after 2001) keep their date as the capture
-time; others count from the import. Without a CSV, moments are spaced at
-``rate_hz``.
+time; others count from the import. In name order, each camera's times must
+increase. Without a CSV, moments are unrelated stills spaced
+:func:`stills_spacing_ns` apart (1 s, and always longer than the interaction's
+``reset_after_ms``, so the interaction stage smooths each still on its own
+instead of blending it into the one before), or, given ``rate_hz``, frames of a
+real sequence at that rate.
 """
 
 from __future__ import annotations
@@ -36,6 +40,27 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp", ".np
 _UNITS_NS = {"timestamp_ns": 1, "timestamp_us": 1_000, "timestamp_ms": 1_000_000, "timestamp_s": 1_000_000_000}
 EPOCH_AFTER_NS = 1_000_000_000 * 1_000_000_000
 """Timestamps from this (September 2001, in ns since 1970) on are read as UNIX epoch times."""
+STILLS_SPACING_NS = 1_000_000_000
+"""Time between unrelated stills when neither timestamps nor a rate are given."""
+
+
+@dataclass(frozen=True)
+class Stamp:
+    """One timestamp of the CSV: nanoseconds, and the line and text it came from (for errors)."""
+
+    ns: int
+    line: int
+    text: str
+
+
+def stills_spacing_ns(rig: RigConfig) -> int:
+    """Spacing of unrelated stills: 1 s, or twice the interaction's reset_after_ms if that is longer.
+
+    The interaction stage starts its smoothing afresh after reset_after_ms without a hit (150 ms
+    by default); at a frame rate's spacing it would blend each still into the one before (a hit
+    100 mm off its own position, measured on the bundled stills)."""
+    reset_ns = round(rig.interaction.smoothing.reset_after_ms * 1e6)
+    return max(STILLS_SPACING_NS, 2 * reset_ns)
 
 
 @dataclass(frozen=True)
@@ -93,8 +118,8 @@ def find_pairs(folder: Path, camera_ids: Sequence[str]) -> list[Moment]:
     return moments
 
 
-def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, str | None], int]:
-    """{(name, camera or None): time in ns} from the CSV; RecordingError naming the line of a bad row."""
+def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, str | None], Stamp]:
+    """{(name, camera or None): time} from the CSV; RecordingError naming the line of a bad row."""
     try:
         handle = path.open(newline="")
     except OSError as err:
@@ -106,7 +131,7 @@ def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, st
         if "name" not in fields or unit is None:
             raise RecordingError(f"{path}: needs a header with 'name' and one of {', '.join(_UNITS_NS)};"
                                  f" found {', '.join(fields) or 'none'}")
-        out: dict[tuple[str, str | None], int] = {}
+        out: dict[tuple[str, str | None], Stamp] = {}
         for row in reader:
             row = {k.strip(): (v or "").strip() for k, v in row.items() if k is not None}
             camera = row.get("camera") or None
@@ -117,7 +142,8 @@ def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, st
                 value = float(row[unit]) if unit == "timestamp_s" else int(row[unit])
             except ValueError:
                 raise RecordingError(f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not a number") from None
-            out[(row["name"], camera)] = round(value * _UNITS_NS[unit])
+            out[(row["name"], camera)] = Stamp(round(value * _UNITS_NS[unit]), reader.line_num,
+                                               f"{unit} {row[unit]}")
     return out
 
 
@@ -138,8 +164,13 @@ def import_folder(
     ids = [c.id for c in rig.cameras]
     moments = find_pairs(folder, ids)
     times = read_timestamps(Path(timestamps), ids) if timestamps is not None else None
-    period_ns = round(1e9 / (rate_hz or rig.acquisition.frame_rate_hz))
-    capture = [[_time(times, m.name, cam, k, period_ns, timestamps) for cam in ids] for k, m in enumerate(moments)]
+    if rate_hz is not None and rate_hz <= 0:
+        raise RecordingError(f"--rate {rate_hz:g}: must be positive")
+    period_ns = stills_spacing_ns(rig) if rate_hz is None else round(1e9 / rate_hz)
+    stamps_of = [[_time(times, m.name, cam, k, period_ns, timestamps) for cam in ids] for k, m in enumerate(moments)]
+    if timestamps is not None:
+        _check_increasing(Path(timestamps), moments, ids, stamps_of)
+    capture = [[stamp.ns for stamp in row] for row in stamps_of]
     t0 = min(min(c) for c in capture)
     clock_offset = t0 if t0 >= EPOCH_AFTER_NS else time.time_ns()
     writer: RecordingWriter | None = None
@@ -172,11 +203,26 @@ def import_folder(
     return writer
 
 
-def _time(times: dict[tuple[str, str | None], int] | None, name: str, cam: str, k: int, period_ns: int,
-          path: str | Path | None) -> int:
+def _time(times: dict[tuple[str, str | None], Stamp] | None, name: str, cam: str, k: int, period_ns: int,
+          path: str | Path | None) -> Stamp:
     if times is None:
-        return k * period_ns
+        return Stamp(k * period_ns, 0, "")
     for key in ((name, cam), (name, None)):
         if key in times:
             return times[key]
     raise RecordingError(f"{path}: no timestamp for '{name}' (camera '{cam}')")
+
+
+def _check_increasing(path: Path, moments: Sequence[Moment], camera_ids: Sequence[str],
+                      stamps: Sequence[Sequence[Stamp]]) -> None:
+    """Each camera's times must increase in name order: a recording's pairs follow each other in time
+    (replay paces by them, the interaction stage measures speeds and timeouts with them)."""
+    for k in range(1, len(moments)):
+        for c, cam in enumerate(camera_ids):
+            before, now = stamps[k - 1][c], stamps[k][c]
+            if now.ns <= before.ns:
+                raise RecordingError(
+                    f"{path}:{now.line}: '{moments[k].name}' ({cam}) at {now.text} is not after"
+                    f" '{moments[k - 1].name}' at {before.text} (line {before.line}); moments are taken in name"
+                    " order and their times must increase"
+                )
