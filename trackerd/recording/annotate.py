@@ -12,7 +12,7 @@ from trackerd.detect import ImageDetections
 from trackerd.locator import PointerFix
 from trackerd.pixelformat import to_bgr
 
-# Drawing colours (BGR): each end in a brighter version of its own colour, text in white on black.
+# Drawing colours (BGR): each end in a brighter version of its own colour, text in white on a dark box.
 _END_BGR = {"red": (60, 60, 255), "blue": (255, 120, 40)}
 _TEXT_BGR = (255, 255, 255)
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
@@ -23,10 +23,31 @@ def viewable(frame: NDArray[np.uint8], pixel_format: str) -> NDArray[np.uint8]:
     return to_bgr(frame, pixel_format)
 
 
-def _text(image: NDArray[np.uint8], text: str, origin: tuple[int, int], scale: float = 0.8) -> None:
-    """Text with a dark outline, legible on any background."""
-    cv2.putText(image, text, origin, _FONT, scale, (0, 0, 0), 4, cv2.LINE_AA)
-    cv2.putText(image, text, origin, _FONT, scale, _TEXT_BGR, 1, cv2.LINE_AA)
+def _text(image: NDArray[np.uint8], lines: Sequence[str], top_left: tuple[int, int], scale: float = 0.8,
+          thickness: int = 2) -> None:
+    """Lines of white text on a darkened box, legible on any background.
+
+    One pass of plain text: an outline drawn as a thicker pass of the same text does not fit it,
+    because a Hershey font's advance per character grows with the thickness (the outline drifts
+    right of the text, more with every character). The box is sized by ``cv2.getTextSize`` at the
+    thickness drawn, and darkens rather than hides what lies under it.
+    """
+    if not lines:
+        return
+    pad, gap = 6, 8
+    sizes = [cv2.getTextSize(line, _FONT, scale, thickness) for line in lines]
+    ascent = max(h for (_, h), _ in sizes)
+    descent = max(b for _, b in sizes)
+    pitch = ascent + descent + gap
+    x, y = top_left
+    x0, y0 = max(x, 0), max(y, 0)
+    x1 = x + 2 * pad + max(w for (w, _), _ in sizes)
+    y1 = y + 2 * pad + len(lines) * pitch - gap
+    region = image[y0:max(y1, y0), x0:max(x1, x0)]
+    region //= 4
+    for k, line in enumerate(lines):
+        cv2.putText(image, line, (x + pad, y + pad + ascent + k * pitch), _FONT, scale, _TEXT_BGR, thickness,
+                    cv2.LINE_AA)
 
 
 def fix_summary(fix: PointerFix) -> str:
@@ -78,7 +99,6 @@ def annotate(
             if end.bbox_px is not None:
                 x0, y0, x1, y1 = end.bbox_px
                 cv2.rectangle(image, (x0 - 1, y0 - 1), (x1 + 1, y1 + 1), bgr, 1)
-            _text(image, colour, (int(x) + radius + 4, int(y) + 6), 0.6)
-    for k, line in enumerate(lines):
-        _text(image, line, (12, 32 + 30 * k))
+            _text(image, [colour], (int(x) + radius + 4, int(y) - 12), 0.6, 1)
+    _text(image, lines, (8, 8))
     return image
