@@ -5,11 +5,13 @@ from __future__ import annotations
 import itertools
 import json
 import time
+from pathlib import Path
 
 import pytest
 import zmq
 from rec_helpers import one_line_error, trackerd
 
+from trackerd.acquisition.arv import aravis_missing_reason
 from trackerd.acquisition.memory import MemoryPairSource
 from trackerd.config.recording import RecordingConfig
 from trackerd.pipeline.daemon import Pipeline
@@ -144,3 +146,30 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
             assert recording.problems == [] and len(recording) > 5
             assert recording.metadata.producer.startswith("trackerd run")
             assert recording.metadata.rig["recording"]["enabled"] is True
+
+
+@pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}")
+def test_what_the_cameras_say_and_the_rig_file_reach_the_metadata_when_passed_in(bundle_pairs, tmp_path) -> None:
+    """The recorder side of recording on demand: a CameraInfo given to the source as its open hook
+    (here called with Aravis's own Fake camera, as a source calls it) and the rig file, passed to the
+    Recorder, fill vendor, model, rig_file and calibration_file."""
+    from trackerd.acquisition.arv import load_aravis
+    from trackerd.recording.cameras import CameraInfo
+
+    aravis, _ = load_aravis()
+    aravis.enable_interface("Fake")
+    rig, pairs = bundle_pairs
+    rig = rig.model_copy(update={"calibration": Path("wall-calibration.toml")})
+    rig_file = tmp_path / "rigs" / "datawall.toml"
+    info = CameraInfo()
+    recorder = Recorder(tmp_path / "described.trec", rig, producer="test", camera_info=info, rig_file=rig_file)
+    for cam in rig.cameras:  # the cameras open after the recorder is made, before the first pair
+        info.on_open(cam.id, aravis.Camera.new("Fake_1"))
+    recorder.start()
+    recorder.put(pairs[0])
+    assert recorder.stop(10.0) and recorder.error is None
+    with Recording.open(tmp_path / "described.trec") as recording:
+        meta = recording.metadata
+        assert [(c.vendor, c.model) for c in meta.cameras] == [("Aravis", "Fake")] * len(rig.cameras)
+        assert meta.rig_file == str(rig_file)
+        assert meta.calibration_file == str((tmp_path / "rigs" / "wall-calibration.toml").resolve())

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,13 +21,30 @@ from trackerd.errors import ConfigError
 log = logging.getLogger(__name__)
 
 
+class CameraInfo(dict[str, dict[str, str | None]]):
+    """What each camera says about itself (vendor, model, serial, device), by camera id, noted as
+    it opens: give :meth:`on_open` to ``AravisPairSource(on_open=...)`` and the mapping itself to
+    ``Recorder(camera_info=...)``, which reads it when the first pair arrives (every camera of a
+    pair has opened by then). ``before`` is another open hook, called first (the virtual rig's)."""
+
+    def __init__(self, before: Callable[[str, Any], None] | None = None) -> None:
+        super().__init__()
+        self._before = before
+
+    def on_open(self, camera_id: str, camera: Any) -> None:
+        """The source's open hook; runs on the camera's thread after each (re)connection."""
+        if self._before is not None:
+            self._before(camera_id, camera)
+        self[camera_id] = describe_camera(camera)
+
+
 @dataclass
 class CameraSource:
     """An open pair source, the rig it was opened with and what each camera said about itself."""
 
     source: Any
     rig: RigConfig
-    info: dict[str, dict[str, str | None]] = field(default_factory=dict)
+    info: CameraInfo = field(default_factory=CameraInfo)
     virtual: Any = None
 
 
@@ -93,12 +110,7 @@ def open_cameras(
                 prefix=prefix or netns.DEFAULT_PREFIX, subnet=subnet or netns.DEFAULT_SUBNET,
             ))
             rig = virtual.daemon_rig
-        opened = CameraSource(None, rig, virtual=virtual)
-
-        def on_open(camera_id: str, camera: Any) -> None:
-            if virtual is not None:
-                virtual.on_open(camera_id, camera)
-            opened.info[camera_id] = describe_camera(camera)
-
-        opened.source = stack.enter_context(AravisPairSource(rig, on_open=on_open))
+        info = CameraInfo(before=None if virtual is None else virtual.on_open)
+        opened = CameraSource(None, rig, info, virtual)
+        opened.source = stack.enter_context(AravisPairSource(rig, on_open=info.on_open))
         yield opened

@@ -76,7 +76,10 @@ class Recorder:
     ) -> None:
         """``config`` gives compression, queue length and limits (default: the rig's [recording]).
         ``camera_info`` (by camera id: vendor, model, serial, device) is read when the first pair
-        arrives, so a hook filling it while the cameras open is in time. ``log_failure`` logs a
+        arrives, so a hook filling it while the cameras open is in time (a
+        :class:`trackerd.recording.cameras.CameraInfo` given to the source as its ``on_open``).
+        ``rig_file`` is the rig TOML the configuration was read from; ``calibration_file`` defaults
+        to the rig's ``calibration`` relative to it. Without them the metadata has nulls there. ``log_failure`` logs a
         full disk or an error as it happens (the daemon); a command that reports :attr:`error`
         itself turns it off, so the failure is said once."""
         self.path = Path(path)

@@ -129,7 +129,11 @@ def build_metadata(
     notes: str | None = None,
 ) -> RecordingMetadata:
     """Metadata for a recording whose first pair is ``pair``: formats and sizes come from its frames,
-    serials from the rig, and vendor/model/serial from ``camera_info`` (by camera id) when known."""
+    serials from the rig, and vendor/model/serial from ``camera_info`` (by camera id) when known.
+    Without ``calibration_file``, the rig's ``calibration`` is taken relative to ``rig_file``, as
+    the loader reads it."""
+    if calibration_file is None and rig_file is not None and rig.calibration is not None:
+        calibration_file = (Path(rig_file).parent / rig.calibration).resolve()
     by_id = {cam.id: cam for cam in rig.cameras}
     cameras = []
     for frame in pair.frames:
