@@ -155,6 +155,10 @@ def test_a_reload_ends_the_session_with_a_leave_and_removes_the_tuio_cursor(simu
         extension.reload(_rig(simulated_rig, None, enter="hello", leave="bye"))  # TUIO off
         bundles = _bundles(udp)
         after = _events(feeder.feed(still))
+        assert extension.tuio is None and not _bundles(udp)
+        extension.reload(rig)  # TUIO on again
+        feeder.feed(still)
+        back = _bundles(udp)
     finally:
         extension.close()
     assert [(m.topic, m.cursor_id) for m in entered] == [("enter", 1), ("command", 1)]
@@ -163,7 +167,8 @@ def test_a_reload_ends_the_session_with_a_leave_and_removes_the_tuio_cursor(simu
     # The session ends with a leave (stamped with its last pair), and the next has a new id.
     assert [(m.topic, m.cursor_id) for m in after] == [("leave", 1), ("command", 1), ("enter", 2), ("command", 2)]
     assert after[0].sequence == len(still) - 1 and after[1].command == "bye"
-    assert extension.tuio is None and not _bundles(udp)
+    # With TUIO back, the frame count goes on from where it was (a client would drop lower ones as late).
+    assert _fseq(back[0]) == len(bundles) + 1 and {tuple(_alive(b)) for b in back} == {(), (3,)}
 
 
 def test_a_failed_reload_keeps_the_session(simulated_rig, udp, rng):

@@ -102,6 +102,8 @@ class InteractionExtension:
         self._last_sequence = 0
         self._last_capture_ns = 0
         """The last pair's sequence and capture time: a session ended between pairs ended with it."""
+        self._tuio_frames = 0
+        """The last ``fseq`` of the TUIO senders closed so far."""
 
     @staticmethod
     def _parts(rig: RigConfig, previous: InteractionEngine | None) -> _Parts:
@@ -206,9 +208,11 @@ class InteractionExtension:
         self._count(ending)
         if self.tuio is not None:
             self.tuio.close()
-            if parts.tuio is not None:
-                # Clients take a bundle numbered below the last one they saw as late, and drop it.
-                parts.tuio.continue_after(self.tuio.frame_count)
+            self._tuio_frames = self.tuio.frame_count
+        if parts.tuio is not None:
+            # Clients take a bundle numbered below the last one they saw as late, and drop it,
+            # so the count goes on even after a time with TUIO off.
+            parts.tuio.continue_after(self._tuio_frames)
         self._install(parts)
 
     def reset(self) -> None:
