@@ -66,7 +66,9 @@ def session(simulated_rig, renderer):
     swipe = [pointer_at(start_x + (end_x - start_x) * s, y)
              for s in minimum_jerk(np.arange(1, 7) / 7.0)]  # 0.23 s at 30 pairs/s
     rest_b = pointer_at(end_x, y)
-    sets = [empty] * 3 + [hand] * 4 + [empty] * 2 + [rest_a] * 24 + swipe + [rest_b] * 12 + [empty] * 10
+    # The hand stays for 8 pairs: a busy machine may skip a pair or two of them (the source serves
+    # the newest pair, as cameras do), and debouncing needs two in a row before the first message.
+    sets = [empty] * 3 + [hand] * 8 + [empty] * 2 + [rest_a] * 24 + swipe + [rest_b] * 12 + [empty] * 10
     return sets, start_x, end_x, hands.render(pose, rng).palm_px
 
 
