@@ -8,7 +8,8 @@ Groups, each over many random pointer poses rendered with sensor noise:
 
 Every pose is located three ways on the same images:
 
-* trackerd: weighted sub-pixel centroids, full lens model, the pointer's line
+* trackerd: the detector's sub-pixel centres (the rig's [detector] centroid: every
+  pixel's coverage by default), full lens model, the pointer's line
   from the cameras' interpretation planes (trackerd/geometry/pointer_line.py);
 * two points: the same centroids and lens model, but the line through the two
   triangulated ends (the report's construction, eq. 15-17 and 26);
