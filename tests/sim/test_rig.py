@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -171,6 +172,52 @@ def test_simrig_measures_a_run_and_cleans_up_on_sigterm(tmp_path: Path) -> None:
         serving.communicate(timeout=60)
     assert serving.returncode == 130
     assert not {f"{PREFIX}-cam0", f"{PREFIX}-cam1"} & _namespaces()
+
+
+@needs_netns
+@pytest.mark.root
+@pytest.mark.aravis
+def test_a_second_rig_with_the_same_prefix_is_turned_away_and_the_first_keeps_its_namespaces(
+    simulated_rig: RigConfig, tmp_path: Path
+) -> None:
+    from trackerd.acquisition.arv import aravis_missing_reason
+    from trackerd.acquisition.gvcp import probe
+
+    if aravis_missing_reason() is not None:
+        pytest.skip(f"needs Aravis: {aravis_missing_reason()}")
+    repo = Path(__file__).resolve().parents[2]
+    ours = {f"{PREFIX}-cam0", f"{PREFIX}-cam1"}
+    out = tmp_path / "out"  # shared, as two `trackerd simrig` runs share simrig-out/ by default
+    with VirtualRig(simulated_rig, network="netns", synthetic=True, prefix=PREFIX, subnet=SUBNET, out_dir=out) as first:
+        with first.truth_path(0).open("a") as truth:
+            truth.write('{"served by": "the first rig"}\n')
+        # A rendered (not synthetic) second rig: it must be turned away before rendering anything.
+        cache = tmp_path / "cache"
+        second = VirtualRig(
+            simulated_rig, network="netns", prefix=PREFIX, subnet="10.213.202.0/24", out_dir=out,
+            cache_dir=cache, period_s=0.5, content_fps=2.0,
+        )
+        with pytest.raises(netns.NetnsError, match="another virtual rig uses the namespace prefix"):
+            second.start()
+        second.stop()  # as `with` would: must not touch the first rig's names either
+        assert ours <= _namespaces()
+        assert not cache.exists()  # no loop rendered for a rig that cannot run
+        assert "the first rig" in first.truth_path(0).read_text()  # its ground truth not truncated
+        assert probe(first.nets[1].camera_address, 1.0) is not None  # its cameras still answer
+
+        # The same through the command line: one line, exit 1, and the first rig unharmed.
+        refused = subprocess.run(
+            [sys.executable, "-m", "trackerd", "simrig", "--config", str(repo / "config" / "simulated.toml"),
+             "--synthetic", "--prefix", PREFIX, "--subnet", "10.213.202.0/24", "--seconds", "2",
+             "--out", str(tmp_path / "out2")],
+            capture_output=True, text=True, timeout=60,
+        )
+        assert refused.returncode == 1, refused.stderr
+        assert refused.stderr.startswith("trackerd simrig: another virtual rig uses the namespace prefix")
+        assert len(refused.stderr.strip().splitlines()) == 1 and "Traceback" not in refused.stderr
+        assert ours <= _namespaces()
+        assert probe(first.nets[0].camera_address, 1.0) is not None
+    assert not ours & _namespaces()
 
 
 def test_the_cache_keeps_the_most_recently_used_loops(simulated_rig: RigConfig, tmp_path: Path) -> None:

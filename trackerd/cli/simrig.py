@@ -40,9 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--period", type=float, default=DEFAULT_PERIOD_S, help="motion period = loop length, s")
     parser.add_argument("--content-fps", type=float, default=30.0, help="rendered loop frames per second")
     parser.add_argument("--trigger", choices=["free_running", "software", "hardware"], help="override the rig's")
-    parser.add_argument("--prefix", default=netns.DEFAULT_PREFIX, help="network namespace name prefix")
-    parser.add_argument("--subnet", default=netns.DEFAULT_SUBNET, help="addresses for the cameras' links")
-    parser.add_argument("--mtu", type=int, default=9000, help="MTU of the cameras' links (default 9000)")
+    add_network_options(parser)
     parser.add_argument("--synthetic", action="store_true", help="serve a moving square, no rendering")
     parser.add_argument("--measure", action="store_true", help="also acquire pairs and print the figures")
     parser.add_argument("--json", action="store_true", help="with --measure: print the figures as JSON")
@@ -52,6 +50,42 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         " for `trackerd run --config FILE` in another terminal",
     )
     parser.set_defaults(handler=simrig_command)
+
+
+def add_network_options(parser: argparse.ArgumentParser) -> None:
+    """--prefix, --subnet and --mtu of the virtual rig's network namespaces (simrig and demo)."""
+    parser.add_argument(
+        "--prefix", type=_prefix, default=netns.DEFAULT_PREFIX,
+        help=f"network namespace name prefix (default {netns.DEFAULT_PREFIX}); one rig per prefix",
+    )
+    parser.add_argument(
+        "--subnet", type=_subnet, default=netns.DEFAULT_SUBNET,
+        help=f"addresses for the cameras' links (default {netns.DEFAULT_SUBNET})",
+    )
+    parser.add_argument(
+        "--mtu", type=int, default=netns.DEFAULT_MTU,
+        help=f"MTU of the cameras' links (default {netns.DEFAULT_MTU}: jumbo frames)",
+    )
+
+
+def _prefix(text: str) -> str:
+    try:
+        netns.plan(0, text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from err
+    return text
+
+
+def _subnet(text: str) -> str:
+    import ipaddress
+
+    try:
+        network = ipaddress.ip_network(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a subnet such as {netns.DEFAULT_SUBNET}") from err
+    if network.version != 4:
+        raise argparse.ArgumentTypeError(f"'{text}' is not an IPv4 subnet")
+    return text
 
 
 class _Stop(Exception):

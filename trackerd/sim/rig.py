@@ -274,14 +274,18 @@ class VirtualRig:
         network: Network = "auto",
         prefix: str = netns.DEFAULT_PREFIX,
         subnet: str = netns.DEFAULT_SUBNET,
-        mtu: int | None = None,
+        mtu: int | None = netns.DEFAULT_MTU,
         out_dir: Path | None = None,
         cache_dir: Path | None = None,
         synthetic: bool = False,
         clock_offsets: bool = True,
         phases: bool = True,
     ) -> None:
-        """``synthetic`` serves a cheap moving square instead of a rendered motion (no ground truth)."""
+        """``synthetic`` serves a cheap moving square instead of a rendered motion (no ground truth).
+
+        ``prefix`` and ``subnet`` name the namespaces and address the links (netns network);
+        ``mtu`` is the links' MTU, jumbo frames by default (None: the kernel's 1500).
+        """
         if network == "auto":
             network = "netns" if netns.netns_missing_reason() is None else "loopback"
         if network == "netns" and (reason := netns.netns_missing_reason()):
@@ -301,7 +305,10 @@ class VirtualRig:
         self.content_fps = content_fps
         self.network: Literal["netns", "loopback"] = network
         self.prefix = prefix
-        self.nets = netns.plan(len(rig.cameras), prefix, subnet) if network == "netns" else []
+        try:
+            self.nets = netns.plan(len(rig.cameras), prefix, subnet) if network == "netns" else []
+        except ValueError as err:
+            raise TrackerdError(f"cannot plan the virtual rig's network: {err}") from err
         self.mtu = mtu
         self.out_dir = Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="trackerd-simrig-"))
         self.cache_dir = cache_dir
@@ -370,23 +377,28 @@ class VirtualRig:
     def start(self) -> None:
         if self._started:
             return
-        if not self.synthetic:
-            self.loop = render_loop(
-                self.rig,
-                self.motion,
-                period_s=self.period_s,
-                content_fps=self.content_fps,
-                cache_dir=self.cache_dir,
-            )
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        for index in range(len(self.rig.cameras)):
-            self.truth_path(index).write_text("")  # restarted cameras append; a new run starts afresh
-        self.start_ns = time.monotonic_ns()
         try:
             if self.network == "netns":
-                self._lock = netns.PrefixLock(self.prefix)
-                self._lock.acquire()
+                # The prefix is taken first: a rig turned away must not render a loop for
+                # nothing, truncate the running rig's truth files, or touch its namespaces.
+                # Only a rig holding the lock ever removes namespaces (stop() checks _lock).
+                lock = netns.PrefixLock(self.prefix)
+                lock.acquire()
+                self._lock = lock
                 netns.remove_stale(self.prefix)
+            if not self.synthetic:
+                self.loop = render_loop(
+                    self.rig,
+                    self.motion,
+                    period_s=self.period_s,
+                    content_fps=self.content_fps,
+                    cache_dir=self.cache_dir,
+                )
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            for index in range(len(self.rig.cameras)):
+                self.truth_path(index).write_text("")  # restarted cameras append; a new run starts afresh
+            self.start_ns = time.monotonic_ns()
+            if self.network == "netns":
                 for net in self.nets:
                     netns.create(net, self.mtu)
             gige = range(len(self.rig.cameras)) if self.network == "netns" else range(1)
