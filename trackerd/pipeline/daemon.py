@@ -349,7 +349,7 @@ class Pipeline:
                 dropped_frames=dict(source_status.dropped_frames),
                 dropped_pairs=source_status.dropped_pairs + self._queue.dropped,
                 skew_p50_us=source_status.skew_p50_us,
-                skew_p99_us=source_status.skew_p99_us,
+                skew_p99_us=source_status.skew_p99_us, mode=source_status.pairing,
             )
         return StatusMessage(
             sequence=self._status_sequence,
@@ -362,7 +362,7 @@ class Pipeline:
                 CameraStatusPart(
                     id=c.camera_id, state=c.state, frame_rate_hz=c.frame_rate_hz, frames=c.frames,
                     dropped=dict(c.failed_buffers), losses=c.losses, reconnects=c.reconnects,
-                    last_error=c.last_error,
+                    last_error=c.last_error, stream=dict(c.stream), ptp_state=c.ptp_state,
                 )
                 for c in cameras
             ),

@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-SCHEMA_VERSION = "1.1"
+SCHEMA_VERSION = "1.2"
 """MAJOR.MINOR of the message set this code writes."""
 
 SCHEMA_MAJOR = int(SCHEMA_VERSION.split(".")[0])
@@ -30,7 +30,7 @@ SCHEMA_MAJOR = int(SCHEMA_VERSION.split(".")[0])
 Vec3M = tuple[float, float, float]
 
 FixStatus = Literal["hit", "off_wall", "away", "parallel"]
-CameraState = Literal["connecting", "streaming", "lost", "reconnecting", "stopped"]
+CameraState = Literal["connecting", "connected", "streaming", "lost", "reconnecting", "stopped"]
 DaemonState = Literal["starting", "running", "degraded", "reloading", "stopping"]
 
 
@@ -137,9 +137,11 @@ class CameraStatusPart(_Part):
     id: str
     """The camera's id in the rig (``left``, ``right``, ...)."""
     state: CameraState
-    """connecting (first open), streaming, lost (no frames, no answer), reconnecting, stopped."""
+    """connecting (first open, or waiting for the camera to appear), connected (open, waiting for
+    its first complete frame; 1.2), streaming (its connection has delivered frames), lost (no
+    frames, no answer), reconnecting, stopped. Treat a state you do not know as not streaming."""
     frame_rate_hz: float = Field(ge=0.0)
-    """Frames delivered per second over the last second or so."""
+    """Frames delivered per second over the last two seconds; 0 until half a second of frames."""
     frames: int = Field(default=0, ge=0)
     """Complete frames delivered since the daemon started."""
     dropped: dict[str, int] = Field(default_factory=dict)
@@ -151,6 +153,14 @@ class CameraStatusPart(_Part):
     """Times it was opened again after a loss."""
     last_error: str | None = None
     """The most recent problem, in one line."""
+    stream: dict[str, int] = Field(default_factory=dict)
+    """(1.2) Aravis stream counters, totals since start, by Aravis's names: ``n_missing_packets``,
+    ``n_resend_requests``, ``n_resent_packets``, ``n_underruns`` (no buffer free), ``n_timeouts``,
+    ``n_completed_buffers``, ... (docs/acquisition.md); those the camera's stream has. Empty for
+    sources without Aravis (a replay)."""
+    ptp_state: str | None = None
+    """(1.2) The camera's IEEE 1588 port state (``Master``, ``Slave``, ``Listening``, ``Faulty``,
+    ...) when the rig enables PTP and the camera supports it; null otherwise."""
 
 
 class LatencyPart(_Part):
@@ -184,6 +194,10 @@ class PairingPart(_Part):
     """Median capture-time difference between the frames of a pair, microseconds."""
     skew_p99_us: float | None = None
     """99th percentile pair skew, microseconds."""
+    mode: str | None = None
+    """(1.2) What frames are paired by: ``trigger count`` (software trigger), ``device time (PTP)``
+    (every camera PTP-locked) or ``host time`` (estimated capture times); null when the source does
+    not say."""
 
 
 class SpreadPart(_Part):
