@@ -77,9 +77,13 @@ def check_pairs(pairs, frame_rate_hz: float, epochs: int) -> None:
     assert len({a.served - b.served for a, b in tags}) <= epochs
 
 
-def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(virtual) -> None:
+def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(virtual, caplog) -> None:
+    import logging
+    import re
+
     from trackerd.acquisition.live import AravisPairSource
 
+    caplog.set_level(logging.INFO, logger="trackerd.acquisition")
     source = AravisPairSource(virtual.daemon_rig)
     with source:
         consumer = Consumer(source)
@@ -101,6 +105,14 @@ def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(vir
     assert sequences == sorted(set(sequences))
     stamps = [p.timestamp_ns for p in consumer.pairs]
     assert stamps == sorted(stamps)
+    # The loss and the return are both in the log, at warning, the return with how long it took.
+    logged = [(r.levelno, r.getMessage()) for r in caplog.records if r.name == "trackerd.acquisition.worker"]
+    assert any(level == logging.WARNING and text.startswith("camera left lost: ") for level, text in logged)
+    back = [re.fullmatch(r"camera left streaming again after (\d+\.\d) s \(reconnect (\d+)\)", text)
+            for level, text in logged if level == logging.WARNING]
+    back = [m for m in back if m]
+    assert back, logged
+    assert 0.0 < float(back[-1].group(1)) < 30.0 and int(back[-1].group(2)) == left.reconnects
 
 
 @pytest.mark.slow

@@ -104,10 +104,92 @@ def test_a_camera_that_is_not_there_fails_start_naming_it(simulated_rig: RigConf
 
 
 def test_a_region_the_camera_cannot_give_is_refused(simulated_rig: RigConfig, out_dir: Path) -> None:
-    from trackerd.acquisition.arv import open_session
+    from trackerd.acquisition.arv import CameraConfigError, open_session
     from trackerd.sim.rig import VirtualRig
 
     with VirtualRig(simulated_rig, synthetic=True, network="loopback", out_dir=out_dir) as virtual:
         cam = virtual.daemon_rig.cameras[0].model_copy(update={"width_px": 4096})
-        with pytest.raises(CameraError, match=r"camera 'left' \(address 127.0.0.1\): \[Width\] Value '4096'"):
+        with pytest.raises(CameraConfigError) as refused:
             open_session(cam, virtual.daemon_rig.acquisition, "127.0.0.1")
+    assert refused.value.exit_code == 2  # a configuration error: the unit is not restarted
+    assert str(refused.value).startswith(
+        "camera 'left' (address 127.0.0.1): region (acquisition.offset_x_px, acquisition.offset_y_px,"
+        " width_px, height_px) = (0, 0, 4096, 1080) is refused by the camera, which allows width 1-2048"
+    )
+    assert "[Width] Value '4096' greater than allowed maximum '2048'" in str(refused.value)
+
+
+def _with_exposure(rig: RigConfig, index: int, exposure_us: float) -> RigConfig:
+    cameras = list(rig.cameras)
+    acquisition = cameras[index].acquisition.model_copy(update={"exposure_us": exposure_us})
+    cameras[index] = cameras[index].model_copy(update={"acquisition": acquisition})
+    return rig.model_copy(update={"cameras": tuple(cameras)})
+
+
+def test_a_value_the_camera_refuses_fails_start_even_when_waiting_for_cameras(loopback_rig) -> None:
+    from trackerd.acquisition.arv import CameraConfigError
+    from trackerd.acquisition.live import AravisPairSource
+
+    rig = _with_exposure(loopback_rig.daemon_rig, 0, 5e7)
+    source = AravisPairSource(rig, on_open=loopback_rig.on_open, wait_for_cameras=True)
+    with pytest.raises(CameraConfigError) as refused:
+        source.start()
+    assert refused.value.exit_code == 2
+    assert str(refused.value) == (
+        "camera 'left' (address 127.0.0.1): acquisition.exposure_us = 5e+07 is refused by the camera, which"
+        " allows 10 to 1e+07 us ([ExposureTimeAbs] Value '5e+07' greater than allowed maximum '1e+07')"
+    )
+    assert acquisition_threads() == []
+
+
+def test_trackerd_run_exits_2_with_one_line_for_a_refused_value(loopback_rig, tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    from trackerd.config.loader import dump_rig
+
+    rig = _with_exposure(loopback_rig.daemon_rig, 0, 5e7)
+    zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})
+    rig = rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
+    path = tmp_path / "rig.toml"
+    path.write_text(dump_rig(rig))
+    result = subprocess.run(
+        [sys.executable, "-m", "trackerd", "run", "--config", str(path), "--seconds", "30"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("trackerd run: camera 'left' (address 127.0.0.1): acquisition.exposure_us = 5e+07")
+    assert "which allows 10 to 1e+07 us" in lines[0]
+
+
+def test_a_camera_the_rig_gives_no_way_to_find_is_a_configuration_error(simulated_rig: RigConfig) -> None:
+    from trackerd.acquisition.arv import CameraConfigError
+    from trackerd.acquisition.live import AravisPairSource
+
+    cameras = list(simulated_rig.cameras)
+    cameras[1] = cameras[1].model_copy(update={"serial": None, "address": None, "device_id": None})
+    rig = simulated_rig.model_copy(update={"cameras": tuple(cameras)})
+    with pytest.raises(CameraConfigError, match="camera 'right' has no serial, address or device_id") as err:
+        AravisPairSource(rig, wait_for_cameras=True).start()  # waiting cannot help: it raises at once
+    assert err.value.exit_code == 2
+
+
+def test_the_daemons_status_carries_stream_counters_and_pairing_mode(loopback_rig) -> None:
+    from trackerd.acquisition.live import AravisPairSource
+    from trackerd.pipeline.daemon import Pipeline
+
+    with AravisPairSource(loopback_rig.daemon_rig, on_open=loopback_rig.on_open) as source:
+        for _ in range(5):
+            assert source.next_pair(5.0) is not None
+    status = source.status()  # after stop: the counters read as each connection closed
+    pipeline = Pipeline(loopback_rig.daemon_rig, lambda r: source, lambda r: None)
+    message = pipeline.build_status(status)
+    left = message.cameras[0]
+    assert {"n_missing_packets", "n_resend_requests", "n_underruns"} <= set(left.stream)
+    assert left.stream["n_completed_buffers"] >= 5
+    assert left.stream == status.cameras[0].stream
+    assert left.ptp_state is None  # the rig does not enable PTP
+    assert message.pairing.mode == "host time"
+    assert "n_missing_packets" in message.model_dump_json()

@@ -10,6 +10,12 @@ therefore done off the acquisition thread.
 
 Aravis emits ``control-lost`` from its own heartbeat thread; the handler here
 only sets an event that the acquisition thread polls.
+
+Errors: a camera that is not there, does not answer or cannot be opened raises
+:class:`~trackerd.errors.CameraError` (reopening it later may work); a value of
+the rig file that the camera refuses (out of its range, not one of its options,
+a feature it lacks) raises :class:`CameraConfigError`, which is also a
+:class:`~trackerd.errors.ConfigError` (exit status 2): reopening cannot fix it.
 """
 
 from __future__ import annotations
@@ -18,12 +24,13 @@ import ctypes
 import ctypes.util
 import functools
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
-from trackerd.errors import CameraError
+from trackerd.errors import CameraError, ConfigError
 
 ARAVIS_VERSION = "0.8"
 
@@ -47,6 +54,26 @@ STREAM_COUNTERS = (
 
 PTP_LOCKED_STATES = ("Master", "Slave")
 _PTP_REARM_STATES = ("Faulty", "Disabled")
+
+_REFUSED = {
+    # GenICam: the value is outside the feature's range, not one of its entries, or not writable.
+    "arv-gc-error-quark": {"out-of-range", "enum-entry-not-found", "read-only", "invalid-length"},
+    # The device: no such feature, or the camera itself rejected the written value.
+    "arv-device-error-quark": {
+        "feature-not-found",
+        "wrong-feature",
+        "invalid-parameter",
+        "protocol-error-invalid-parameter",
+        "protocol-error-write-protect",
+    },
+}
+"""Aravis errors that mean "the camera refuses this value", as opposed to "the camera did not
+answer" (timeouts, transfer errors, another controller), which reopening may cure."""
+
+
+class CameraConfigError(CameraError, ConfigError):
+    """A camera's configuration that reopening the camera cannot fix: a value it refuses, an
+    option it lacks, or no way to find it in the rig file. Exit status 2, like any ConfigError."""
 
 
 def load_aravis() -> tuple[Any, Any]:
@@ -116,7 +143,7 @@ def resolve_device_id(cam: CameraConfig) -> str:
     if cam.address:
         return cam.address
     if not cam.serial:
-        raise CameraError(f"camera '{cam.id}' has no serial, address or device_id in the rig file")
+        raise CameraConfigError(f"camera '{cam.id}' has no serial, address or device_id in the rig file")
     aravis, _ = load_aravis()
     aravis.update_device_list()
     for index in range(aravis.get_n_devices()):
@@ -267,23 +294,42 @@ def _configure(session: CameraSession, cam: CameraConfig, rig: RigAcquisition, a
     acq = cam.acquisition
     offered = list(camera.dup_available_pixel_formats_as_strings() or [])
     if offered and cam.pixel_format not in offered:
-        raise CameraError(
-            f"camera '{cam.id}' does not offer pixel format {cam.pixel_format} (it offers {', '.join(offered)})"
+        raise CameraConfigError(
+            f"camera '{cam.id}' ({describe_lookup(cam)}): pixel_format = {cam.pixel_format!r} is not offered"
+            f" by the camera, which offers {', '.join(offered)}"
         )
-    camera.set_pixel_format_from_string(cam.pixel_format)
-    camera.set_region(acq.offset_x_px, acq.offset_y_px, cam.width_px, cam.height_px)
+    _setting(cam, "pixel_format", cam.pixel_format, lambda: camera.set_pixel_format_from_string(cam.pixel_format))
+    wanted = (acq.offset_x_px, acq.offset_y_px, cam.width_px, cam.height_px)
+    _setting(
+        cam,
+        "region (acquisition.offset_x_px, acquisition.offset_y_px, width_px, height_px)",
+        wanted,
+        lambda: camera.set_region(*wanted),
+        lambda: _region_limits(camera),
+    )
     region = camera.get_region()
     got = (region.x, region.y, region.width, region.height)
-    wanted = (acq.offset_x_px, acq.offset_y_px, cam.width_px, cam.height_px)
     if got != wanted:
-        raise CameraError(
-            f"camera '{cam.id}' took region x={got[0]} y={got[1]} {got[2]}x{got[3]} instead of"
-            f" x={wanted[0]} y={wanted[1]} {wanted[2]}x{wanted[3]} (check its sensor size and increments)"
+        raise CameraConfigError(
+            f"camera '{cam.id}' ({describe_lookup(cam)}) took region x={got[0]} y={got[1]} {got[2]}x{got[3]}"
+            f" instead of x={wanted[0]} y={wanted[1]} {wanted[2]}x{wanted[3]}: it allows {_region_limits(camera)}"
         )
     if acq.exposure_us is not None:
-        camera.set_exposure_time(acq.exposure_us)
+        _setting(
+            cam,
+            "acquisition.exposure_us",
+            acq.exposure_us,
+            lambda: camera.set_exposure_time(acq.exposure_us),
+            lambda: _limits(camera.get_exposure_time_bounds(), "us"),
+        )
     if acq.gain_db is not None:
-        camera.set_gain(acq.gain_db)
+        _setting(
+            cam,
+            "acquisition.gain_db",
+            acq.gain_db,
+            lambda: camera.set_gain(acq.gain_db),
+            lambda: _limits(camera.get_gain_bounds(), "dB"),
+        )
     _configure_trigger(session, cam, rig, camera)
     if camera.is_gv_device():
         _configure_gige(session, cam, aravis, glib)
@@ -295,22 +341,54 @@ def _configure_trigger(session: CameraSession, cam: CameraConfig, rig: RigAcquis
     camera.clear_triggers()
     if rig.trigger == "free_running":
         if camera.is_frame_rate_available():
-            camera.set_frame_rate(rig.frame_rate_hz)
+            _setting(
+                cam,
+                "frame_rate_hz",
+                rig.frame_rate_hz,
+                lambda: camera.set_frame_rate(rig.frame_rate_hz),
+                lambda: _limits(camera.get_frame_rate_bounds(), "Hz"),
+            )
         else:
             session.notes.append("frame rate is not settable; the camera runs at its own rate")
         return
     if rig.trigger == "software" and not camera.is_software_trigger_supported():
-        raise CameraError(f"camera '{cam.id}' does not support software triggering")
+        raise CameraConfigError(
+            f"camera '{cam.id}' ({describe_lookup(cam)}): trigger = 'software' is not supported by the camera"
+        )
     source = "Software" if rig.trigger == "software" else rig.hardware_trigger_line
     sources = list(camera.dup_available_trigger_sources() or [])
     if sources and source not in sources:
-        raise CameraError(f"camera '{cam.id}' has no trigger source {source} (it has {', '.join(sources)})")
-    camera.set_string("TriggerSelector", rig.trigger_selector)
-    camera.set_string("TriggerMode", "On")
-    camera.set_string("TriggerSource", source)
+        raise CameraConfigError(
+            f"camera '{cam.id}' ({describe_lookup(cam)}) has no trigger source {source} (it has {', '.join(sources)})"
+        )
+
+    def options(feature: str) -> Callable[[], str]:
+        return lambda: "one of " + ", ".join(camera.dup_available_enumerations_as_strings(feature) or ["none"])
+
+    _setting(
+        cam,
+        "trigger_selector",
+        rig.trigger_selector,
+        lambda: camera.set_string("TriggerSelector", rig.trigger_selector),
+        options("TriggerSelector"),
+    )
+    _setting(cam, f"trigger = {rig.trigger!r}: TriggerMode", "On", lambda: camera.set_string("TriggerMode", "On"))
+    _setting(
+        cam,
+        "hardware_trigger_line" if rig.trigger == "hardware" else "trigger = 'software': TriggerSource",
+        source,
+        lambda: camera.set_string("TriggerSource", source),
+        options("TriggerSource"),
+    )
     if rig.trigger == "hardware":
         if camera.is_feature_available("TriggerActivation"):
-            camera.set_string("TriggerActivation", rig.hardware_trigger_activation)
+            _setting(
+                cam,
+                "hardware_trigger_activation",
+                rig.hardware_trigger_activation,
+                lambda: camera.set_string("TriggerActivation", rig.hardware_trigger_activation),
+                options("TriggerActivation"),
+            )
         else:
             session.notes.append("no TriggerActivation feature; the camera's default edge applies")
 
@@ -330,9 +408,72 @@ def _configure_gige(session: CameraSession, cam: CameraConfig, aravis: Any, glib
     except glib.Error as err:
         session.notes.append(f"packet size not set ({err.message}); using the camera's")
     if camera.is_feature_available("GevSCPD"):
-        camera.gv_set_packet_delay(acq.packet_delay_ns)
+        _setting(
+            cam,
+            "acquisition.packet_delay_ns",
+            acq.packet_delay_ns,
+            lambda: camera.gv_set_packet_delay(acq.packet_delay_ns),
+        )
     elif acq.packet_delay_ns:
         session.notes.append("no packet delay feature (GevSCPD); packet_delay_ns ignored")
+
+
+def refused(err: Any) -> bool:
+    """Whether an Aravis error (a ``GLib.Error``) says the camera refuses a value or lacks a feature."""
+    load_aravis()
+    nicks = _REFUSED.get(str(err.domain))
+    if not nicks:
+        return False
+    from gi.repository import Aravis
+
+    enum = Aravis.GcError if err.domain == "arv-gc-error-quark" else Aravis.DeviceError
+    value = enum.__enum_values__.get(err.code)
+    return value is not None and value.value_nick in nicks
+
+
+def _setting(
+    cam: CameraConfig, name: str, value: object, apply: Callable[[], None], allowed: Callable[[], str] | None = None
+) -> None:
+    """Write one setting of the rig file; a value the camera refuses raises CameraConfigError naming the
+    camera, the setting and, where the camera tells, what it allows. Other Aravis errors pass through."""
+    _, glib = load_aravis()
+    try:
+        apply()
+    except glib.Error as err:
+        if not refused(err):
+            raise
+        limits = None
+        if allowed is not None:
+            try:
+                limits = allowed()
+            except glib.Error:
+                limits = None  # the camera does not say; the Aravis message below still does
+        which = f", which allows {limits}" if limits else ""
+        shown = f"{value:g}" if isinstance(value, float) else repr(value) if isinstance(value, str) else value
+        raise CameraConfigError(
+            f"camera '{cam.id}' ({describe_lookup(cam)}): {name} = {shown} is refused by the camera{which}"
+            f" ({err.message})"
+        ) from err
+
+
+def _limits(bounds: Any, unit: str) -> str:
+    """``(min, max)`` from Aravis (a tuple or a struct with min and max) as text."""
+    low, high = (bounds.min, bounds.max) if hasattr(bounds, "min") else bounds
+    return f"{low:g} to {high:g} {unit}"
+
+
+def _region_limits(camera: Any) -> str:
+    """What region the camera allows, as text: sizes with their steps, then offsets."""
+
+    def span(bounds: Any) -> str:
+        low, high = (bounds.min, bounds.max) if hasattr(bounds, "min") else bounds
+        return f"{low:g}-{high:g}"
+
+    return (
+        f"width {span(camera.get_width_bounds())} (steps of {camera.get_width_increment()}),"
+        f" height {span(camera.get_height_bounds())} (steps of {camera.get_height_increment()}),"
+        f" offset x {span(camera.get_x_offset_bounds())}, offset y {span(camera.get_y_offset_bounds())} px"
+    )
 
 
 def _enable_ptp(session: CameraSession, camera: Any, glib: Any) -> None:

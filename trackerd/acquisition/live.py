@@ -95,9 +95,17 @@ def _release(session: CameraSession) -> None:
 class AravisPairSource(PairSource):
     """Synchronized frame pairs from the rig's cameras, acquired through Aravis."""
 
-    def __init__(self, rig: RigConfig, *, on_open: OpenHook | None = None) -> None:
-        """``on_open(camera_id, aravis_camera)`` runs after each (re)connection is configured."""
+    def __init__(self, rig: RigConfig, *, on_open: OpenHook | None = None, wait_for_cameras: bool = False) -> None:
+        """``on_open(camera_id, aravis_camera)`` runs after each (re)connection is configured.
+
+        With ``wait_for_cameras`` (the daemon), a camera that is not there at start (not found,
+        not answering, not opening) does not fail :meth:`start`: it stays ``connecting`` and its
+        thread keeps trying on the reconnection backoff until it opens. Without it (interactive
+        commands), start() raises CameraError naming the camera. Either way a configuration the
+        camera refuses raises CameraConfigError (exit status 2).
+        """
         self.rig = rig
+        self.wait_for_cameras = wait_for_cameras
         acq = rig.acquisition
         self._acq = acq
         self._on_open = on_open
@@ -123,7 +131,11 @@ class AravisPairSource(PairSource):
     # ------------------------------------------------------------------ PairSource
 
     def start(self) -> None:
-        """Open every camera (in rig order), then start their threads. CameraError if one cannot open."""
+        """Open every camera (in rig order), then start their threads.
+
+        CameraError if one cannot open (unless ``wait_for_cameras``: then it is left to its thread);
+        CameraConfigError if one refuses its configuration.
+        """
         if self._running:
             return
         load_aravis()
@@ -153,14 +165,21 @@ class AravisPairSource(PairSource):
             for i, cam in enumerate(self.rig.cameras)
         ]
         opened: list[CameraWorker] = []
+        absent: list[CameraWorker] = []
         try:
             for worker in workers:
-                worker.open()
-                opened.append(worker)
+                if worker.open(wait=self.wait_for_cameras):
+                    opened.append(worker)
+                else:
+                    absent.append(worker)
         except BaseException:
             for worker in opened:
                 worker.close()
             raise
+        with self._lock:
+            for worker in absent:
+                # Until it opens, the others' frames have no partner: dropped on arrival (partner_lost).
+                self._pairer.set_active(worker.index, False)
         self._workers = workers
         self._running = True
         for worker in workers:

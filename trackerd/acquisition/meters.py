@@ -8,10 +8,16 @@ import numpy as np
 
 
 class RateMeter:
-    """Events per second over the last ``window_ns`` (needs two events in the window)."""
+    """Events per second over the last ``window_ns``.
 
-    def __init__(self, window_ns: int = 2_000_000_000) -> None:
+    The rate is 0.0 until the events in the window span at least ``min_span_ns`` up to now:
+    two frames a few milliseconds apart right after a camera starts would otherwise read as
+    hundreds per second.
+    """
+
+    def __init__(self, window_ns: int = 2_000_000_000, min_span_ns: int = 500_000_000) -> None:
         self.window_ns = window_ns
+        self.min_span_ns = min_span_ns
         self._times: deque[int] = deque()
 
     def tick(self, now_ns: int) -> None:
@@ -24,8 +30,10 @@ class RateMeter:
         if len(times) < 2:
             return 0.0
         span = max(times[-1], now_ns) - times[0]
+        if span < max(self.min_span_ns, 1):
+            return 0.0
         # Count intervals up to "now", so a rate decays once events stop.
-        return (len(times) - 1) * 1e9 / span if span > 0 else 0.0
+        return (len(times) - 1) * 1e9 / span
 
     def _trim(self, now_ns: int) -> None:
         while self._times and self._times[0] < now_ns - self.window_ns:

@@ -6,9 +6,11 @@ import json
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
-CameraState = Literal["connecting", "streaming", "lost", "reconnecting", "stopped"]
-"""connecting: being opened for the first time; streaming: delivering frames; lost: not
-delivering and not answering; reconnecting: answering again and being reopened; stopped."""
+CameraState = Literal["connecting", "connected", "streaming", "lost", "reconnecting", "stopped"]
+"""connecting: being opened for the first time (or waiting to appear, see ``wait_for_cameras``);
+connected: open and configured, waiting for its first complete frame; streaming: its connection
+has delivered a complete frame (a camera stays streaming until it is lost); lost: not delivering
+and not answering; reconnecting: answering again and being reopened (then connected); stopped."""
 
 
 @dataclass(frozen=True)
@@ -33,7 +35,8 @@ class CameraStatus:
     reconnects: int = 0
     """Times it was opened again after a loss."""
     lost_since_ns: int | None = None
-    """When the current loss was detected (monotonic clock), None while streaming."""
+    """When the current loss was detected (monotonic clock), None while streaming. A connection
+    that is lost again before its first frame does not restart it."""
     last_error: str | None = None
     """The most recent problem, in one line."""
     ptp_state: str | None = None

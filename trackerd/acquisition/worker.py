@@ -13,6 +13,15 @@ probes the camera's last known address with one GVCP discovery packet per
 attempt, backing off from ``reconnect_min_backoff_ms`` to
 ``reconnect_max_backoff_ms``. When the camera answers, a fresh Aravis camera
 object is opened and configured; the frames it delivers start a new epoch.
+
+A camera's state follows its connection: ``connecting`` until it is first
+opened, ``connected`` from then until its first complete frame, ``streaming``
+from that frame on, ``lost`` and ``reconnecting`` while it is away, then
+``connected`` again. A camera that is not there at start (with the source's
+``wait_for_cameras``) is tried on the same backoff as after a loss. Failed
+attempts are logged at info when their reason changes and every
+``REMINDER_S`` otherwise, so a long wait leaves a trail without flooding the
+journal; the first frame after a loss is logged with how long the camera was away.
 """
 
 from __future__ import annotations
@@ -27,6 +36,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from trackerd.acquisition.arv import (
+    CameraConfigError,
     CameraSession,
     describe_lookup,
     image_bytes,
@@ -54,6 +64,8 @@ FIRST_FRAME_GRACE_NS = 1_000_000_000
 """Extra time a camera gets for its first frame after (re)connecting: some cameras (Aravis's
 simulated one among them) take a frame period or a tenth of a second to start streaming."""
 COUNTER_PERIOD_NS = 1_000_000_000
+REMINDER_S = 30.0
+"""While a camera stays unavailable for the same reason, how often that is logged again."""
 
 
 class FrameSink(Protocol):
@@ -117,6 +129,14 @@ class CameraWorker:
         self._losses = 0
         self._reconnects = 0
         self._lost_since: int | None = None
+        self._connections = 0
+        self._awaiting_first_frame = False
+        self._outage_ns: int | None = None
+        """Since when the camera has not been streaming (start-up or loss), for the log."""
+        self._attempts = 0
+        """Failed connection attempts in the current outage."""
+        self._logged_reason: str | None = None
+        self._next_reminder_ns = 0
         self._last_error: str | None = None
         self._ptp_state: str | None = None
         self._notes: tuple[str, ...] = ()
@@ -132,10 +152,20 @@ class CameraWorker:
 
     # ------------------------------------------------------------------ lifecycle
 
-    def open(self) -> None:
-        """Find and open the camera on the calling thread (start-up errors surface here)."""
-        self._device_id = _resolve(self.cam)
-        self._connect(self._device_id)
+    def open(self, wait: bool = False) -> bool:
+        """The first connection attempt, on the calling thread (start-up errors surface here).
+
+        Returns True when the camera is open. A camera that is not there (not found, not
+        answering, not opening) raises CameraError; with ``wait`` it returns False instead, and
+        the thread, once started, keeps trying on the reconnection backoff. A configuration the
+        camera refuses raises CameraConfigError either way: trying again cannot fix it.
+        """
+        self._outage_ns = time.monotonic_ns()
+        if not wait:
+            self._device_id = _resolve(self.cam)
+            self._connect(self._device_id)
+            return True
+        return self._try_connect(config_errors_raise=True)
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name=f"camera-{self.cam.id}", daemon=True)
@@ -215,7 +245,7 @@ class CameraWorker:
         backoff_s = self.rig.reconnect_min_backoff_ms / 1000.0
         while not self._stop.is_set():
             if self._session is None:
-                if self._try_reconnect():
+                if self._try_connect():
                     backoff_s = self.rig.reconnect_min_backoff_ms / 1000.0
                 else:
                     self._stop.wait(backoff_s)
@@ -277,10 +307,31 @@ class CameraWorker:
         now = time.monotonic_ns()
         self._last_frame_ns = now
         self._grace_ns = 0
+        if self._awaiting_first_frame:
+            self._first_frame(now)
         with self._lock:
             self._frames += 1
             self._rate.tick(now)
         self.sink.deliver(Arrival(self.index, frame, capture_ns, self._epoch, tick))
+
+    def _first_frame(self, now: int) -> None:
+        """The connection's first complete frame: the camera streams (again)."""
+        self._awaiting_first_frame = False
+        away_s = (now - self._outage_ns) / 1e9 if self._outage_ns is not None else 0.0
+        with self._lock:
+            self._state = "streaming"
+            self._lost_since = None
+            reconnects = self._reconnects
+        if reconnects:
+            log.warning("camera %s streaming again after %.1f s (reconnect %d)", self.cam.id, away_s, reconnects)
+        elif self._attempts:
+            log.info("camera %s streaming, after waiting %.1f s for it (%d attempts)", self.cam.id, away_s,
+                     self._attempts + 1)
+        else:
+            log.info("camera %s streaming", self.cam.id)
+        self._outage_ns = None
+        self._attempts = 0
+        self._logged_reason = None
 
     def _housekeeping(self, session: CameraSession, now: int) -> None:
         self._next_housekeeping_ns = now + COUNTER_PERIOD_NS
@@ -326,11 +377,14 @@ class CameraWorker:
         self._grace_ns = FIRST_FRAME_GRACE_NS
         self._next_housekeeping_ns = now
         self._next_ptp_ns = now
+        self._awaiting_first_frame = True
+        self._connections += 1
         with self._lock:
             self._address = session.address or self._address
             self._notes = tuple(session.notes)
-            self._state = "streaming"
-            self._lost_since = None
+            # Not streaming yet: that waits for a complete frame (a hardware-triggered camera
+            # with no pulses, or one whose packets do not get through, never gets there).
+            self._state = "connected"
             self._stream_current = {}
         self.sink.camera_back(self.index)
 
@@ -340,11 +394,24 @@ class CameraWorker:
         self._retire_trigger()
         ticks = self._ticks
         detail = f" (triggers unanswered: {ticks.outstanding})" if ticks is not None else ""
-        log.warning("camera %s lost: %s%s", self.cam.id, reason, detail)
+        now = time.monotonic_ns()
+        # A connection lost before its first frame continues the outage it was to end. Its loss
+        # is logged like a failed attempt, not again every cycle: a hardware-triggered camera
+        # with nothing on its line would otherwise log a warning every two seconds.
+        continuing = self._outage_ns is not None
+        if not continuing or reason != self._logged_reason or now >= self._next_reminder_ns:
+            since = " (no frame since it was opened)" if continuing else ""
+            log.warning("camera %s lost: %s%s%s", self.cam.id, reason, detail, since)
+            self._logged_reason = reason
+            self._next_reminder_ns = now + int(REMINDER_S * 1e9)
+        if not continuing:
+            self._outage_ns = now
+        self._awaiting_first_frame = False
         with self._lock:
             self._state = "lost"
             self._losses += 1
-            self._lost_since = time.monotonic_ns()
+            if self._lost_since is None:
+                self._lost_since = now
             self._last_error = reason
             self._stream_totals.update(self._stream_current)
             self._stream_current = {}
@@ -364,30 +431,60 @@ class CameraWorker:
         self._old_triggers = [t for t in self._old_triggers if t.alive]
         return not self._releases and not self._old_triggers
 
-    def _try_reconnect(self) -> bool:
-        """One attempt: probe the camera, and open it if it answers. True when streaming again."""
-        address = self._address.split(":")[0] if self._address else None
+    def _try_connect(self, config_errors_raise: bool = False) -> bool:
+        """One attempt: probe the camera, and open it if it answers. True when open.
+
+        The first connection (start-up) and reconnections after a loss differ only in the
+        state shown meanwhile (``connecting`` / ``lost``) and in what is counted. A refused
+        configuration is logged as an error and tried again (the camera may be replaced), or
+        raised with ``config_errors_raise`` (start-up, where the daemon exits with status 2).
+        """
+        first = self._connections == 0
+        known = self._address or (self.cam.address if first else None)
+        address = known.split(":")[0] if known else None
         if address is not None:
             answer = probe(address, POLL_S * 2)
             if answer is None:
-                return False
+                # After a loss, silence is the loss going on: last_error keeps the loss's reason.
+                return self._unavailable(f"no answer from {address} (GVCP discovery)", record=first)
             if self.cam.serial and answer.serial and answer.serial != self.cam.serial:
-                self._set_error(f"{address} answers as serial {answer.serial}, not {self.cam.serial}")
-                return False
+                return self._unavailable(f"{address} answers as serial {answer.serial}, not {self.cam.serial}")
         if not self._previous_connection_quiet():
             return False
         with self._lock:
-            self._state = "reconnecting"
+            self._state = "connecting" if first else "reconnecting"
         try:
-            self._connect(address or self._device_id or _resolve(self.cam))
+            if address is None and self._device_id is None:
+                self._device_id = _resolve(self.cam)  # by serial: Aravis's discovery, about a second
+            self._connect(address or self._device_id)  # type: ignore[arg-type]
+        except CameraConfigError as err:
+            if config_errors_raise:
+                raise
+            return self._unavailable(str(err), level=logging.ERROR)
         except CameraError as err:
-            self._set_error(str(err))
+            return self._unavailable(str(err))
+        if not first:
             with self._lock:
-                self._state = "lost"
-            return False
-        with self._lock:
-            self._reconnects += 1
+                self._reconnects += 1
         return True
+
+    def _unavailable(self, reason: str, level: int = logging.INFO, record: bool = True) -> bool:
+        """Count a failed attempt; log why if the reason is new or a reminder is due; ``record`` it as
+        the status's last_error. Returns False (the attempt's outcome)."""
+        now = time.monotonic_ns()
+        self._attempts += 1
+        with self._lock:
+            if record:
+                self._last_error = reason
+            self._state = "connecting" if self._connections == 0 else "lost"
+        if reason != self._logged_reason or now >= self._next_reminder_ns:
+            self._logged_reason = reason
+            self._next_reminder_ns = now + int(REMINDER_S * 1e9)
+            waited_s = (now - self._outage_ns) / 1e9 if self._outage_ns is not None else 0.0
+            what = "not available yet" if self._connections == 0 else "still lost"
+            log.log(level, "camera %s %s (attempt %d, %.0f s): %s; retrying", self.cam.id, what, self._attempts,
+                    waited_s, reason)
+        return False
 
     def _shutdown(self) -> None:
         session = self._session
@@ -418,10 +515,6 @@ class CameraWorker:
     def _count_failure(self, cause: str) -> None:
         with self._lock:
             self._failed[cause] += 1
-
-    def _set_error(self, message: str) -> None:
-        with self._lock:
-            self._last_error = message
 
 
 def _resolve(cam: CameraConfig) -> str:

@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def aravis_source(rig: RigConfig):
     from trackerd.acquisition.live import AravisPairSource
 
-    return AravisPairSource(rig)
+    return AravisPairSource(rig, wait_for_cameras=True)  # cameras switched on after the host: keep waiting
 
 
 def zmq_publisher(rig: RigConfig):
