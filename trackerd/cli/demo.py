@@ -17,6 +17,7 @@ from typing import Any
 
 import zmq
 
+from trackerd.cli.simrig import add_network_options
 from trackerd.config.loader import load_rig
 from trackerd.sim import netns
 from trackerd.sim.motion import MOTIONS
@@ -33,6 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--motion", default="figure8", choices=MOTIONS, help="scripted pointer motion (default: figure8)")
     parser.add_argument("--seconds", type=float, help="stop after this long (default: until Ctrl-C)")
     parser.add_argument("--every", type=int, default=6, help="print one hit in this many (default 6: ten a second)")
+    add_network_options(parser)
     parser.set_defaults(handler=demo_command)
 
 
@@ -48,20 +50,24 @@ def demo_command(args: argparse.Namespace) -> int:
         rig = rig.model_copy(update={"acquisition": rig.acquisition.model_copy(update={"trigger": "free_running"})})
     print(f"trackerd demo: preparing the '{args.motion}' motion for {len(rig.cameras)} simulated cameras"
           " (rendered once, then cached)...", file=sys.stderr, flush=True)
-    with VirtualRig(rig, motion=args.motion, network=network) as virtual:
+    virtual_rig = VirtualRig(
+        rig, motion=args.motion, network=network, prefix=args.prefix, subnet=args.subnet, mtu=args.mtu
+    )
+    with virtual_rig as virtual:
         daemon_rig = virtual.daemon_rig
         endpoint = daemon_rig.outputs.zmq.endpoints[0]
         where = ", ".join(c.address or c.device_id or "?" for c in daemon_rig.cameras)
         print(f"trackerd demo: simulated GigE Vision cameras at {where}", file=sys.stderr)
         stop = threading.Event()
-        summary: dict[str, Any] = {"hits": 0, "status": None}
+        summary: dict[str, Any] = {"hits": 0, "status": None, "busy_status": None}
         listener = threading.Thread(
             target=_listen, args=(endpoint, args.every, stop, summary, format_message), daemon=True
         )
         listener.start()
         try:
             code = serve(
-                daemon_rig, None, lambda r: AravisPairSource(r, on_open=virtual.on_open), seconds=args.seconds,
+                daemon_rig, None, lambda r: AravisPairSource(r, on_open=virtual.on_open, wait_for_cameras=True),
+                seconds=args.seconds,
                 banner=f"trackerd demo: daemon publishing on {endpoint}; hits below (Ctrl-C to stop)",
             )
         finally:
@@ -91,6 +97,8 @@ def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str,
                     continue
             else:
                 summary["status"] = data
+                if ((data.get("processing") or {}).get("samples") or 0) > 0:
+                    summary["busy_status"] = data  # the last status period in which pairs were processed
             print(fmt(name, data), flush=True)
     finally:
         sub.close(0)
@@ -98,12 +106,25 @@ def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str,
 
 
 def _print_summary(summary: dict[str, Any]) -> None:
+    print(f"trackerd demo: {summary_line(summary)}", file=sys.stderr)
+
+
+def summary_line(summary: dict[str, Any]) -> str:
+    """Hits received, the outcomes, and the daemon's processing latency of the last busy status period.
+
+    The final status (sent while stopping) covers a period in which nothing was processed, so
+    its latency figures are null; the latency quoted is that of the last status with samples.
+    """
     status = summary.get("status") or {}
     fixes = status.get("fixes") or {}
     uptime = status.get("uptime_s") or 0.0
-    latency = (status.get("processing") or {})
-    print(
-        f"trackerd demo: {summary['hits']} hits received in {uptime:.0f} s; fixes {fixes};"
-        f" processing latency p50 {latency.get('p50_ms')} ms, p99 {latency.get('p99_ms')} ms (last second)",
-        file=sys.stderr,
+    outcomes = ", ".join(f"{name} {count}" for name, count in sorted(fixes.items())) or "none"
+    line = f"{summary['hits']} hits received in {uptime:.0f} s; pairs processed by outcome: {outcomes}"
+    busy = summary.get("busy_status")
+    latency = (busy or {}).get("processing") or {}
+    if latency.get("p50_ms") is None:
+        return f"{line}; no pair was processed"
+    return (
+        f"{line}; processing latency p50 {latency['p50_ms']:.1f} ms, p99 {latency['p99_ms']:.1f} ms"
+        f" (over {latency.get('samples', 0)} pairs of the last status period with pairs)"
     )

@@ -1,0 +1,30 @@
+"""`trackerd demo`: its options and the summary it ends with."""
+
+from __future__ import annotations
+
+from trackerd.cli.demo import summary_line
+from trackerd.cli.main import build_parser
+
+
+def test_demo_runs_the_rig_on_jumbo_frames_under_its_own_prefix_if_asked() -> None:
+    default = build_parser().parse_args(["demo"])
+    assert (default.prefix, default.subnet, default.mtu) == ("trkd", "10.213.0.0/24", 9000)
+    chosen = build_parser().parse_args(["demo", "--prefix", "mine", "--subnet", "10.213.90.0/24", "--mtu", "1500"])
+    assert (chosen.prefix, chosen.subnet, chosen.mtu) == ("mine", "10.213.90.0/24", 1500)
+
+
+def _status(samples: int, p50: float | None, p99: float | None, uptime: float) -> dict:
+    return {"uptime_s": uptime, "fixes": {"hit": 40, "not_found": 2},
+            "processing": {"samples": samples, "p50_ms": p50, "p99_ms": p99}}
+
+
+def test_the_summary_quotes_the_last_status_period_that_processed_pairs() -> None:
+    busy = _status(55, 21.3456, 48.02, 19.4)
+    stopping = _status(0, None, None, 20.1)  # the last status, sent while stopping
+    line = summary_line({"hits": 40, "status": stopping, "busy_status": busy})
+    assert line == (
+        "40 hits received in 20 s; pairs processed by outcome: hit 40, not_found 2; processing latency"
+        " p50 21.3 ms, p99 48.0 ms (over 55 pairs of the last status period with pairs)"
+    )
+    assert "None" not in summary_line({"hits": 0, "status": stopping, "busy_status": None})
+    assert summary_line({"hits": 0, "status": None, "busy_status": None}).endswith("no pair was processed")
