@@ -166,3 +166,24 @@ def test_too_few_places_is_a_clear_error() -> None:
             (WIDTH, HEIGHT),
             RADIUS,
         )
+
+
+def test_a_fit_above_the_limit_is_refused_naming_the_observations_that_are_off() -> None:
+    from trackerd.calibration.wall import DEFAULT_MAX_RMS_MM, fit_problem
+
+    rng = np.random.default_rng(5)
+    rotation, o = true_frame((0.1, 0.2, -0.1), (0.5, -0.3, 3.0))
+    marks = {k: Target(k, np.array(xy), False) for k, xy in
+             {"m1": (1.6, 0.15), "m2": (2.1, 0.15), "m3": (2.1, 0.75), "m4": (1.6, 0.75)}.items()}
+    good = touches(rotation, o, marks.values(), rng, noise_m=0.0005)
+    fit = fit_wall(good, [], (WIDTH, HEIGHT), RADIUS)
+    assert fit.rms_mm < 2.0 and fit_problem(fit, DEFAULT_MAX_RMS_MM) is None
+    # Labels shifted by one target (the operator touched m2 when asked for m1, and so on).
+    labels = ["m4", "m1", "m2", "m3"]
+    shifted = [Touch(marks[label], t.tip_m, t.back_m) for label, t in zip(labels, good, strict=True)]
+    fit = fit_wall(shifted, [], (WIDTH, HEIGHT), RADIUS)
+    problem = fit_problem(fit, DEFAULT_MAX_RMS_MM)
+    assert problem is not None and fit.rms_mm > 50
+    assert problem.startswith(f"wall RMS residual {fit.rms_mm:.2f} mm exceeds --max-rms-mm 10.0 mm: not written;")
+    assert all(f"touch {label} " in problem for label in labels)
+    assert all(r.fit_mm > 10 for r in fit.residuals)

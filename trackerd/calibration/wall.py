@@ -103,6 +103,15 @@ class Residual:
     def worst_mm(self) -> float:
         return max(abs(v) for v in (self.plane_mm, self.in_plane_mm, self.miss_mm) if v is not None)
 
+    @property
+    def fit_mm(self) -> float:
+        """The residual the solve minimised for this observation (what the RMS is made of): a
+        touch's distance from where it should be, a pointing's miss. A pointing's ``plane_mm`` is
+        left out: where a target's lines meet is only loosely fixed along the lines."""
+        if self.kind == "pointing":
+            return float(self.miss_mm or 0.0)
+        return float(np.hypot(self.plane_mm or 0.0, self.in_plane_mm or 0.0))
+
 
 @dataclass(frozen=True)
 class WallFit:
@@ -151,6 +160,31 @@ ROBUST_SCALE_FLOOR_M = 0.001
 LEFT_OUT_WEIGHT = 0.2
 """Observations whose final weight is below this (residual beyond about five robust standard
 deviations) are reported as left out: a wrong blob, the pointer knocked during capture."""
+
+
+DEFAULT_MAX_RMS_MM = 10.0
+"""The wall step writes nothing above this RMS residual. A good fit gives 1.5-4 mm on the
+simulated DataWall (docs/calibration.md); a target touched in the wrong place, a label
+swapped or a moved camera gives tens to hundreds of millimetres."""
+
+
+def fit_problem(fit: WallFit, max_rms_mm: float) -> str | None:
+    """Why ``fit`` must not be written (its RMS above ``max_rms_mm``), naming the observations
+    that are off by more than the limit, worst first; None when it may be written."""
+    if np.isfinite(fit.rms_mm) and fit.rms_mm <= max_rms_mm:
+        return None
+    ranked = sorted((r for r in fit.residuals), key=lambda r: r.fit_mm, reverse=True)
+    off = [r for r in ranked if r.fit_mm > max_rms_mm]
+    which = "off by more than the limit" if off else "largest residuals"
+    names = ", ".join(
+        f"{r.kind} {r.label} {r.fit_mm:.1f} mm{'' if r.used else ' (left out)'}" for r in (off or ranked[:3])
+    )
+    rms = f"{fit.rms_mm:.2f} mm" if np.isfinite(fit.rms_mm) else "undefined (every observation left out)"
+    return (
+        f"wall RMS residual {rms} exceeds --max-rms-mm {max_rms_mm:.1f} mm: not written; {which}:"
+        f" {names} (a target touched or aimed at in the wrong place, a wrong label, or a camera"
+        " moved since it was calibrated: redo those)"
+    )
 
 
 def fit_wall(
