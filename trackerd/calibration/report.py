@@ -137,7 +137,11 @@ def stereo_json(result: StereoResult, rejected: Sequence[tuple[str, str]], world
 
 
 def stereo_text(
-    ids: tuple[str, str], result: StereoResult, rejected: Sequence[tuple[str, str]], world_frame: str
+    ids: tuple[str, str],
+    result: StereoResult,
+    rejected: Sequence[tuple[str, str]],
+    world_frame: str,
+    warnings: Sequence[str] = (),
 ) -> str:
     yaw, pitch, roll = result.relative_ypr_deg
     c = result.camera2_centre_m
@@ -161,6 +165,7 @@ def stereo_text(
         lines.append(f"  rejected frames: {'; '.join(rejections_summary(rejected))}")
     lines.append(f"  world frame: {world_frame}")
     lines += _warnings(result.rms_px, 1.0)
+    lines += [f"  {warning}" for warning in warnings]
     return "\n".join(lines)
 
 

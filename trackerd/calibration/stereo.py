@@ -216,6 +216,30 @@ class StereoResult:
         return ypr_from_matrix(self.rotation.T)
 
 
+BASELINE_TOLERANCE = 0.03
+"""A calibrated baseline further than this fraction from the one the rig already states is
+warned about: the board's scale is the baseline's scale, and a wrong square size is the usual
+cause (a 60 mm board declared as 100 mm gives a baseline 40 % short)."""
+
+
+def baseline_warning(
+    calibrated_m: float, stated_m: float, square_mm: float, tolerance: float = BASELINE_TOLERANCE
+) -> str | None:
+    """A warning when ``calibrated_m`` differs from the rig's ``stated_m`` by more than ``tolerance``
+    (a fraction), with the square size that would reconcile them; None when they agree."""
+    if stated_m <= 0 or not np.isfinite(calibrated_m):
+        return None
+    ratio = calibrated_m / stated_m
+    if abs(ratio - 1.0) <= tolerance:
+        return None
+    return (
+        f"WARNING: the calibrated baseline {calibrated_m:.4f} m differs from the rig's {stated_m:.4f} m"
+        f" by {(ratio - 1.0) * 100:+.1f} % (more than {tolerance * 100:.0f} %). The board's square size sets"
+        f" the baseline's scale: with the rig's baseline the squares would be {square_mm / ratio:.1f} mm, not"
+        f" {square_mm:g} mm. Check --board against the printed board; if the cameras were moved, ignore this"
+    )
+
+
 def ypr_from_matrix(m: Array) -> tuple[float, float, float]:
     """Angles (degrees) of ``m = Ry(yaw) Rx(pitch) Rz(roll)`` (eq. 18-21, about the camera's own axes)."""
     pitch = np.arcsin(np.clip(-m[1, 2], -1.0, 1.0))
