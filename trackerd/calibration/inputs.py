@@ -25,12 +25,22 @@ from trackerd.calibration.collect import Frame
 from trackerd.calibration.wall import CORNER_LABELS, Target
 from trackerd.config.loader import describe_validation_error, read_toml
 from trackerd.config.models import CameraConfig, WallConfig
+from trackerd.errors import ConfigError
 from trackerd.images import read_frame
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp", ".npy")
 
 GRID_LABELS = {"bottom": (0.5, 0.0), "top": (0.5, 1.0), "left": (0.0, 0.5), "right": (1.0, 0.5), "centre": (0.5, 0.5)}
 """With the corners, a 3 x 3 grid of display-defined targets, as fractions of the display."""
+
+
+def _read_input_toml(path: Path) -> dict:
+    """A TOML input file the user named (--points, --targets). Like images and pairs, a missing or
+    unreadable one is a bad input (exit 1), not a configuration problem (exit 2, the rig file's)."""
+    try:
+        return read_toml(path)
+    except ConfigError as err:
+        raise CalibrationError(str(err)) from err
 
 
 def camera_frames(paths: Sequence[str | Path], camera: CameraConfig) -> Iterator[Frame]:
@@ -120,7 +130,7 @@ def read_targets(
     for; measured marks do not.
     """
     path = Path(path)
-    data = read_toml(path)
+    data = _read_input_toml(path)
     table = data.get("targets")
     if not isinstance(table, dict) or not table:
         raise CalibrationError(f"{path}: needs a [targets] table, e.g. mark1 = {{ x_m = 1.6, y_m = 0.1 }}")
@@ -163,7 +173,7 @@ def read_measured_wall(path: str | Path) -> WallConfig:
     from pydantic import ValidationError
 
     path = Path(path)
-    data = read_toml(path)
+    data = _read_input_toml(path)
     if "wall" not in data:
         raise CalibrationError(
             f"{path}: needs a [wall] table: corners_m = [...] or points_m = [...] with origin_m, x_direction,"
