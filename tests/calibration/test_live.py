@@ -67,14 +67,20 @@ def test_intrinsics_session_guides_accepts_and_saves_snapshots(
     assert fed == len(pairs)
     assert len(session.views) == len(names)
     accepted = [line for line in lines if "accepted" in line]
-    assert accepted[0].startswith(f"[  1/{len(names)} views] accepted frame 1: 54 corners, coverage")
+    assert accepted[0].startswith(f"[  1/{len(names)} views] accepted left-001: 54 corners, coverage")
     assert "; next: cover the" in accepted[0]
     assert ", RMS 0.0" in accepted[-1]  # a running RMS once enough views are in
-    assert any("too similar to" in line for line in lines)
-    assert any(line.endswith("no board found") for line in lines)
+    # One numbering: frame 4 (the third view again) is named left-004, and the view it repeats
+    # is named as its snapshot is saved, so the message can be traced to the image.
+    assert any(line.startswith("  left-004: too similar to 'left-003' (") for line in lines), lines
+    assert "  left-005: no board found" in lines
+    assert accepted[-1].startswith(f"[ {len(names)}/{len(names)} views] accepted left-{len(pairs):03d}: ")
     assert session.done
-    # The snapshots are the accepted frames: calibrating from them offline gives the same views.
+    # The snapshots are the accepted frames, under the names the report lists them by.
     snapshots = sorted((tmp_path / "snapshots").glob("left-*.png"))
+    assert tuple(p.stem for p in snapshots) == session.result().view_names == tuple(v.name for v in session.views)
+    assert (tmp_path / "snapshots" / "left-003.png").exists() and not (tmp_path / "snapshots" / "left-004.png").exists()
+    # Calibrating from them offline gives the same views.
     assert len(snapshots) == len(names)
     again = collect_views(camera_frames(snapshots, cam), INTRINSICS_BOARD, ViewSelector(cam.width_px, cam.height_px))
     assert len(again.views) == len(names)
@@ -82,7 +88,9 @@ def test_intrinsics_session_guides_accepts_and_saves_snapshots(
     assert session.result().rms_px < 0.15
 
 
-def test_stereo_session_refuses_pairs_too_far_apart_in_time(stereo_frames: FrameSet, simulated_rig) -> None:
+def test_stereo_session_refuses_pairs_too_far_apart_in_time(
+    stereo_frames: FrameSet, simulated_rig, tmp_path: Path
+) -> None:
     pairs = [[stereo_frames.frame(n, c) for c in IDS] for n in stereo_frames.names()[:3]]
     cam = simulated_rig.cameras[0]
     session = StereoSession(
@@ -92,12 +100,22 @@ def test_stereo_session_refuses_pairs_too_far_apart_in_time(stereo_frames: Frame
     with source_of(pairs, skew_ns=5_000_000) as source:
         run_session(source, session, IDS, say=lines.append, newest=False)
     assert session.pairs == []
-    assert lines[0] == "  frame 1: out of sync: the two frames are 5.0 ms apart (limit 2.0 ms)"
+    assert lines[0] == "  001: out of sync: the two frames are 5.0 ms apart (limit 2.0 ms)"
     assert lines[-1] == "the source has no more frames"
-    session = StereoSession(STEREO_BOARD, ("left", "right"), cam.width_px, cam.height_px, wanted_pairs=3)
-    with source_of(pairs, skew_ns=300_000) as source:
+    # In sync, with the first pair shown twice (held still): one numbering for messages, pairs and snapshots.
+    session = StereoSession(
+        STEREO_BOARD, ("left", "right"), cam.width_px, cam.height_px, wanted_pairs=3, snapshots=tmp_path
+    )
+    lines = []
+    with source_of([pairs[0], *pairs], skew_ns=300_000) as source:
         run_session(source, session, IDS, say=lines.append, newest=False)
     assert len(session.pairs) == 3 and session.done
+    assert [p.name for p in session.pairs] == ["001", "003", "004"]
+    assert lines[0].startswith("[  1/3 pairs] accepted 001: ")
+    assert lines[1].startswith("  002: too similar to '001-left' (")
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        f"{n}-{c}.png" for n in ("001", "003", "004") for c in IDS
+    ]
 
 
 def test_wall_session_captures_each_target_when_the_pointer_is_held_still(
@@ -129,6 +147,64 @@ def test_wall_session_captures_each_target_when_the_pointer_is_held_still(
     # Three targets from two places each are enough for a first wall.
     fit = fit_wall([], session.pointings, (wall.width_m, wall.height_m), 0.02, fit_size=False)
     assert np.degrees(np.arccos(fit.rotation[:, 2] @ wall.normal)) < 1.0
+
+
+def _misses_mm(session: WallSession, wall) -> dict[str, float]:
+    """How far each captured pointing's line passes from the true place of the target it was filed under."""
+    out = {}
+    for k, p in enumerate(session.pointings):
+        rel = wall.from_wall_m(p.target.wall_xy_m) - p.tip_m
+        out[f"{k}:{p.target.label}"] = float(np.linalg.norm(rel - (rel @ p.direction) * p.direction)) * 1000
+    return out
+
+
+def test_wall_session_retries_a_target_it_cannot_locate_and_never_files_a_capture_under_another(
+    pointing_frames: FrameSet, stereo_frames: FrameSet, simulated_rig, renderer
+) -> None:
+    """Frames without the pointer (the board scenes) keep the session on the same target; the
+    pointer still held where the last capture was is not captured again for the next target;
+    a target never located is skipped after skip_after frames, and named as skipped."""
+    from trackerd.bench.calibration import wall_targets
+
+    wall = renderer.wall
+    targets = {t.label: t for t in wall_targets(wall.width_m, wall.height_m)}
+    nothing = [stereo_frames.frame(stereo_frames.names()[0], c) for c in IDS]  # no pointer in view
+
+    def held(label: str, place: int, frames: int = 4) -> list:
+        return [[pointing_frames.frame(f"{label}-{place}", c) for c in IDS]] * frames
+
+    pairs = (
+        [nothing] * 6  # br asked for, the pointer not in view yet
+        + held("br", 1)  # captured on the third frame held still
+        + held("br", 1, 5)  # still held there after the capture: not br from place 2
+        + [nothing]
+        + held("br", 2)
+        + [nothing] * 25  # tr is never located: both its places skipped after 12 frames each
+        + held("centre", 1)
+        + held("centre", 2)
+    )
+    session = WallSession(
+        Locator(simulated_rig),
+        [targets[label] for label in ("br", "tr", "centre")],
+        "point",
+        places=2,
+        steadiness=Steadiness(frames=3, tolerance_m=0.002),
+        skip_after=12,
+    )
+    lines: list[str] = []
+    with source_of(pairs) as source:
+        run_session(source, session, IDS, say=lines.append, newest=False)
+    text = "\n".join(lines)
+    captured = [line for line in lines if "captured" in line]
+    assert [line.split("'")[1] for line in captured] == ["br", "br", "centre", "centre"], text
+    assert lines[0].startswith("  'br': pointer not located ("), text
+    assert "  still where the last capture was: aim at 'br' from place 2 of 2" in text
+    assert session.skipped == ["tr from place 1", "tr from place 2"], text
+    assert "  skipped 'tr from place 1': no capture in 12 frames (the pointer was located in 1 of them;" in text
+    assert session.done
+    # Every capture is filed under the target it was aimed at: its line passes within millimetres of it.
+    misses = _misses_mm(session, wall)
+    assert max(misses.values()) < 10.0, misses
 
 
 def test_steadiness_waits_for_the_pointer_to_stop() -> None:

@@ -67,6 +67,12 @@ def save_frame(directory: Path, name: str, frame: NDArray[np.uint8], pixel_forma
     return path
 
 
+def frame_name(camera_id: str, number: int, pair: bool = False) -> str:
+    """The name of a session's ``number``-th frame (from 1): ``left-023`` for one camera's views,
+    ``023-left`` for a pair's (the ``--pairs DIR`` naming); its snapshot is that name plus ``.png``."""
+    return f"{number:03d}-{camera_id}" if pair else f"{camera_id}-{number:03d}"
+
+
 class IntrinsicsSession:
     """Collects views of one camera's board until there are enough, with guidance."""
 
@@ -112,7 +118,10 @@ class IntrinsicsSession:
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]]) -> Event | None:
         """Consider one pair's frame of this camera: an Event when something worth saying happened."""
         self.frames += 1
-        name, image, fmt = frames[self.index]
+        # One name per frame, used for the view, in every message and as the snapshot's file
+        # name, so a view flagged in the report can be traced to its saved image.
+        name = frame_name(self.camera_id, self.frames)
+        _, image, fmt = frames[self.index]
         view, reason = judge_view((name, image, fmt), self.spec, self.selector, self.quality)
         if view is None:
             key = (reason or "").split(":")[0].split(" (")[0]
@@ -120,10 +129,10 @@ class IntrinsicsSession:
             if key == self._last_reason:
                 return None
             self._last_reason = key
-            return Event(f"  frame {self.frames}: {reason}")
+            return Event(f"  {name}: {reason}")
         self._last_reason = None
         if self.snapshots is not None:
-            save_frame(self.snapshots, f"{self.camera_id}-{len(self.views):03d}", image, fmt)
+            save_frame(self.snapshots, name, image, fmt)
         if len(self.views) >= self.min_views:
             try:
                 self.last_rms_px = calibrate_intrinsics(
@@ -133,7 +142,7 @@ class IntrinsicsSession:
                 self.last_rms_px = None
         rms = f", RMS {self.last_rms_px:.3f} px" if self.last_rms_px is not None else ""
         text = (
-            f"[{len(self.views):>3}/{self.wanted} views] accepted frame {self.frames}: {len(view.ids)} corners,"
+            f"[{len(self.views):>3}/{self.wanted} views] accepted {name}: {len(view.ids)} corners,"
             f" coverage {self.selector.coverage.fraction * 100:.0f} %{rms}; next: "
             f"{self.selector.guidance(self.wanted)}"
         )
@@ -180,21 +189,26 @@ class StereoSession:
 
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]], skew_ns: int = 0) -> Event | None:
         self.frames += 1
+        name = f"{self.frames:03d}"
         if skew_ns > self.max_skew_ns:
             reason = (
                 f"out of sync: the two frames are {skew_ns / 1e6:.1f} ms apart (limit {self.max_skew_ns / 1e6:.1f} ms)"
             )
         else:
-            name = f"{len(self.pairs):03d}"
-            pair, reason = judge_pair(name, frames[0], frames[1], self.spec, self.selector, self.quality)
+            # As for intrinsics: the pair's name is its snapshots' names (NNN-<camera>.png).
+            named = [
+                (frame_name(cam_id, self.frames, pair=True), image, fmt)
+                for cam_id, (_, image, fmt) in zip(self.camera_ids, frames[:2], strict=True)
+            ]
+            pair, reason = judge_pair(name, named[0], named[1], self.spec, self.selector, self.quality)
             if pair is not None:
                 self._last_reason = None
                 self.pairs.append(pair)
                 if self.snapshots is not None:
-                    for cam_id, (_, image, fmt) in zip(self.camera_ids, frames[:2], strict=True):
-                        save_frame(self.snapshots, f"{name}-{cam_id}", image, fmt)
+                    for frame_file, image, fmt in named:
+                        save_frame(self.snapshots, frame_file, image, fmt)
                 text = (
-                    f"[{len(self.pairs):>3}/{self.wanted} pairs] accepted frame {self.frames}:"
+                    f"[{len(self.pairs):>3}/{self.wanted} pairs] accepted {name}:"
                     f" {len(pair.ids)} shared corners; next: {self._guidance()}"
                 )
                 return Event(text, accepted=True, finished=self.done)
@@ -202,7 +216,7 @@ class StereoSession:
         if key == self._last_reason:
             return None
         self._last_reason = key
-        return Event(f"  frame {self.frames}: {reason}")
+        return Event(f"  {name}: {reason}")
 
     def _guidance(self) -> str:
         if self.done:
@@ -246,11 +260,27 @@ class Steadiness:
         self._backs.clear()
 
 
+MIN_MOVE_M = 0.02
+"""A capture must be this far (either ball) from the previous one: an operator still holding the
+pointer where the last target was captured has not yet moved to the next one. Far above the
+steadiness tolerance (3 mm); far below the spacing of targets, or of the places they are aimed
+at from."""
+
+SKIP_AFTER_FRAMES = 600
+"""Frames on one live wall target without a capture after which it is skipped (about 20 s of
+cameras at 30 fps: time to walk to a new place and aim): the operator cannot get the pointer
+located, or held still, there."""
+
+
 class WallSession:
     """Walks the operator through the wall targets: touch each (or point at each from several places).
 
-    A target is captured when the pointer has been held still (:class:`Steadiness`);
-    the next one is then announced.
+    A target is captured when the pointer has been held still (:class:`Steadiness`)
+    somewhere new (:data:`MIN_MOVE_M` from the previous capture); the next one is
+    then announced. Frames in which the pointer is not located never advance the
+    plan: the same target is asked for again (and the reason said once). After
+    ``skip_after`` frames on one target without a capture it is skipped and
+    reported as skipped, never filed under another target.
     """
 
     def __init__(
@@ -262,6 +292,8 @@ class WallSession:
         steadiness: Steadiness | None = None,
         snapshots: Path | None = None,
         camera_ids: Sequence[str] = (),
+        skip_after: int | None = SKIP_AFTER_FRAMES,
+        min_move_m: float = MIN_MOVE_M,
     ) -> None:
         if method not in ("touch", "point"):
             raise ValueError("method is 'touch' or 'point'")
@@ -273,13 +305,30 @@ class WallSession:
         self.steadiness = steadiness or Steadiness()
         self.touches: list[Touch] = []
         self.pointings: list[Pointing] = []
+        self.skipped: list[str] = []
+        """Plan entries given up on ('bl', or 'bl from place 2'), in order."""
         self.snapshots = snapshots
         self.camera_ids = list(camera_ids)
+        self.skip_after = skip_after if skip_after else None
+        self.min_move_m = min_move_m
         self.frames = 0
+        self.on_target = 0
+        """Frames fed since the current target was asked for."""
+        self.unlocated = 0
+        """Frames in a row in which the pointer was not located, for the current target."""
+        self._last_capture: tuple[Array, Array] | None = None
+        self._located = 0
+        self._unlocated_reason: str | None = None
+        self._said_unlocated = False
+        self._said_unmoved = False
 
     @property
     def done(self) -> bool:
         return self.position >= len(self.plan)
+
+    def current(self) -> tuple[Target, int] | None:
+        """The target (and place index) being asked for, or None when done."""
+        return None if self.done else self.plan[self.position]
 
     def prompt(self) -> str:
         if self.done:
@@ -292,22 +341,71 @@ class WallSession:
             f"{' (move to a new place first)' if place else ''} and hold still"
         )
 
+    def _entry_name(self) -> str:
+        target, place = self.plan[self.position]
+        return target.label if self.method == "touch" else f"{target.label} from place {place + 1}"
+
+    def _advance(self) -> None:
+        self.position += 1
+        self.on_target = 0
+        self.unlocated = 0
+        self._located = 0
+        self._unlocated_reason = None
+        self._said_unlocated = False
+        self._said_unmoved = False
+        self.steadiness.clear()
+
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]]) -> Event | None:
         if self.done:
             return None
         self.frames += 1
+        self.on_target += 1
         # Each frame is judged on its own: the detector's tracking would otherwise carry
         # a wrong blob from one frame to the next, and speed does not matter here.
         self.locator.reset()
         fix = self.locator.locate([image for _, image, _ in frames])
-        if fix.line is None or fix.status == "rejected":
+        target, place = self.plan[self.position]
+        located = fix.line is not None and fix.status != "rejected"
+        if self.skip_after is not None and self.on_target > self.skip_after:
+            skipped = self._entry_name()
+            why = f"the pointer was located in {self._located} of them"
+            if self._unlocated_reason is not None:
+                why += f"; not located: {self._unlocated_reason}"
+            self.skipped.append(skipped)
+            self._advance()
+            return Event(
+                f"  skipped '{skipped}': no capture in {self.skip_after} frames ({why}); next: {self.prompt()}",
+                finished=self.done,
+            )
+        if not located:
             self.steadiness.clear()
+            self.unlocated += 1
+            self._unlocated_reason = fix.reason
+            if self.unlocated == self.steadiness.frames and not self._said_unlocated:
+                # Said once per target, after a moment: a frame or two lost while moving is normal.
+                self._said_unlocated = True
+                return Event(
+                    f"  '{target.label}': pointer not located ({fix.reason}); hold both balls where both"
+                    " cameras see them"
+                )
             return None
+        self.unlocated = 0
+        self._located += 1
         steady = self.steadiness.add(fix.line.front_m, fix.line.back_m)
         if steady is None:
             return None
-        target, place = self.plan[self.position]
         front, back = steady
+        if self._last_capture is not None:
+            moved = max(
+                float(np.linalg.norm(front - self._last_capture[0])),
+                float(np.linalg.norm(back - self._last_capture[1])),
+            )
+            if moved < self.min_move_m:
+                if self._said_unmoved:
+                    return None
+                self._said_unmoved = True
+                return Event(f"  still where the last capture was: {self.prompt()}")
+        self._last_capture = (front, back)
         if self.method == "touch":
             self.touches.append(Touch(target, front, back))
         else:
@@ -316,7 +414,7 @@ class WallSession:
             name = target.label if self.method == "touch" else f"{target.label}-{place + 1}"
             for cam_id, (_, image, fmt) in zip(self.camera_ids, frames, strict=False):
                 save_frame(self.snapshots, f"{name}-{cam_id}", image, fmt)
-        self.position += 1
+        self._advance()
         text = (
             f"[{self.position:>2}/{len(self.plan)}] captured '{target.label}'"
             f" (tip at {', '.join(f'{v:.3f}' for v in front)} m); next: {self.prompt()}"
