@@ -10,6 +10,7 @@ technique" (section 3.1) and measured the wall's three points by hand (section
 * intrinsics.py  one camera's lens (cv2.calibrateCamera) with per-view errors and outliers
 * stereo.py      camera 2 relative to camera 1 (cv2.stereoCalibrate), baseline, epipolar error, sync
 * wall.py        the wall plane and frame: pointer-tip touches and pointing, robust least squares
+* visibility.py  which wall targets both cameras see, for touching
 * health.py      ray gaps and reprojection errors of tracked pointers: drift detection
 * update.py      results into calibration-file entries; the world frame
 * store.py       reading the rig leniently, writing the calibration file atomically with a backup

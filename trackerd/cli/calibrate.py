@@ -4,10 +4,11 @@ The steps of docs/calibration.md, each writing its result into the rig's
 calibration file (with a timestamped backup of the previous one) only when it
 succeeded, and each printing the figures that say how far to trust it:
 
-  trackerd calibrate intrinsics --config RIG --camera ID --board SPEC (IMAGE... | --live)
-  trackerd calibrate stereo     --config RIG --board SPEC (--pairs DIR | --live)
-  trackerd calibrate wall       --config RIG (--points FILE | --touch | --point) [--pairs DIR | --live]
-  trackerd calibrate check      --config RIG (--pairs DIR | --live)
+  trackerd calibrate intrinsics --config RIG --camera ID --board SPEC (IMAGE... | --live | --recording R)
+  trackerd calibrate stereo     --config RIG --board SPEC (--pairs DIR | --live | --recording R)
+  trackerd calibrate wall       --config RIG --points FILE
+  trackerd calibrate wall       --config RIG (--touch | --point) (--pairs DIR | --live | --recording R)
+  trackerd calibrate check      --config RIG (--pairs DIR | --live | --recording R)
 
 Boards: chessboard:COLSxROWS:SQUARE_MM or charuco:COLSxROWS:SQUARE_MM:MARKER_MM[:DICT],
 counting squares (chessboard:10x7:60 has 9 x 6 inner corners).
@@ -40,6 +41,7 @@ from trackerd.calibration.inputs import (
 )
 from trackerd.calibration.intrinsics import DISTORTION_TERMS, MIN_VIEWS, calibrate_intrinsics
 from trackerd.calibration.live import (
+    SKIP_AFTER_FRAMES,
     CheckSession,
     IntrinsicsSession,
     StereoSession,
@@ -56,11 +58,12 @@ from trackerd.calibration.report import (
     wall_fit_json,
     wall_fit_text,
 )
-from trackerd.calibration.stereo import MIN_PAIRS, Lens, calibrate_stereo
-from trackerd.calibration.store import RigContext, open_rig, require_output, write_calibration
+from trackerd.calibration.stereo import MIN_PAIRS, Lens, baseline_warning, calibrate_stereo
+from trackerd.calibration.store import WORLD_FRAME_KEY, RigContext, open_rig, require_output, write_calibration
 from trackerd.calibration.update import apply_intrinsics, apply_measured_wall, apply_stereo, apply_wall_fit
 from trackerd.calibration.views import MIN_VIEW_CHANGE, ViewSelector
-from trackerd.calibration.wall import Pointing, Target, Touch, fit_wall
+from trackerd.calibration.visibility import common_view_rectangle, touch_seen, view_targets
+from trackerd.calibration.wall import DEFAULT_MAX_RMS_MM, Pointing, Target, Touch, fit_problem, fit_wall
 from trackerd.config.models import CameraConfig, PoseExtrinsics, RigConfig
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
@@ -159,6 +162,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--fixed-size", action="store_true", help="keep the configured display size instead of solving for it"
     )
+    p.add_argument(
+        "--max-rms-mm",
+        type=float,
+        default=DEFAULT_MAX_RMS_MM,
+        help=f"refuse to write a wall whose RMS residual exceeds this (mm, default {DEFAULT_MAX_RMS_MM:g};"
+        " a good fit gives a few mm)",
+    )
+    p.add_argument(
+        "--skip-after",
+        type=int,
+        default=SKIP_AFTER_FRAMES,
+        metavar="FRAMES",
+        help=f"--live: skip a target (and say so) after this many frames on it without a capture"
+        f" (default {SKIP_AFTER_FRAMES}, about 20 s; 0: never)",
+    )
     p.set_defaults(handler=wall_command)
 
     p = steps.add_parser(
@@ -184,7 +202,11 @@ def _board(text: str) -> BoardSpec:
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", required=True, help="rig TOML file")
     p.add_argument("--output", metavar="FILE", help="calibration file to update (default: the one the rig names)")
-    p.add_argument("--dry-run", action="store_true", help="report, but write nothing")
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="report, but write nothing: no calibration file, and no snapshots unless --snapshots DIR is given",
+    )
     p.add_argument("--json", action="store_true", help="print the result as one JSON object (progress on stderr)")
 
 
@@ -251,19 +273,23 @@ class Output:
             print(text, flush=True)
 
 
-def _check_source(args: argparse.Namespace, offline: list[str]) -> str:
-    """Which input the step reads: 'live', 'recording' or 'files'; errors for none or several."""
+def _check_source(args: argparse.Namespace, offline: str, offline_given: bool) -> str:
+    """Which input the step reads: 'live' (the cameras or a recording) or 'files'; errors for none or several.
+
+    ``offline`` names the step's own file input (``IMAGE...`` or ``--pairs DIR``), so the
+    message lists exactly what this step takes.
+    """
     chosen = [
         name
         for name, given in (
             ("--live", args.live),
             ("--recording", args.recording is not None),
-            *((o, True) for o in offline),
+            (offline, offline_given),
         )
         if given
     ]
     if not chosen:
-        raise CalibrationError("give the input: images or --pairs DIR, --live, or --recording R")
+        raise CalibrationError(f"give the input: {offline}, --live, or --recording R")
     if len(chosen) > 1:
         raise CalibrationError(f"give one input, not {' and '.join(chosen)}")
     # A recording is read like the cameras, pair after pair, by the step's live session.
@@ -287,10 +313,13 @@ def _lens(cam: CameraConfig) -> Lens:
     return Lens(model.matrix.copy(), model.distortion.copy())
 
 
-def _snapshot_dir(args: argparse.Namespace, step: str) -> Path:
-    """Where --live saves accepted frames: --snapshots, or a new timestamped folder."""
+def _snapshot_dir(args: argparse.Namespace, step: str) -> Path | None:
+    """Where --live saves accepted frames: --snapshots, or a new timestamped folder; with
+    --dry-run (which writes nothing) none, unless --snapshots names one."""
     if args.snapshots:
         return Path(args.snapshots)
+    if args.dry_run:
+        return None
     import datetime as dt
 
     return Path("calibration-snapshots") / f"{step}-{dt.datetime.now():%Y%m%d-%H%M%S}"
@@ -363,7 +392,7 @@ def intrinsics_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
     context = open_rig(args.config, args.output)
     index, cam = _camera(context.rig, args.camera)
-    mode = _check_source(args, ["IMAGE"] if args.images else [])
+    mode = _check_source(args, "IMAGE... files", bool(args.images))
     quality = Quality(max_sharpness_px=args.max_blur)
     spec: BoardSpec = args.board
     out.say(f"board: {spec.describe()}")
@@ -449,7 +478,7 @@ def stereo_command(args: argparse.Namespace) -> int:
     rig = context.merged()
     cam1, cam2 = rig.cameras[0], rig.cameras[1]
     lens1, lens2 = _lens(cam1), _lens(cam2)
-    mode = _check_source(args, ["--pairs"] if args.pairs else [])
+    mode = _check_source(args, "--pairs DIR", args.pairs is not None)
     spec: BoardSpec = args.board
     quality = Quality(max_sharpness_px=args.max_blur)
     out.say(f"board: {spec.describe()}")
@@ -529,8 +558,14 @@ def stereo_command(args: argparse.Namespace) -> int:
     }.get(frame, frame)
     if frame.startswith("camera "):
         frame_text = f"{frame}'s frame (as in the report)"
-    text = stereo_text((cam1.id, cam2.id), result, collected.rejected, frame_text)
-    report = stereo_json(result, collected.rejected, frame)
+    warnings = []
+    stated = _stated_baseline_m(cam1, cam2)
+    if stated is not None:
+        warning = baseline_warning(result.baseline_m, stated, spec.square_m * 1000.0)
+        if warning is not None:
+            warnings.append(warning)
+    text = stereo_text((cam1.id, cam2.id), result, collected.rejected, frame_text, warnings)
+    report = {**stereo_json(result, collected.rejected, frame), "warnings": warnings}
     if result.rms_px > args.max_rms:
         out.result(text, {**report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
@@ -548,10 +583,24 @@ def stereo_command(args: argparse.Namespace) -> int:
             "next: `trackerd calibrate wall`; until then the cameras are in "
             f"{frame}'s frame and the rig's wall (in its own frame) does not match them"
         )
+    if warnings:
+        # Said again last, where it is seen (and on stderr with --json).
+        notes.append(
+            f"WARNING: baseline {result.baseline_m:.4f} m vs the rig's {stated:.4f} m: check the --board square size"
+        )
     out.result(text, {**report, **written})
     for note in notes:
         out.say(note)
     return 0
+
+
+def _stated_baseline_m(cam1: CameraConfig, cam2: CameraConfig) -> float | None:
+    """The distance between the two cameras as the rig states it before this step (inline poses
+    or an earlier calibration), or None when either camera has no pose yet."""
+    if cam1.extrinsics is None or cam2.extrinsics is None or cam1.intrinsics is None or cam2.intrinsics is None:
+        return None
+    centres = [CameraModel.from_config(cam).centre_m for cam in (cam1, cam2)]
+    return float(np.linalg.norm(centres[1] - centres[0]))
 
 
 # --------------------------------------------------------------------------- wall
@@ -561,6 +610,10 @@ def wall_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
     context = open_rig(args.config, args.output)
     if args.points:
+        given = (("--pairs", args.pairs), ("--live", args.live), ("--recording", args.recording))
+        extra = [name for name, value in given if value]
+        if extra:
+            raise CalibrationError(f"--points FILE is the whole input; it takes no {' or '.join(extra)}")
         return _measured_wall(context, args, out)
     rig = context.complete()
     nominal = WallFrame.from_config(context.rig.wall)
@@ -568,16 +621,19 @@ def wall_command(args: argparse.Namespace) -> int:
     display = nominal.display_width_px, nominal.display_height_px
     display_px = display if nominal.has_display else None
     targets = read_targets(args.targets, *size, display_px) if args.targets else default_targets(*size)
-    mode = _check_source(args, ["--pairs"] if args.pairs else [])
+    mode = _check_source(args, "--pairs DIR", args.pairs is not None)
     method = "touch" if args.touch else "point"
     radius = rig.pointer.end_diameter_m / 2.0
     touches: list[Touch] = []
     pointings: list[Pointing] = []
+    skipped: list[str] = []
     if mode == "live":
-        labels = (args.use or "bl,br,tr,tl,centre").split(",")
+        labels = args.use.split(",") if args.use else list(DEFAULT_LIVE_TARGETS)
         unknown = [label for label in labels if label not in targets]
         if unknown:
             raise CalibrationError(f"unknown target(s) {', '.join(unknown)}; known: {', '.join(targets)}")
+        if method == "touch":
+            labels = _touch_targets_in_view(context, rig, targets, labels, radius, display_px, args.use is None, out)
         session = WallSession(
             Locator(rig),
             [targets[label] for label in labels],
@@ -585,15 +641,25 @@ def wall_command(args: argparse.Namespace) -> int:
             args.places,
             snapshots=_snapshot_dir(args, f"wall-{method}"),
             camera_ids=[c.id for c in rig.cameras],
+            skip_after=args.skip_after,
         )
         out.say(session.prompt())
-        _live(context, rig, args, session, out, lambda: _simulated_wall(context, session))
-        touches, pointings = session.touches, session.pointings
+        _live(context, rig, args, session, out, lambda: _simulated_wall(context, session, args.skip_after))
+        touches, pointings, skipped = session.touches, session.pointings, session.skipped
+        if skipped:
+            out.say(f"skipped (no capture): {', '.join(skipped)}")
+        remaining = list(dict.fromkeys(t.label for t, _ in session.plan[session.position :]))
+        if remaining:
+            out.say(f"not captured (collection ended first): {', '.join(remaining)}")
     else:
         touches, pointings = _wall_from_folder(args.pairs, rig, targets, method, out)
     fit = fit_wall(touches, pointings, size, radius, fit_size=False if args.fixed_size else None)
     text = wall_fit_text(fit, size)
-    report = wall_fit_json(fit, size)
+    report = {**wall_fit_json(fit, size), "skipped": skipped}
+    problem = fit_problem(fit, args.max_rms_mm)
+    if problem is not None:
+        out.result(text, {**report, "world_frame": None, "written": None, "backup": None})
+        raise CalibrationError(problem)
     calibration = apply_wall_fit(context.calibration, rig, fit, method, display_px)
     notes: list[str] = []
     written = _write(context, calibration, f"trackerd calibrate wall --{method}", args.dry_run, notes)
@@ -606,6 +672,83 @@ def wall_command(args: argparse.Namespace) -> int:
     for note in notes:
         out.say(note)
     return 0
+
+
+DEFAULT_LIVE_TARGETS = ("bl", "br", "tr", "tl", "centre")
+
+
+def _touch_targets_in_view(
+    context: RigContext,
+    rig: RigConfig,
+    targets: dict[str, Target],
+    labels: list[str],
+    radius: float,
+    display_px: tuple[int, int] | None,
+    defaults: bool,
+    out: Output,
+) -> list[str]:
+    """The targets to touch: ``labels`` if both cameras see them all, else (for the defaults) the
+    corners and centre of a rectangle both see, added to ``targets``; else a clear error.
+
+    Whether a camera sees a target is judged from the current calibration, which places the wall
+    only when the cameras are in the rig's or the wall's frame (not in camera 1's).
+    """
+    first = context.calibration.cameras.get(rig.cameras[0].id)
+    frame = (first.info or {}).get(WORLD_FRAME_KEY) if first is not None else None
+    if isinstance(frame, str) and frame.startswith("camera "):
+        out.say(
+            f"note: the cameras are in {frame}'s frame, so which targets both see cannot be told yet;"
+            " touch only targets you can see in both cameras' images"
+        )
+        return labels
+    cameras = [CameraModel.from_config(c) for c in rig.cameras]
+    wall = WallFrame.from_config(rig.wall)
+    xy = np.array([targets[label].wall_xy_m for label in labels])
+    seen = touch_seen(cameras, wall, xy, radius)
+    out_of_view = [(label, row) for label, row in zip(labels, seen, strict=True) if not row.all()]
+    if not out_of_view:
+        return labels
+    ids = [c.id for c in rig.cameras]
+
+    def who(row) -> str:
+        seeing = [i for i, s in zip(ids, row, strict=True) if s]
+        return f"only {seeing[0]} sees it" if len(seeing) == 1 else "neither camera sees it"
+
+    unseen = "; ".join(f"'{label}': {who(row)}" for label, row in out_of_view)
+    rectangle = common_view_rectangle(cameras, wall, radius)
+    where = (
+        f"both cameras see the display only at about x {rectangle[0]:.2f}-{rectangle[2]:.2f} m,"
+        f" y {rectangle[1]:.2f}-{rectangle[3]:.2f} m from its bottom-left corner"
+        if rectangle is not None
+        else "no part of the display is seen by both cameras"
+    )
+    if not defaults or rectangle is None:
+        raise CalibrationError(
+            f"--touch: target(s) out of view ({unseen}); {where}: touch targets there (--targets FILE with"
+            " marks such as m1 = { x_m = ..., y_m = ... }, then --use m1,m2,...), or aim at these with --point"
+        )
+    chosen = view_targets(rectangle)
+    targets.update(chosen)
+
+    def describe(target: Target) -> str:
+        x, y = target.wall_xy_m
+        pixels = ""
+        if display_px is not None:
+            px = (x / wall.width_m * display_px[0], (1.0 - y / wall.height_m) * display_px[1])
+            pixels = f"  display pixel ({px[0]:.0f}, {px[1]:.0f})"
+        return f"  {target.label:<12} x {x:.2f} m, y {y:.2f} m{pixels}"
+
+    out.say(
+        "\n".join(
+            [
+                f"the default targets are not all in view of both cameras: {unseen}",
+                f"{where}; touch these {len(chosen)} targets there instead (show a cross at each on the"
+                " display, or tape a mark; --use and --targets choose others):",
+                *(describe(t) for t in chosen.values()),
+            ]
+        )
+    )
+    return list(chosen)
 
 
 def _wall_from_folder(
@@ -665,34 +808,56 @@ def _measured_wall(context: RigContext, args: argparse.Namespace, out: Output) -
     return 0
 
 
-def _simulated_wall(context: RigContext, session: WallSession):
-    """Render the pointer held still at each target of the session's plan, in turn."""
-    from trackerd.bench.calibration import aimed_poses
+def _simulated_wall(context: RigContext, session: WallSession, skip_after: int):
+    """Frames of a presenter following the session's prompts: the pointer held still at the target
+    being asked for (touching it, or aimed at it from a place of its own), as the simulator renders it.
+
+    Like a presenter whose pointer is not being picked up, it shifts its grip (a new pose for
+    the same target, from a new place when pointing) every few dozen frames without a capture; a
+    target no pose makes visible is eventually skipped by the session (``skip_after``).
+    """
     from trackerd.sim.board import RenderedPairSource
     from trackerd.sim.render import SceneRenderer
-    from trackerd.sim.scene import PointerPose
 
     truth = _simulation_truth(context)
     scene = SceneRenderer(truth)
     rng = np.random.default_rng(11)
-    hold = session.steadiness.frames + 2
-    radius = truth.pointer.end_diameter_m / 2.0
-    poses: list[PointerPose] = []
-    for target, _ in session.plan:
-        world = scene.wall.from_wall_m(target.wall_xy_m)
-        if session.method == "point":
-            pose = aimed_poses(scene, world, 1, rng)[0]
-        else:
-            tip = world + radius * scene.wall.normal
-            back = tip + truth.pointer.length_m * _unit(scene.wall.normal + np.array([0.0, 0.4, 0.0]))
-            pose = PointerPose(tip, back)
-        poses += [pose] * hold
+    regrip = 2 * session.steadiness.frames + 2
+    poses: dict[tuple[int, int], Any] = {}
+
+    def pose_now():
+        current = session.current()
+        if current is None:  # pragma: no cover - the driver stops when the session is done
+            current = session.plan[-1]
+        key = (session.position, session.on_target // regrip)
+        if key not in poses:
+            poses[key] = _presented_pose(scene, truth, current[0], current[1], session.method, key[1], rng)
+        return poses[key]
+
     ids = [c.id for c in truth.cameras]
 
     def render(k: int):
-        return [scene.render(i, poses[k], rng).image for i in range(len(ids))]
+        pose = pose_now()
+        return [scene.render(i, pose, rng).image for i in range(len(ids))]
 
-    return RenderedPairSource(ids, list(scene.pixel_formats), render, len(poses))
+    per_target = (skip_after if skip_after > 0 else 10 * regrip) + regrip
+    return RenderedPairSource(ids, list(scene.pixel_formats), render, per_target * len(session.plan))
+
+
+def _presented_pose(scene, truth: RigConfig, target: Target, place: int, method: str, variant: int, rng):
+    """The pointer touching ``target`` (tilted into the room), or aimed at it from place ``place``."""
+    from trackerd.bench.calibration import aimed_poses
+    from trackerd.sim.scene import PointerPose
+
+    wall = scene.wall
+    world = wall.from_wall_m(target.wall_xy_m)
+    if method == "point":
+        # aimed_poses spreads its places along the wall in turn; the place-th of them.
+        return aimed_poses(scene, world, place + 1, rng)[-1]
+    tip = world + truth.pointer.end_diameter_m / 2.0 * wall.normal
+    tilt = np.array([0.0, 0.4]) if variant == 0 else rng.uniform([-0.4, 0.0], [0.4, 0.6])
+    direction = wall.normal + tilt[0] * wall.x_axis + tilt[1] * wall.y_axis
+    return PointerPose(tip, tip + truth.pointer.length_m * _unit(direction))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -706,7 +871,7 @@ def check_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
     context = open_rig(args.config)
     rig = context.complete()
-    mode = _check_source(args, ["--pairs"] if args.pairs else [])
+    mode = _check_source(args, "--pairs DIR", args.pairs is not None)
     cameras = [CameraModel.from_config(c) for c in rig.cameras]
     health = CalibrationHealth.for_rig(rig, cameras, window=max(args.fixes, 10_000))
     frames = 0
