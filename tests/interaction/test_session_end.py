@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 import pytest
+import zmq
 
 from tests.interaction.osc_decode import decode_bundle
 from trackerd.acquisition.frame import Frame, FramePair
@@ -210,20 +211,36 @@ def test_stopping_the_pipeline_with_the_pointer_on_the_display_removes_the_tuio_
         "zmq": rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})})})
     extension = create(rig)
     assert extension is not None
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, [pointing], rate_hz=30.0, count=10**6),
+    # Half a second of the empty room first, so the subscriber is connected when the pointer enters.
+    empty = [renderer.render(i, None, rng).image for i in range(2)]
+    sets = [empty] * 15 + [pointing] * 3000
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, sets, rate_hz=30.0, loop=False),
                         lambda r: Publisher(r.outputs.zmq), extensions=[extension])
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(f"ipc://{tmp_path}/pub.sock")
+    topics: list[str] = []
     bundles: list = []
     pipeline.start()
     try:
         deadline = time.monotonic() + 20.0
-        while time.monotonic() < deadline and not any(_alive(b) for b in bundles):
-            time.sleep(0.02)
+        while time.monotonic() < deadline and not (any(_alive(b) for b in bundles) and "enter" in topics):
+            while sub.poll(20):
+                topics.append(sub.recv_multipart()[0].decode())
             bundles += _bundles(udp)
     finally:
         pipeline.stop()
+    while sub.poll(500):
+        topics.append(sub.recv_multipart()[0].decode())
+    sub.close(0)
+    ctx.term()
     bundles += _bundles(udp)
     assert pipeline.failure is None
     assert any(_alive(b) == [1] for b in bundles), "the pointer never entered"
     assert _alive(bundles[-1]) == []
+    # Subscribers hear the session end too: a leave, published before the publisher closed.
+    assert topics.count("enter") == 1 and topics.count("leave") == 1
+    assert topics.index("leave") > max(i for i, t in enumerate(topics) if t == "hit")
     frames = [_fseq(b) for b in bundles]
     assert frames == sorted(frames) and len(set(frames)) == len(frames)

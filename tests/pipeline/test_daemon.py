@@ -185,3 +185,64 @@ def test_watchdog_and_ready_reach_systemd_only_when_pairs_flow(simulated_rig, re
     # The source stopped delivering (count reached): nothing feeds the watchdog any more.
     assert watchdogs_after == watchdogs_while_flowing
     assert "STOPPING=1" in received[-1] or any("STOPPING=1" in m for m in received[-3:])
+
+
+def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_interval(
+        simulated_rig, rendered_sweep, tmp_path):
+    """SIGHUP with the same outputs: a client key added is let in and one removed is shut out, on
+    their next connection, and a new status_interval_ms takes effect (both were read only at start)."""
+    import zmq.auth
+
+    from trackerd.cli.keys import write_key_pair
+
+    image_sets, _ = rendered_sweep
+    _, server_secret = write_key_pair(tmp_path, "server", "server")
+    server_public, _ = zmq.auth.load_certificate(str(server_secret))
+    clients, elsewhere = tmp_path / "clients", tmp_path / "elsewhere"
+    clients.mkdir()
+    elsewhere.mkdir()
+    write_key_pair(clients, "wall-app", "client")
+    app_public, app_secret = write_key_pair(elsewhere, "new-app", "client")
+    app_keys = zmq.auth.load_certificate(str(app_secret))
+
+    def rig_with(status_ms: float):
+        rig = _rig_on(simulated_rig, "tcp://127.0.0.1:5579", status_ms)
+        zmq_cfg = rig.outputs.zmq.model_copy(update={
+            "curve_secret_key_file": server_secret, "curve_authorized_keys_dir": clients})
+        return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
+
+    def statuses_seen(seconds: float) -> int:
+        """A new connection as new-app, subscribed to status, for ``seconds``."""
+        ctx = zmq.Context()
+        sub = ctx.socket(zmq.SUB)
+        sub.curve_serverkey, sub.curve_publickey, sub.curve_secretkey = server_public, *app_keys
+        sub.setsockopt(zmq.SUBSCRIBE, b"status")
+        sub.connect("tcp://127.0.0.1:5579")
+        try:
+            return sum(t == "status" for t, _ in _collect(sub, seconds))
+        finally:
+            sub.close(0)
+            ctx.term()
+
+    rig = rig_with(1000.0)
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=30.0),
+                        lambda r: Publisher(r.outputs.zmq))
+    pipeline.start()
+    try:
+        assert statuses_seen(1.5) == 0  # not authorized
+        os.replace(app_public, clients / app_public.name)
+        pipeline.request_reload(rig_with(1000.0))
+        time.sleep(0.5)
+        at_one_hz = statuses_seen(2.5)
+        assert 2 <= at_one_hz <= 4  # the last-value status at once, then about one a second
+        pipeline.request_reload(rig_with(200.0))
+        time.sleep(0.5)
+        at_five_hz = statuses_seen(2.5)
+        assert at_five_hz >= 10, at_five_hz
+        (clients / app_public.name).unlink()  # revoked
+        pipeline.request_reload(rig_with(200.0))
+        time.sleep(0.5)
+        assert statuses_seen(1.5) == 0
+    finally:
+        pipeline.stop()
+    assert pipeline.failure is None

@@ -104,6 +104,28 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
             daemon.send_signal(signal.SIGHUP)
             collect(2.0)
             assert sum(t == "hit" for t, _ in messages) > hits_before
+            # A file that validates but whose setting a camera refuses: the cameras are reopened with
+            # the old settings (they left the daemon without cameras), and tracking goes on.
+            left = virtual.daemon_rig.cameras[0]
+            refused = left.model_copy(update={"acquisition": left.acquisition.model_copy(update={"exposure_us": 5e7})})
+            cameras = (refused, *virtual.daemon_rig.cameras[1:])
+            rig_file.write_text(dump_rig(virtual.daemon_rig.model_copy(update={"name": "refused", "cameras": cameras})))
+            daemon.send_signal(signal.SIGHUP)
+            refused_at = len(messages)
+            sent = time.monotonic()
+            while time.monotonic() - sent < 30.0:
+                collect(0.5)
+                states = [m["state"] for t, m in messages[refused_at:] if t == "status"]
+                if "reloading" in states and states[-1] == "running":
+                    break
+            print(f"refused reload: running again after {time.monotonic() - sent:.1f} s")
+            resumed_at = len(messages)
+            collect(2.0)
+            after_refusal = messages[resumed_at:]
+            assert sum(t == "hit" for t, _ in after_refusal) > 20
+            last_status = [m for t, m in after_refusal if t == "status"][-1]
+            assert last_status["state"] == "running" and last_status["rig"] == "reloaded"
+            assert [c["state"] for c in last_status["cameras"]] == ["streaming", "streaming"]
             stop_sent = time.monotonic()
             daemon.send_signal(signal.SIGTERM)
             code = daemon.wait(timeout=10)
@@ -134,6 +156,7 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     assert statuses[-1]["state"] == "stopping"
     assert any(s["rig"] == "reloaded" for s in statuses), "the good SIGHUP reload was not applied"
     assert "keeping the running configuration" in err and "Mono8" in err
+    assert "reload failed, keeping the previous configuration" in err and "exposure_us" in err
 
     # Hits lie on the rendered figure eight (the motion's true wall hits), to within the accuracy budget.
     truth = np.array([f["wall_xy_m"] for f in loop_truth(virtual.rig, "figure8", virtual.period_s,

@@ -83,6 +83,15 @@ def _errors_to_truth_mm(virtual, recording_path: Path, hits: list[dict[str, Any]
     return np.array(errors)
 
 
+def _interaction(messages: list[tuple[str, dict[str, Any]]], sequences: set[int]) -> list[tuple[str, int, str]]:
+    strip = {"publish_ns", "capture_ns", "cursor_id"}
+    return sorted(
+        (topic, m["sequence"], json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
+        for topic, m in messages
+        if topic in ("hit", "enter", "leave", "dwell", "gesture", "command") and m["sequence"] in sequences
+    )
+
+
 def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path) -> None:
     directory = tmp_path / "recordings"
     endpoint = f"ipc://{tmp_path}/live.sock"
@@ -127,6 +136,10 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
     report = json.loads(check.stdout)
     assert check.returncode == 0 and report["intact"] and report["dropped_by_recorder"] == 0, check.stdout
     assert report["pairs"] > 40
+    with Recording.open(path) as recording:
+        # What the daemon knew of its cameras and its rig file (they were null in recordings on demand).
+        assert all(c.serial == f"SIM-{c.id.upper()}" and c.vendor and c.model for c in recording.cameras)
+        assert recording.metadata.rig_file == str(rig_file.resolve())
 
     replayed_run, replayed = replay_and_listen(path, "--speed", "max", endpoint=f"ipc://{tmp_path}/replay.sock")
     assert replayed_run.returncode == 0, replayed_run.stderr
@@ -145,6 +158,12 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
     live_hits = {m["sequence"]: unsmoothed_xy(m) for t, m in live if t == "hit" and m["sequence"] in recorded}
     replay_hits = [m for t, m in replayed if t == "hit"]
     assert {m["sequence"]: unsmoothed_xy(m) for m in replay_hits} == live_hits  # the same hits, bit for bit
+    # And the same interaction: the recording started mid-session (by a reload), and the stage
+    # started afresh with it, so smoothing, enter/leave and gestures replay as they were published.
+    # cursor_id counts sessions since the daemon started; the replay's last messages end its session.
+    last_pair = max(i for i, (t, _) in enumerate(replayed) if t in ("pointer", "hit"))
+    assert _interaction(replayed[: last_pair + 1], recorded) == _interaction(live, recorded)
+    assert any(t == "enter" for t, _ in replayed)
     errors = _errors_to_truth_mm(virtual, path, replay_hits)
     assert np.median(errors) < 5.0 and np.percentile(errors, 95) < 15.0, errors
 

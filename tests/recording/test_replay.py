@@ -11,6 +11,7 @@ import itertools
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -123,6 +124,34 @@ def test_paced_replay_keeps_the_recorded_intervals_and_loops_on(bundle) -> None:
     assert sequences[:16] == list(range(1, 17)) and sequences[16:] == [18, 19, 20, 21]
     assert all(b.timestamp_ns > a.timestamp_ns for a, b in itertools.pairwise(pairs))
     assert np.array_equal(pairs[16].frames[0].image, pairs[0].frames[0].image)
+
+
+def test_each_pass_of_a_looped_replay_publishes_what_the_first_did(bundle, first_replay, tmp_path) -> None:
+    """The jump from the last pair back to the first is no motion: every stage starts afresh at a
+    wrap, so it makes no gesture (it made a circle_cw at each wrap) and each pass repeats the first."""
+    run, messages = replay_and_listen(bundle, "--speed", "max", "--loop", "--seconds", "3",
+                                      endpoint=f"ipc://{tmp_path}/loop.sock")
+    assert run.returncode == 0, run.stderr
+    with Recording.open(bundle) as recording:
+        per_pass = max(e.sequence for e in recording.entries) + 1
+
+    def interaction(pass_messages: list[tuple[str, dict[str, Any]]], shift: int) -> list[tuple[str, int, str]]:
+        strip = {"publish_ns", "capture_ns", "cursor_id", "sequence"}
+        return [(t, m["sequence"] - shift, json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
+                for t, m in pass_messages if t in ("hit", "enter", "leave", "dwell", "gesture", "command")]
+
+    first = [(t, m) for t, m in first_replay[1] if t != "status"]
+    first_events = interaction(first, 0)
+    passes = {}
+    for topic, m in messages:
+        if topic != "status":
+            passes.setdefault(m["sequence"] // per_pass, []).append((topic, m))
+    complete = sorted(passes)[1:-1]  # the last pass was cut short; its leave may come from the stop
+    assert len(complete) >= 3, sorted(passes)
+    for k in complete:
+        # The first pass's final leave (the replay stopped) comes here from the next pass's reset.
+        assert interaction(passes[k], k * per_pass) == first_events, k
+    assert not any(t == "gesture" for t, _ in messages)
 
 
 @pytest.fixture(scope="module")

@@ -23,6 +23,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import functools
+import logging
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -31,6 +32,8 @@ from typing import Any
 from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
 from trackerd.errors import CameraError, ConfigError
+
+log = logging.getLogger(__name__)
 
 ARAVIS_VERSION = "0.8"
 
@@ -238,6 +241,18 @@ class CameraSession:
         self.camera = None
         return returned
 
+    def leave_control(self) -> None:
+        """Give up control of a GigE Vision camera that still answers (no-op for other kinds)."""
+        if self.camera is None:
+            return
+        device = self.camera.get_device()
+        leave = getattr(device, "leave_control", None)
+        if leave is not None:
+            try:
+                leave()
+            except Exception:  # best effort: the heartbeat expiring does the same, later
+                log.debug("camera %s: leave_control failed", self.camera_id, exc_info=True)
+
     def abandon(self) -> None:
         """Drop a camera that stopped answering. Blocks while Aravis gives up on it (seconds)."""
         self._disconnect()
@@ -279,6 +294,11 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Came
         session.abandon()
         raise CameraError(f"camera '{cam.id}' ({describe_lookup(cam)}): {err.message}") from err
     except CameraError:
+        # The camera answered and refused a setting: hand its control back now. Dropping our
+        # reference is not enough while the exception's traceback keeps the camera object alive,
+        # and until the heartbeat expires (seconds) the camera would refuse the next controller
+        # (a reload that reopens the cameras with the previous settings).
+        session.leave_control()
         session.abandon()
         raise
     return session

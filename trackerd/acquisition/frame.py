@@ -49,6 +49,9 @@ class FramePair:
     """Spread of the frames' estimated capture times (latest minus earliest), >= 0."""
     sequence: int
     """Counts pairs formed since the source started; a gap means pairs were dropped before delivery."""
+    fresh_start: bool = False
+    """True when the pair does not follow from the one before (a looped replay starting its next
+    pass): the pipeline's trackers and filters start afresh rather than take the jump for motion."""
 
     @property
     def images(self) -> list[NDArray[np.uint8]]:

@@ -37,10 +37,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run_command)
 
 
-def aravis_source(rig: RigConfig):
+def aravis_source(rig: RigConfig, on_open=None):
+    """The daemon's cameras; ``on_open(camera_id, camera)`` runs after each (re)connection."""
     from trackerd.acquisition.live import AravisPairSource
 
-    return AravisPairSource(rig, wait_for_cameras=True)  # cameras switched on after the host: keep waiting
+    # Cameras switched on after the host: keep waiting for them.
+    return AravisPairSource(rig, wait_for_cameras=True, on_open=on_open)
 
 
 def zmq_publisher(rig: RigConfig):
@@ -50,25 +52,32 @@ def zmq_publisher(rig: RigConfig):
 
 
 def run_command(args: argparse.Namespace) -> int:
+    from trackerd.recording.cameras import CameraInfo
+
     path = Path(args.config)
     rig = load_rig(path).config
-    return serve(rig, path, aravis_source, seconds=args.seconds)
+    # What each camera says about itself, noted as it opens, for recordings made on demand.
+    info = CameraInfo()
+    return serve(rig, path, lambda r: aravis_source(r, on_open=info.on_open), seconds=args.seconds,
+                 camera_info=info)
 
 
 def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
           publisher_factory=zmq_publisher, banner: str | None = None, clock_offset_ns: int | None = None,
-          until=None) -> int:
+          until=None, camera_info=None) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
 
     ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
     recorded capture times with it); ``until(pipeline)``, checked every 0.1 s, ends the run when
-    it returns True (a replay that has published its last pair).
+    it returns True (a replay that has published its last pair). ``path`` (the rig file) and
+    ``camera_info`` go into the metadata of recordings made on demand.
     """
     from trackerd.pipeline.daemon import Pipeline
-    from trackerd.pipeline.extensions import for_rig
+    from trackerd.pipeline.extensions import ExtensionContext, for_rig
 
     notifier = SdNotify()
-    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig),
+    context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info)
+    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig, context),
                         clock_offset_ns=clock_offset_ns)
     stop = threading.Event()
     reload_requested = threading.Event()

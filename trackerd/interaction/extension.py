@@ -35,7 +35,7 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -61,11 +61,15 @@ from trackerd.publish.messages import (
     Message,
 )
 
+if TYPE_CHECKING:
+    from trackerd.pipeline.extensions import ExtensionContext
+
 log = logging.getLogger(__name__)
 
 
-def create(rig: RigConfig) -> InteractionExtension | None:
-    """The interaction stage for a rig, or None when ``[interaction]`` turns everything off."""
+def create(rig: RigConfig, context: ExtensionContext | None = None) -> InteractionExtension | None:
+    """The interaction stage for a rig, or None when ``[interaction]`` turns everything off
+    (``context``, what the daemon knows beyond the rig, is not needed here)."""
     if not rig.interaction.any_enabled:
         return None
     return InteractionExtension(rig)
@@ -134,8 +138,9 @@ class InteractionExtension:
 
     # ------------------------------------------------------------------ PipelineExtension
 
-    def on_pair(self, pair: FramePair) -> None:
+    def on_pair(self, pair: FramePair) -> bool:
         """Nothing to do before the locator."""
+        return False
 
     def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]:
         start = time.perf_counter_ns()

@@ -104,6 +104,7 @@ class Pipeline:
         self._threads: list[threading.Thread] = []
         self._started_ns = time.monotonic_ns()
         self._ready_sent = False
+        self._reloading = False
         self._state = "starting"
         self._detail: str | None = None
         self._status_sequence = 0
@@ -151,6 +152,12 @@ class Pipeline:
         if self.source is not None:
             self.source.stop()
         if self.publisher is not None:
+            if not any(thread.is_alive() for thread in self._threads):
+                # The extensions' last words (a pending leave), while the socket is still open;
+                # only once no other thread can use it (a ZeroMQ socket is single-threaded).
+                for extension in self.extensions:
+                    for message in extension.finish():
+                        self.publisher.publish(message)
             self.publisher.close()
         for extension in self.extensions:
             extension.close()
@@ -160,8 +167,6 @@ class Pipeline:
         """Apply a new, already validated configuration between two pairs."""
         with self._pending_lock:
             self._pending_rig = rig
-            if rig.outputs != self._publisher_rig.outputs:
-                self._pending_outputs = rig
         self._notifier.reloading()
 
     def wait(self, timeout_s: float | None = None) -> bool:
@@ -207,8 +212,15 @@ class Pipeline:
                 continue
             start = time.monotonic_ns()
             received = max(frame.host_timestamp_ns for frame in pair.frames)
+            fresh = pair.fresh_start
             for extension in self.extensions:
-                extension.on_pair(pair)
+                fresh = bool(extension.on_pair(pair)) or fresh
+            if fresh:
+                # A recording starts with this pair, or a replay looped round: what is published
+                # from here on depends on these pairs only (trackerd.pipeline.extensions).
+                self.locator.reset()
+                for extension in self.extensions:
+                    extension.reset()
             fix = self.locator.locate(pair.images)
             capture = pair.timestamp_ns + self.clock_offset_ns
             messages = messages_from_fix(fix, self.locator, sequence=pair.sequence, capture_ns=capture)
@@ -233,18 +245,18 @@ class Pipeline:
         if rig is None:
             return
         old = self.rig
+        self._reloading = True
         try:
             locator = Locator(rig)
             if _source_settings(rig) != _source_settings(old):
                 log.info("reload: camera settings changed, reopening the cameras")
-                assert self.source is not None
-                self.source.stop()
-                self.source = self._source_factory(rig)
-                self.source.start()
+                self._reopen_source(rig, old)
         except Exception as err:  # noqa: BLE001 - a bad reload keeps the old configuration
             log.error("reload failed, keeping the previous configuration: %s", err)
             self._notifier.ready("running (reload failed: previous configuration kept)")
             return
+        finally:
+            self._reloading = False
         self.locator = locator
         for extension in self.extensions:
             extension.reload(rig)
@@ -252,8 +264,37 @@ class Pipeline:
             # A new calibration starts a new health record.
             self.health = CalibrationHealth.for_rig(rig, locator.cameras)
         self.rig = rig
+        with self._pending_lock:
+            # The publishing thread rebinds for changed outputs; unchanged ones still re-read the
+            # CURVE client keys, so adding or revoking a subscriber is a reload, not a restart.
+            self._pending_outputs = rig
         log.info("reload: configuration applied")
         self._notifier.ready("running (configuration reloaded)")
+
+    def _reopen_source(self, rig: RigConfig, old: RigConfig) -> None:
+        """Replace the source by one for ``rig``; if it cannot start, reopen the old one and raise.
+
+        The cameras cannot be opened twice (a GigE Vision camera has one controller), so the old
+        source stops first; a setting the camera refuses must not leave the daemon without it.
+        """
+        assert self.source is not None
+        start = time.monotonic()
+        self.source.stop()
+        # Each step can take seconds (a camera's control is released and taken again): the
+        # watchdog hears that a reload is progressing, not stalled.
+        self._notifier.progress()
+        try:
+            source = self._source_factory(rig)
+            source.start()
+        except BaseException:
+            self._notifier.progress()
+            log.info("reload: reopening the cameras with the previous settings")
+            self.source = self._source_factory(old)
+            self.source.start()
+            log.info("reload: cameras reopened with the previous settings after %.1f s", time.monotonic() - start)
+            raise
+        self.source = source
+        log.info("reload: cameras reopened after %.1f s", time.monotonic() - start)
 
     def _some_camera_recovering(self) -> bool:
         assert self.source is not None
@@ -262,7 +303,6 @@ class Pipeline:
     # ------------------------------------------------------------------ publishing
 
     def _publish_loop(self) -> None:
-        interval_s = self.rig.outputs.zmq.status_interval_ms / 1000.0
         next_status = 0.0
         next_poll = 0.0
         last_states: tuple[str, ...] = ()
@@ -272,9 +312,11 @@ class Pipeline:
                 next_poll = now + STATE_POLL_S
                 status = self.source.status() if self.source is not None else None
                 states = tuple(c.state for c in status.cameras) if status is not None else ()
+                states += ("reloading",) if self._reloading else ()
                 if states != last_states or now >= next_status:
                     last_states = states
-                    next_status = now + interval_s
+                    # Read each time: a reload may change it.
+                    next_status = now + self._publisher_rig.outputs.zmq.status_interval_ms / 1000.0
                     self._send_status(status)
             if self._stop.is_set():
                 break
@@ -304,6 +346,15 @@ class Pipeline:
         if rig is None:
             return
         assert self.publisher is not None
+        if rig.outputs == self._publisher_rig.outputs:
+            try:
+                self.publisher.reload_authorized_keys()
+            except Exception as err:  # noqa: BLE001 - keep the keys already loaded
+                log.error("reload: cannot read the CURVE client keys again (%s); keeping the previous ones", err)
+            else:
+                if rig.outputs.zmq.curve_authorized_keys_dir is not None:
+                    log.info("reload: CURVE client keys read again from %s", rig.outputs.zmq.curve_authorized_keys_dir)
+            return
         self.publisher.close()
         try:
             self.publisher = self._publisher_factory(rig)
@@ -328,7 +379,9 @@ class Pipeline:
         cameras = source_status.cameras if source_status is not None else ()
         states = [c.state for c in cameras]
         if self._state != "stopping":
-            if states and all(s == "streaming" for s in states):
+            if self._reloading:
+                self._state, self._detail = "reloading", "applying a new configuration"
+            elif states and all(s == "streaming" for s in states):
                 self._state, self._detail = "running", None
             elif self._ready_sent:
                 bad = [c.camera_id for c in cameras if c.state != "streaming"]

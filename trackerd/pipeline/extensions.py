@@ -4,12 +4,20 @@ An extension sees every pair and every fix in the processing thread and may
 add or replace messages; its status becomes a field of the ``status`` message
 named after it. Extensions are built from the rig by :func:`for_rig`, so
 `trackerd run`, `trackerd replay` and the demo all get the same ones.
+
+Starting afresh: when a pair does not follow from the one before (an on-demand
+recording starts with it, a replay loops round), every stage forgets what it
+carried over (the locator's tracking, the interaction's smoothing and strokes),
+so that what is published from that pair on depends only on the pairs from it
+on, and a replay of the recording reproduces it.
 """
 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Protocol
 
 from trackerd.acquisition.frame import FramePair
@@ -26,23 +34,47 @@ class PipelineExtension(Protocol):
     name: str
     """The extension's field in the status message (``recording``, ``interaction``)."""
 
-    def on_pair(self, pair: FramePair) -> None: ...
+    def on_pair(self, pair: FramePair) -> bool:
+        """Sees the pair before it is located; True asks every stage to start afresh from this
+        pair (see the module's docstring), as when a recording starts with it."""
+        ...
 
     def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]: ...
+
+    def reset(self) -> None:
+        """Forget what was carried over from earlier pairs (processing thread, before the next pair)."""
+        ...
 
     def status(self) -> dict[str, Any] | None: ...
 
     def reload(self, rig: RigConfig) -> None: ...
 
+    def finish(self) -> list[Message]:
+        """The last messages, published at stop before the publisher closes (a pending leave)."""
+        ...
+
     def close(self) -> None: ...
 
 
-# Each entry: a module defining ``create(rig) -> PipelineExtension | None`` (None: not configured).
+@dataclass(frozen=True)
+class ExtensionContext:
+    """What the daemon knows beyond the rig, for extensions that record it."""
+
+    rig_file: Path | None = None
+    """The rig TOML the configuration was read from (None: built in memory)."""
+    camera_info: Mapping[str, Mapping[str, str | None]] | None = None
+    """By camera id, what each camera says about itself (vendor, model, serial, device), filled
+    as the cameras open (trackerd.recording.cameras.CameraInfo)."""
+
+
+# Each entry: a module defining ``create(rig, context) -> PipelineExtension | None`` (None: not
+# configured).
 EXTENSION_MODULES: Sequence[str] = ("trackerd.recording.extension", "trackerd.interaction.extension")
 
 
-def for_rig(rig: RigConfig) -> list[PipelineExtension]:
+def for_rig(rig: RigConfig, context: ExtensionContext | None = None) -> list[PipelineExtension]:
     """The extensions the rig asks for, in a fixed order (recording sees pairs before interaction)."""
+    context = context or ExtensionContext()
     out = []
     for name in EXTENSION_MODULES:
         try:
@@ -51,7 +83,7 @@ def for_rig(rig: RigConfig) -> list[PipelineExtension]:
             if err.name is not None and name.startswith(err.name):
                 continue  # that part of trackerd is not present in this build
             raise
-        extension = module.create(rig)
+        extension = module.create(rig, context)
         if extension is not None:
             out.append(extension)
     return out

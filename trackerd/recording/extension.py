@@ -6,7 +6,9 @@ closes the current recording: each recording then holds one configuration
 (the one in its metadata) and one unbroken run of the locator, which starts
 afresh at a reload, so replaying it reproduces the hits the daemon published.
 If the rig still says ``enabled = true``, the next recording starts with the
-first pair after the reload.
+first pair after the reload. A recording's first pair asks every stage to start
+afresh (``on_pair`` returns True; trackerd.pipeline.extensions), so the
+interaction stage's smoothing and strokes begin with the recording too.
 
 ``on_pair`` only queues the pair (the writer thread does the I/O), so the
 processing thread never waits for the disk; a full queue drops its oldest pair
@@ -24,6 +26,7 @@ from typing import Any
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
 from trackerd.locator import PointerFix
+from trackerd.pipeline.extensions import ExtensionContext
 from trackerd.publish.messages import Message
 from trackerd.recording.recorder import Recorder
 
@@ -32,11 +35,14 @@ log = logging.getLogger(__name__)
 STOP_TIMEOUT_S = 2.0
 
 
-def create(rig: RigConfig) -> RecordingExtension | None:
-    """The extension when the rig makes recording available (``[recording] directory``), else None."""
+def create(rig: RigConfig, context: ExtensionContext | None = None) -> RecordingExtension | None:
+    """The extension when the rig makes recording available (``[recording] directory``), else None.
+
+    ``context`` gives the rig file and what the cameras say about themselves, for each
+    recording's metadata (without it those are null there)."""
     if rig.recording.directory is None:
         return None
-    return RecordingExtension(rig)
+    return RecordingExtension(rig, context)
 
 
 def recording_path(directory: Path, rig_name: str) -> Path:
@@ -56,8 +62,9 @@ class RecordingExtension:
 
     name = "recording"
 
-    def __init__(self, rig: RigConfig) -> None:
+    def __init__(self, rig: RigConfig, context: ExtensionContext | None = None) -> None:
         self._rig = rig
+        self._context = context or ExtensionContext()
         self._armed = rig.recording.enabled
         self._recorder: Recorder | None = None
         self._finishing: list[Recorder] = []
@@ -66,16 +73,26 @@ class RecordingExtension:
 
     # ------------------------------------------------------------------ processing thread
 
-    def on_pair(self, pair: FramePair) -> None:
+    def on_pair(self, pair: FramePair) -> bool:
+        """Queue the pair for the current recording; True when a recording starts with it."""
         recorder = self._recorder
+        if recorder is not None:
+            recorder.put(pair)
+            return False
+        if not self._armed:
+            return False
+        self._armed = False
+        recorder = self._start()
         if recorder is None:
-            if not self._armed:
-                return
-            self._armed = False
-            recorder = self._start()
-            if recorder is None:
-                return
+            return False
         recorder.put(pair)
+        return True
+
+    def reset(self) -> None:
+        """Nothing carried over between pairs but the recording itself, which goes on."""
+
+    def finish(self) -> list[Message]:
+        return []
 
     def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]:
         return messages
@@ -100,7 +117,14 @@ class RecordingExtension:
         except OSError as err:
             log.error("recording: cannot create %s: %s", cfg.directory, err.strerror)
             return None
-        recorder = Recorder(path, self._rig, producer="trackerd run (recording on demand)", config=cfg).start()
+        recorder = Recorder(
+            path,
+            self._rig,
+            producer="trackerd run (recording on demand)",
+            config=cfg,
+            camera_info=self._context.camera_info,
+            rig_file=self._context.rig_file,
+        ).start()
         log.info("recording: started %s", path)
         with self._lock:
             self._recorder = recorder

@@ -21,6 +21,7 @@ counted and described in :attr:`ReplayPairSource.problems`; the rest replays.
 
 from __future__ import annotations
 
+import dataclasses
 import queue
 import threading
 import time
@@ -114,6 +115,7 @@ class ReplayPairSource(PairSource):
         """Monotonic times of the first and the last delivery (the replay's throughput)."""
         self._times: deque[int] = deque()
         self._skews: deque[int] = deque(maxlen=256)
+        self._delivered_pass = 0
 
     # ------------------------------------------------------------------ clocks
 
@@ -134,6 +136,7 @@ class ReplayPairSource(PairSource):
             self._running = True
             self._finished = False
             self._pending = None
+            self._delivered_pass = 0
             self._start_ns = time.monotonic_ns() + int(self.start_delay_s * 1e9)
         self._halt = threading.Event()
         self._ahead = queue.Queue(maxsize=READ_AHEAD_PAIRS)
@@ -198,6 +201,10 @@ class ReplayPairSource(PairSource):
         shift = self.shift_ns + item.loop_pass * self._pass_ns
         sequence = item.header.sequence + item.loop_pass * self._sequence_step
         pair = make_pair(self.recording, item.header, item.images, shift_ns=shift, host_ns=now, sequence=sequence)
+        if item.loop_pass > self._delivered_pass:
+            # The jump from the last pair back to the first is no motion of the pointer.
+            self._delivered_pass = item.loop_pass
+            pair = dataclasses.replace(pair, fresh_start=True)
         self.lag_ms = 0.0 if self.speed is None else max(0.0, (now - self._due_ns(item.index, item.loop_pass)) / 1e6)
         self.max_lag_ms = max(self.max_lag_ms, self.lag_ms)
         with self._lock:
