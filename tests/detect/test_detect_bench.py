@@ -29,17 +29,17 @@ def test_bench_detector_json(capsys) -> None:
     assert report["min_excess"] == {"red": 75, "blue": 65}
     assert report["load_average"] >= 0  # the machine is shared: each run says how busy it was
     accuracy = report["accuracy_px"]
-    assert {"weighted", "tracked", "opencv", "bbox (eq. 12, chosen blob)"} <= set(accuracy)
-    assert "weighted, own samples only" in accuracy
-    assert accuracy["weighted"]["across_std"] >= 0
-    assert accuracy["weighted"]["ends"] == 2 * 2 * (3 + 1)
-    assert accuracy["weighted"]["missed"] == 0
+    assert {"coverage (default)", "tracked", "opencv", "bbox (eq. 12, chosen blob)"} <= set(accuracy)
+    assert "own samples only" in accuracy
+    assert accuracy["coverage (default)"]["across_std"] >= 0
+    assert accuracy["coverage (default)"]["ends"] == 2 * 2 * (3 + 1)
+    assert accuracy["coverage (default)"]["missed"] == 0
 
 
 def test_bench_detector_table_and_bad_option(capsys) -> None:
     assert main(["bench", "detector", "--frames", "2", "--poses", "0", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
-    assert "(a) full-frame search" in out and "(c)/(a)" in out and "weighted" in out
+    assert "(a) full-frame search" in out and "(c)/(a)" in out and "coverage (default)" in out
     assert "load average" in out
     assert "own samples only" in out and "across sd" in out
     assert "(a')" not in out  # timed only with --own-samples

@@ -234,8 +234,8 @@ def run(args: argparse.Namespace) -> int:
     # Accuracy on every distinct frame (trajectory and independent poses).
     every = [f for seq in sequences for f in seq] + independent
     methods = {
-        "weighted": lambda f: _fresh(detectors[f.camera]["full"], f.image),
-        "weighted, own samples only": lambda f: _fresh(detectors[f.camera]["full_own"], f.image),
+        "coverage (default)": lambda f: _fresh(detectors[f.camera]["full"], f.image),
+        "own samples only": lambda f: _fresh(detectors[f.camera]["full_own"], f.image),
         "bbox (eq. 12, chosen blob)": lambda f: _fresh(detectors[f.camera]["bbox"], f.image),
         "report (eq. 12, whole image)": lambda f: report_baseline(f.image, formats[f.camera], cfg),
         "opencv": lambda f: opencv_reference(f.image, formats[f.camera], cfg),
