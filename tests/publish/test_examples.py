@@ -67,3 +67,24 @@ def test_c_subscriber(tmp_path):
     lines = _first_lines([str(binary)], 2)
     assert lines[0].startswith(f'status {{"schema_version":"{SCHEMA_VERSION}","topic":"status"')
     assert lines[1].startswith(f'hit {{"schema_version":"{SCHEMA_VERSION}","topic":"hit"')
+
+
+def test_every_json_example_in_the_protocol_doc_decodes_as_the_current_version():
+    """The examples are what a subscriber sees: each is valid for its topic, and one that states a
+    version states this one (the hit example said 1.0 after the protocol reached 1.2)."""
+    import json
+
+    from trackerd.publish import decode
+
+    examples = re.findall(r"```json\n(.*?)```", PROTOCOL.read_text(), re.S)
+    lines = [line for block in examples for line in block.splitlines() if line.startswith("{")]
+    assert len(lines) >= 5
+    for line in lines:
+        data = json.loads(line)
+        if "schema_version" in data:
+            assert data["schema_version"] == SCHEMA_VERSION, line[:80]
+        else:
+            data["schema_version"] = SCHEMA_VERSION
+        defaults = {"sequence": 1, "capture_ns": 1, "publish_ns": 2}
+        message = decode(data["topic"].encode(), json.dumps({**defaults, **data}).encode())
+        assert message.topic == data["topic"]
