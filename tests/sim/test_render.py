@@ -152,5 +152,8 @@ def test_background_cache_round_trip(tmp_path, simulated_rig) -> None:
     files = list(tmp_path.glob("bg-*.npy"))
     assert len(files) == 1
     second = SceneRenderer(rig, cache_dir=tmp_path)
-    # float16 on disk: equal to within its resolution.
-    np.testing.assert_allclose(second.background_rgb(0), background, atol=1e-3)
+    # float16 on disk, and the fresh render is rounded to it as well: a scene renders the same
+    # whether its room came from the cache or not (benchmark figures depended on it).
+    assert np.array_equal(second.background_rgb(0), background)
+    uncached = SceneRenderer(rig, cache_dir=None)
+    assert np.array_equal(uncached.background_rgb(0), background)

@@ -214,7 +214,9 @@ class SceneRenderer:
                 return background
             except (OSError, ValueError):
                 pass  # a damaged cache file is simply rendered again
-        background = self._render_background(index)
+        # Stored as float16 on disk, so rounded to it here too: a render must not depend on
+        # whether its background came from the cache (the benches' figures moved with it).
+        background = self._render_background(index).astype(np.float16).astype(np.float32)
         self._backgrounds[index] = background
         if path is not None:
             try:
