@@ -6,6 +6,11 @@ Groups, each over many random pointer poses rendered with sensor noise:
 2. rotations: the nominal placement with the cameras rotated (pitch, yaw, roll);
 3. lengths: the nominal rig with pointers of several lengths.
 
+Under each variant, its worst tenth of poses is taken apart: their median error,
+what the same poses give from the renderer's exact centroids (the geometry's own
+share) and the locator's own 1-sigma estimate for them (how much each pose
+magnifies the centroids' noise; [locator] centroid_sigma_px per centroid).
+
 Every pose is located three ways on the same images:
 
 * trackerd: the detector's sub-pixel centres (the rig's [detector] centroid: every
@@ -167,6 +172,9 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
     errors: dict[str, list[float]] = {m: [] for m in METHODS}
     failures: dict[str, int] = {m: 0 for m in METHODS}
     bias = {"perspective_px": [], "occlusion_px": []}
+    # Per pose trackerd located: (error, error from the renderer's exact centroids, the locator's
+    # own 1-sigma estimate), in m: what makes the worst poses worst.
+    anatomy: list[tuple[float, float, float]] = []
     poses = 0
     while poses < n_poses:
         pose = random_pose(variant.rig, rng, list(variant.cameras), renderer.wall)
@@ -180,6 +188,11 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
         ours.reset()
         fix = ours.locate(images)
         _record(errors, failures, "trackerd", fix.hit.wall_xy_m if fix.hit is not None else None, truth)
+        if fix.hit is not None and fix.uncertainty_m is not None:
+            exact = ours.locate_centroids(tuple({c: v.truth.centroid_px[c] for c in ("red", "blue")} for v in views))
+            if exact.hit is not None:
+                anatomy.append((errors["trackerd"][-1], float(np.linalg.norm(exact.hit.wall_xy_m - truth.wall_xy_m)),
+                                float(fix.uncertainty_m)))
         if fix.found:
             centroids = [(c["red"], c["blue"]) for c in fix.centroids_px]
             _record(errors, failures, "two_points", _two_point_hit(ours, centroids), truth)
@@ -192,7 +205,7 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
             _record(errors, failures, "report", _two_point_hit(report, centroids), truth)
         else:
             failures["report"] += 1
-    return {"errors_m": errors, "failures": failures, "poses": poses, "bias": bias}
+    return {"errors_m": errors, "failures": failures, "poses": poses, "bias": bias, "anatomy": anatomy}
 
 
 def _record(errors, failures, method: str, hit_xy, truth) -> None:
@@ -256,6 +269,23 @@ def _stats(errors_m: list[float]) -> dict[str, float | None]:
     }
 
 
+def _worst(anatomy: list[tuple[float, float, float]]) -> dict[str, float] | None:
+    """The poses at or above the variant's 90th percentile of trackerd's error: their median error, the
+    median error the same poses give from exact centroids (the geometry's share), and the median of the
+    locator's own 1-sigma estimate (how much the pose magnifies centroid noise)."""
+    if len(anatomy) < 5:
+        return None
+    rows = np.asarray(anatomy) * 1000.0
+    worst = rows[rows[:, 0] >= np.percentile(rows[:, 0], 90)]
+    return {
+        "poses": int(len(worst)),
+        "error_mm": round(float(np.median(worst[:, 0])), 2),
+        "exact_centroids_mm": round(float(np.median(worst[:, 1])), 2),
+        "sigma_mm": round(float(np.median(worst[:, 2])), 2),
+        "sigma_all_mm": round(float(np.median(rows[:, 2])), 2),
+    }
+
+
 def summarise(variants: list[Variant], results: list[dict[str, Any]]) -> dict[str, Any]:
     groups: dict[str, Any] = {}
     for variant, result in zip(variants, results, strict=True):
@@ -266,6 +296,7 @@ def summarise(variants: list[Variant], results: list[dict[str, Any]]) -> dict[st
             "label": variant.label,
             "poses": result["poses"],
             **{m: _stats(result["errors_m"][m]) for m in METHODS},
+            "worst": _worst(result["anatomy"]),
         })
         for m in METHODS:
             group["errors"][m].extend(result["errors_m"][m])
@@ -317,6 +348,11 @@ def format_summary(summary: dict[str, Any]) -> str:
             t, r = v["trackerd"], v["report"]
             lines.append(f"    {v['label']:<30} n={v['poses']:<4} trackerd median {t['median_mm']} p95 {t['p95_mm']}"
                          f" | report median {r['median_mm']} p95 {r['p95_mm']}")
+            w = v.get("worst")
+            if w:
+                lines.append(f"      worst tenth ({w['poses']} poses): {w['error_mm']} mm; from exact centroids"
+                             f" {w['exact_centroids_mm']} mm; locator's sigma {w['sigma_mm']} mm"
+                             f" (all poses {w['sigma_all_mm']})")
         bias = group["centroid_bias_px"]
         if bias:
             lines.append(
