@@ -95,7 +95,10 @@ def _interaction(messages: list[tuple[str, dict[str, Any]]], sequences: set[int]
 def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path) -> None:
     directory = tmp_path / "recordings"
     endpoint = f"ipc://{tmp_path}/live.sock"
-    rig_file = _rig_file(virtual, tmp_path / "rig.toml", endpoint, RecordingConfig(directory=directory))
+    # A long queue: this machine's disk sometimes stalls for over half a second (32 pairs), and
+    # the comparison with the live run below needs every pair recorded.
+    queue = {"directory": directory, "queue_pairs": 160}
+    rig_file = _rig_file(virtual, tmp_path / "rig.toml", endpoint, RecordingConfig(**queue))
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"")
@@ -113,10 +116,10 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         collect(3.0)
-        _rig_file(virtual, rig_file, endpoint, RecordingConfig(directory=directory, enabled=True))
+        _rig_file(virtual, rig_file, endpoint, RecordingConfig(**queue, enabled=True))
         daemon.send_signal(signal.SIGHUP)
         collect(4.0)
-        _rig_file(virtual, rig_file, endpoint, RecordingConfig(directory=directory, enabled=False))
+        _rig_file(virtual, rig_file, endpoint, RecordingConfig(**queue, enabled=False))
         daemon.send_signal(signal.SIGHUP)
         collect(1.5)
         daemon.send_signal(signal.SIGTERM)

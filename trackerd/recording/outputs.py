@@ -35,12 +35,7 @@ def output_folder(path: str | Path) -> Path:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise RecordingError(f"{folder}: cannot create the folder ({err.strerror or err})") from None
-    try:
-        # A real write, not os.access: that says yes to root on a filesystem that refuses all writes.
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as err:
-        raise RecordingError(f"{folder}: cannot write into the folder ({err.strerror or err})") from None
+    _try_writing(folder, f"{folder}: cannot write into the folder")
     return folder
 
 
@@ -53,9 +48,17 @@ def check_new_recording(path: str | Path) -> Path:
     base = existing_ancestor(out)
     if not base.is_dir():
         raise RecordingError(f"{out}: cannot create the recording: {base} is a file, not a folder")
+    _try_writing(base, f"{out}: cannot create the recording in {base}")
+    return out
+
+
+def _try_writing(folder: Path, failure: str) -> None:
+    """Write a file in ``folder`` and remove it; RecordingError ``failure (reason)`` if that fails.
+
+    A real write, not os.access: that says yes to root on a filesystem that refuses all writes.
+    """
     try:
-        with tempfile.TemporaryFile(dir=base):
+        with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as err:
-        raise RecordingError(f"{out}: cannot create the recording in {base} ({err.strerror or err})") from None
-    return out
+        raise RecordingError(f"{failure} ({err.strerror or err})") from None
