@@ -120,6 +120,22 @@ def test_same_seed_same_image_and_noise_has_the_configured_level(renderer: Scene
     assert 0.9 < ratio < 1.1
 
 
+def test_a_pointer_held_still_renders_as_if_cast_afresh_with_new_noise(renderer: SceneRenderer, simulated_rig) -> None:
+    """The ray-cast pointer is remembered for a repeated pose (a presenter holding still): the frames are
+    those a renderer casting it every time gives, and each has noise of its own."""
+    pose = random_pose(simulated_rig, np.random.default_rng(4))
+    rng = np.random.default_rng(9)
+    first, second = (renderer.render(0, pose, rng) for _ in range(2))
+    assert not np.array_equal(first.image, second.image)
+    fresh = SceneRenderer(simulated_rig, cache_dir=None)
+    again = np.random.default_rng(9)
+    np.testing.assert_array_equal(fresh.render(0, pose, again).image, first.image)
+    fresh._last_patch.clear()  # cast again
+    redone = fresh.render(0, pose, again)
+    np.testing.assert_array_equal(redone.image, second.image)
+    assert redone.truth.area_px == second.truth.area_px
+
+
 def test_empty_room_has_no_pointer_truth(renderer: SceneRenderer) -> None:
     view = renderer.render(0, None, np.random.default_rng(0))
     assert np.all(np.isnan(view.truth.centroid_px["red"]))
