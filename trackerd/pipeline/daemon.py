@@ -48,10 +48,12 @@ log = logging.getLogger(__name__)
 STATE_POLL_S = 0.2
 """How often the publisher looks for a change of camera state (a change sends a status at once)."""
 PAIR_WAIT_S = 0.05
+"""How long the processing thread waits for a pair before checking for stop or reload."""
+STOP_DRAIN_S = 0.5
+"""How long, at stop, the publisher waits for the processing thread's last messages."""
 HEALTH_EVERY = 4
 """Calibration health is measured on every fourth pair: drift is slow, and each
 measurement reprojects every end into every camera (about 0.2 ms)."""
-"""How long the processing thread waits for a pair before checking for stop or reload."""
 
 
 @dataclass
@@ -64,6 +66,8 @@ class _Processed:
     capture_ns: int
     """Capture time on the publishing clock."""
     stage_ns: dict[str, int] = field(default_factory=dict)
+    final: bool = False
+    """The extensions' last messages at stop, not a pair's: not counted in the figures."""
 
 
 class Pipeline:
@@ -95,6 +99,7 @@ class Pipeline:
         )
         self._queue: DropOldestQueue[_Processed] = DropOldestQueue(queue_length)
         self._stop = threading.Event()
+        self._processing_done = threading.Event()
         self._done = threading.Event()
         self._failure: BaseException | None = None
         self._failure_text: str | None = None
@@ -152,12 +157,6 @@ class Pipeline:
         if self.source is not None:
             self.source.stop()
         if self.publisher is not None:
-            if not any(thread.is_alive() for thread in self._threads):
-                # The extensions' last words (a pending leave), while the socket is still open;
-                # only once no other thread can use it (a ZeroMQ socket is single-threaded).
-                for extension in self.extensions:
-                    for message in extension.finish():
-                        self.publisher.publish(message)
             self.publisher.close()
         for extension in self.extensions:
             extension.close()
@@ -201,6 +200,18 @@ class Pipeline:
     # ------------------------------------------------------------------ processing
 
     def _process_loop(self) -> None:
+        try:
+            self._process_until_stopped()
+            # The extensions' last words (a session still entered ends with a leave), queued
+            # ahead of the final status so subscribers hear them before the socket closes.
+            last = [message for extension in self.extensions for message in extension.finish()]
+            if last:
+                now = time.monotonic_ns()
+                self._queue.put(_Processed(last, now, now + self.clock_offset_ns, final=True))
+        finally:
+            self._processing_done.set()
+
+    def _process_until_stopped(self) -> None:
         while not self._stop.is_set():
             self._apply_pending_reload()
             assert self.source is not None
@@ -319,25 +330,34 @@ class Pipeline:
                     next_status = now + self._publisher_rig.outputs.zmq.status_interval_ms / 1000.0
                     self._send_status(status)
             if self._stop.is_set():
+                # What the processing thread handed over before it stopped, its last words
+                # included, goes out before the final status (which the publisher flushes).
+                self._processing_done.wait(STOP_DRAIN_S)
+                while (item := self._queue.get(0.0)) is not None:
+                    self._publish_item(item)
                 break
             self._apply_pending_outputs()
             item = self._queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
-            if item is None:
-                continue
-            assert self.publisher is not None
-            start = time.monotonic_ns()
-            for message in item.messages:
-                self.publisher.publish(message)
-            done = time.monotonic_ns()
-            self.pairs_published += 1
-            self.stages["publish"].add(done - start)
-            for name in ("detect", "triangulate"):
-                self.stages[name].add(item.stage_ns[name])
-            self.processing.add(done - item.received_ns)
-            self.latency.add(done + self.clock_offset_ns - item.capture_ns)
+            if item is not None:
+                self._publish_item(item)
         self._state = "stopping"
         self._detail = "stopping"
         self._send_status(self.source.status() if self.source is not None else None)
+
+    def _publish_item(self, item: _Processed) -> None:
+        assert self.publisher is not None
+        start = time.monotonic_ns()
+        for message in item.messages:
+            self.publisher.publish(message)
+        if item.final:
+            return
+        done = time.monotonic_ns()
+        self.pairs_published += 1
+        self.stages["publish"].add(done - start)
+        for name in ("detect", "triangulate"):
+            self.stages[name].add(item.stage_ns[name])
+        self.processing.add(done - item.received_ns)
+        self.latency.add(done + self.clock_offset_ns - item.capture_ns)
 
     def _apply_pending_outputs(self) -> None:
         """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
