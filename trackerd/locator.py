@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
 from trackerd.errors import GeometryError
+from trackerd.geometry import two_cameras
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.pointer_line import (
     PointerLine,
@@ -91,14 +92,29 @@ class _CameraView:
     cameras: list[CameraModel]
     centres_m: Array
     rotations: Array
+    floats: tuple[tuple, ...]
+    """Per camera, (centre, rotation rows, translation) as tuples of floats (trackerd.geometry.two_cameras)."""
 
     @staticmethod
     def of(locator: Locator, used: Sequence[int] | None) -> _CameraView:
         """All the locator's cameras (``used`` None or all of them), or those listed."""
         if used is None or len(used) == len(locator.cameras):
-            return _CameraView(locator.cameras, locator._centres, locator._rotations)
+            return locator._all_cameras
         index = np.asarray(used)
-        return _CameraView([locator.cameras[i] for i in used], locator._centres[index], locator._rotations[index])
+        return _CameraView([locator.cameras[i] for i in used], locator._centres[index], locator._rotations[index],
+                           tuple(locator._all_cameras.floats[i] for i in used))
+
+    @staticmethod
+    def build(cameras: list[CameraModel]) -> _CameraView:
+        centres = np.array([cam.centre_m for cam in cameras])
+        # d_world = d_cam @ R (R is world-to-camera), stacked for all cameras.
+        rotations = np.stack([cam.rotation for cam in cameras])
+        floats = tuple(
+            (tuple(cam.centre_m.tolist()), tuple(tuple(row) for row in cam.rotation.tolist()),
+             tuple(cam.translation_m.tolist()))
+            for cam in cameras
+        )
+        return _CameraView(cameras, centres, rotations, floats)
 
 
 class Locator:
@@ -123,11 +139,12 @@ class Locator:
         self._detectors: list | None = None
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
-        self._centres = np.array([cam.centre_m for cam in self.cameras])
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
+        self._wall_floats = (tuple(self._plane.normal.tolist()), float(self._plane.offset_m))
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
-        # d_world = d_cam @ R (R is world-to-camera), stacked for all cameras.
-        self._rotations = np.stack([cam.rotation for cam in self.cameras])
+        self._all_cameras = _CameraView.build(self.cameras)
+        self._centres = self._all_cameras.centres_m
+        self._rotations = self._all_cameras.rotations
 
     # ------------------------------------------------------------------ detection
 
@@ -209,6 +226,10 @@ class Locator:
     def _estimate(self, normalised: Array, sphere_correction: bool, view: _CameraView | None = None) -> PointerLine:
         """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``."""
         view = view or _CameraView.of(self, None)
+        if len(view.cameras) == 2:
+            fast = self._estimate_two(normalised, sphere_correction, view)
+            if fast is not None:
+                return fast
         rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
         rays /= np.sqrt(np.sum(rays * rays, axis=2, keepdims=True))
         line = self._line_from_camera_rays(rays[:, 0], rays[:, 1], view)
@@ -223,6 +244,35 @@ class Locator:
                     view,
                 )
         return line
+
+    def _estimate_two(self, normalised: Array, sphere_correction: bool, view: _CameraView) -> PointerLine | None:
+        """:meth:`_estimate` for two cameras in plain floats (trackerd.geometry.two_cameras); None where
+        the planes are too close to parallel, for the general path's two-point line."""
+        (centre0, rows0, t0), (centre1, rows1, t1) = view.floats
+        (x0f, y0f), (x0b, y0b) = normalised[0].tolist()
+        (x1f, y1f), (x1b, y1b) = normalised[1].tolist()
+
+        def line_of(x0f: float, y0f: float, x0b: float, y0b: float, x1f: float, y1f: float, x1b: float,
+                    y1b: float) -> PointerLine | None:
+            return two_cameras.pointer_line(
+                centre0, centre1,
+                two_cameras.world_ray(rows0, x0f, y0f), two_cameras.world_ray(rows0, x0b, y0b),
+                two_cameras.world_ray(rows1, x1f, y1f), two_cameras.world_ray(rows1, x1b, y1b),
+                self._min_plane_sin,
+            )
+
+        line = line_of(x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b)
+        if line is None or not sphere_correction:
+            return line
+        radius = self.rig.pointer.end_diameter_m / 2.0
+        front, back = tuple(line.front_m.tolist()), tuple(line.back_m.tolist())
+        depths = [rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
+                  for rows, t in ((rows0, t0), (rows1, t1)) for p in (front, back)]
+        if min(depths) <= radius:
+            return line
+        # As sphere_centre_direction: the ellipse's centre lies (1 - r^2 / Z^2) further out.
+        k0f, k0b, k1f, k1b = (1.0 - (radius / z) ** 2 for z in depths)
+        return line_of(x0f * k0f, y0f * k0f, x0b * k0b, y0b * k0b, x1f * k1f, y1f * k1f, x1b * k1b, y1b * k1b)
 
     def _line_from_camera_rays(self, front_cam: Array, back_cam: Array, view: _CameraView) -> PointerLine:
         """Line from camera-frame unit rays (C, 3) through the front and back ends."""
@@ -306,6 +356,11 @@ class Locator:
         """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
         coordinates (B, C, 2 ends, 2): the cheap, batched path for error propagation."""
         view = view or _CameraView.of(self, None)
+        if len(view.cameras) == 2:
+            (centre0, rows0, _), (centre1, rows1, _) = view.floats
+            hits_m = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1),
+                                                 variants.reshape(len(variants), 8).tolist(), *self._wall_floats)
+            return self.wall.to_wall_m(np.array(hits_m))
         rays = np.concatenate([variants, np.ones((*variants.shape[:3], 1))], axis=3)
         world = np.einsum("bcej,cjk->bcek", rays, view.rotations)
         normals = cross3(world[:, :, 0], world[:, :, 1])

@@ -1,0 +1,147 @@
+"""The pointer's line from exactly two cameras, in plain floats: the locator's every-pair case.
+
+The same closed forms as :mod:`trackerd.geometry.pointer_line` (two interpretation
+planes meeting in the pointer's line, each end placed on it by its rays' common
+perpendicular, eq. 15-17; the rays' gaps, eq. 16), written for two cameras on
+Python floats. With three-element vectors NumPy's cost is its calls (about a
+microsecond each, some 900 calls a fix), not the arithmetic, so the two-camera
+fix that every pair needs runs here at a fraction of that; the NumPy functions
+stay the reference (tests/geometry/test_two_cameras.py holds the two to 1e-9)
+and the general case for three or more cameras.
+
+Vectors are 3-tuples of floats in world coordinates, metres; rotations are
+world-to-camera matrices as 3-tuples of rows (``x_cam = R x_world + t``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from trackerd.errors import GeometryError
+from trackerd.geometry.pointer_line import PointerLine
+
+Vec = tuple[float, float, float]
+Rows = tuple[Vec, Vec, Vec]
+
+
+def _dot(a: Vec, b: Vec) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec, b: Vec) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _sub(a: Vec, b: Vec) -> Vec:
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _scaled(a: Vec, k: float) -> Vec:
+    return (a[0] * k, a[1] * k, a[2] * k)
+
+
+def _unit(a: Vec) -> Vec:
+    return _scaled(a, 1.0 / math.sqrt(_dot(a, a)))
+
+
+def world_ray(rotation: Rows, x_norm: float, y_norm: float) -> Vec:
+    """The world direction (not unit) of the camera ray through normalised image point (x, y): R^T (x, y, 1)."""
+    r0, r1, r2 = rotation
+    return (r0[0] * x_norm + r1[0] * y_norm + r2[0],
+            r0[1] * x_norm + r1[1] * y_norm + r2[1],
+            r0[2] * x_norm + r1[2] * y_norm + r2[2])
+
+
+def plane_normal(front: Vec, back: Vec) -> Vec:
+    """Unit normal of a camera's interpretation plane, spanned by its two end rays."""
+    normal = _cross(front, back)
+    length = math.sqrt(_dot(normal, normal))
+    if length < 1e-12:
+        raise GeometryError("the pointer's two ends coincide in an image: it is seen end-on")
+    return _scaled(normal, 1.0 / length)
+
+
+def planes_line(c0: Vec, c1: Vec, n0: Vec, n1: Vec) -> tuple[Vec, Vec, float] | None:
+    """Where two planes (through c0 and c1, unit normals n0 and n1) meet: (point, unit direction,
+    sine of the angle between the planes), the point nearest the midpoint of c0 and c1; None
+    when the planes are parallel. As :func:`pointer_line.two_plane_lines`, with the 3x3 system
+    [n0; n1; u] x = [n0.c0, n1.c1, u.m] solved by Cramer's rule in cross products."""
+    cross = _cross(n0, n1)
+    conditioning = math.sqrt(_dot(cross, cross))
+    if conditioning < 1e-12:
+        return None
+    u = _scaled(cross, 1.0 / conditioning)
+    middle = ((c0[0] + c1[0]) * 0.5, (c0[1] + c1[1]) * 0.5, (c0[2] + c1[2]) * 0.5)
+    r0, r1, r2 = _dot(n0, c0), _dot(n1, c1), _dot(u, middle)
+    a, b, c = _cross(n1, u), _cross(u, n0), cross
+    det = _dot(n0, a)
+    point = ((r0 * a[0] + r1 * b[0] + r2 * c[0]) / det,
+             (r0 * a[1] + r1 * b[1] + r2 * c[1]) / det,
+             (r0 * a[2] + r1 * b[2] + r2 * c[2]) / det)
+    return point, u, conditioning
+
+
+def _end_on_line(point: Vec, u: Vec, c0: Vec, c1: Vec, d0: Vec, d1: Vec) -> Vec:
+    """Where an end's two rays (c_k + t d_k) come closest to the line point + s u, averaged with
+    weights sin^2 of each ray's angle to the line (as pointer_line._ends_along_line)."""
+    total = weights = 0.0
+    for origin, direction in ((c0, d0), (c1, d1)):
+        unit = _unit(direction)
+        rel = _sub(point, origin)
+        b = _dot(unit, u)
+        sin2 = max(1.0 - b * b, 1e-18)
+        s = (b * _dot(unit, rel) - _dot(rel, u)) / sin2
+        total += s * sin2
+        weights += sin2
+    s_mean = total / weights
+    return (point[0] + s_mean * u[0], point[1] + s_mean * u[1], point[2] + s_mean * u[2])
+
+
+def ray_gap_m(c0: Vec, c1: Vec, d0: Vec, d1: Vec) -> float:
+    """How far two rays miss each other: |(c1 - c0) . (d0 x d1)| / |d0 x d1| (eq. 16 measured)."""
+    normal = _cross(d0, d1)
+    length = math.sqrt(_dot(normal, normal))
+    if length <= 1e-12:
+        return 0.0
+    return abs(_dot(normal, _sub(c1, c0))) / length
+
+
+def pointer_line(c0: Vec, c1: Vec, front0: Vec, back0: Vec, front1: Vec, back1: Vec,
+                 min_plane_sin: float) -> PointerLine | None:
+    """:func:`pointer_line.estimate_pointer_line` for two cameras (centres c0, c1; world rays
+    through each camera's front and back end); None when the planes are too close to parallel
+    for their line, where the caller uses the two triangulated points instead."""
+    found = planes_line(c0, c1, plane_normal(front0, back0), plane_normal(front1, back1))
+    if found is None or found[2] < min_plane_sin:
+        return None
+    point, u, conditioning = found
+    front = _end_on_line(point, u, c0, c1, front0, front1)
+    back = _end_on_line(point, u, c0, c1, back0, back1)
+    return PointerLine(np.array(front), np.array(back), ray_gap_m(c0, c1, front0, front1),
+                       ray_gap_m(c0, c1, back0, back1), "planes", conditioning)
+
+
+def plane_line_hits(c0: Vec, c1: Vec, rotations: tuple[Rows, Rows], variants: list[tuple[float, ...]],
+                    wall_normal: Vec, wall_offset_m: float) -> list[Vec]:
+    """Where the interpretation planes' line meets the wall plane, for sets of normalised end
+    coordinates (x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b): the batched path of the locator's
+    uncertainty (:meth:`Locator._plane_hits_xy`). The wall plane is n . x + offset = 0 (eq. 23).
+
+    Raises GeometryError when the line of a set is parallel to the wall or the planes are parallel.
+    """
+    hits = []
+    for x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b in variants:
+        n0 = plane_normal(world_ray(rotations[0], x0f, y0f), world_ray(rotations[0], x0b, y0b))
+        n1 = plane_normal(world_ray(rotations[1], x1f, y1f), world_ray(rotations[1], x1b, y1b))
+        found = planes_line(c0, c1, n0, n1)
+        if found is None:
+            raise GeometryError("the cameras' planes through the pointer are parallel: no line")
+        point, u, _ = found
+        denominator = _dot(u, wall_normal)
+        if abs(denominator) < 1e-9:
+            raise GeometryError("the pointer is parallel to the wall")
+        t = (_dot(wall_normal, point) + wall_offset_m) / denominator
+        hits.append((point[0] - t * u[0], point[1] - t * u[1], point[2] - t * u[2]))
+    return hits
