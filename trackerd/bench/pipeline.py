@@ -1,8 +1,8 @@
 """The daemon's real-time figures: latency, CPU per pair and drops at 1920x1080, 60 pairs/s, two cameras.
 
 The pipeline runs exactly as under `trackerd run` (processing and publishing
-threads, ZeroMQ publisher with a subscriber reading every message), fed by one
-of two sources:
+threads, ZeroMQ publisher, and a subscriber in a process of its own reading
+every message), fed by one of two sources:
 
 * memory (default): a rendered 1920x1080 motion loop served through the
   PairSource interface at 60 pairs per second, paced like free-running cameras.
@@ -22,8 +22,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
-import threading
+import queue
 import time
 from typing import Any
 
@@ -75,13 +76,16 @@ def run(args: argparse.Namespace) -> int:
             return AravisPairSource(r, on_open=virtual.on_open)
 
         source_note = f"virtual GigE Vision rig, '{args.motion}', {rig.acquisition.trigger}"
-    counts: dict[str, int] = {}
-    stop = threading.Event()
-    subscriber = threading.Thread(target=_subscribe, args=(args.endpoint, stop, counts), daemon=True)
+    # The subscriber is another process, as every real one is: in this one it would take the
+    # GIL from the pipeline for every message and count its own cost as the daemon's.
+    context = multiprocessing.get_context("fork")
+    stop = context.Event()
+    results = context.Queue()
+    subscriber = context.Process(target=_subscribe, args=(args.endpoint, stop, results), daemon=True)
+    subscriber.start()
     pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq))
     try:
         pipeline.start()
-        subscriber.start()
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
         cpu0, wall0 = os.times(), time.monotonic()
         pairs0 = pipeline.pairs_processed
@@ -98,10 +102,15 @@ def run(args: argparse.Namespace) -> int:
         status1 = pipeline.source.status()
         queue_drops = pipeline._queue.dropped
     finally:
-        stop.set()
         pipeline.stop()
+        stop.set()
         if virtual is not None:
             virtual.stop()
+    try:
+        counts = results.get(timeout=5.0)
+    except queue.Empty:
+        counts = {}
+    subscriber.join(2.0)
     cpu_s = (cpu1.user + cpu1.system) - (cpu0.user + cpu0.system)
     elapsed = wall1 - wall0
     figures: dict[str, Any] = {
@@ -125,7 +134,9 @@ def run(args: argparse.Namespace) -> int:
     return 0 if pipeline.failure is None else 1
 
 
-def _subscribe(endpoint: str, stop: threading.Event, counts: dict[str, int]) -> None:
+def _subscribe(endpoint: str, stop: Any, results: Any) -> None:
+    """The subscriber process: reads every message until ``stop``, then puts the counts by topic."""
+    counts: dict[str, int] = {}
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"")
@@ -138,6 +149,7 @@ def _subscribe(endpoint: str, stop: threading.Event, counts: dict[str, int]) -> 
     finally:
         sub.close(0)
         ctx.term()
+        results.put(counts)
 
 
 def _format(f: dict[str, Any]) -> str:
