@@ -223,9 +223,8 @@ class Locator:
         fix.timings_ns["triangulate_ns"] = time.perf_counter_ns() - start
         return fix
 
-    def _estimate(self, normalised: Array, sphere_correction: bool, view: _CameraView | None = None) -> PointerLine:
+    def _estimate(self, normalised: Array, sphere_correction: bool, view: _CameraView) -> PointerLine:
         """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``."""
-        view = view or _CameraView.of(self, None)
         if len(view.cameras) == 2:
             fast = self._estimate_two(normalised, sphere_correction, view)
             if fast is not None:
@@ -327,7 +326,7 @@ class Locator:
         distance = (u - 1.0) * line.length_m
         return WallHit(xy, point_m, display, bool(self.wall.on_wall(xy)), float(distance))
 
-    def _uncertainty(self, normalised: Array, view: _CameraView | None = None) -> float | None:
+    def _uncertainty(self, normalised: Array, view: _CameraView) -> float | None:
         """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer.
 
         Only displacements across each camera's image of the pointer move the
@@ -336,7 +335,6 @@ class Locator:
         coordinates with each camera's focal length (distortion's local scale
         change of a few percent is ignored: this is an estimate).
         """
-        view = view or _CameraView.of(self, None)
         sigma_px = self.rig.locator.centroid_sigma_px
         n_cameras = len(view.cameras)
         # Variant 0 is the measurement; then each end of each camera moved across the pointer.
@@ -352,10 +350,9 @@ class Locator:
             return None
         return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
 
-    def _plane_hits_xy(self, variants: Array, view: _CameraView | None = None) -> Array:
+    def _plane_hits_xy(self, variants: Array, view: _CameraView) -> Array:
         """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
         coordinates (B, C, 2 ends, 2): the cheap, batched path for error propagation."""
-        view = view or _CameraView.of(self, None)
         if len(view.cameras) == 2:
             (centre0, rows0, _), (centre1, rows1, _) = view.floats
             hits_m = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1),
@@ -365,12 +362,10 @@ class Locator:
         world = np.einsum("bcej,cjk->bcek", rays, view.rotations)
         normals = cross3(world[:, :, 0], world[:, :, 1])
         normals /= np.sqrt(np.sum(normals * normals, axis=-1, keepdims=True))
-        if normals.shape[1] == 2:
-            points, directions, _ = two_plane_lines(view.centres_m, normals)
-        else:
-            lines = [line_from_planes(view.centres_m, n) for n in normals]
-            points = np.array([line[0] for line in lines])
-            directions = np.array([line[1] for line in lines])
+        # Three or more cameras (two take the closed form above).
+        lines = [line_from_planes(view.centres_m, n) for n in normals]
+        points = np.array([line[0] for line in lines])
+        directions = np.array([line[1] for line in lines])
         plane = self._plane
         denominator = directions @ plane.normal
         if np.any(np.abs(denominator) < 1e-9):
