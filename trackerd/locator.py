@@ -35,7 +35,6 @@ from trackerd.geometry.pointer_line import (
     estimate_pointer_line,
     line_from_planes,
     sphere_centre_direction,
-    two_plane_lines,
 )
 from trackerd.geometry.wall import WallFrame, intersect_line_plane
 
