@@ -239,7 +239,19 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
         time.sleep(0.5)
         at_five_hz = statuses_seen(2.5)
         assert at_five_hz >= 10, at_five_hz
+        key_text = (clients / app_public.name).read_bytes()
         (clients / app_public.name).unlink()  # revoked
+        pipeline.request_reload(rig_with(200.0))
+        time.sleep(0.5)
+        assert statuses_seen(1.5) == 0
+        # Let in again, then every key removed: an empty directory lets nobody in (an empty one
+        # is refused at start, which must not keep the last keys standing at a reload).
+        (clients / app_public.name).write_bytes(key_text)
+        pipeline.request_reload(rig_with(200.0))
+        time.sleep(0.5)
+        assert statuses_seen(1.5) > 0
+        for key in clients.glob("*.key"):
+            key.unlink()
         pipeline.request_reload(rig_with(200.0))
         time.sleep(0.5)
         assert statuses_seen(1.5) == 0

@@ -368,7 +368,7 @@ class Pipeline:
         assert self.publisher is not None
         if rig.outputs == self._publisher_rig.outputs:
             try:
-                self.publisher.reload_authorized_keys()
+                self.publisher.reload_authorized_keys(allow_empty=True)
             except Exception as err:  # noqa: BLE001 - keep the keys already loaded
                 log.error("reload: cannot read the CURVE client keys again (%s); keeping the previous ones", err)
             else:

@@ -89,11 +89,17 @@ def load_curve_public_key(path: Path) -> bytes:
     return public
 
 
-def _authorized_keys_dir(path: Path) -> Path:
+def _authorized_keys_dir(path: Path, allow_empty: bool = False) -> Path:
+    """The directory of client keys; an empty one is refused at start (a mistake: nobody could
+    subscribe) but taken at a reload, where removing the last key must revoke it."""
     if not path.is_dir():
         raise ConfigError(f"{path}: curve_authorized_keys_dir is not a directory")
     if not any(path.glob("*.key")):
-        raise ConfigError(f"{path}: no client public keys (*.key) in curve_authorized_keys_dir; nobody could subscribe")
+        if not allow_empty:
+            raise ConfigError(
+                f"{path}: no client public keys (*.key) in curve_authorized_keys_dir; nobody could subscribe"
+            )
+        log.warning("%s: no client public keys (*.key) left: no subscriber is let in until one is added", path)
     return path
 
 
@@ -175,15 +181,17 @@ class Publisher:
         self._auth.start()
         self.reload_authorized_keys()
 
-    def reload_authorized_keys(self) -> None:
-        """Read curve_authorized_keys_dir again (after SIGHUP, say); no-op without CURVE."""
+    def reload_authorized_keys(self, *, allow_empty: bool = False) -> None:
+        """Read curve_authorized_keys_dir again (after SIGHUP, say); no-op without CURVE.
+        ``allow_empty``: a directory with no keys left lets nobody in (a reload), rather than being an error."""
         if self._auth is None:
             return
         directory = self.config.curve_authorized_keys_dir
         if directory is None:
             self._auth.configure_curve(domain="*", location=zmq.auth.CURVE_ALLOW_ANY)
         else:
-            self._auth.configure_curve(domain="*", location=os.fspath(_authorized_keys_dir(directory)))
+            location = _authorized_keys_dir(directory, allow_empty=allow_empty)
+            self._auth.configure_curve(domain="*", location=os.fspath(location))
 
     def _bind(self, keys: tuple[bytes, bytes] | None) -> zmq.Socket:
         xpub = self._context.socket(zmq.XPUB)
