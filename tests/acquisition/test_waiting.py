@@ -67,7 +67,10 @@ def test_the_daemons_source_waits_for_a_camera_switched_on_after_it(simulated_ri
     assert "no answer from 10.213.200.6" in waiting[0].getMessage()
     if waited_s < REMINDER_S:
         assert len(waiting) == 1
-    assert _messages(caplog, "camera right streaming, after waiting")
+    if right.losses == 0:
+        assert _messages(caplog, "camera right streaming, after waiting")
+    else:  # on a busy machine its first frame came after the quick rig's 300 ms loss timeout
+        assert _messages(caplog, "camera right streaming again")
 
 
 def test_a_connection_that_delivers_no_frame_is_never_streaming(simulated_rig, out_dir) -> None:
