@@ -83,3 +83,15 @@ def unsmoothed_xy(hit: dict[str, Any]) -> tuple[float, float]:
     if hit.get("raw_wall_x_m") is not None:
         return hit["raw_wall_x_m"], hit["raw_wall_y_m"]
     return hit["wall_x_m"], hit["wall_y_m"]
+
+
+INTERACTION_TOPICS = ("hit", "enter", "leave", "dwell", "gesture", "command")
+
+
+def interaction_events(messages: list[tuple[str, dict[str, Any]]], shift: int = 0) -> list[tuple[str, int, str]]:
+    """The hits and interaction events as (topic, sequence - shift, payload), in order, without what
+    differs between a live run and its replay or between loop passes (times and ``cursor_id``,
+    which counts sessions since the process started)."""
+    strip = {"publish_ns", "capture_ns", "cursor_id", "sequence"}
+    return [(topic, m["sequence"] - shift, json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
+            for topic, m in messages if topic in INTERACTION_TOPICS]

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 import zmq
-from rec_helpers import replay_and_listen, trackerd, unsmoothed_xy
+from rec_helpers import interaction_events, replay_and_listen, trackerd, unsmoothed_xy
 
 from trackerd.acquisition.arv import aravis_missing_reason
 from trackerd.config.loader import dump_rig
@@ -84,12 +84,7 @@ def _errors_to_truth_mm(virtual, recording_path: Path, hits: list[dict[str, Any]
 
 
 def _interaction(messages: list[tuple[str, dict[str, Any]]], sequences: set[int]) -> list[tuple[str, int, str]]:
-    strip = {"publish_ns", "capture_ns", "cursor_id"}
-    return sorted(
-        (topic, m["sequence"], json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
-        for topic, m in messages
-        if topic in ("hit", "enter", "leave", "dwell", "gesture", "command") and m["sequence"] in sequences
-    )
+    return sorted(interaction_events([(t, m) for t, m in messages if m.get("sequence") in sequences]))
 
 
 def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path) -> None:

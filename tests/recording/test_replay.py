@@ -11,12 +11,18 @@ import itertools
 import json
 import time
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 import pytest
-from rec_helpers import one_line_error, replay_and_listen, trackerd, unsmoothed_xy, without_publish_time
+from rec_helpers import (
+    interaction_events,
+    one_line_error,
+    replay_and_listen,
+    trackerd,
+    unsmoothed_xy,
+    without_publish_time,
+)
 
 from trackerd.recording.reader import Recording
 from trackerd.recording.replay import ReplayPairSource
@@ -135,13 +141,8 @@ def test_each_pass_of_a_looped_replay_publishes_what_the_first_did(bundle, first
     with Recording.open(bundle) as recording:
         per_pass = max(e.sequence for e in recording.entries) + 1
 
-    def interaction(pass_messages: list[tuple[str, dict[str, Any]]], shift: int) -> list[tuple[str, int, str]]:
-        strip = {"publish_ns", "capture_ns", "cursor_id", "sequence"}
-        return [(t, m["sequence"] - shift, json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
-                for t, m in pass_messages if t in ("hit", "enter", "leave", "dwell", "gesture", "command")]
-
     first = [(t, m) for t, m in first_replay[1] if t != "status"]
-    first_events = interaction(first, 0)
+    first_events = interaction_events(first)
     passes = {}
     for topic, m in messages:
         if topic != "status":
@@ -150,7 +151,7 @@ def test_each_pass_of_a_looped_replay_publishes_what_the_first_did(bundle, first
     assert len(complete) >= 3, sorted(passes)
     for k in complete:
         # The first pass's final leave (the replay stopped) comes here from the next pass's reset.
-        assert interaction(passes[k], k * per_pass) == first_events, k
+        assert interaction_events(passes[k], k * per_pass) == first_events, k
     assert not any(t == "gesture" for t, _ in messages)
 
 
