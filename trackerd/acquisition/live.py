@@ -40,10 +40,13 @@ log = logging.getLogger(__name__)
 STOP_BUDGET_S = 1.0
 """stop() joins every thread within this many seconds (see Releaser and firing.py for the exceptions)."""
 TRIGGER_LEAD_NS = 50_000_000
-CLOCK_WARMUP_FRAMES = 8
-"""When pairing by time, a camera's first frames after (re)connecting are not paired: its
-device-to-host offset estimate has seen too few transfer delays to be trusted yet."""
 """The first software trigger tick is this far after start, once every camera is open."""
+CLOCK_WARMUP_FRAMES = 8
+"""A camera's first frames after (re)connecting are not paired: its device-to-host offset
+estimate has seen too few transfer delays to be trusted yet. Pairing by time needs it for
+the match; pairing by trigger count needs it for the skew check, which would otherwise
+compare a frame's arrival time (a fresh estimate is just that) with the other camera's
+capture time, and let frames captured tens of milliseconds apart through."""
 
 
 class Releaser:
@@ -246,7 +249,7 @@ class AravisPairSource(PairSource):
     # ------------------------------------------------------------------ FrameSink (worker threads)
 
     def deliver(self, arrival: Arrival) -> None:
-        if arrival.tick is None and self._clock_for(arrival.camera_index).observations < CLOCK_WARMUP_FRAMES:
+        if self._clock_settling(arrival):
             with self._lock:
                 self._pairer.dropped["clock_warmup"] += 1
             return
@@ -292,6 +295,13 @@ class AravisPairSource(PairSource):
             and bool(self._workers)
             and all(w.ptp_state in PTP_LOCKED_STATES for w in self._workers)
         )
+
+    def _clock_settling(self, arrival: Arrival) -> bool:
+        """The frame's capture time is its camera's offset estimate still settling (a camera
+        without device timestamps has no estimate: its capture times are arrival times)."""
+        if arrival.frame.device_timestamp_ns == 0:
+            return False
+        return self._clock_for(arrival.camera_index).observations < CLOCK_WARMUP_FRAMES
 
     def _clock_for(self, camera_index: int) -> DeviceClock:
         if self._shared_clock is not None and self._ptp_locked():
