@@ -97,7 +97,7 @@ def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(vir
         "software trigger failed" in outcome["error"]
     )
     left = status.cameras[0]
-    assert left.losses == left.reconnects >= 1  # see the twenty-loss test for why not always 1
+    assert left.losses == left.reconnects >= 1  # see the ten-loss test for why not always 1
     assert status.cameras[1].losses == 0
     assert status.dropped_frames.get("partner_lost", 0) > 0  # camera 1's frames while camera 0 was away
     check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1)
@@ -116,7 +116,7 @@ def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(vir
 
 
 @pytest.mark.slow
-def test_twenty_losses_leak_no_thread_or_descriptor(virtual) -> None:
+def test_ten_losses_leak_no_thread_or_descriptor(virtual) -> None:
     from trackerd.acquisition.live import AravisPairSource
 
     source = AravisPairSource(virtual.daemon_rig)
@@ -127,7 +127,7 @@ def test_twenty_losses_leak_no_thread_or_descriptor(virtual) -> None:
             lose_and_recover(virtual, source, consumer)
             assert wait_until(lambda: source.status().releasing == 0, 15.0)
             baseline = settled_resources()
-            for _ in range(20):
+            for _ in range(10):
                 lose_and_recover(virtual, source, consumer)
             assert wait_until(lambda: source.status().releasing == 0, 15.0)
             after = settled_resources()
@@ -135,14 +135,15 @@ def test_twenty_losses_leak_no_thread_or_descriptor(virtual) -> None:
             consumer.stop()
         status = source.status()
     print(
-        f"\n21 kills: {status.cameras[0].losses} losses detected, {status.cameras[0].reconnects} reconnected,"
+        f"\n11 kills: {status.cameras[0].losses} losses detected, {status.cameras[0].reconnects} reconnected,"
         f" resources (threads, fds) {baseline} -> {after}"
     )
     left = status.cameras[0]
     # Every loss recovered. Now and then (about one reconnection in thirty on the loaded
     # 2-core machine) a fresh connection's first frame does not come in time and the camera
-    # is reconnected once more, so the counts may exceed the 21 kills.
-    assert left.reconnects == left.losses >= 21
+    # is reconnected once more, so the counts may exceed the 11 kills. Ten cycles after the
+    # baseline still show a leak of one thread or descriptor per cycle as a difference of ten.
+    assert left.reconnects == left.losses >= 11
     assert status.cameras[1].losses == 0
     assert after == baseline
     check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1)
