@@ -119,6 +119,9 @@ class Pipeline:
         self.processing = Window()
         """Last frame of the pair received to messages published (ns)."""
         self.stages = {name: Window() for name in ("detect", "triangulate", "publish")}
+        self.processing_cpu = Window()
+        """CPU time the processing thread spent on each pair (ns): set beside its wall time, what
+        was work and what was waiting for a CPU (benchmarks; not in the status)."""
         self.pairs_processed = 0
         self.pairs_published = 0
         """Pairs whose messages the publishing thread has handed to the publisher."""
@@ -221,7 +224,7 @@ class Pipeline:
                     # A power-cycled camera is not a stalled pipeline: keep systemd's watchdog fed.
                     self._notifier.progress()
                 continue
-            start = time.monotonic_ns()
+            start, start_cpu = time.monotonic_ns(), time.thread_time_ns()
             received = max(frame.host_timestamp_ns for frame in pair.frames)
             fresh = pair.fresh_start
             for extension in self.extensions:
@@ -247,6 +250,7 @@ class Pipeline:
                      "triangulate": fix.timings_ns.get("triangulate_ns", 0),
                      "process": time.monotonic_ns() - start}
             self._queue.put(_Processed(messages, received, capture, stage))
+            self.processing_cpu.add(time.thread_time_ns() - start_cpu)
             self.pairs_processed += 1
             self._notifier.progress()
 
