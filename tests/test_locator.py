@@ -89,6 +89,28 @@ def test_reported_uncertainty_matches_the_spread_of_noisy_fixes(simulated_rig, r
     assert reported == pytest.approx(spread, rel=0.3)
 
 
+def test_two_camera_uncertainty_is_the_numpy_reference_in_plain_floats(simulated_rig, rendered_poses) -> None:
+    from trackerd.locator import _CameraView
+
+    locator = Locator(simulated_rig)
+    sigma = simulated_rig.locator.centroid_sigma_px
+    view = _CameraView.of(locator, None)
+    rng = np.random.default_rng(3)
+    compared = 0
+    for _, centroids in rendered_poses:
+        for _ in range(10):
+            moved = tuple({k: v + rng.normal(0, 2.0, 2) for k, v in c.items()} for c in centroids)
+            normalised = np.stack([
+                cam.normalized_from_pixels(np.array([c[locator.front_colour], c[locator.back_colour]]))
+                for cam, c in zip(locator.cameras, moved, strict=True)
+            ])
+            fast = locator._uncertainty_two(normalised, view, sigma)
+            reference = locator._uncertainty_numpy(normalised, view, sigma)
+            assert fast == pytest.approx(reference, rel=1e-9, abs=1e-12)
+            compared += 1
+    assert compared >= 20
+
+
 def test_status_for_each_kind_of_failure(simulated_rig, renderer, rendered_poses) -> None:
     locator = Locator(simulated_rig)
     _, centroids = rendered_poses[0]

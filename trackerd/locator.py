@@ -18,6 +18,7 @@ Every outcome is a :class:`PointerFix` with a ``status``:
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -84,6 +85,11 @@ class PointerFix:
         return self.line is not None and self.status != "rejected"
 
 
+def _finite_point(point_px: Array | None) -> bool:
+    """A centroid that is there and finite (plain floats: this runs for every end of every pair)."""
+    return point_px is not None and all(math.isfinite(v) for v in point_px)
+
+
 @dataclass(frozen=True)
 class _CameraView:
     """The cameras one fix is computed from, with their stacked centres and rotations."""
@@ -140,6 +146,7 @@ class Locator:
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
         self._wall_floats = (tuple(self._plane.normal.tolist()), float(self._plane.offset_m))
+        self._wall_axes = (tuple(self.wall.x_axis.tolist()), tuple(self.wall.y_axis.tolist()))
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         self._all_cameras = _CameraView.build(self.cameras)
         self._centres = self._all_cameras.centres_m
@@ -199,7 +206,7 @@ class Locator:
         used: list[int] = []
         missing: list[str] = []
         for index, (cam, per_camera) in enumerate(zip(self.cameras, centroids, strict=True)):
-            absent = [c for c in COLOURS if per_camera.get(c) is None or not np.all(np.isfinite(per_camera[c]))]
+            absent = [c for c in COLOURS if not _finite_point(per_camera.get(c))]
             missing += [f"{cam.camera_id}: no {colour} end" for colour in absent]
             if not absent:
                 used.append(index)
@@ -335,6 +342,12 @@ class Locator:
         change of a few percent is ignored: this is an estimate).
         """
         sigma_px = self.rig.locator.centroid_sigma_px
+        if len(view.cameras) == 2:
+            return self._uncertainty_two(normalised, view, sigma_px)
+        return self._uncertainty_numpy(normalised, view, sigma_px)
+
+    def _uncertainty_numpy(self, normalised: Array, view: _CameraView, sigma_px: float) -> float | None:
+        """:meth:`_uncertainty` for any number of cameras: the reference of :meth:`_uncertainty_two`."""
         n_cameras = len(view.cameras)
         # Variant 0 is the measurement; then each end of each camera moved across the pointer.
         variants = np.repeat(normalised[None], 1 + 2 * n_cameras, axis=0)
@@ -349,19 +362,42 @@ class Locator:
             return None
         return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
 
+    def _uncertainty_two(self, normalised: Array, view: _CameraView, sigma_px: float) -> float | None:
+        """:meth:`_uncertainty` for two cameras, in plain floats (trackerd.geometry.two_cameras)."""
+        (centre0, rows0, _), (centre1, rows1, _) = view.floats
+        measured = normalised.reshape(8).tolist()  # x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b
+        variants = [tuple(measured)]
+        for index, cam in enumerate(view.cameras):
+            xf, yf, xb, yb = measured[4 * index : 4 * index + 4]
+            along_x, along_y = xf - xb, yf - yb
+            scale = sigma_px / cam.focal_px / max(math.hypot(along_x, along_y), 1e-12)
+            shift = (-along_y * scale, along_x * scale)
+            for end in (0, 1):
+                moved = list(measured)
+                moved[4 * index + 2 * end] += shift[0]
+                moved[4 * index + 2 * end + 1] += shift[1]
+                variants.append(tuple(moved))
+        try:
+            hits = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1), variants, *self._wall_floats)
+        except GeometryError:
+            return None
+        # The hits lie in the wall's plane: their spread in the wall's frame, along its two axes.
+        (hx, hy, hz), x_axis, y_axis = hits[0], self._wall_axes[0], self._wall_axes[1]
+        total = 0.0
+        for px, py, pz in hits[1:]:
+            dx, dy, dz = px - hx, py - hy, pz - hz
+            along_x = dx * x_axis[0] + dy * x_axis[1] + dz * x_axis[2]
+            along_y = dx * y_axis[0] + dy * y_axis[1] + dz * y_axis[2]
+            total += along_x * along_x + along_y * along_y
+        return math.sqrt(total)
+
     def _plane_hits_xy(self, variants: Array, view: _CameraView) -> Array:
         """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
-        coordinates (B, C, 2 ends, 2): the cheap, batched path for error propagation."""
-        if len(view.cameras) == 2:
-            (centre0, rows0, _), (centre1, rows1, _) = view.floats
-            hits_m = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1),
-                                                 variants.reshape(len(variants), 8).tolist(), *self._wall_floats)
-            return self.wall.to_wall_m(np.array(hits_m))
+        coordinates (B, C, 2 ends, 2), in NumPy (two cameras take :meth:`_uncertainty_two`)."""
         rays = np.concatenate([variants, np.ones((*variants.shape[:3], 1))], axis=3)
         world = np.einsum("bcej,cjk->bcek", rays, view.rotations)
         normals = cross3(world[:, :, 0], world[:, :, 1])
         normals /= np.sqrt(np.sum(normals * normals, axis=-1, keepdims=True))
-        # Three or more cameras (two take the closed form above).
         lines = [line_from_planes(view.centres_m, n) for n in normals]
         points = np.array([line[0] for line in lines])
         directions = np.array([line[1] for line in lines])

@@ -9,6 +9,7 @@ of the top-left pixel is (0, 0), x to the right, y down.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -120,8 +121,9 @@ class CameraModel:
         """3x3 rotation taking camera-frame directions to world directions (eq. 22)."""
         return self.rotation.T
 
-    @property
+    @cached_property
     def has_distortion(self) -> bool:
+        # Asked for every pair (normalized_from_pixels); the model is frozen, so once is enough.
         return bool(self.distortion.size and np.any(self.distortion != 0.0))
 
     @property

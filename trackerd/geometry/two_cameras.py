@@ -132,9 +132,21 @@ def plane_line_hits(c0: Vec, c1: Vec, rotations: tuple[Rows, Rows], variants: li
     Raises GeometryError when the line of a set is parallel to the wall or the planes are parallel.
     """
     hits = []
+    # A perturbation moves one camera's ends only (the uncertainty's variants): the other
+    # camera's plane is the measured one again, computed once.
+    normals: list[dict[tuple[float, ...], Vec]] = [{}, {}]
+
+    def normal_of(camera: int, ends: tuple[float, float, float, float]) -> Vec:
+        known = normals[camera].get(ends)
+        if known is None:
+            rows = rotations[camera]
+            known = normals[camera][ends] = plane_normal(world_ray(rows, ends[0], ends[1]),
+                                                         world_ray(rows, ends[2], ends[3]))
+        return known
+
     for x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b in variants:
-        n0 = plane_normal(world_ray(rotations[0], x0f, y0f), world_ray(rotations[0], x0b, y0b))
-        n1 = plane_normal(world_ray(rotations[1], x1f, y1f), world_ray(rotations[1], x1b, y1b))
+        n0 = normal_of(0, (x0f, y0f, x0b, y0b))
+        n1 = normal_of(1, (x1f, y1f, x1b, y1b))
         found = planes_line(c0, c1, n0, n1)
         if found is None:
             raise GeometryError("the cameras' planes through the pointer are parallel: no line")
