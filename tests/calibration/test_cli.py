@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -45,6 +46,28 @@ def blank_rig_text() -> str:
     return text.replace('name = "simulated-datawall"', 'name = "new-wall"\ncalibration = "new-wall-calibration.toml"')
 
 
+def new_workspace(
+    folder: Path,
+    intrinsics_frames: FrameSet,
+    stereo_frames: FrameSet,
+    pointing_frames: FrameSet,
+    pointer_frames: FrameSet,
+) -> Path:
+    """A new installation's folder: the blank rig and every step's rendered input."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "rig.toml").write_text(blank_rig_text())
+    for cam in ("left", "right"):
+        copy_set(
+            intrinsics_frames,
+            folder / f"intrinsics-{cam}",
+            [n for n in intrinsics_frames.names() if n.startswith(f"{cam}-")],
+        )
+    copy_set(stereo_frames, folder / "pairs")
+    copy_set(pointing_frames, folder / "pointing")
+    copy_set(pointer_frames, folder / "waving")
+    return folder
+
+
 @pytest.fixture
 def workspace(
     tmp_path: Path,
@@ -53,40 +76,72 @@ def workspace(
     pointing_frames: FrameSet,
     pointer_frames: FrameSet,
 ) -> Path:
-    (tmp_path / "rig.toml").write_text(blank_rig_text())
-    for cam in ("left", "right"):
-        copy_set(
-            intrinsics_frames,
-            tmp_path / f"intrinsics-{cam}",
-            [n for n in intrinsics_frames.names() if n.startswith(f"{cam}-")],
-        )
-    copy_set(stereo_frames, tmp_path / "pairs")
-    copy_set(pointing_frames, tmp_path / "pointing")
-    copy_set(pointer_frames, tmp_path / "waving")
-    return tmp_path
+    return new_workspace(tmp_path, intrinsics_frames, stereo_frames, pointing_frames, pointer_frames)
 
 
 def images(folder: Path) -> list[str]:
     return sorted(str(p.relative_to(folder.parent)) for p in folder.glob("*.png"))
 
 
-def test_a_new_installation_end_to_end(workspace: Path) -> None:
+def calibrate_intrinsics(workspace: Path, cam: str) -> subprocess.CompletedProcess[str]:
+    """`trackerd calibrate intrinsics` for one camera from its images in the workspace; it must succeed."""
+    run = trackerd(
+        "calibrate",
+        "intrinsics",
+        "--config",
+        "rig.toml",
+        "--camera",
+        cam,
+        "--board",
+        "chessboard:10x7:60",
+        *images(workspace / f"intrinsics-{cam}"),
+        cwd=workspace,
+    )
+    assert run.returncode == 0, run.stderr
+    return run
+
+
+@dataclass(frozen=True)
+class Calibrated:
+    """A new installation's folder after `calibrate intrinsics`, made once for the module (each run
+    takes seconds); a test that uses it works in its own copy."""
+
+    folder: Path
+    runs: dict[str, subprocess.CompletedProcess[str]]
+    """The intrinsics runs that made it, by camera, in order."""
+
+    def copy_to(self, destination: Path) -> Path:
+        shutil.copytree(self.folder, destination, dirs_exist_ok=True)
+        return destination
+
+
+@pytest.fixture(scope="module")
+def left_lens(
+    tmp_path_factory: pytest.TempPathFactory,
+    intrinsics_frames: FrameSet,
+    stereo_frames: FrameSet,
+    pointing_frames: FrameSet,
+    pointer_frames: FrameSet,
+) -> Calibrated:
+    """The left camera's intrinsics written (the first calibration step of a new installation)."""
+    folder = new_workspace(
+        tmp_path_factory.mktemp("left-lens"), intrinsics_frames, stereo_frames, pointing_frames, pointer_frames
+    )
+    return Calibrated(folder, {"left": calibrate_intrinsics(folder, "left")})
+
+
+@pytest.fixture(scope="module")
+def both_lenses(left_lens: Calibrated, tmp_path_factory: pytest.TempPathFactory) -> Calibrated:
+    """Then the right camera's too (its run keeps the left-only calibration as a backup)."""
+    folder = left_lens.copy_to(tmp_path_factory.mktemp("both-lenses"))
+    return Calibrated(folder, {**left_lens.runs, "right": calibrate_intrinsics(folder, "right")})
+
+
+def test_a_new_installation_end_to_end(both_lenses: Calibrated, tmp_path: Path) -> None:
     """intrinsics (both cameras), stereo, wall by pointing, then `config check` and `calibrate check`."""
+    workspace = both_lenses.copy_to(tmp_path)
     calibration = workspace / "new-wall-calibration.toml"
-    for cam in ("left", "right"):
-        run = trackerd(
-            "calibrate",
-            "intrinsics",
-            "--config",
-            "rig.toml",
-            "--camera",
-            cam,
-            "--board",
-            "chessboard:10x7:60",
-            *images(workspace / f"intrinsics-{cam}"),
-            cwd=workspace,
-        )
-        assert run.returncode == 0, run.stderr
+    for cam, run in both_lenses.runs.items():
         assert f"camera {cam}: RMS reprojection error 0.0" in run.stdout
         assert "image coverage" in run.stdout and "written:" in run.stdout
     info = tomllib.loads(calibration.read_text())["cameras"]["left"]["info"]
@@ -158,22 +213,9 @@ def test_a_new_installation_end_to_end(workspace: Path) -> None:
 
 
 @pytest.fixture
-def calibrated(workspace: Path) -> Path:
-    """The workspace with the left camera's intrinsics already written."""
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "left",
-        "--board",
-        "chessboard:10x7:60",
-        *images(workspace / "intrinsics-left"),
-        cwd=workspace,
-    )
-    assert run.returncode == 0, run.stderr
-    return workspace
+def calibrated(left_lens: Calibrated, tmp_path: Path) -> Path:
+    """A workspace with the left camera's intrinsics already written."""
+    return left_lens.copy_to(tmp_path)
 
 
 def _unchanged(workspace: Path):
@@ -230,21 +272,8 @@ def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path)
     unchanged()
 
 
-def test_pairs_out_of_sync_and_incomplete_pairs_are_refused(calibrated: Path) -> None:
-    ws = calibrated
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "right",
-        "--board",
-        "chessboard:10x7:60",
-        *images(ws / "intrinsics-right"),
-        cwd=ws,
-    )
-    assert run.returncode == 0
+def test_pairs_out_of_sync_and_incomplete_pairs_are_refused(both_lenses: Calibrated, tmp_path: Path) -> None:
+    ws = both_lenses.copy_to(tmp_path)
     stereo = ("calibrate", "stereo", "--config", "rig.toml", "--board", "chessboard:10x7:100")
     # Every right image belongs to the next pair: the cameras were not triggered together.
     shifted = ws / "shifted"
