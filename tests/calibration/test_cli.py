@@ -297,15 +297,20 @@ def test_pairs_out_of_sync_and_incomplete_pairs_are_refused(both_lenses: Calibra
     unchanged()
 
 
-def test_bad_board_spec_is_an_argument_error(workspace: Path) -> None:
+def test_bad_board_spec_is_an_argument_error(tmp_path: Path) -> None:
+    (tmp_path / "rig.toml").write_text(blank_rig_text())
     run = trackerd(
-        "calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", "--board", "10x7", "a.png", cwd=workspace
+        "calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", "--board", "10x7", "a.png", cwd=tmp_path
     )
     assert run.returncode == 2
     assert "expected chessboard:COLSxROWS:SQUARE_MM" in run.stderr.splitlines()[-1]
 
 
-def test_dry_run_reports_and_writes_nothing(workspace: Path) -> None:
+def test_dry_run_reports_and_writes_nothing(tmp_path: Path, intrinsics_frames: FrameSet) -> None:
+    workspace = tmp_path
+    (workspace / "rig.toml").write_text(blank_rig_text())
+    right = [n for n in intrinsics_frames.names() if n.startswith("right-")]
+    copy_set(intrinsics_frames, workspace / "intrinsics-right", right)
     run = trackerd(
         "calibrate",
         "intrinsics",
