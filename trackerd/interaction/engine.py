@@ -97,6 +97,10 @@ class InteractionEngine:
         self.rejected_total = 0
         """Strokes that were no gesture, since start."""
         self.cursor_id = 0
+        self._clear_pointer()
+
+    def _clear_pointer(self) -> None:
+        """The per-pointer state of a new engine (smoothing and strokes have their own reset)."""
         self._last_step_ns: int | None = None
         """Capture time of the last pair seen (a reset's leave is decided then)."""
         self._last_hit_ns: int | None = None
@@ -158,17 +162,7 @@ class InteractionEngine:
             self._leave(self._last_step_ns, "lost", events)
             self.counts["leave"] = self.counts.get("leave", 0) + 1
         self.filter.reset()
-        self._last_step_ns = None
-        self._last_hit_ns = None
-        self._inside = False
-        self._since_ns = None
-        self._entered_ns = 0
-        self._last_on_m = None
-        self._dwell_anchor = None
-        self._dwell_start_ns = 0
-        self._dwell_sum = np.zeros(2)
-        self._dwell_count = 0
-        self._dwell_armed = True
+        self._clear_pointer()
         return events
 
     def _lost(self, events: list[Event]) -> None:
