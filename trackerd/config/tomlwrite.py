@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
 
 def dumps(data: Mapping[str, Any], header: str = "") -> str:
@@ -71,7 +71,7 @@ def _table(data: Mapping[str, Any], path: list[str], lines: list[str], element: 
 def _key(key: str) -> str:
     if not isinstance(key, str):
         raise TypeError(f"TOML keys are strings, got {key!r}")
-    return key if _BARE_KEY.match(key) else _string(key)
+    return key if _BARE_KEY.fullmatch(key) else _string(key)
 
 
 def _value(value: Any, path: list[str]) -> str:
