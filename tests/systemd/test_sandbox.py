@@ -79,8 +79,20 @@ def _missing_tools() -> str | None:
     return None
 
 
+HIDDEN_BY_THE_UNIT = ("/tmp", "/var/tmp", "/home", "/root", "/run/user")
+"""Where PrivateTmp and ProtectHome put an empty directory: a checkout or venv there is out of sight."""
+
+
+def _hidden_checkout() -> str | None:
+    for path in (HERE.parents[1], Path(sys.prefix)):
+        hidden = next((top for top in HIDDEN_BY_THE_UNIT if path.is_relative_to(top)), None)
+        if hidden is not None:
+            return f"{path} is under {hidden}, which the unit's sandbox hides (PrivateTmp, ProtectHome)"
+    return None
+
+
 def test_daemon_stack_works_under_the_units_sandbox(unit_path: Path, tmp_path: Path):
-    reason = _missing_tools()
+    reason = _missing_tools() or _hidden_checkout()
     if reason:
         pytest.skip(reason)
     # systemd's notification socket stands outside the sandbox, bind-mounted in as /run/notify.
