@@ -46,11 +46,13 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     endpoint = f"ipc://{tmp_path}/pub.sock"
     rig = _rig_on(simulated_rig, endpoint)
     count = 3 * len(image_sets)
-    pipeline = Pipeline(
-        rig,
-        lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=count),
-        lambda r: Publisher(r.outputs.zmq),
-    )
+    sources: list[MemoryPairSource] = []
+
+    def source_for(r):
+        sources.append(MemoryPairSource(r, image_sets, rate_hz=20.0, count=count))
+        return sources[-1]
+
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq))
     ctx, sub = _subscribe(endpoint)
     try:
         pipeline.start()
@@ -72,9 +74,19 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
         errors.append(np.hypot(hit["wall_x_m"] - truth.wall_xy_m[0], hit["wall_y_m"] - truth.wall_xy_m[1]))
         assert hit["capture_ns"] <= hit["publish_ns"]
     assert np.median(errors) < 0.005
-    # Every pair was processed and published: sequences run without gaps.
-    sequences = sorted({p["sequence"] for p in pointers})
-    assert sequences == list(range(first, count))
+    # Every pair is accounted for: processed and published, or dropped by the source and counted
+    # (paced like a camera, it drops a pair the pipeline did not take before the next was due; a
+    # loaded CI machine once stalled the processing thread that long). Nothing vanishes in between.
+    pairing = sources[0].status()
+    assert pairing.delivered + pairing.dropped_pairs == count
+    assert pipeline.pairs_processed == pairing.delivered
+    assert pipeline.pairs_published == pipeline.pairs_processed
+    assert statuses[-1]["pairing"]["dropped_pairs"] == pairing.dropped_pairs
+    sequences = {p["sequence"] for p in pointers}
+    unexplained = set(range(first, count)) - sequences
+    assert len(unexplained) <= pairing.dropped_pairs, sorted(unexplained)
+    # A pipeline too slow for 20 pairs a second would drop every other pair, not one or two.
+    assert pairing.dropped_pairs <= count // 6, pairing
     assert statuses and statuses[-1]["cameras"][0]["state"] in ("streaming", "stopped")
     last_running = [s for s in statuses if s["state"] == "running"][-1]
     assert last_running["fixes"].get("hit", 0) + last_running["fixes"].get("off_wall", 0) > 0

@@ -67,10 +67,14 @@ class MemoryPairSource(PairSource):
         with self._lock:
             self._running = False
 
-    def _finished(self, index: int) -> bool:
+    def _end_index(self) -> int:
+        """One past the last pair to serve (a very large number when serving forever)."""
         if self._count is not None:
-            return index >= self._count
-        return not self._loop and index >= len(self._sets)
+            return self._count
+        return len(self._sets) if not self._loop else 1 << 62
+
+    def _finished(self, index: int) -> bool:
+        return index >= self._end_index()
 
     def next_pair(self, timeout_s: float) -> FramePair | None:
         deadline = time.monotonic_ns() + int(timeout_s * 1e9)
@@ -82,6 +86,8 @@ class MemoryPairSource(PairSource):
                 now = time.monotonic_ns()
                 # The pair due most recently: any earlier ones were missed, as cameras would miss them.
                 current = (now - self._start_ns) // self._period_ns
+                # Pairs past the end were never going to be served: they are not drops.
+                current = min(current, self._end_index())
                 if current > index:
                     self._dropped += current - index
                     index = current
