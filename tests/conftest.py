@@ -11,9 +11,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
+
 
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
+
+# Property tests check results, not speed: on a loaded machine one example may take longer than
+# hypothesis's default 200 ms deadline, which would fail a correct test.
+settings.register_profile("trackerd", deadline=None)
+# HYPOTHESIS_PROFILE=thorough: many more examples, to look for bugs on purpose.
+settings.register_profile("thorough", deadline=None, max_examples=2000)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "trackerd"))
 
 REPO = Path(__file__).resolve().parent.parent
 CONFIG_DIR = REPO / "config"

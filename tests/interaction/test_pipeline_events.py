@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 import zmq
 
+from tests.gated import GatedPairSource, wait_for_status
 from tests.interaction.osc_decode import decode_bundle
-from trackerd.acquisition.memory import MemoryPairSource
 from trackerd.interaction.extension import create
 from trackerd.interaction.scripted import minimum_jerk
 from trackerd.pipeline.daemon import Pipeline
@@ -66,8 +66,7 @@ def session(simulated_rig, renderer):
     swipe = [pointer_at(start_x + (end_x - start_x) * s, y)
              for s in minimum_jerk(np.arange(1, 7) / 7.0)]  # 0.23 s at 30 pairs/s
     rest_b = pointer_at(end_x, y)
-    # The hand stays for 8 pairs: a busy machine may skip a pair or two of them (the source serves
-    # the newest pair, as cameras do), and debouncing needs two in a row before the first message.
+    # The hand stays for 8 pairs; debouncing needs two in a row before the first hand message.
     sets = [empty] * 3 + [hand] * 8 + [empty] * 2 + [rest_a] * 24 + swipe + [rest_b] * 12 + [empty] * 10
     return sets, start_x, end_x, hands.render(pose, rng).palm_px
 
@@ -87,12 +86,20 @@ def test_every_event_reaches_a_subscriber_and_tuio(simulated_rig, session, tmp_p
     assert extension is not None
     count = len(sets) + 15  # a few pairs of the empty room at the end, after the loop restarts
     sets = sets + [sets[-1]] * 15
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, sets, rate_hz=RATE_HZ, count=count),
-                        lambda r: Publisher(r.outputs.zmq), extensions=[extension])
+    # Every pair is served, late if the machine stalls (this is about the events, not about drops),
+    # and only once the subscriber is known to be connected.
+    sources: list[GatedPairSource] = []
+
+    def source_for(r):
+        sources.append(GatedPairSource(r, sets, rate_hz=RATE_HZ, count=count, drop_late=False))
+        return sources[-1]
+
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq), extensions=[extension])
     messages, bundles = [], []
     try:
-        time.sleep(0.3)  # the subscriber connects before the first pair (no slow-joiner loss)
         pipeline.start()
+        wait_for_status(sub)
+        sources[0].open()
         deadline = time.monotonic() + count / RATE_HZ + 3.0
         while time.monotonic() < deadline:
             if sub.poll(10):

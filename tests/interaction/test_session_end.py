@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 import zmq
 
+from tests.gated import GatedPairSource, wait_for_status
 from tests.interaction.osc_decode import decode_bundle
 from trackerd.acquisition.frame import Frame, FramePair
-from trackerd.acquisition.memory import MemoryPairSource
 from trackerd.interaction.extension import InteractionExtension, create
 from trackerd.interaction.scripted import RATE_HZ, rest, swipe_path
 from trackerd.locator import PointerFix
@@ -211,11 +211,16 @@ def test_stopping_the_pipeline_with_the_pointer_on_the_display_removes_the_tuio_
         "zmq": rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})})})
     extension = create(rig)
     assert extension is not None
-    # Half a second of the empty room first, so the subscriber is connected when the pointer enters.
+    # Half a second of the empty room first, then the pointer, served once the subscriber is connected.
     empty = [renderer.render(i, None, rng).image for i in range(2)]
     sets = [empty] * 15 + [pointing] * 3000
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, sets, rate_hz=30.0, loop=False),
-                        lambda r: Publisher(r.outputs.zmq), extensions=[extension])
+    sources: list[GatedPairSource] = []
+
+    def source_for(r):
+        sources.append(GatedPairSource(r, sets, rate_hz=30.0, loop=False))
+        return sources[-1]
+
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq), extensions=[extension])
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"")
@@ -224,6 +229,8 @@ def test_stopping_the_pipeline_with_the_pointer_on_the_display_removes_the_tuio_
     bundles: list = []
     pipeline.start()
     try:
+        topics += [topic for topic, _ in wait_for_status(sub)]
+        sources[0].open()
         deadline = time.monotonic() + 20.0
         while time.monotonic() < deadline and not (any(_alive(b) for b in bundles) and "enter" in topics):
             while sub.poll(20):

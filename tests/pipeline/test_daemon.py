@@ -11,6 +11,7 @@ import time
 import numpy as np
 import zmq
 
+from tests.gated import GatedPairSource, wait_for_status
 from trackerd.acquisition.memory import MemoryPairSource
 from trackerd.pipeline.daemon import Pipeline
 from trackerd.publish import Publisher
@@ -46,17 +47,19 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     endpoint = f"ipc://{tmp_path}/pub.sock"
     rig = _rig_on(simulated_rig, endpoint)
     count = 3 * len(image_sets)
-    sources: list[MemoryPairSource] = []
+    sources: list[GatedPairSource] = []
 
     def source_for(r):
-        sources.append(MemoryPairSource(r, image_sets, rate_hz=20.0, count=count))
+        sources.append(GatedPairSource(r, image_sets, rate_hz=20.0, count=count))
         return sources[-1]
 
     pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq))
     ctx, sub = _subscribe(endpoint)
     try:
         pipeline.start()
-        messages = _collect(sub, count / 20.0 + 1.0)
+        messages = wait_for_status(sub)  # the subscriber is connected: it must see every pair
+        sources[0].open()
+        messages += _collect(sub, count / 20.0 + 1.0)
     finally:
         pipeline.stop()
         sub.close(0)
@@ -64,10 +67,6 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     hits = [m for t, m in messages if t == "hit"]
     pointers = [m for t, m in messages if t == "pointer"]
     statuses = [m for t, m in messages if t == "status"]
-    # A subscriber joins a moment after the pipeline starts (ZeroMQ's slow joiner); from then
-    # on every pair must arrive.
-    first = min(p["sequence"] for p in pointers)
-    assert first < 10
     errors = []
     for hit in hits:
         truth = truths[hit["sequence"] % len(image_sets)]
@@ -83,10 +82,11 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     assert pipeline.pairs_published == pipeline.pairs_processed
     assert statuses[-1]["pairing"]["dropped_pairs"] == pairing.dropped_pairs
     sequences = {p["sequence"] for p in pointers}
-    unexplained = set(range(first, count)) - sequences
-    assert len(unexplained) <= pairing.dropped_pairs, sorted(unexplained)
-    # A pipeline too slow for 20 pairs a second would drop every other pair, not one or two.
-    assert pairing.dropped_pairs <= count // 6, pairing
+    unexplained = set(range(count)) - sequences
+    assert len(unexplained) == pairing.dropped_pairs, sorted(unexplained)
+    # Drops come from stalls of the machine, not from a pipeline too slow for 20 pairs a second.
+    assert np.median(pipeline.processing_cpu.snapshot()) < 25e6
+    assert pairing.dropped_pairs < count // 2, pairing
     assert statuses and statuses[-1]["cameras"][0]["state"] in ("streaming", "stopped")
     last_running = [s for s in statuses if s["state"] == "running"][-1]
     assert last_running["fixes"].get("hit", 0) + last_running["fixes"].get("off_wall", 0) > 0
@@ -176,27 +176,46 @@ def test_watchdog_and_ready_reach_systemd_only_when_pairs_flow(simulated_rig, re
     stop = threading.Event()
     listener = threading.Thread(target=listen, args=(stop,))
     listener.start()
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=20),
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=20, drop_late=False),
                         lambda r: Publisher(r.outputs.zmq), notifier)
+    def read_so_far() -> list[str]:
+        """Every notification sent until now (a marker of our own, sent last, is read last)."""
+        marker = f"TEST_MARKER={time.monotonic_ns()}"
+        with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as client:
+            client.sendto(marker.encode(), str(path))
+        deadline = time.monotonic() + 10.0
+        while marker not in received and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert marker in received
+        return [m for m in received if not m.startswith("TEST_MARKER")]
+
     try:
         pipeline.start()
-        time.sleep(1.5)  # the 20 pairs take one second; then nothing flows
-        watchdogs_while_flowing = sum("WATCHDOG=1" in m for m in received)
+        deadline = time.monotonic() + 20.0  # the 20 pairs take one second; then nothing flows
+        while (pipeline.pairs_processed < 20 or pipeline.backlog) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert pipeline.pairs_processed == 20
+        watchdogs_while_flowing = sum("WATCHDOG=1" in m for m in read_so_far())
         time.sleep(0.6)
-        watchdogs_after = sum("WATCHDOG=1" in m for m in received)
+        watchdogs_after = sum("WATCHDOG=1" in m for m in read_so_far())
     finally:
         pipeline.stop()
-        time.sleep(0.2)
-        stop.set()
-        listener.join()
-        server.close()
-    assert any("READY=1" in m for m in received)
-    first_ready = next(i for i, m in enumerate(received) if "READY=1" in m)
-    assert all("STOPPING=1" not in m for m in received[:first_ready])
+        try:
+            notifications = read_so_far()
+        finally:
+            stop.set()
+            listener.join()
+            server.close()
+    assert any("READY=1" in m for m in notifications)
+    first_ready = next(i for i, m in enumerate(notifications) if "READY=1" in m)
+    assert all("STOPPING=1" not in m for m in notifications[:first_ready])
     assert watchdogs_while_flowing >= 2
     # The source stopped delivering (count reached): nothing feeds the watchdog any more.
     assert watchdogs_after == watchdogs_while_flowing
-    assert "STOPPING=1" in received[-1] or any("STOPPING=1" in m for m in received[-3:])
+    # STOPPING is sent once, at stop; only the last status lines may follow it.
+    stopping = [i for i, m in enumerate(notifications) if "STOPPING=1" in m]
+    assert len(stopping) == 1 and stopping[0] > first_ready
+    assert all(m.startswith("STATUS=") for m in notifications[stopping[0] + 1:]), notifications
 
 
 def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_interval(
@@ -223,6 +242,31 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
             "curve_secret_key_file": server_secret, "curve_authorized_keys_dir": clients})
         return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
 
+    def reload(status_ms: float) -> None:
+        """Request a reload and wait until both threads have taken it (then a moment to apply it)."""
+        pipeline.request_reload(rig_with(status_ms))
+        deadline = time.monotonic() + 10.0
+        while (pipeline._pending_rig is not None or pipeline._pending_outputs is not None) and (
+                time.monotonic() < deadline):
+            time.sleep(0.02)
+        time.sleep(0.2)
+
+    def spacing_s(seconds: float) -> float:
+        """Median time between the statuses a new connection sees in ``seconds`` (the last-value
+        answer aside), from their publish_ns: a stalled machine delays them, not their spacing."""
+        ctx = zmq.Context()
+        sub = ctx.socket(zmq.SUB)
+        sub.curve_serverkey, sub.curve_publickey, sub.curve_secretkey = server_public, *app_keys
+        sub.setsockopt(zmq.SUBSCRIBE, b"status")
+        sub.connect("tcp://127.0.0.1:5579")
+        try:
+            times = [m["publish_ns"] for t, m in _collect(sub, seconds) if t == "status"][1:]
+        finally:
+            sub.close(0)
+            ctx.term()
+        assert len(times) >= 2, times
+        return float(np.median(np.diff(times))) / 1e9
+
     def statuses_seen(seconds: float) -> int:
         """A new connection as new-app, subscribed to status, for ``seconds``."""
         ctx = zmq.Context()
@@ -243,29 +287,23 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
     try:
         assert statuses_seen(1.5) == 0  # not authorized
         os.replace(app_public, clients / app_public.name)
-        pipeline.request_reload(rig_with(1000.0))
-        time.sleep(0.5)
-        at_one_hz = statuses_seen(2.5)
-        assert 2 <= at_one_hz <= 4  # the last-value status at once, then about one a second
-        pipeline.request_reload(rig_with(200.0))
-        time.sleep(0.5)
-        at_five_hz = statuses_seen(2.5)
-        assert at_five_hz >= 10, at_five_hz
+        reload(1000.0)
+        # Let in: the last-value status at once, then about one a second.
+        assert 0.8 < spacing_s(3.5) < 1.4
+        reload(200.0)
+        assert 0.15 < spacing_s(2.0) < 0.3
         key_text = (clients / app_public.name).read_bytes()
         (clients / app_public.name).unlink()  # revoked
-        pipeline.request_reload(rig_with(200.0))
-        time.sleep(0.5)
+        reload(200.0)
         assert statuses_seen(1.5) == 0
         # Let in again, then every key removed: an empty directory lets nobody in (an empty one
         # is refused at start, which must not keep the last keys standing at a reload).
         (clients / app_public.name).write_bytes(key_text)
-        pipeline.request_reload(rig_with(200.0))
-        time.sleep(0.5)
+        reload(200.0)
         assert statuses_seen(1.5) > 0
         for key in clients.glob("*.key"):
             key.unlink()
-        pipeline.request_reload(rig_with(200.0))
-        time.sleep(0.5)
+        reload(200.0)
         assert statuses_seen(1.5) == 0
     finally:
         pipeline.stop()

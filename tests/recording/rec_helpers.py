@@ -48,6 +48,9 @@ def replay_and_listen(*args: str | Path, endpoint: str, timeout: float = 120.0
     messages: list[tuple[str, dict[str, Any]]] = []
     process = subprocess.Popen([sys.executable, "-m", "trackerd", "replay", *map(str, args), "--endpoint", endpoint],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    def stopped() -> bool:
+        return bool(messages) and messages[-1][0] == "status" and messages[-1][1].get("state") == "stopping"
+
     try:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -56,6 +59,13 @@ def replay_and_listen(*args: str | Path, endpoint: str, timeout: float = 120.0
                 messages.append((topic.decode(), json.loads(payload)))
             elif process.poll() is not None:
                 break
+        # The process has gone; what it published last may still be on its way. A replay that ran
+        # ends with a 'stopping' status: read until it (one that failed may never have published).
+        drain_until = time.monotonic() + (5.0 if process.returncode == 0 else 0.3)
+        while not stopped() and time.monotonic() < drain_until:
+            if sub.poll(50):
+                topic, payload = sub.recv_multipart()
+                messages.append((topic.decode(), json.loads(payload)))
         out, err = process.communicate(timeout=10)
     finally:
         if process.poll() is None:

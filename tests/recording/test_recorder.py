@@ -115,9 +115,11 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
     sub.connect(endpoint)
     states: list[str] = []
 
-    def listen(seconds: float) -> None:
+    def listen(seconds: float, until: str | None = None) -> None:
+        """Statuses for ``seconds``, or until the recording's state is ``until`` (a slow disk may
+        take a while to finish a recording: the next reload must not overtake it)."""
         end = time.monotonic() + seconds
-        while time.monotonic() < end:
+        while time.monotonic() < end and not (until is not None and states and states[-1] == until):
             if sub.poll(20):
                 status = json.loads(sub.recv_multipart()[1])
                 recording = status.get("recording") or {}
@@ -126,12 +128,14 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
 
     try:
         pipeline.start()
-        listen(0.5)
+        listen(20.0, until="idle")
         pipeline.request_reload(on)
-        listen(0.6)
+        listen(20.0, until="recording")
+        listen(0.4)  # some pairs into this recording
         pipeline.request_reload(off)
-        listen(0.5)
+        listen(20.0, until="stopped")
         pipeline.request_reload(on)
+        listen(20.0, until="recording")
         listen(0.4)
     finally:
         pipeline.stop()

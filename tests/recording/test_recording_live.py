@@ -100,23 +100,31 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
     sub.connect(endpoint)
     live: list[tuple[str, dict[str, Any]]] = []
 
-    def collect(seconds: float) -> None:
+    def collect(seconds: float, until: str | None = None) -> None:
+        """Messages for ``seconds``, or until a status says the recording is ``until`` (the daemon
+        takes its SIGHUP handler only once started, and a slow disk may delay a recording's end)."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             if sub.poll(50):
                 topic, payload = sub.recv_multipart()
                 live.append((topic.decode(), json.loads(payload)))
+                if until is not None and live[-1][0] == "status":
+                    if (live[-1][1].get("recording") or {}).get("state") == until:
+                        return
 
     daemon = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        collect(3.0)
+        collect(30.0, until="idle")
+        collect(1.0)  # live hits before the recording, too
         _rig_file(virtual, rig_file, endpoint, RecordingConfig(**queue, enabled=True))
         daemon.send_signal(signal.SIGHUP)
-        collect(4.0)
+        collect(20.0, until="recording")
+        collect(3.0)
         _rig_file(virtual, rig_file, endpoint, RecordingConfig(**queue, enabled=False))
         daemon.send_signal(signal.SIGHUP)
-        collect(1.5)
+        collect(20.0, until="stopped")
+        collect(0.2)
         daemon.send_signal(signal.SIGTERM)
         code = daemon.wait(timeout=10)
         collect(0.3)

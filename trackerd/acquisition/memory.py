@@ -28,7 +28,10 @@ class MemoryPairSource(PairSource):
 
     ``rate_hz`` paces delivery like free-running cameras (None: as fast as the
     consumer takes them). ``count`` stops after that many pairs (None: once
-    through, or forever when looping).
+    through, or forever when looping). ``drop_late=False`` serves every pair
+    however late the consumer is, stamped with the time it was due (as a
+    recording replayed at pace would be), for tests whose subject is what the
+    pairs show rather than how a stall is survived.
     """
 
     def __init__(
@@ -40,6 +43,7 @@ class MemoryPairSource(PairSource):
         loop: bool = True,
         count: int | None = None,
         pixel_formats: Sequence[str] | None = None,
+        drop_late: bool = True,
     ) -> None:
         if not image_sets:
             raise ValueError("no image sets to serve")
@@ -47,6 +51,7 @@ class MemoryPairSource(PairSource):
         self._sets = [tuple(images) for images in image_sets]
         self._period_ns = None if rate_hz is None else int(1e9 / rate_hz)
         self._loop = loop
+        self._drop_late = drop_late
         self._count = count
         self._formats = list(pixel_formats or [c.pixel_format for c in rig.cameras])
         self._ids = [c.id for c in rig.cameras]
@@ -82,7 +87,7 @@ class MemoryPairSource(PairSource):
             if not self._running:
                 return None
             index = self._next_index
-            if self._period_ns is not None:
+            if self._period_ns is not None and self._drop_late:
                 now = time.monotonic_ns()
                 # The pair due most recently: any earlier ones were missed, as cameras would miss them.
                 current = (now - self._start_ns) // self._period_ns
