@@ -308,3 +308,49 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
     finally:
         pipeline.stop()
     assert pipeline.failure is None
+
+
+def test_sequences_go_on_across_a_reload_that_reopens_the_cameras(simulated_rig, rendered_sweep, tmp_path):
+    """A new source counts its pairs from 0; subscribers must never see a sequence go back (a gap
+    detector would take it for a restart), whether the new settings are taken or refused."""
+    image_sets, _ = rendered_sweep
+    endpoint = f"ipc://{tmp_path}/pub.sock"
+    rig = _rig_on(simulated_rig, endpoint)
+
+    def with_exposure(exposure_us: float):
+        left = rig.cameras[0]
+        acquisition = left.acquisition.model_copy(update={"exposure_us": exposure_us})
+        return rig.model_copy(update={"cameras": (left.model_copy(update={"acquisition": acquisition}),
+                                                  *rig.cameras[1:])})
+
+    refused = with_exposure(5e7)
+    sources: list[MemoryPairSource] = []
+
+    def source_for(r):
+        if r == refused:
+            raise RuntimeError("the camera refuses exposure_us = 5e7")  # as a real camera would
+        sources.append(MemoryPairSource(r, image_sets, rate_hz=50.0, drop_late=False))
+        return sources[-1]
+
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq))
+    ctx, sub = _subscribe(endpoint, (b"pointer", b"status"))
+    try:
+        pipeline.start()
+        messages = wait_for_status(sub)
+        messages += _collect(sub, 0.6)
+        pipeline.request_reload(with_exposure(2000.0))  # taken: the cameras are reopened
+        messages += _collect(sub, 0.8)
+        pipeline.request_reload(refused)  # refused: the previous settings are reopened
+        messages += _collect(sub, 0.8)
+    finally:
+        pipeline.stop()
+        sub.close(0)
+        ctx.term()
+    assert pipeline.failure is None
+    assert len(sources) == 3, "the cameras were not reopened"
+    sequences = [m["sequence"] for t, m in messages if t == "pointer"]
+    assert len(sequences) > 40 and all(b > a for a, b in zip(sequences, sequences[1:], strict=False)), sequences
+    # Each source's pairs are all counted: the status adds up those of the sources replaced.
+    delivered = sum(s.status().delivered for s in sources)
+    last = [m for t, m in messages if t == "status"][-1]
+    assert last["pairing"]["pairs"] <= delivered and last["pairing"]["pairs"] > sources[-1].status().pairs

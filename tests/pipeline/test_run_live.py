@@ -84,15 +84,18 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
         messages: list[tuple[str, dict]] = []
         notes: list[str] = []
         try:
-            def collect(seconds: float) -> None:
+            def collect(seconds: float, until=None) -> None:
+                """Messages for ``seconds``, or until ``until(messages)`` holds."""
                 end = time.monotonic() + seconds
-                while time.monotonic() < end:
+                while time.monotonic() < end and not (until is not None and until(messages)):
                     if sub.poll(50):
                         topic, payload = sub.recv_multipart()
                         messages.append((topic.decode(), json.loads(payload)))
                     notes.extend(_notifications(notify))
 
-            collect(6.0)
+            # Running (its SIGHUP handler is set before the cameras open), and a few seconds of hits.
+            collect(60.0, until=lambda ms: any(t == "status" and m["state"] == "running" for t, m in ms))
+            collect(3.0)
             # A broken file on SIGHUP: the daemon keeps running on the old configuration.
             rig_file.write_text(rig_file.read_text().replace('pixel_format = "BayerRG8"', 'pixel_format = "Mono8"', 1))
             daemon.send_signal(signal.SIGHUP)
@@ -120,7 +123,8 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
                     break
             print(f"refused reload: running again after {time.monotonic() - sent:.1f} s")
             resumed_at = len(messages)
-            collect(2.0)
+            collect(15.0, until=lambda ms: sum(t == "hit" for t, _ in ms[resumed_at:]) > 20)
+            collect(0.6)  # and the next status
             after_refusal = messages[resumed_at:]
             assert sum(t == "hit" for t, _ in after_refusal) > 20
             last_status = [m for t, m in after_refusal if t == "status"][-1]
@@ -176,8 +180,11 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     assert np.median(distance) < 0.005
     assert np.mean(distance < 0.015) >= in_sync - 0.05, (np.mean(distance < 0.015), in_sync)
 
-    # Sequence numbers: every pair between the first and last received is accounted for.
-    pointers = sorted({m["sequence"] for t, m in messages if t == "pointer"})
+    # Sequence numbers go on across the reloads that reopened the cameras, and every pair between
+    # the first and last received is accounted for.
+    in_order = [m["sequence"] for t, m in messages if t == "pointer"]
+    assert all(b > a for a, b in zip(in_order, in_order[1:], strict=False))
+    pointers = sorted(set(in_order))
     missing = (pointers[-1] - pointers[0] + 1) - len(pointers)
     fixes = statuses[-1]["fixes"]
     explained = fixes.get("not_found", 0) + fixes.get("rejected", 0) + statuses[-1]["pairing"]["dropped_pairs"]

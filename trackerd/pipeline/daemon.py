@@ -17,6 +17,7 @@ messages were handed to ZeroMQ. Signals are not handled here: the CLI calls
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
 import time
@@ -127,6 +128,15 @@ class Pipeline:
         """Pairs whose messages the publishing thread has handed to the publisher."""
         self.source: PairSource | None = None
         self.publisher: Publisher | None = None
+        # A reload that reopens the cameras replaces the source, whose pairs count from 0 again:
+        # published sequences go on from the last one, and its counts carry into the status.
+        self._sequence_offset = 0
+        self._next_sequence = 0
+        """One past the last sequence published (offset included)."""
+        self._renumber = False
+        """The source was replaced: its first pair takes the next sequence."""
+        self._retired_pairs = 0
+        self._retired_dropped_pairs = 0
         self.locator = Locator(rig)
         self.extensions: list[PipelineExtension] = list(extensions or [])
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
@@ -224,6 +234,13 @@ class Pipeline:
                     # A power-cycled camera is not a stalled pipeline: keep systemd's watchdog fed.
                     self._notifier.progress()
                 continue
+            if self._renumber:
+                # Whether a source counts from 0 or 1 is its own affair: numbering goes on.
+                self._renumber = False
+                self._sequence_offset = self._next_sequence - pair.sequence
+            if self._sequence_offset:
+                pair = dataclasses.replace(pair, sequence=pair.sequence + self._sequence_offset)
+            self._next_sequence = pair.sequence + 1
             start, start_cpu = time.monotonic_ns(), time.thread_time_ns()
             received = max(frame.host_timestamp_ns for frame in pair.frames)
             fresh = pair.fresh_start
@@ -295,6 +312,7 @@ class Pipeline:
         assert self.source is not None
         start = time.monotonic()
         self.source.stop()
+        self._retire_source()
         # Each step can take seconds (a camera's control is released and taken again): the
         # watchdog hears that a reload is progressing, not stalled.
         self._notifier.progress()
@@ -310,6 +328,15 @@ class Pipeline:
             raise
         self.source = source
         log.info("reload: cameras reopened after %.1f s", time.monotonic() - start)
+
+    def _retire_source(self) -> None:
+        """The stopped source is being replaced: the next one's pairs are numbered on from the last
+        pair published, and what it counted stays in the status figures."""
+        assert self.source is not None
+        status = self.source.status()
+        self._retired_pairs += status.pairs
+        self._retired_dropped_pairs += status.dropped_pairs
+        self._renumber = True
 
     def _some_camera_recovering(self) -> bool:
         assert self.source is not None
@@ -422,9 +449,9 @@ class Pipeline:
         if source_status is not None:
             pairing = PairingPart(
                 pair_rate_hz=source_status.pair_rate_hz,
-                pairs=source_status.pairs,
+                pairs=source_status.pairs + self._retired_pairs,
                 dropped_frames=dict(source_status.dropped_frames),
-                dropped_pairs=source_status.dropped_pairs + self._queue.dropped,
+                dropped_pairs=source_status.dropped_pairs + self._retired_dropped_pairs + self._queue.dropped,
                 skew_p50_us=source_status.skew_p50_us,
                 skew_p99_us=source_status.skew_p99_us, mode=source_status.pairing,
             )
