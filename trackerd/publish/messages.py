@@ -54,7 +54,9 @@ class Message(_Part):
     sequence: int = Field(ge=0)
     """hit and pointer: the camera pair's sequence number (a hit and a pointer from the same pair
     share it); events (enter, leave, dwell, gesture, command, hand): the pair in which the event was
-    decided; status: counts status messages. Gaps in hit/pointer are normal (pairs without a pointer)."""
+    decided; status: counts status messages. Gaps in hit/pointer are normal (pairs without a pointer).
+    Within one run of the daemon a pair's sequence only increases, also across a reload that reopens
+    the cameras; it starts again from 0 when the daemon restarts (``uptime_s`` in the status tells)."""
     capture_ns: int = Field(ge=0)
     """When the images were taken (mean of the pair's frames), nanoseconds since the UNIX epoch
     on the daemon host's clock; for status, when the figures were gathered."""
