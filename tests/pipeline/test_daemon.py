@@ -251,34 +251,28 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
             time.sleep(0.02)
         time.sleep(0.2)
 
-    def spacing_s(seconds: float) -> float:
-        """Median time between the statuses a new connection sees in ``seconds`` (the last-value
-        answer aside), from their publish_ns: a stalled machine delays them, not their spacing."""
+    def statuses_for(seconds: float) -> list[dict]:
+        """What a new connection as new-app, subscribed to status, receives in ``seconds``."""
         ctx = zmq.Context()
         sub = ctx.socket(zmq.SUB)
         sub.curve_serverkey, sub.curve_publickey, sub.curve_secretkey = server_public, *app_keys
         sub.setsockopt(zmq.SUBSCRIBE, b"status")
         sub.connect("tcp://127.0.0.1:5579")
         try:
-            times = [m["publish_ns"] for t, m in _collect(sub, seconds) if t == "status"][1:]
+            return [m for t, m in _collect(sub, seconds) if t == "status"]
         finally:
             sub.close(0)
             ctx.term()
-        assert len(times) >= 2, times
-        return float(np.median(np.diff(times))) / 1e9
 
     def statuses_seen(seconds: float) -> int:
-        """A new connection as new-app, subscribed to status, for ``seconds``."""
-        ctx = zmq.Context()
-        sub = ctx.socket(zmq.SUB)
-        sub.curve_serverkey, sub.curve_publickey, sub.curve_secretkey = server_public, *app_keys
-        sub.setsockopt(zmq.SUBSCRIBE, b"status")
-        sub.connect("tcp://127.0.0.1:5579")
-        try:
-            return sum(t == "status" for t, _ in _collect(sub, seconds))
-        finally:
-            sub.close(0)
-            ctx.term()
+        return len(statuses_for(seconds))
+
+    def spacing_s(seconds: float) -> float:
+        """Median time between the statuses seen in ``seconds`` (the last-value answer aside), from
+        their publish_ns: a stalled machine delays them, not their spacing."""
+        times = [m["publish_ns"] for m in statuses_for(seconds)][1:]
+        assert len(times) >= 2, times
+        return float(np.median(np.diff(times))) / 1e9
 
     rig = rig_with(1000.0)
     pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=30.0),
