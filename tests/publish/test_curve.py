@@ -12,7 +12,7 @@ import pytest
 import zmq
 import zmq.auth
 
-from tests.publish.conftest import hit_message, subscriber
+from tests.publish.conftest import hit_message, publish_until_received, subscriber
 from trackerd.cli.keys import write_key_pair
 from trackerd.config.models import ZmqOutput
 from trackerd.errors import ConfigError
@@ -62,6 +62,9 @@ def test_right_server_key_receives_a_wrong_one_gets_nothing(server_keys, context
         right = _curve_subscriber(context, endpoint, public)
         wrong = _curve_subscriber(context, endpoint, zmq.curve_keypair()[0])
         plain = subscriber(context, endpoint, b"hit")  # no CURVE at all
+        # The right client's handshake is done once a message reaches it (however slow the machine);
+        # the others had that long and the window below to get anything.
+        publish_until_received(publisher, right, hit_message(), timeout_s=10.0)
         counts = _received_during(publisher, [right, wrong, plain], 0.6)
         # The daemon carried on: the right client still receives after the failed handshakes.
         later = _received_during(publisher, [right], 0.3)
@@ -84,13 +87,14 @@ def test_only_authorized_clients_may_subscribe_and_reload_reads_new_keys(server_
         endpoint = publisher.endpoints[0]
         known = _curve_subscriber(context, endpoint, public, zmq.auth.load_certificate(str(known_secret)))
         stranger = _curve_subscriber(context, endpoint, public, zmq.auth.load_certificate(str(stranger_secret)))
+        publish_until_received(publisher, known, hit_message(), timeout_s=10.0)
         counts = _received_during(publisher, [known, stranger], 0.6)
         assert counts[0] > 0 and counts[1] == 0
         # The operator adds the stranger's key and reloads (SIGHUP); a new connection is accepted.
         os.replace(stranger_public, clients / stranger_public.name)
         publisher.reload_authorized_keys()
         again = _curve_subscriber(context, endpoint, public, zmq.auth.load_certificate(str(stranger_secret)))
-        assert _received_during(publisher, [again], 0.6)[0] > 0
+        publish_until_received(publisher, again, hit_message(), timeout_s=10.0)  # raises if refused
 
 
 def test_unusable_key_files_are_refused_before_binding(server_keys, tmp_path):
