@@ -128,7 +128,7 @@ class Pipeline:
         """Pairs whose messages the publishing thread has handed to the publisher."""
         self.source: PairSource | None = None
         self.publisher: Publisher | None = None
-        # A reload that reopens the cameras replaces the source, whose pairs count from 0 again:
+        # A reload that reopens the cameras replaces the source, which counts its pairs afresh:
         # published sequences go on from the last one, and its counts carry into the status.
         self._sequence_offset = 0
         self._next_sequence = 0
@@ -312,7 +312,7 @@ class Pipeline:
         assert self.source is not None
         start = time.monotonic()
         self.source.stop()
-        self._retire_source()
+        stopped = self.source.status()
         # Each step can take seconds (a camera's control is released and taken again): the
         # watchdog hears that a reload is progressing, not stalled.
         self._notifier.progress()
@@ -322,20 +322,20 @@ class Pipeline:
         except BaseException:
             self._notifier.progress()
             log.info("reload: reopening the cameras with the previous settings")
-            self.source = self._source_factory(old)
+            self._replace_source(self._source_factory(old), stopped)
             self.source.start()
             log.info("reload: cameras reopened with the previous settings after %.1f s", time.monotonic() - start)
             raise
-        self.source = source
+        self._replace_source(source, stopped)
         log.info("reload: cameras reopened after %.1f s", time.monotonic() - start)
 
-    def _retire_source(self) -> None:
-        """The stopped source is being replaced: the next one's pairs are numbered on from the last
-        pair published, and what it counted stays in the status figures."""
-        assert self.source is not None
-        status = self.source.status()
-        self._retired_pairs += status.pairs
-        self._retired_dropped_pairs += status.dropped_pairs
+    def _replace_source(self, source: PairSource, stopped: SourceStatus) -> None:
+        """Put ``source`` in place of the stopped one, whose last status is ``stopped``: the
+        new one's pairs are numbered on from the last pair published, and what the old one counted
+        stays in the status figures (both changed together, so no status counts a source twice)."""
+        self._retired_pairs += stopped.pairs
+        self._retired_dropped_pairs += stopped.dropped_pairs
+        self.source = source
         self._renumber = True
 
     def _some_camera_recovering(self) -> bool:
