@@ -79,24 +79,18 @@ def workspace(
     return new_workspace(tmp_path, intrinsics_frames, stereo_frames, pointing_frames, pointer_frames)
 
 
+INTRINSICS = ("calibrate", "intrinsics", "--config", "rig.toml", "--camera")
+"""`trackerd calibrate intrinsics` on the workspace's rig, up to the camera id."""
+
+
 def images(folder: Path) -> list[str]:
     return sorted(str(p.relative_to(folder.parent)) for p in folder.glob("*.png"))
 
 
 def calibrate_intrinsics(workspace: Path, cam: str) -> subprocess.CompletedProcess[str]:
     """`trackerd calibrate intrinsics` for one camera from its images in the workspace; it must succeed."""
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        cam,
-        "--board",
-        "chessboard:10x7:60",
-        *images(workspace / f"intrinsics-{cam}"),
-        cwd=workspace,
-    )
+    run = trackerd(*INTRINSICS, cam, "--board", "chessboard:10x7:60", *images(workspace / f"intrinsics-{cam}"),
+                   cwd=workspace)
     assert run.returncode == 0, run.stderr
     return run
 
@@ -233,7 +227,7 @@ def _unchanged(workspace: Path):
 def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path) -> None:
     ws = calibrated
     unchanged = _unchanged(ws)
-    base = ("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left")
+    base = (*INTRINSICS, "left")
 
     # No board in any image: pointer scenes.
     run = trackerd(*base, "--board", "chessboard:10x7:60", *images(ws / "waving")[:6], cwd=ws)
@@ -246,26 +240,13 @@ def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path)
     one_line_error(run, "too few usable views: 4, need at least 8")
     # An image of another size.
     small = ws / "small.png"
-    image = cv2.imread(
-        images(ws / "intrinsics-left")[0] and str(ws / images(ws / "intrinsics-left")[0]), cv2.IMREAD_UNCHANGED
-    )
+    image = cv2.imread(str(ws / images(ws / "intrinsics-left")[0]), cv2.IMREAD_UNCHANGED)
     assert cv2.imwrite(str(small), cv2.resize(image, (960, 540)))
     unchanged = _unchanged(ws)
     run = trackerd(*base, "--board", "chessboard:10x7:60", *images(ws / "intrinsics-left"), "small.png", cwd=ws)
     one_line_error(run, "small.png: image is 960x540 but camera 'left' is configured for 1920x1080")
     # An unknown camera, and a recording that is not there.
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "middle",
-        "--board",
-        "chessboard:10x7:60",
-        "x.png",
-        cwd=ws,
-    )
+    run = trackerd(*INTRINSICS, "middle", "--board", "chessboard:10x7:60", "x.png", cwd=ws)
     one_line_error(run, "no camera 'middle' in the rig; it has left, right")
     run = trackerd(*base, "--board", "chessboard:10x7:60", "--recording", "session.trec", cwd=ws)
     one_line_error(run, "session.trec: no such recording")
