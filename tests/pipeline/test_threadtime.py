@@ -1,0 +1,90 @@
+"""A thread's time off the CPU, taken apart with the kernel's own figures (no mocks: real threads, a real rival)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from trackerd.pipeline.threadtime import SCHEDSTAT, ThreadClock, ThreadTimes, off_cpu
+
+
+def _spin(seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
+
+
+def test_off_cpu_takes_an_interval_apart():
+    before = ThreadTimes(wall_ns=0, cpu_ns=0, runqueue_ns=100, voluntary_switches=3)
+    stolen = off_cpu(before, ThreadTimes(10_000_000, 6_000_000, 1_100_100, 3))
+    assert (stolen.wall_ns, stolen.off_cpu_ns, stolen.runqueue_ns) == (10_000_000, 4_000_000, 1_100_000)
+    assert not stolen.slept
+    assert (stolen.unseen_ns, stolen.asleep_ns) == (2_900_000, 0)
+
+    slept = off_cpu(before, ThreadTimes(10_000_000, 6_000_000, 100, 4))
+    assert slept.slept and (slept.unseen_ns, slept.asleep_ns) == (0, 4_000_000)
+
+    # A run-queue figure that got ahead of the clocks is never more than the time off the CPU.
+    ahead = off_cpu(before, ThreadTimes(10_000_000, 9_000_000, 5_000_100, 3))
+    assert ahead.runqueue_ns == ahead.off_cpu_ns == 1_000_000 and ahead.unseen_ns == 0
+
+    unknown = off_cpu(ThreadTimes(0, 0, None, 0), ThreadTimes(10_000_000, 6_000_000, None, 0))
+    assert unknown.runqueue_ns == 0 and unknown.unseen_ns == 4_000_000
+
+
+def test_a_sleeping_thread_is_asleep_and_a_spinning_one_is_running():
+    with ThreadClock() as clock:
+        before = clock.now()
+        time.sleep(0.05)
+        asleep = off_cpu(before, clock.now())
+        before = clock.now()
+        _spin(0.05)
+        running = off_cpu(before, clock.now())
+    assert asleep.slept and asleep.asleep_ns >= 45_000_000 and asleep.unseen_ns == 0
+    assert not running.slept
+    assert running.wall_ns >= 50_000_000
+    # Spinning, the thread runs for most of the interval even on a busy machine.
+    assert running.off_cpu_ns < running.wall_ns / 2
+
+
+def test_a_clock_measures_the_thread_that_made_it():
+    """Another thread's work does not count as this one's, nor its sleep as this one's sleep."""
+    with ThreadClock() as clock:
+        before = clock.now()
+        worker = threading.Thread(target=lambda: (_spin(0.03), time.sleep(0.02)))
+        worker.start()
+        worker.join()
+        after = clock.now()
+    interval = off_cpu(before, after)
+    assert after.cpu_ns - before.cpu_ns < 15_000_000  # the worker spun 30 ms
+    assert interval.slept  # this thread waited in join()
+
+
+@pytest.mark.skipif(not os.path.exists(SCHEDSTAT), reason="this kernel keeps no scheduler statistics")
+def test_a_rival_on_the_same_cpu_shows_as_run_queue_time():
+    cpu = min(os.sched_getaffinity(0))
+    saved = os.sched_getaffinity(0)
+    rival = subprocess.Popen(
+        [sys.executable, "-c", f"import os; os.sched_setaffinity(0, {{{cpu}}})\nwhile True: pass"],
+    )
+    try:
+        time.sleep(0.3)  # the rival is spinning
+        os.sched_setaffinity(0, {cpu})  # this thread only
+        with ThreadClock() as clock:
+            before = clock.now()
+            _spin(0.4)
+            shared = off_cpu(before, clock.now())
+    finally:
+        os.sched_setaffinity(0, saved)
+        rival.kill()
+        rival.wait()
+    # Two runnable tasks on one CPU share it: this one waits on the run queue for much of the time,
+    # and the guest's scheduler accounts for that wait (it is not the hypervisor's).
+    assert not shared.slept
+    assert shared.runqueue_ns > 0.2 * shared.wall_ns
+    assert shared.runqueue_ns >= 0.5 * shared.off_cpu_ns
