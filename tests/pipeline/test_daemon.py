@@ -9,6 +9,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 import zmq
 
 from tests.gated import GatedPairSource, wait_for_status
@@ -96,6 +97,50 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     assert health["total_fixes"] > 0 and health["ray_gap_mm"]["p50"] < 4.0
     captures = [m["capture_ns"] for _, m in messages if _ != "status"]
     assert captures == sorted(captures)  # published timestamps never go backwards
+
+
+def test_a_traced_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendered_sweep, tmp_path):
+    image_sets, _ = rendered_sweep
+    rig = _rig_on(simulated_rig, f"ipc://{tmp_path}/pub.sock")
+    count = 2 * len(image_sets)
+    sources: list[GatedPairSource] = []
+
+    def source_for(r):
+        sources.append(GatedPairSource(r, image_sets, rate_hz=30.0, count=count, drop_late=False))
+        return sources[-1]
+
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq), account_threads=True)
+    try:
+        pipeline.start()
+        pipeline.start_trace()
+        pipeline.processing.record()
+        sources[0].open()
+        deadline = time.monotonic() + 30
+        while pipeline.pairs_published < count and time.monotonic() < deadline and pipeline.failure is None:
+            time.sleep(0.02)
+    finally:
+        pipeline.stop()
+    assert pipeline.failure is None and pipeline.pairs_published == count
+    trace = pipeline.trace()
+    # One trace per pair published, whose latency is the one the figures report.
+    assert len(trace) == count
+    assert [t.latency_ns for t in trace] == pipeline.processing.recorded().tolist()
+    assert [t.received_ns for t in trace] == sorted(t.received_ns for t in trace)
+    for t in trace:
+        assert t.waiting_ns >= 0 and t.handoff_ns >= 0
+        assert t.waiting_ns + t.processing.wall_ns + t.handoff_ns <= t.latency_ns + 1_000_000
+        for part in (t.processing, t.publishing):
+            assert 0 <= part.runqueue_ns <= part.off_cpu_ns <= part.wall_ns
+        # Locating is real work: the processing thread ran for most of it.
+        assert t.processing.wall_ns - t.processing.off_cpu_ns > 100_000
+
+
+def test_a_trace_needs_thread_accounting(simulated_rig, rendered_sweep):
+    image_sets, _ = rendered_sweep
+    pipeline = Pipeline(simulated_rig, lambda r: MemoryPairSource(r, image_sets), lambda r: Publisher(r.outputs.zmq))
+    with pytest.raises(ValueError, match="account_threads"):
+        pipeline.start_trace()
+    assert pipeline.trace() == []
 
 
 def test_a_subscriber_that_never_reads_does_not_slow_the_pipeline(simulated_rig, rendered_sweep, tmp_path):

@@ -34,6 +34,7 @@ from trackerd.locator import Locator
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
+from trackerd.pipeline.threadtime import OffCpu, ThreadClock, off_cpu
 from trackerd.publish import Publisher, StatusMessage, messages_from_fix
 from trackerd.publish.messages import (
     CalibrationHealthPart,
@@ -69,6 +70,30 @@ class _Processed:
     stage_ns: dict[str, int] = field(default_factory=dict)
     final: bool = False
     """The extensions' last messages at stop, not a pair's: not counted in the figures."""
+    started_ns: int = 0
+    """Monotonic time the processing thread took the pair."""
+    queued_ns: int = 0
+    """Monotonic time the messages were handed to the publishing thread."""
+    processing_off: OffCpu | None = None
+    """The processing thread's time off the CPU while on this pair (with ``account_threads``)."""
+
+
+@dataclass(frozen=True)
+class PairTrace:
+    """One pair's latency taken apart (``Pipeline(account_threads=True)``, for benchmarks)."""
+
+    received_ns: int
+    """Monotonic time the last frame of the pair arrived."""
+    latency_ns: int
+    """Last frame received to messages handed to ZeroMQ, as in the ``processing`` figures."""
+    waiting_ns: int
+    """Last frame received to the processing thread taking the pair."""
+    processing: OffCpu
+    """The processing thread, from taking the pair to handing over its messages."""
+    handoff_ns: int
+    """Messages handed over to the publishing thread starting on them."""
+    publishing: OffCpu
+    """The publishing thread, sending the pair's messages."""
 
 
 class Pipeline:
@@ -90,8 +115,11 @@ class Pipeline:
         queue_length: int = 16,
         clock_offset_ns: int | None = None,
         extensions: Sequence[PipelineExtension] | None = None,
+        account_threads: bool = False,
     ) -> None:
         self.rig = rig
+        self._account_threads = account_threads
+        self._trace: list[PairTrace] | None = None
         self._source_factory = source_factory
         self._publisher_factory = publisher_factory
         self._notifier = notifier or SdNotify({})
@@ -185,6 +213,16 @@ class Pipeline:
         """Block until a thread fails or stop() is called; True if stopping."""
         return self._stop.wait(timeout_s)
 
+    def start_trace(self) -> None:
+        """Keep a :class:`PairTrace` of every pair published from now on (needs ``account_threads``)."""
+        if not self._account_threads:
+            raise ValueError("a pair trace needs Pipeline(account_threads=True)")
+        self._trace = []
+
+    def trace(self) -> list[PairTrace]:
+        """The pairs traced since :meth:`start_trace`."""
+        return list(self._trace or [])
+
     @property
     def failure(self) -> str | None:
         """The traceback of a thread that crashed (the daemon then exits non-zero), else None."""
@@ -225,6 +263,14 @@ class Pipeline:
             self._processing_done.set()
 
     def _process_until_stopped(self) -> None:
+        clock = ThreadClock() if self._account_threads else None
+        try:
+            self._process_pairs(clock)
+        finally:
+            if clock is not None:
+                clock.close()
+
+    def _process_pairs(self, clock: ThreadClock | None) -> None:
         while not self._stop.is_set():
             self._apply_pending_reload()
             assert self.source is not None
@@ -241,6 +287,7 @@ class Pipeline:
             if self._sequence_offset:
                 pair = dataclasses.replace(pair, sequence=pair.sequence + self._sequence_offset)
             self._next_sequence = pair.sequence + 1
+            before = clock.now() if clock is not None else None
             start, start_cpu = time.monotonic_ns(), time.thread_time_ns()
             received = max(frame.host_timestamp_ns for frame in pair.frames)
             fresh = pair.fresh_start
@@ -266,7 +313,9 @@ class Pipeline:
             stage = {"detect": fix.timings_ns.get("detect_ns", 0),
                      "triangulate": fix.timings_ns.get("triangulate_ns", 0),
                      "process": time.monotonic_ns() - start}
-            self._queue.put(_Processed(messages, received, capture, stage))
+            processing_off = off_cpu(before, clock.now()) if clock is not None and before is not None else None
+            self._queue.put(_Processed(messages, received, capture, stage, started_ns=start,
+                                       queued_ns=time.monotonic_ns(), processing_off=processing_off))
             self.processing_cpu.add(time.thread_time_ns() - start_cpu)
             self.pairs_processed += 1
             self._notifier.progress()
@@ -345,6 +394,14 @@ class Pipeline:
     # ------------------------------------------------------------------ publishing
 
     def _publish_loop(self) -> None:
+        clock = ThreadClock() if self._account_threads else None
+        try:
+            self._publish_until_stopped(clock)
+        finally:
+            if clock is not None:
+                clock.close()
+
+    def _publish_until_stopped(self, clock: ThreadClock | None) -> None:
         next_status = 0.0
         next_poll = 0.0
         last_states: tuple[str, ...] = ()
@@ -365,18 +422,19 @@ class Pipeline:
                 # included, goes out before the final status (which the publisher flushes).
                 self._processing_done.wait(STOP_DRAIN_S)
                 while (item := self._queue.get(0.0)) is not None:
-                    self._publish_item(item)
+                    self._publish_item(item, clock)
                 break
             self._apply_pending_outputs()
             item = self._queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
             if item is not None:
-                self._publish_item(item)
+                self._publish_item(item, clock)
         self._state = "stopping"
         self._detail = "stopping"
         self._send_status(self.source.status() if self.source is not None else None)
 
-    def _publish_item(self, item: _Processed) -> None:
+    def _publish_item(self, item: _Processed, clock: ThreadClock | None = None) -> None:
         assert self.publisher is not None
+        before = clock.now() if clock is not None and self._trace is not None and not item.final else None
         start = time.monotonic_ns()
         for message in item.messages:
             self.publisher.publish(message)
@@ -389,6 +447,13 @@ class Pipeline:
             self.stages[name].add(item.stage_ns[name])
         self.processing.add(done - item.received_ns)
         self.latency.add(done + self.clock_offset_ns - item.capture_ns)
+        trace = self._trace
+        if clock is not None and before is not None and trace is not None and item.processing_off is not None:
+            trace.append(PairTrace(
+                received_ns=item.received_ns, latency_ns=done - item.received_ns,
+                waiting_ns=item.started_ns - item.received_ns, processing=item.processing_off, handoff_ns=start - item.queued_ns,
+                publishing=off_cpu(before, clock.now()),
+            ))
 
     def _apply_pending_outputs(self) -> None:
         """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
