@@ -22,7 +22,10 @@ processing thread's CPU time per pair beside its wall time (the difference is
 time spent not running), the same work done back to back with warm caches
 (memory source; on the development VM, a pair after 14 ms idle costs nearly
 twice one right after another), and the CPU time the hypervisor stole during
-the run (/proc/stat).
+the run (/proc/stat). Each pair's time off the CPU, in both threads, is taken
+apart (trackerd.pipeline.threadtime): waiting on the guest's run queue, asleep
+on a lock or the GIL, or neither (the hypervisor or interrupts); and the
+latency of the pairs that kept the CPU throughout is shown beside that of all.
 """
 
 from __future__ import annotations
@@ -40,6 +43,9 @@ import zmq
 
 from trackerd.config.loader import load_rig
 from trackerd.pipeline.stats import percentiles_ms
+
+KEPT_CPU_NS = 500_000
+"""A pair whose two threads were off the CPU for less than this in all kept the CPU."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -92,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
     results = context.Queue()
     subscriber = context.Process(target=_subscribe, args=(args.endpoint, stop, results), daemon=True)
     subscriber.start()
-    pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq))
+    pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq), account_threads=True)
     try:
         pipeline.start()
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
@@ -102,10 +108,14 @@ def run(args: argparse.Namespace) -> int:
         windows = {"processing": pipeline.processing, **pipeline.stages, "processing_cpu": pipeline.processing_cpu}
         for window in windows.values():
             window.record()
+        pipeline.start_trace()
         end = time.monotonic() + args.seconds
+        machine = [(time.monotonic_ns(), machine0)]
         while time.monotonic() < end and pipeline.failure is None:
             time.sleep(0.2)
+            machine.append((time.monotonic_ns(), _cpu_ticks()))
         samples = {name: window.recorded() for name, window in windows.items()}
+        trace = pipeline.trace()
         cpu1, wall1, machine1 = os.times(), time.monotonic(), _cpu_ticks()
         pairs = pipeline.pairs_processed - pairs0
         status1 = pipeline.source.status()
@@ -131,7 +141,10 @@ def run(args: argparse.Namespace) -> int:
         "stages_ms": {k: percentiles_ms(v) for k, v in samples.items() if k not in ("processing", "processing_cpu")},
         "processing_thread_cpu_ms": percentiles_ms(samples["processing_cpu"]),
         "back_to_back_cpu_ms": back_to_back,
-        "machine_steal_percent": _steal_percent(machine0, machine1),
+        "machine_steal_percent": _share_percent(machine0, machine1, "steal"),
+        "machine_interrupt_percent": _share_percent(machine0, machine1, "interrupts"),
+        "off_cpu": off_cpu_figures(trace),
+        "latency_by_steal": latency_by_steal(trace, machine),
         "cpu_cores": round(cpu_s / elapsed, 3),
         "cpu_ms_per_pair": round(cpu_s / max(pairs, 1) * 1000, 3),
         "dropped_pairs_source": status1.dropped_pairs - status0.dropped_pairs,
@@ -166,21 +179,87 @@ def _back_to_back_ms(rig: Any, image_sets: list[list[np.ndarray]]) -> dict[str, 
     return percentiles_ms(np.asarray(costs, dtype=np.int64))
 
 
-def _cpu_ticks() -> tuple[int, int] | None:
-    """(stolen, total) CPU ticks of the machine so far, from /proc/stat; None where unreadable."""
+def off_cpu_figures(trace: list[Any]) -> dict[str, Any]:
+    """Where the pairs' time off the CPU went, from a pipeline's :class:`PairTrace` list (pure).
+
+    Per pair, the processing and publishing threads' time off the CPU is summed;
+    a pair "kept the CPU" when that sum is under :data:`KEPT_CPU_NS`. The split
+    of all that time: on the guest's run queue, asleep (a lock, the GIL), or
+    neither (taken by the hypervisor or by interrupts).
+    """
+    if not trace:
+        return {"pairs": 0}
+    latency = np.array([t.latency_ns for t in trace], dtype=np.int64)
+    off = np.array([t.processing.off_cpu_ns + t.publishing.off_cpu_ns for t in trace], dtype=np.int64)
+    work = np.array([t.processing.wall_ns + t.publishing.wall_ns for t in trace], dtype=np.int64) - off
+    runqueue = sum(t.processing.runqueue_ns + t.publishing.runqueue_ns for t in trace)
+    asleep = sum(t.processing.asleep_ns + t.publishing.asleep_ns for t in trace)
+    unseen = sum(t.processing.unseen_ns + t.publishing.unseen_ns for t in trace)
+    total = max(int(off.sum()), 1)
+    kept = off < KEPT_CPU_NS
+    return {
+        "pairs": len(trace),
+        "pairs_off_cpu_0_5_ms_or_more": int((~kept).sum()),
+        "off_cpu_ms_per_pair": percentiles_ms(off),
+        "off_cpu_split_percent": {
+            "run_queue": round(100.0 * runqueue / total, 1),
+            "asleep": round(100.0 * asleep / total, 1),
+            "hypervisor_or_interrupts": round(100.0 * unseen / total, 1),
+        },
+        "work_ms_per_pair": percentiles_ms(work),
+        "waiting_ms": percentiles_ms(np.array([t.waiting_ns for t in trace], dtype=np.int64)),
+        "handoff_ms": percentiles_ms(np.array([t.handoff_ns for t in trace], dtype=np.int64)),
+        "latency_all_ms": percentiles_ms(latency),
+        "latency_kept_cpu_ms": percentiles_ms(latency[kept]),
+    }
+
+
+def latency_by_steal(trace: list[Any], machine: list[tuple[int, dict[str, int] | None]]) -> dict[str, Any]:
+    """The latency of pairs received while the hypervisor stole no CPU time, beside the rest (pure).
+
+    ``machine`` is the run's /proc/stat samples, (monotonic ns, ticks), about 0.2 s apart: a
+    pair counts as quiet when no tick was stolen between the two samples around its arrival.
+    Side by side in one run, this tells the code's tail from the machine's."""
+    samples = [(at, ticks) for at, ticks in machine if ticks is not None]
+    if len(samples) < 2 or not trace:
+        return {}
+    starts = np.array([at for at, _ in samples], dtype=np.int64)
+    stolen = np.diff([ticks["steal"] for _, ticks in samples]) > 0
+    received = np.array([t.received_ns for t in trace], dtype=np.int64)
+    latency = np.array([t.latency_ns for t in trace], dtype=np.int64)
+    period = np.searchsorted(starts, received, side="right") - 1
+    inside = (period >= 0) & (period < stolen.size)
+    quiet = inside & ~stolen[np.clip(period, 0, stolen.size - 1)]
+    loud = inside & ~quiet
+    return {
+        "periods": int(stolen.size),
+        "periods_with_steal": int(stolen.sum()),
+        "quiet": {"pairs": int(quiet.sum()), **percentiles_ms(latency[quiet])},
+        "stolen": {"pairs": int(loud.sum()), **percentiles_ms(latency[loud])},
+    }
+
+
+_STAT_FIELDS = ("user", "nice", "system", "idle", "iowait", "irq", "softirq", "steal")
+
+
+def _cpu_ticks() -> dict[str, int] | None:
+    """The machine's CPU ticks so far by kind, from /proc/stat; None where unreadable."""
     try:
         with open("/proc/stat", encoding="ascii") as stat:
             fields = [int(v) for v in stat.readline().split()[1:]]
     except (OSError, ValueError):
         return None
     # user nice system idle iowait irq softirq steal [guest guest_nice, already in user and nice]
-    return (fields[7] if len(fields) > 7 else 0), sum(fields[:8])
+    ticks = dict(zip(_STAT_FIELDS, fields + [0] * (len(_STAT_FIELDS) - len(fields)), strict=False))
+    ticks["interrupts"] = ticks["irq"] + ticks["softirq"]
+    ticks["total"] = sum(ticks[name] for name in _STAT_FIELDS)
+    return ticks
 
 
-def _steal_percent(before: tuple[int, int] | None, after: tuple[int, int] | None) -> float | None:
-    if before is None or after is None or after[1] <= before[1]:
+def _share_percent(before: dict[str, int] | None, after: dict[str, int] | None, kind: str) -> float | None:
+    if before is None or after is None or after["total"] <= before["total"]:
         return None
-    return round(100.0 * (after[0] - before[0]) / (after[1] - before[1]), 2)
+    return round(100.0 * (after[kind] - before[kind]) / (after["total"] - before["total"]), 2)
 
 
 def _subscribe(endpoint: str, stop: Any, results: Any) -> None:
@@ -223,7 +302,32 @@ def _format(f: dict[str, Any]) -> str:
             f"  the same work back to back (warm caches): median {warm['p50_ms']} ms, p99 {warm['p99_ms']} ms"
         )
     if f["machine_steal_percent"] is not None:
-        lines.append(f"  CPU time stolen by the hypervisor during the run: {f['machine_steal_percent']} %")
+        lines.append(
+            f"  CPU time stolen by the hypervisor during the run: {f['machine_steal_percent']} %"
+            f" (interrupts: {f['machine_interrupt_percent']} %)"
+        )
+    off = f["off_cpu"]
+    if off["pairs"]:
+        split, kept, every = off["off_cpu_split_percent"], off["latency_kept_cpu_ms"], off["latency_all_ms"]
+        lines += [
+            f"  time off the CPU (both threads, per pair): median {off['off_cpu_ms_per_pair']['p50_ms']} ms,"
+            f" p99 {off['off_cpu_ms_per_pair']['p99_ms']} ms; {off['pairs_off_cpu_0_5_ms_or_more']} of"
+            f" {off['pairs']} pairs were off it for 0.5 ms or more",
+            f"    of that time: {split['run_queue']} % waiting for a CPU of this machine, {split['asleep']} %"
+            f" asleep (a lock, the GIL), {split['hypervisor_or_interrupts']} % taken by the hypervisor or"
+            " interrupts",
+            f"  latency of the pairs that kept the CPU: median {kept['p50_ms']} ms, p99 {kept['p99_ms']} ms"
+            f" (all pairs: {every['p50_ms']} / {every['p99_ms']} ms)",
+        ]
+    by_steal = f["latency_by_steal"]
+    if by_steal:
+        quiet, loud = by_steal["quiet"], by_steal["stolen"]
+        lines.append(
+            f"  by /proc/stat, in {by_steal['periods']} periods of 0.2 s, {by_steal['periods_with_steal']} with CPU"
+            f" stolen: latency of the {quiet['pairs']} pairs received in the others median {quiet['p50_ms']} ms,"
+            f" p99 {quiet['p99_ms']} ms; of the {loud['pairs']} received in them median {loud['p50_ms']} ms,"
+            f" p99 {loud['p99_ms']} ms"
+        )
     lines.append(
         f"drops: {f['dropped_pairs_source']} pairs not taken in time by processing,"
         f" {f['dropped_pairs_queue']} at the publisher queue   (target 0 caused by processing)"

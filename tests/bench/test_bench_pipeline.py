@@ -1,0 +1,89 @@
+"""`trackerd bench pipeline`: its figures, and how it takes the latency apart.
+
+The figures themselves (60 s at 60 pairs/s) are the benchmark's to print; here a
+one-second run must produce all of them, consistently, and the pure functions
+that split the time must split it right.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from trackerd.bench.pipeline import KEPT_CPU_NS, latency_by_steal, off_cpu_figures
+from trackerd.pipeline.daemon import PairTrace
+from trackerd.pipeline.threadtime import OffCpu
+
+MS = 1_000_000
+
+
+def _trace(received_ms: float, latency_ms: float, off_ms: float = 0.0, runqueue_ms: float = 0.0,
+           slept: bool = False) -> PairTrace:
+    processing = OffCpu(wall_ns=int(2 * MS + off_ms * MS), off_cpu_ns=int(off_ms * MS),
+                        runqueue_ns=int(runqueue_ms * MS), slept=slept)
+    publishing = OffCpu(wall_ns=int(0.2 * MS), off_cpu_ns=0, runqueue_ns=0, slept=False)
+    return PairTrace(received_ns=int(received_ms * MS), latency_ns=int(latency_ms * MS), waiting_ns=int(0.1 * MS),
+                     processing=processing, handoff_ns=int(0.1 * MS), publishing=publishing)
+
+
+def test_off_cpu_time_is_split_by_where_it_went():
+    trace = [
+        _trace(0, 2.5),
+        _trace(16, 2.6, off_ms=0.1),
+        _trace(33, 6.0, off_ms=3.0, runqueue_ms=1.0),  # 1 ms on the run queue, 2 ms unseen
+        _trace(50, 5.0, off_ms=1.0, slept=True),  # asleep
+    ]
+    figures = off_cpu_figures(trace)
+    assert figures["pairs"] == 4
+    assert figures["pairs_off_cpu_0_5_ms_or_more"] == 2
+    # 4.1 ms off the CPU in all: 1 ms on the run queue, 1 ms asleep, 2.1 ms unseen (0.1 + 2).
+    assert figures["off_cpu_split_percent"] == {"run_queue": 24.4, "asleep": 24.4, "hypervisor_or_interrupts": 51.2}
+    # The pairs that kept the CPU are the first two: their latency, not the others'.
+    assert figures["latency_kept_cpu_ms"]["max_ms"] == 2.6
+    assert figures["latency_all_ms"]["max_ms"] == 6.0
+    # Work is wall time less time off the CPU, both threads: 2.2 ms for every pair here.
+    assert figures["work_ms_per_pair"]["p50_ms"] == figures["work_ms_per_pair"]["max_ms"] == 2.2
+    assert off_cpu_figures([]) == {"pairs": 0}
+    assert KEPT_CPU_NS == 0.5 * MS
+
+
+def test_pairs_are_told_apart_by_whether_the_hypervisor_stole_cpu_around_them():
+    def ticks(steal: int, total: int) -> dict[str, int]:
+        return {"steal": steal, "total": total}
+
+    # Four periods of 200 ms; CPU is stolen only in the second.
+    machine = [(0, ticks(5, 100)), (200 * MS, ticks(5, 140)), (400 * MS, ticks(7, 180)),
+               (600 * MS, ticks(7, 220)), (800 * MS, ticks(7, 260)), (900 * MS, None)]
+    trace = [_trace(50, 2.0), _trace(250, 9.0), _trace(390, 8.0), _trace(450, 2.5), _trace(750, 3.0),
+             _trace(850, 99.0)]  # the last arrived after the last sample: in no period
+    figures = latency_by_steal(trace, machine)
+    assert figures["periods"] == 4 and figures["periods_with_steal"] == 1
+    assert figures["quiet"]["pairs"] == 3 and figures["quiet"]["max_ms"] == 3.0
+    assert figures["stolen"]["pairs"] == 2 and figures["stolen"]["max_ms"] == 9.0
+    assert latency_by_steal([], machine) == {}
+    assert latency_by_steal(trace, [(0, None)]) == {}
+
+
+def test_a_short_run_reports_every_figure_consistently():
+    run = subprocess.run(
+        [sys.executable, "-m", "trackerd", "bench", "pipeline", "--seconds", "1", "--json",
+         "--endpoint", "tcp://127.0.0.1:5598"],
+        capture_output=True, text=True, timeout=180,
+    )
+    assert run.returncode == 0, run.stderr
+    figures = json.loads(run.stdout)
+    assert figures["failure"] is None
+    assert figures["pairs_processed"] >= 30  # 60 pairs/s for a second, whatever the machine did
+    off = figures["off_cpu"]
+    # Every pair processed in the run is traced (give or take the one in flight at either end).
+    assert abs(off["pairs"] - figures["pairs_processed"]) <= 2
+    assert off["latency_kept_cpu_ms"]["p50_ms"] <= off["latency_all_ms"]["max_ms"]
+    split = off["off_cpu_split_percent"]
+    assert abs(sum(split.values()) - 100.0) < 0.5 or off["off_cpu_ms_per_pair"]["max_ms"] == 0
+    by_steal = figures["latency_by_steal"]
+    if by_steal:  # /proc/stat is readable here
+        assert by_steal["quiet"]["pairs"] + by_steal["stolen"]["pairs"] <= off["pairs"]
+        assert 3 <= by_steal["periods"] <= 7
+    received = figures["messages_received"]
+    assert received.get("pointer", 0) >= figures["pairs_processed"] - 5
