@@ -30,7 +30,7 @@ from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import SourceStatus
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
-from trackerd.locator import Locator
+from trackerd.locator import Locator, PointerFix
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
@@ -56,8 +56,9 @@ STOP_DRAIN_S = 0.5
 HEALTH_EVERY = 4
 """Calibration health is measured on every fourth pair: drift is slow, and each
 measurement reprojects every end into every camera (0.35-0.5 ms on the
-development VM). It is done after the pair's messages are handed over, so it
-adds nothing to their latency."""
+development VM). The publishing thread does it once the pair's messages are
+sent, so it adds nothing to their latency (done by the processing thread after
+the hand-over, it still held the GIL while they were being sent)."""
 
 
 @dataclass
@@ -78,6 +79,8 @@ class _Processed:
     """Monotonic time the messages were handed to the publishing thread."""
     processing_off: OffCpu | None = None
     """The processing thread's time off the CPU while on this pair (with ``account_threads``)."""
+    health: tuple[CalibrationHealth, PointerFix] | None = None
+    """A fix to add to the calibration health record it was located under, once the messages are sent."""
 
 
 @dataclass(frozen=True)
@@ -314,11 +317,10 @@ class Pipeline:
                      "triangulate": fix.timings_ns.get("triangulate_ns", 0),
                      "process": time.monotonic_ns() - start}
             processing_off = off_cpu(before, clock.now()) if clock is not None and before is not None else None
+            health = (self.health, fix) if fix.found and self.pairs_processed % HEALTH_EVERY == 0 else None
             self._queue.put(_Processed(messages, received, capture, stage, started_ns=start,
-                                       queued_ns=time.monotonic_ns(), processing_off=processing_off))
-            # After the hand-over: the pair's messages are on their way, so this costs them nothing.
-            if fix.found and self.pairs_processed % HEALTH_EVERY == 0:
-                self.health.add_fix(fix)
+                                       queued_ns=time.monotonic_ns(), processing_off=processing_off,
+                                       health=health))
             self.processing_cpu.add(time.thread_time_ns() - start_cpu)
             self.pairs_processed += 1
             self._notifier.progress()
@@ -454,9 +456,13 @@ class Pipeline:
         if clock is not None and before is not None and trace is not None and item.processing_off is not None:
             trace.append(PairTrace(
                 received_ns=item.received_ns, latency_ns=done - item.received_ns,
-                waiting_ns=item.started_ns - item.received_ns, processing=item.processing_off, handoff_ns=start - item.queued_ns,
-                publishing=off_cpu(before, clock.now()),
+                waiting_ns=item.started_ns - item.received_ns, processing=item.processing_off,
+                handoff_ns=start - item.queued_ns, publishing=off_cpu(before, clock.now()),
             ))
+        if item.health is not None:
+            # The messages are sent: the time to the next pair is idle anyway.
+            record, fix = item.health
+            record.add_fix(fix)
 
     def _apply_pending_outputs(self) -> None:
         """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
