@@ -1,0 +1,65 @@
+"""`trackerd calibrate check`: how well the cameras still agree, from pointer fixes (docs/calibration.md)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from trackerd.calibration.health import CalibrationHealth
+from trackerd.calibration.inputs import pair_files, read_pair
+from trackerd.calibration.live import CheckSession
+from trackerd.calibration.report import health_text
+from trackerd.calibration.store import RigContext, open_rig
+from trackerd.cli.calibrate.common import Output, check_source, run_live, simulation_truth
+from trackerd.geometry.camera import CameraModel
+from trackerd.locator import Locator
+
+
+def check_command(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    context = open_rig(args.config)
+    rig = context.complete()
+    mode = check_source(args, "--pairs DIR", args.pairs is not None)
+    cameras = [CameraModel.from_config(c) for c in rig.cameras]
+    health = CalibrationHealth.for_rig(rig, cameras, window=max(args.fixes, 10_000))
+    frames = 0
+    if mode == "live":
+        session = CheckSession(Locator(rig, cameras=cameras), health, args.fixes)
+        out.say("wave the pointer around in view of both cameras")
+        run_live(context, rig, args, session, out, lambda: _simulated_pointer(context, args.fixes))
+        frames = session.frames
+    else:
+        groups = pair_files(args.pairs, [c.id for c in rig.cameras])
+        locator: Locator | None = None
+        for _, files in groups:
+            loaded = read_pair(files, list(rig.cameras))
+            formats = [fmt for _, _, fmt in loaded]
+            if locator is None or locator.pixel_formats != formats:
+                locator = Locator(rig, cameras=cameras, pixel_formats=formats)
+            locator.reset()
+            health.add_fix(locator.locate([image for _, image, _ in loaded]))
+            frames += 1
+    figures = health.figures()
+    out.result(health_text(figures, frames), {"frames": frames, **figures.to_json()})
+    return 1 if figures.suspect else 0
+
+
+def _simulated_pointer(context: RigContext, count: int):
+    """The pointer waved in a figure eight over the display (trackerd.sim.motion), rendered."""
+    from trackerd.sim.board import RenderedPairSource
+    from trackerd.sim.motion import make_motion
+    from trackerd.sim.render import SceneRenderer
+
+    truth = simulation_truth(context)
+    scene = SceneRenderer(truth)
+    motion = make_motion("figure8", truth)
+    rng = np.random.default_rng(13)
+    ids = [c.id for c in truth.cameras]
+    frames = count * 2
+
+    def render(k: int):
+        pose = motion(k * motion.period_s / frames)
+        return [scene.render(i, pose, rng).image for i in range(len(ids))]
+
+    return RenderedPairSource(ids, list(scene.pixel_formats), render, frames)

@@ -1,0 +1,163 @@
+"""What the `trackerd calibrate` steps share: their output, their inputs, writing the result, live sessions."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from trackerd.calibration import CalibrationError
+from trackerd.calibration.board import BoardSpec
+from trackerd.calibration.live import run_session
+from trackerd.calibration.stereo import Lens
+from trackerd.calibration.store import RigContext, require_output, write_calibration
+from trackerd.config.models import CameraConfig, PoseExtrinsics, RigConfig
+from trackerd.geometry.camera import CameraModel
+
+
+class Output:
+    """Progress and reports: on stdout, or on stderr when stdout carries JSON."""
+
+    def __init__(self, as_json: bool) -> None:
+        self.as_json = as_json
+
+    def say(self, text: str) -> None:
+        print(text, file=sys.stderr if self.as_json else sys.stdout, flush=True)
+
+    def result(self, text: str, data: dict[str, Any]) -> None:
+        if self.as_json:
+            print(json.dumps(data, indent=2))
+        else:
+            print(text, flush=True)
+
+
+def check_source(args: argparse.Namespace, offline: str, offline_given: bool) -> str:
+    """Which input the step reads: 'live' (the cameras or a recording) or 'files'; errors for none or several.
+
+    ``offline`` names the step's own file input (``IMAGE...`` or ``--pairs DIR``), so the
+    message lists exactly what this step takes.
+    """
+    chosen = [
+        name
+        for name, given in (
+            ("--live", args.live),
+            ("--recording", args.recording is not None),
+            (offline, offline_given),
+        )
+        if given
+    ]
+    if not chosen:
+        raise CalibrationError(f"give the input: {offline}, --live, or --recording R")
+    if len(chosen) > 1:
+        raise CalibrationError(f"give one input, not {' and '.join(chosen)}")
+    # A recording is read like the cameras, pair after pair, by the step's live session.
+    return "live" if args.live or args.recording is not None else "files"
+
+
+def rig_camera(rig: RigConfig, camera_id: str) -> tuple[int, CameraConfig]:
+    for index, cam in enumerate(rig.cameras):
+        if cam.id == camera_id:
+            return index, cam
+    raise CalibrationError(f"no camera '{camera_id}' in the rig; it has {', '.join(c.id for c in rig.cameras)}")
+
+
+def lens_of(cam: CameraConfig) -> Lens:
+    if cam.intrinsics is None:
+        raise CalibrationError(
+            f"camera '{cam.id}' has no intrinsics yet; run `trackerd calibrate intrinsics --camera {cam.id}` first"
+        )
+    posed = cam.model_copy(update={"extrinsics": PoseExtrinsics(kind="pose", position_m=(0.0, 0.0, 0.0))})
+    model = CameraModel.from_config(posed)
+    return Lens(model.matrix.copy(), model.distortion.copy())
+
+
+def snapshot_dir(args: argparse.Namespace, step: str) -> Path | None:
+    """Where --live saves accepted frames: --snapshots, or a new timestamped folder; with
+    --dry-run (which writes nothing) none, unless --snapshots names one."""
+    if args.snapshots:
+        return Path(args.snapshots)
+    if args.dry_run:
+        return None
+    import datetime as dt
+
+    return Path("calibration-snapshots") / f"{step}-{dt.datetime.now():%Y%m%d-%H%M%S}"
+
+
+def write_result(
+    context: RigContext, calibration, header: str, dry_run: bool, notes: list[str], check_wall: bool = True
+) -> dict[str, Any]:
+    """Write the calibration file (unless a dry run); what happened is appended to ``notes``."""
+    if dry_run:
+        notes.append("dry run: nothing written")
+        return {"written": None, "backup": None}
+    path = require_output(context)
+    backup = write_calibration(context, calibration, header, check_wall=check_wall)
+    notes.append(f"written: {path}" + (f" (previous calibration kept as {backup.name})" if backup else ""))
+    if context.rig.calibration is None or (context.rig_path.parent / context.rig.calibration).resolve() != path:
+        notes.append(f'note: the rig does not name this file; add calibration = "{path}" to {context.rig_path}')
+    return {"written": str(path), "backup": str(backup) if backup else None}
+
+
+def run_live(
+    context: RigContext,
+    rig_for_source: RigConfig,
+    args: argparse.Namespace,
+    session,
+    out: Output,
+    simulated: Callable[[], Any] | None,
+) -> None:
+    """Run a session on the live source; Ctrl-C ends collection and keeps what was collected."""
+    if args.recording is not None:
+        from trackerd.recording.replay import ReplayPairSource
+
+        source = ReplayPairSource(args.recording, speed=None)
+        newest = False
+    elif args.source == "simulated":
+        if simulated is None:
+            raise CalibrationError("--source simulated is not available for this step")
+        source = simulated()
+        newest = False
+    else:
+        from trackerd.acquisition.live import AravisPairSource
+
+        source = AravisPairSource(rig_for_source)
+        newest = True
+    ids = [c.id for c in rig_for_source.cameras]
+    stop = threading.Event()
+    try:
+        with source:
+            run_session(source, session, ids, say=out.say, stop=stop, max_seconds=args.duration, newest=newest)
+    except KeyboardInterrupt:
+        stop.set()
+        out.say("stopped (Ctrl-C): using what was collected")
+
+
+def simulation_truth(context: RigContext) -> RigConfig:
+    """The rig file's own inline geometry, which --source simulated renders as the truth."""
+    rig = context.rig
+    missing = [c.id for c in rig.cameras if c.intrinsics is None or c.extrinsics is None]
+    if missing:
+        raise CalibrationError(
+            f"--source simulated renders the rig file's inline geometry, and camera(s) {', '.join(missing)} have none"
+        )
+    return rig
+
+
+def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], count: int):
+    from trackerd.sim.board import BoardRenderer, board_pair_source, poses_for_camera, poses_for_pair
+    from trackerd.sim.render import SceneRenderer
+
+    truth = simulation_truth(context)
+    scene = SceneRenderer(truth)
+    rng = np.random.default_rng(7)
+    if len(cameras) == 1:
+        poses = poses_for_camera(scene, spec, cameras[0], count, rng)
+    else:
+        poses = poses_for_pair(scene, spec, count, rng)
+    return board_pair_source(BoardRenderer(scene, spec), poses, rng)

@@ -1,0 +1,160 @@
+"""`trackerd calibrate stereo`: the second camera's pose relative to the first, from board pairs."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from trackerd.calibration import CalibrationError
+from trackerd.calibration.board import BoardSpec, Quality
+from trackerd.calibration.collect import Collected, collect_pairs
+from trackerd.calibration.inputs import pair_files, read_pair
+from trackerd.calibration.live import StereoSession
+from trackerd.calibration.report import stereo_json, stereo_text
+from trackerd.calibration.stereo import baseline_warning, calibrate_stereo
+from trackerd.calibration.store import open_rig
+from trackerd.calibration.update import apply_stereo
+from trackerd.calibration.views import ViewSelector
+from trackerd.cli.calibrate.common import (
+    Output,
+    check_source,
+    lens_of,
+    run_live,
+    simulated_boards,
+    snapshot_dir,
+    write_result,
+)
+from trackerd.config.models import CameraConfig
+from trackerd.geometry.camera import CameraModel
+
+
+def stereo_command(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    context = open_rig(args.config, args.output)
+    rig = context.merged()
+    cam1, cam2 = rig.cameras[0], rig.cameras[1]
+    lens1, lens2 = lens_of(cam1), lens_of(cam2)
+    mode = check_source(args, "--pairs DIR", args.pairs is not None)
+    spec: BoardSpec = args.board
+    quality = Quality(max_sharpness_px=args.max_blur)
+    out.say(f"board: {spec.describe()}")
+    if spec.symmetric:
+        raise CalibrationError(
+            f"board {spec}: a chessboard with {spec.squares_x} x {spec.squares_y} squares looks the same turned"
+            " by 180 degrees, so the two cameras may number its corners differently; use one with an odd"
+            " number of squares on one side and even on the other (e.g. 10x7), or a ChArUco board"
+        )
+    if mode == "live":
+        session = StereoSession(
+            spec,
+            (cam1.id, cam2.id),
+            cam1.width_px,
+            cam1.height_px,
+            wanted_pairs=args.views,
+            quality=quality,
+            min_change=args.min_change,
+            max_skew_ns=int(args.max_skew_ms * 1e6),
+            snapshots=snapshot_dir(args, "stereo"),
+        )
+        out.say(f"hold the board where both {cam1.id} and {cam2.id} see its printed face")
+        run_live(context, rig, args, session, out, lambda: simulated_boards(context, spec, [0, 1], args.views * 2))
+        collected = Collected(pairs=list(session.pairs), frames=session.frames)
+    else:
+        groups = pair_files(args.pairs, [cam1.id, cam2.id])
+
+        def frame_pairs():
+            for name, files in groups:
+                frames = read_pair(files, [cam1, cam2])
+                yield name, frames[0], frames[1]
+
+        selector = ViewSelector(cam1.width_px, cam1.height_px, args.min_change)
+        collected = collect_pairs(frame_pairs(), spec, selector, quality)
+        for name, reason in collected.rejected:
+            out.say(f"  {name}: {reason}")
+    if not collected.pairs and collected.frames:
+        raise CalibrationError(f"no pair in {collected.frames} had the board seen by both cameras")
+    result = calibrate_stereo(
+        collected.pairs,
+        lens1,
+        lens2,
+        (cam1.width_px, cam1.height_px),
+        refine_intrinsics=args.refine_intrinsics,
+        min_pairs=args.min_pairs,
+    )
+    calibration, frame = apply_stereo(
+        context.calibration,
+        rig,
+        cam1.id,
+        cam2.id,
+        result,
+        spec,
+        (args.recording or "live") if mode == "live" else str(args.pairs),
+        keep_frame=args.world == "keep",
+    )
+    if args.refine_intrinsics:
+        from trackerd.calibration.store import with_camera
+
+        for cam, lens in ((cam1, result.lens1), (cam2, result.lens2)):
+            calibration = with_camera(
+                calibration,
+                cam.id,
+                intrinsics={
+                    "model": "opencv",
+                    "fx_px": float(lens.matrix[0, 0]),
+                    "fy_px": float(lens.matrix[1, 1]),
+                    "cx_px": float(lens.matrix[0, 2]),
+                    "cy_px": float(lens.matrix[1, 2]),
+                    "distortion": [float(d) for d in lens.distortion],
+                },
+                info={"intrinsics_refined_by": "stereo"},
+            )
+    frame_text = {
+        "rig": "the rig's frame (camera 1 kept where the rig has it)",
+        "wall": "the wall frame (camera 1 kept where the wall calibration put it)",
+    }.get(frame, frame)
+    if frame.startswith("camera "):
+        frame_text = f"{frame}'s frame (as in the report)"
+    warnings = []
+    stated = _stated_baseline_m(cam1, cam2)
+    if stated is not None:
+        warning = baseline_warning(result.baseline_m, stated, spec.square_m * 1000.0)
+        if warning is not None:
+            warnings.append(warning)
+    text = stereo_text((cam1.id, cam2.id), result, collected.rejected, frame_text, warnings)
+    report = {**stereo_json(result, collected.rejected, frame), "warnings": warnings}
+    if result.rms_px > args.max_rms:
+        out.result(text, {**report, "written": None})
+        raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
+    notes: list[str] = []
+    written = write_result(
+        context,
+        calibration,
+        "trackerd calibrate stereo",
+        args.dry_run,
+        notes,
+        check_wall=not frame.startswith("camera "),
+    )
+    if frame.startswith("camera ") and not args.dry_run:
+        notes.append(
+            "next: `trackerd calibrate wall`; until then the cameras are in "
+            f"{frame}'s frame and the rig's wall (in its own frame) does not match them"
+        )
+    if warnings:
+        # Said again last, where it is seen (and on stderr with --json).
+        notes.append(
+            f"WARNING: baseline {result.baseline_m:.4f} m vs the rig's {stated:.4f} m: check the --board square size"
+        )
+    out.result(text, {**report, **written})
+    for note in notes:
+        out.say(note)
+    return 0
+
+
+def _stated_baseline_m(cam1: CameraConfig, cam2: CameraConfig) -> float | None:
+    """The distance between the two cameras as the rig states it before this step (inline poses
+    or an earlier calibration), or None when either camera has no pose yet."""
+    if cam1.extrinsics is None or cam2.extrinsics is None or cam1.intrinsics is None or cam2.intrinsics is None:
+        return None
+    centres = [CameraModel.from_config(cam).centre_m for cam in (cam1, cam2)]
+    return float(np.linalg.norm(centres[1] - centres[0]))
