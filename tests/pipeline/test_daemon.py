@@ -14,7 +14,7 @@ import zmq
 
 from tests.gated import GatedPairSource, wait_for_status
 from trackerd.acquisition.memory import MemoryPairSource
-from trackerd.pipeline.daemon import Pipeline
+from trackerd.pipeline.daemon import HEALTH_EVERY, Pipeline
 from trackerd.publish import Publisher
 from trackerd.sdnotify import SdNotify
 
@@ -133,6 +133,37 @@ def test_a_traced_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendere
             assert 0 <= part.runqueue_ns <= part.off_cpu_ns <= part.wall_ns
         # Locating is real work: the processing thread ran for most of it.
         assert t.processing.wall_ns - t.processing.off_cpu_ns > 100_000
+
+
+def test_a_bumped_camera_shows_in_the_status_calibration_health(simulated_rig, rendered_sweep, tmp_path):
+    """Fixes the locator rejects for their ray gap are what a bumped camera makes: they must reach
+    the status's calibration health, or it would stay 'fine' exactly when it is not."""
+    image_sets, _ = rendered_sweep
+    # The frames were rendered with the rig's calibration; the daemon believes camera 2 turned 1.5 degrees.
+    turned = simulated_rig.cameras[1]
+    turned = turned.model_copy(
+        update={"extrinsics": turned.extrinsics.model_copy(update={"yaw_deg": turned.extrinsics.yaw_deg + 1.5})}
+    )
+    bumped = simulated_rig.model_copy(update={"cameras": (simulated_rig.cameras[0], turned)})
+    rig = _rig_on(bumped, f"ipc://{tmp_path}/pub.sock")
+    count = 8 * len(image_sets)  # health judges from 20 fixes; it measures every fourth pair
+    pipeline = Pipeline(
+        rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=None, count=count), lambda r: Publisher(r.outputs.zmq)
+    )
+    try:
+        pipeline.start()
+        deadline = time.monotonic() + 30
+        while pipeline.pairs_published < count and time.monotonic() < deadline and pipeline.failure is None:
+            time.sleep(0.02)
+    finally:
+        pipeline.stop()
+    assert pipeline.failure is None and pipeline.pairs_published == count
+    status = pipeline.build_status(None)
+    assert status.fixes.get("rejected", 0) > count // 2, status.fixes
+    assert status.calibration is not None, "the rejected fixes never reached the health record"
+    assert status.calibration.total_fixes >= status.fixes["rejected"] // HEALTH_EVERY - 1
+    assert status.calibration.ray_gap_mm.p50 > 1000 * rig.locator.max_ray_gap_m
+    assert status.calibration.suspect
 
 
 def test_a_trace_needs_thread_accounting(simulated_rig, rendered_sweep):

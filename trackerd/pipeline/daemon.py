@@ -7,7 +7,9 @@ Threads (besides each camera's acquisition thread inside the pair source):
   hands the resulting messages to the publisher through a bounded queue that
   drops its oldest item when full;
 * publishing: owns the ZeroMQ publisher, sends the messages, and sends a status
-  about once a second and on every change of state.
+  about once a second and on every change of state; once a pair's messages are
+  sent, it measures calibration health from the pair's fix (every fourth pair),
+  and it alone reads and writes the health record.
 
 Latency is measured, not guessed: per stage (detect, triangulate, publish) and
 end to end, from the moment the last frame of a pair arrived to the moment its
@@ -57,8 +59,9 @@ HEALTH_EVERY = 4
 """Calibration health is measured on every fourth pair: drift is slow, and each
 measurement reprojects every end into every camera (0.35-0.5 ms on the
 development VM). The publishing thread does it once the pair's messages are
-sent, so it adds nothing to their latency (done by the processing thread after
-the hand-over, it still held the GIL while they were being sent)."""
+sent, so it adds nothing to that pair's latency (done by the processing thread
+after the hand-over, it still held the GIL while they were being sent); it can
+delay a pair that arrives meanwhile, as any work of the daemon's can."""
 
 
 @dataclass
@@ -155,7 +158,7 @@ class Pipeline:
         self.stages = {name: Window() for name in ("detect", "triangulate", "publish")}
         self.processing_cpu = Window()
         """CPU time the processing thread spent on each pair (ns): set beside its wall time, what
-        was work and what was waiting for a CPU (benchmarks; not in the status)."""
+        was work and what was time off the CPU (benchmarks; not in the status)."""
         self.pairs_processed = 0
         self.pairs_published = 0
         """Pairs whose messages the publishing thread has handed to the publisher."""
@@ -219,7 +222,9 @@ class Pipeline:
         return self._stop.wait(timeout_s)
 
     def start_trace(self) -> None:
-        """Keep a :class:`PairTrace` of every pair published from now on (needs ``account_threads``)."""
+        """Keep a :class:`PairTrace` of every pair published from now on (needs ``account_threads``).
+
+        For benchmarks: the trace grows by one small record a pair until the pipeline stops."""
         if not self._account_threads:
             raise ValueError("a pair trace needs Pipeline(account_threads=True)")
         self._trace = []
@@ -314,12 +319,15 @@ class Pipeline:
                 # Tracking windows are stale once the pointer is gone.
                 self.locator.reset()
             stage = {"detect": fix.timings_ns.get("detect_ns", 0),
-                     "triangulate": fix.timings_ns.get("triangulate_ns", 0),
-                     "process": time.monotonic_ns() - start}
+                     "triangulate": fix.timings_ns.get("triangulate_ns", 0)}
             processing_off = off_cpu(before, clock.now()) if clock is not None and before is not None else None
-            health = (self.health, fix) if fix.found and self.pairs_processed % HEALTH_EVERY == 0 else None
+            # Every fix with a line, rejected ones included: a bumped camera shows as fixes rejected
+            # for their ray gap, which is what the health record is for (trackerd.calibration.health).
+            measure = fix.line is not None and self.pairs_processed % HEALTH_EVERY == 0
+            health = (self.health, fix) if measure else None
             self._queue.put(_Processed(messages, received, capture, stage, started_ns=start,
-                                       queued_ns=time.monotonic_ns(), processing_off=processing_off,
+                                       queued_ns=time.monotonic_ns() if clock is not None else 0,
+                                       processing_off=processing_off,
                                        health=health))
             self.processing_cpu.add(time.thread_time_ns() - start_cpu)
             self.pairs_processed += 1
@@ -514,6 +522,7 @@ class Pipeline:
             else:
                 waiting = [c.camera_id for c in cameras if c.state != "streaming"]
                 self._state, self._detail = "starting", f"waiting for {', '.join(waiting) or 'cameras'}"
+        health = self.health  # once: a reload may replace it meanwhile
         latency = self.latency.drain()
         processing = self.processing.drain()
         stages = {name: window.drain() for name, window in self.stages.items()}
@@ -551,7 +560,7 @@ class Pipeline:
                 name: LatencyPart(samples=int(values.size), **percentiles_ms(values))
                 for name, values in stages.items()
             },
-            calibration=CalibrationHealthPart.model_validate(self.health.to_json()) if self.health.total else None,
+            calibration=CalibrationHealthPart.model_validate(health.to_json()) if health.total else None,
             fixes=dict(self._fixes),
             detail=self._detail,
             **{name: figures for name, figures in ((e.name, e.status()) for e in self.extensions) if figures},
