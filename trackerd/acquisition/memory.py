@@ -110,10 +110,11 @@ class MemoryPairSource(PairSource):
                 return None
             time.sleep(wait_ns / 1e9)
         images = self._sets[index % len(self._sets)]
-        now = time.monotonic_ns()
-        capture = due if self._period_ns is not None else now
+        # Paced, a pair arrives when it is due, as a camera's frame does, however late the consumer
+        # takes it: the time it waited (the consumer's wake-up included) is part of its latency.
+        capture = due if self._period_ns is not None else time.monotonic_ns()
         frames = tuple(
-            Frame(camera_id, index, capture, now, fmt, image)
+            Frame(camera_id, index, capture, capture, fmt, image)
             for camera_id, fmt, image in zip(self._ids, self._formats, images, strict=True)
         )
         with self._lock:
