@@ -40,7 +40,7 @@ class ThreadTimes:
     """CPU time the thread has used."""
     runqueue_ns: int | None
     """Time the thread has spent ready to run but waiting for a CPU; None where the kernel keeps no
-    scheduler statistics."""
+    scheduler statistics (then all time off the CPU that is not sleep counts as unseen)."""
     voluntary_switches: int
     """Times the thread has gone to sleep of its own accord (waiting on a lock, the GIL, I/O)."""
 
@@ -59,9 +59,11 @@ class OffCpu:
 
     @property
     def unseen_ns(self) -> int:
-        """Not running, not on the run queue, not asleep: taken by the hypervisor or by interrupts.
+        """Not running, not on the run queue, not asleep: taken by the hypervisor or by interrupts
+        (which kernels with steal and interrupt time accounting keep out of a thread's CPU time).
 
-        0 when the thread slept: its sleep and any steal cannot then be told apart."""
+        0 when the thread slept: its sleep and any steal cannot then be told apart, so this is a
+        lower bound of the time taken, and :attr:`asleep_ns` an upper bound of the sleep."""
         return 0 if self.slept else max(0, self.off_cpu_ns - self.runqueue_ns)
 
     @property
@@ -90,6 +92,12 @@ class ThreadClock:
             self._schedstat: int | None = os.open(SCHEDSTAT, os.O_RDONLY)
         except OSError:
             self._schedstat = None
+        else:
+            # A kernel built with the file but keeping no statistics reports "0 0 0": the thread
+            # has run (Python started it), so a CPU time of 0 means unknown, not none.
+            if int(os.pread(self._schedstat, 128, 0).split()[0]) == 0:
+                os.close(self._schedstat)
+                self._schedstat = None
 
     def now(self) -> ThreadTimes:
         runqueue = None
