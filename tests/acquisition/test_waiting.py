@@ -61,9 +61,10 @@ def test_the_daemons_source_waits_for_a_camera_switched_on_after_it(simulated_ri
     # Software-trigger pairs: the n-th frame served by each camera (one served-count difference).
     tags = [[read_tag(f.image) for f in p.frames] for p in pairs]
     assert len({a.served - b.served for a, b in tags}) == 1
-    # Each attempt's reason is logged at info when it changes, and reminded only every REMINDER_S.
+    # Each attempt's reason is logged at warning (the default level) when it changes, and reminded
+    # only every REMINDER_S.
     waiting = _messages(caplog, "camera right not available yet")
-    assert waiting and all(r.levelno == logging.INFO for r in waiting)
+    assert waiting and all(r.levelno == logging.WARNING for r in waiting)
     assert "no answer from 10.213.200.6" in waiting[0].getMessage()
     if waited_s < REMINDER_S:
         assert len(waiting) == 1

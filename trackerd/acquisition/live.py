@@ -39,6 +39,9 @@ log = logging.getLogger(__name__)
 
 STOP_BUDGET_S = 1.0
 """stop() joins every thread within this many seconds (see Releaser and firing.py for the exceptions)."""
+SEARCH_JOIN_S = 0.1
+"""How long stop() waits for the thread of a camera it has not found yet: it may be inside Aravis's
+discovery, which takes a second and cannot be interrupted, and it holds nothing to release."""
 TRIGGER_LEAD_NS = 50_000_000
 """The first software trigger tick is this far after start, once every camera is open."""
 CLOCK_WARMUP_FRAMES = 8
@@ -122,6 +125,8 @@ class AravisPairSource(PairSource):
         self._clocks = [DeviceClock(window_ns) for _ in range(self._n)]
         self._shared_clock = DeviceClock(window_ns) if acq.ptp else None
         self._workers: list[CameraWorker] = []
+        self.abandoned_threads: list[str] = []
+        """Cameras whose thread was still searching for them when stop() returned (see SEARCH_JOIN_S)."""
         self._releaser = Releaser()
         self._running = False
         self._stamp = NonDecreasing()
@@ -195,8 +200,15 @@ class AravisPairSource(PairSource):
         for worker in self._workers:
             worker.request_stop()
         for worker in self._workers:
-            if not worker.join(deadline - time.monotonic()):
+            holds = worker.holds_camera
+            budget = deadline - time.monotonic() if holds else min(SEARCH_JOIN_S, deadline - time.monotonic())
+            if worker.join(budget):
+                continue
+            if holds:
                 log.warning("camera %s: acquisition thread did not stop in time", worker.cam.id)
+            else:
+                log.info("camera %s: not waiting for the search for it to end (nothing is open)", worker.cam.id)
+        self.abandoned_threads = [worker.cam.id for worker in self._workers if worker.alive]
         if not self._releaser.join(deadline - time.monotonic()):
             log.warning("%d lost camera connection(s) still being released by Aravis", self._releaser.pending)
         with self._ready:

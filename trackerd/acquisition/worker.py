@@ -194,6 +194,11 @@ class CameraWorker:
     def alive(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 
+    @property
+    def holds_camera(self) -> bool:
+        """A connection is open: stopping must wait for its release."""
+        return self._session is not None
+
     def close(self) -> None:
         """Release the camera of a worker whose thread never started (start-up failed elsewhere)."""
         self._shutdown()
@@ -325,8 +330,9 @@ class CameraWorker:
         if reconnects:
             log.warning("camera %s streaming again after %.1f s (reconnect %d)", self.cam.id, away_s, reconnects)
         elif self._attempts:
-            log.info("camera %s streaming, after waiting %.1f s for it (%d attempts)", self.cam.id, away_s,
-                     self._attempts + 1)
+            # At warning, as the wait was: the operator who saw one sees the other.
+            log.warning("camera %s streaming, after waiting %.1f s for it (%d attempts)", self.cam.id, away_s,
+                        self._attempts + 1)
         else:
             log.info("camera %s streaming", self.cam.id)
         self._outage_ns = None
@@ -482,6 +488,10 @@ class CameraWorker:
             self._next_reminder_ns = now + int(REMINDER_S * 1e9)
             waited_s = (now - self._outage_ns) / 1e9 if self._outage_ns is not None else 0.0
             what = "not available yet" if self._connections == 0 else "still lost"
+            if self._connections == 0:
+                # Nothing is tracked until it comes: say so at the default log level (the loss of a
+                # camera that streamed is a warning already; its retries are details).
+                level = max(level, logging.WARNING)
             log.log(level, "camera %s %s (attempt %d, %.0f s): %s; retrying", self.cam.id, what, self._attempts,
                     waited_s, reason)
         return False

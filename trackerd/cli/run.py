@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import signal
 import sys
 import threading
@@ -116,10 +117,19 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
         notifier.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    code = 0
     if pipeline.failure is not None:
         print("trackerd: a pipeline thread crashed (traceback above); exiting", file=sys.stderr)
-        return 1
-    return 0
+        code = 1
+    if getattr(pipeline.source, "abandoned_threads", None):
+        # A camera thread is inside Aravis's discovery (up to a second, not interruptible) and holds
+        # nothing: everything is released and closed, so exit now rather than when it returns
+        # (the interpreter's finalisation would wait for it, two seconds and more).
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _reload(pipeline, path: Path | None) -> None:
