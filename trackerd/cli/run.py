@@ -60,18 +60,20 @@ def run_command(args: argparse.Namespace) -> int:
     # What each camera says about itself, noted as it opens, for recordings made on demand.
     info = CameraInfo()
     return serve(rig, path, lambda r: aravis_source(r, on_open=info.on_open), seconds=args.seconds,
-                 camera_info=info)
+                 camera_info=info, exit_if_stuck=True)
 
 
 def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
           publisher_factory=zmq_publisher, banner: str | None = None, clock_offset_ns: int | None = None,
-          until=None, camera_info=None) -> int:
+          until=None, camera_info=None, exit_if_stuck: bool = False) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
 
     ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
     recorded capture times with it); ``until(pipeline)``, checked every 0.1 s, ends the run when
     it returns True (a replay that has published its last pair). ``path`` (the rig file) and
-    ``camera_info`` go into the metadata of recordings made on demand.
+    ``camera_info`` go into the metadata of recordings made on demand. ``exit_if_stuck``: when a
+    camera thread is still searching for its camera once everything is stopped, end the process
+    here (`trackerd run`, which has nothing left to do; not for callers that clean up after).
     """
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import ExtensionContext, for_rig
@@ -121,7 +123,7 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     if pipeline.failure is not None:
         print("trackerd: a pipeline thread crashed (traceback above); exiting", file=sys.stderr)
         code = 1
-    if getattr(pipeline.source, "abandoned_threads", None):
+    if exit_if_stuck and getattr(pipeline.source, "abandoned_threads", None):
         # A camera thread is inside Aravis's discovery (up to a second, not interruptible) and holds
         # nothing: everything is released and closed, so exit now rather than when it returns
         # (the interpreter's finalisation would wait for it, two seconds and more).
