@@ -19,6 +19,12 @@ class ConfigError(TrackerdError):
 
     exit_code = 2
 
+    def in_file(self, path: object) -> ConfigError:
+        """This error with the file it is about in front, as the loader's own errors have it (itself
+        if it names that file first already)."""
+        text = str(self)
+        return self if text.startswith(str(path)) else ConfigError(f"{path}: {text}")
+
 
 class GeometryError(TrackerdError):
     """A geometric configuration that has no answer (parallel rays, a line parallel to the wall)."""

@@ -11,6 +11,7 @@ import pytest
 from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError
 from trackerd.interaction.extension import create
+from trackerd.pipeline.extensions import ExtensionContext, for_rig
 
 SIMULATED = Path(__file__).resolve().parents[2] / "config" / "simulated.toml"
 
@@ -42,11 +43,14 @@ def _malformed(tmp_path: Path) -> str:
 ], ids=["unknown trigger", "missing template_dir", "malformed template", "unknown hand camera"])
 def test_config_check_refuses_what_the_daemon_refuses(tmp_path, make, text):
     path = _rig_file(tmp_path, make(tmp_path))
+    loaded = load_rig(path)
     with pytest.raises(ConfigError) as refused:
-        create(load_rig(path).config)  # what run and replay build at start
+        for_rig(loaded.config, ExtensionContext(rig_file=loaded.path))  # what run and replay build at start
     done = _check(path)
     assert done.returncode == 2 and "Traceback" not in done.stderr
+    # The same line, naming the rig file first as every configuration error does.
     assert done.stderr == f"trackerd config: {refused.value}\n" and text in done.stderr
+    assert str(refused.value).startswith(f"{loaded.path}: ")
 
 
 def test_config_check_accepts_what_the_daemon_accepts(tmp_path):

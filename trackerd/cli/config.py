@@ -8,6 +8,7 @@ import json
 import numpy as np
 
 from trackerd.config.loader import LoadedRig, load_rig
+from trackerd.errors import ConfigError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import ypr_from_world_from_camera
 from trackerd.geometry.wall import WallFrame
@@ -30,7 +31,10 @@ def check_command(args: argparse.Namespace) -> int:
     if loaded.config.interaction.any_enabled:
         # What the daemon's interaction stage checks at start (templates, commands, hand camera,
         # TUIO host): OK here means `run` and `replay` start.
-        check_interaction(loaded.config)
+        try:
+            check_interaction(loaded.config)
+        except ConfigError as err:
+            raise err.in_file(loaded.path) from None
     if args.json:
         print(json.dumps(resolved_summary(loaded, cameras, wall), indent=2))
     else:

@@ -22,6 +22,7 @@ from typing import Any, Protocol
 
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
+from trackerd.errors import ConfigError
 from trackerd.locator import PointerFix
 from trackerd.publish.messages import Message
 
@@ -83,7 +84,14 @@ def for_rig(rig: RigConfig, context: ExtensionContext | None = None) -> list[Pip
             if err.name is not None and name.startswith(err.name):
                 continue  # that part of trackerd is not present in this build
             raise
-        extension = module.create(rig, context)
+        try:
+            extension = module.create(rig, context)
+        except ConfigError as err:
+            # What the rig asks of an extension is checked here, after the file was loaded: name the
+            # file, as the loader's own errors do.
+            if context.rig_file is None:
+                raise
+            raise err.in_file(context.rig_file) from None
         if extension is not None:
             out.append(extension)
     return out
