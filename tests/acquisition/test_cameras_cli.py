@@ -31,11 +31,15 @@ def test_no_camera_says_so_and_exits_1() -> None:
         subprocess.run(["ip", "-n", namespace, "link", "set", "lo", "up"], check=True)
         result = trackerd("cameras", prefix=("ip", "netns", "exec", namespace))
         as_json = trackerd("cameras", "--json", prefix=("ip", "netns", "exec", namespace))
+        one = trackerd("cameras", "SIM-LEFT", prefix=("ip", "netns", "exec", namespace))
     finally:
         subprocess.run(["ip", "netns", "del", namespace], check=True)
     assert result.returncode == 1
     assert result.stdout.startswith("no camera found")
     assert as_json.returncode == 1 and json.loads(as_json.stdout)["cameras"] == []
+    # Asked for one camera, the answer is about that camera, on one line.
+    assert one.returncode == 1 and "Traceback" not in one.stderr
+    assert one.stderr.startswith("trackerd cameras: no camera 'SIM-LEFT': Aravis sees no GigE Vision"), one.stderr
 
 
 @needs_netns

@@ -33,6 +33,9 @@ def cameras_command(args: argparse.Namespace) -> int:
             " (check cabling, the NIC's address and subnet, and the firewall for UDP port 3956;"
             " docs/acquisition.md)"
         )
+        if args.camera and not args.json:
+            # Asked about one camera: an error about that camera, like any other not found.
+            raise CameraError(f"no camera '{args.camera}': {message.removeprefix('no camera found: ')}")
         if args.json:
             print(json.dumps({"cameras": [], "error": message}))
         else:
