@@ -189,7 +189,8 @@ class PairingPart(_Part):
     """Pairs formed since the daemon started."""
     dropped_frames: dict[str, int] = Field(default_factory=dict)
     """Complete frames that never became part of a pair, by cause (``no_partner``, ``queue_full``,
-    ``resync``, ``skew``); totals since start."""
+    ``resync``, ``skew``, ``partner_lost``: another camera was lost or not there yet,
+    ``clock_warmup``: a camera's first frames while its clock offset settles); totals since start."""
     dropped_pairs: int = Field(default=0, ge=0)
     """Pairs discarded because processing fell behind (the oldest is dropped)."""
     skew_p50_us: float | None = None
