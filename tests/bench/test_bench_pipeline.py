@@ -11,7 +11,7 @@ import json
 import subprocess
 import sys
 
-from trackerd.bench.pipeline import HELD_UP_NS, latency_by_steal, off_cpu_figures
+from trackerd.bench.pipeline import HELD_UP_NS, _format, latency_by_steal, off_cpu_figures
 from trackerd.pipeline.daemon import PairTrace
 from trackerd.pipeline.threadtime import OffCpu
 
@@ -91,3 +91,7 @@ def test_a_short_run_reports_every_figure_consistently():
         assert 3 <= by_steal["periods"] <= 7
     received = figures["messages_received"]
     assert received.get("pointer", 0) >= figures["pairs_processed"] - 5
+    # The text the command prints by default says every figure in words, no raw Python values.
+    text = _format(figures)
+    assert "None" not in text and "{" not in text, text
+    assert f"pointer {received['pointer']}" in text and "target p99 <= 4 ms" in text

@@ -292,6 +292,12 @@ def _subscribe(endpoint: str, stop: Any, results: Any) -> None:
         results.put(counts)
 
 
+def _spread(figures: dict[str, Any]) -> str:
+    if figures.get("p50_ms") is None:
+        return "none"
+    return f"median {figures['p50_ms']} ms, p99 {figures['p99_ms']} ms"
+
+
 def _format(f: dict[str, Any]) -> str:
     lat = f["processing_latency_ms"]
     lines = [
@@ -330,7 +336,7 @@ def _format(f: dict[str, Any]) -> str:
             f"  waits: to be taken median {off['waiting_ms']['p50_ms']} ms, p99 {off['waiting_ms']['p99_ms']} ms;"
             f" hand-over median {off['handoff_ms']['p50_ms']} ms, p99 {off['handoff_ms']['p99_ms']} ms",
             f"  {off['pairs_held_up_1_ms_or_more']} of {off['pairs']} pairs were held up 1 ms or more (waits and"
-            f" time off the CPU); the others' latency: median {clear['p50_ms']} ms, p99 {clear['p99_ms']} ms"
+            f" time off the CPU); the others' latency: {_spread(clear)}"
             f" (all pairs: {every['p50_ms']} / {every['p99_ms']} ms)",
         ]
     by_steal = f["latency_by_steal"]
@@ -338,15 +344,15 @@ def _format(f: dict[str, Any]) -> str:
         quiet, loud = by_steal["quiet"], by_steal["stolen"]
         lines.append(
             f"  by /proc/stat, in {by_steal['periods']} periods of 0.2 s, {by_steal['periods_with_steal']} with CPU"
-            f" stolen: latency of the {quiet['pairs']} pairs that overlap none of them median {quiet['p50_ms']} ms,"
-            f" p99 {quiet['p99_ms']} ms; of the {loud['pairs']} others median {loud['p50_ms']} ms,"
-            f" p99 {loud['p99_ms']} ms"
+            f" stolen: latency of the {quiet['pairs']} pairs that overlap none of them {_spread(quiet)};"
+            f" of the {loud['pairs']} others {_spread(loud)}"
         )
     lines.append(
         f"drops: {f['dropped_pairs_source']} pairs not taken in time by processing,"
         f" {f['dropped_pairs_queue']} at the publisher queue   (target 0 caused by processing)"
     )
-    lines.append(f"received by a subscriber: {f['messages_received']}")
+    received = ", ".join(f"{topic} {count}" for topic, count in sorted(f["messages_received"].items()))
+    lines.append(f"received by a subscriber (the warm-up included): {received or 'nothing'}")
     if f["failure"]:
         lines.append(f"FAILED: {f['failure']}")
     return "\n".join(lines)
