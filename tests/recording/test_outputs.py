@@ -3,6 +3,7 @@ recording leaves nothing behind."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,15 @@ def test_export_to_a_folder_it_cannot_write_is_one_line(a_file, tmp_path, where:
     line = one_line_error(run, "recording", str(out))
     assert "folder" in line
     assert not (tmp_path / "hits.csv").exists()
+
+
+def test_export_into_a_recording_is_refused_and_leaves_it_as_it_was(tmp_path) -> None:
+    recording = tmp_path / "session.trec"
+    shutil.copytree(BUNDLE, recording)  # a copy: were it written into, the test data would be spoilt
+    before = sorted(p.name for p in recording.iterdir())
+    run = trackerd("recording", "export", BUNDLE, recording, "--no-images")
+    one_line_error(run, "recording", str(recording), "is a recording")
+    assert sorted(p.name for p in recording.iterdir()) == before
 
 
 def test_snap_into_a_file_is_refused_before_the_cameras_open(a_file) -> None:

@@ -25,9 +25,14 @@ def existing_ancestor(path: Path) -> Path:
 def output_folder(path: str | Path) -> Path:
     """Create the folder ``path`` (and its parents) if missing and check a file can be written in it;
     RecordingError naming the path otherwise."""
+    from trackerd.recording.format import METADATA_FILE
+
     folder = Path(path)
     if folder.exists() and not folder.is_dir():
         raise RecordingError(f"{folder}: exists and is not a folder; give a folder to write into")
+    if (folder / METADATA_FILE).exists():
+        # Images and a CSV among a recording's files would be taken for part of it.
+        raise RecordingError(f"{folder}: is a recording; give another folder to write into")
     base = existing_ancestor(folder)
     if not base.is_dir():
         raise RecordingError(f"{folder}: cannot create the folder: {base} is a file, not a folder")
