@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import threading
@@ -41,6 +42,13 @@ def _collect(sub: zmq.Socket, seconds: float) -> list[tuple[str, dict]]:
             topic, payload = sub.recv_multipart()
             out.append((topic.decode(), json.loads(payload)))
     return out
+
+
+def _wait_published(pipeline: Pipeline, count: int, timeout_s: float = 30.0) -> None:
+    """Until ``count`` pairs are published, the pipeline fails, or the timeout passes."""
+    deadline = time.monotonic() + timeout_s
+    while pipeline.pairs_published < count and time.monotonic() < deadline and pipeline.failure is None:
+        time.sleep(0.02)
 
 
 def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_rig, rendered_sweep, tmp_path):
@@ -115,9 +123,7 @@ def test_a_traced_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendere
         pipeline.start_trace()
         pipeline.processing.record()
         sources[0].open()
-        deadline = time.monotonic() + 30
-        while pipeline.pairs_published < count and time.monotonic() < deadline and pipeline.failure is None:
-            time.sleep(0.02)
+        _wait_published(pipeline, count)
     finally:
         pipeline.stop()
     assert pipeline.failure is None and pipeline.pairs_published == count
@@ -152,9 +158,7 @@ def test_a_bumped_camera_shows_in_the_status_calibration_health(simulated_rig, r
     )
     try:
         pipeline.start()
-        deadline = time.monotonic() + 30
-        while pipeline.pairs_published < count and time.monotonic() < deadline and pipeline.failure is None:
-            time.sleep(0.02)
+        _wait_published(pipeline, count)
     finally:
         pipeline.stop()
     assert pipeline.failure is None and pipeline.pairs_published == count
@@ -419,7 +423,7 @@ def test_sequences_go_on_across_a_reload_that_reopens_the_cameras(simulated_rig,
     assert pipeline.failure is None
     assert len(sources) == 3, "the cameras were not reopened"
     sequences = [m["sequence"] for t, m in messages if t == "pointer"]
-    assert len(sequences) > 40 and all(b > a for a, b in zip(sequences, sequences[1:], strict=False)), sequences
+    assert len(sequences) > 40 and all(b > a for a, b in itertools.pairwise(sequences)), sequences
     # Each source's pairs are all counted: the status adds up those of the sources replaced.
     delivered = sum(s.status().delivered for s in sources)
     last = [m for t, m in messages if t == "status"][-1]
