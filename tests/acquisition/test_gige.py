@@ -80,24 +80,39 @@ def report(label: str, pairs, status, true_skews_us) -> None:
     )
 
 
+def _runs(values: list[int]) -> list[tuple[int, list[int]]]:
+    """Consecutive equal values: (value, indices) per run, in order."""
+    runs: list[tuple[int, list[int]]] = []
+    for index, value in enumerate(values):
+        if runs and runs[-1][0] == value:
+            runs[-1][1].append(index)
+        else:
+            runs.append((value, [index]))
+    return runs
+
+
 def test_software_trigger_pairs_answer_one_trigger_and_triangulate(virtual) -> None:
     from trackerd.locator import Locator
 
     pairs, status = acquire(virtual, "software")
     assert len(pairs) >= 30, status
     assert status.pairing == "trigger count"
-    # Zero frame-id mismatch: every camera's counter advanced once per trigger, in step.
-    assert {p.frames[0].frame_id - p.frames[1].frame_id for p in pairs} == {
-        pairs[0].frames[0].frame_id - pairs[0].frames[1].frame_id
-    }
-    true_skews_us, served = [], set()
-    for pair in pairs:
-        left, right = tags_of(pair)
-        true_skews_us.append(abs(left.capture_ns - right.capture_ns) / 1000)
-        served.add(left.served - right.served)
-    # ...and so did the simulated cameras' own count of frames served (the ground truth):
-    # every pair holds the n-th frame of both cameras, never frames of neighbouring triggers.
-    assert len(served) == 1
+    # Zero frame-id mismatch: every camera's counter advanced once per trigger, in step. A camera's
+    # counter restarts when it reconnects (on a loaded machine the quick rig's 300 ms loss timeout
+    # can pass), so this holds connection by connection: one run of one difference each.
+    runs = _runs([p.frames[0].frame_id - p.frames[1].frame_id for p in pairs])
+    reconnects = sum(c.reconnects for c in status.cameras)
+    assert len(runs) <= 1 + reconnects, ([(value, len(run)) for value, run in runs], status)
+    true_skews_us = []
+    for _, run in runs:
+        served = set()
+        for pair in (pairs[i] for i in run):
+            left, right = tags_of(pair)
+            true_skews_us.append(abs(left.capture_ns - right.capture_ns) / 1000)
+            served.add(left.served - right.served)
+        # ...and so did the simulated cameras' own count of frames served (the ground truth):
+        # every pair holds the n-th frame of both cameras, never frames of neighbouring triggers.
+        assert len(served) == 1, served
     report("software trigger", pairs, status, true_skews_us)
 
     truth = virtual.loop.truth()
