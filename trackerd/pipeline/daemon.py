@@ -19,6 +19,7 @@ messages were handed to ZeroMQ. Signals are not handled here: the CLI calls
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import threading
@@ -272,13 +273,13 @@ class Pipeline:
         finally:
             self._processing_done.set()
 
+    def _thread_clock(self) -> contextlib.AbstractContextManager[ThreadClock | None]:
+        """The calling thread's clock with ``account_threads``, else nothing (closed on exit)."""
+        return ThreadClock() if self._account_threads else contextlib.nullcontext()
+
     def _process_until_stopped(self) -> None:
-        clock = ThreadClock() if self._account_threads else None
-        try:
+        with self._thread_clock() as clock:
             self._process_pairs(clock)
-        finally:
-            if clock is not None:
-                clock.close()
 
     def _process_pairs(self, clock: ThreadClock | None) -> None:
         while not self._stop.is_set():
@@ -407,12 +408,8 @@ class Pipeline:
     # ------------------------------------------------------------------ publishing
 
     def _publish_loop(self) -> None:
-        clock = ThreadClock() if self._account_threads else None
-        try:
+        with self._thread_clock() as clock:
             self._publish_until_stopped(clock)
-        finally:
-            if clock is not None:
-                clock.close()
 
     def _publish_until_stopped(self, clock: ThreadClock | None) -> None:
         next_status = 0.0
@@ -461,7 +458,7 @@ class Pipeline:
         self.processing.add(done - item.received_ns)
         self.latency.add(done + self.clock_offset_ns - item.capture_ns)
         trace = self._trace
-        if clock is not None and before is not None and trace is not None and item.processing_off is not None:
+        if before is not None and trace is not None and item.processing_off is not None:
             trace.append(PairTrace(
                 received_ns=item.received_ns, latency_ns=done - item.received_ns,
                 waiting_ns=item.started_ns - item.received_ns, processing=item.processing_off,
