@@ -1,5 +1,5 @@
-"""systemd/trackerd.service: `systemd-analyze verify` passes, the exposure score stays low, and the
-settings the daemon relies on are there."""
+"""systemd/trackerd.service and trackerd-cpu-latency.service: `systemd-analyze verify` passes, the
+exposure scores stay low, and the settings the daemon relies on are there."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from trackerd.config.models import RigAcquisition
 
 REPO = Path(__file__).resolve().parents[2]
 DROP_IN = REPO / "systemd" / "packet-socket.conf"
+CPU_LATENCY_UNIT = REPO / "systemd" / "trackerd-cpu-latency.service"
 GIGE_HEARTBEAT_TIMEOUT_S = 3.0
 """GigE Vision's default GevHeartbeatTimeout: a camera stays bound to a dead controller this long."""
 
@@ -37,7 +38,7 @@ def _installable_copy(unit: Path, directory: Path) -> Path:
     stand_in.write_text("#!/bin/sh\nexit 0\n")
     stand_in.chmod(0o755)
     text = unit.read_text().replace("/opt/trackerd/venv/bin/trackerd", str(stand_in))
-    copy = directory / "trackerd.service"
+    copy = directory / unit.name
     copy.write_text(text)
     return copy
 
@@ -45,6 +46,16 @@ def _installable_copy(unit: Path, directory: Path) -> Path:
 @needs_analyze
 def test_systemd_analyze_verify_passes(unit_path: Path, tmp_path: Path):
     copy = _installable_copy(unit_path, tmp_path)
+    result = subprocess.run(["systemd-analyze", "verify", str(copy)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip() == "", result.stderr
+
+
+@needs_analyze
+def test_systemd_analyze_verify_passes_on_the_cpu_latency_unit(unit_path: Path, tmp_path: Path):
+    # Verified beside trackerd.service, which it names (Before=, PartOf=, WantedBy=).
+    _installable_copy(unit_path, tmp_path)
+    copy = _installable_copy(CPU_LATENCY_UNIT, tmp_path)
     result = subprocess.run(["systemd-analyze", "verify", str(copy)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stderr.strip() == "", result.stderr
@@ -62,15 +73,16 @@ def test_verify_catches_a_broken_unit(tmp_path: Path, unit_path: Path):
 
 
 @needs_analyze
-def test_security_exposure_score(unit_path: Path):
-    result = subprocess.run(["systemd-analyze", "security", "--offline=true", "--no-pager", str(unit_path)],
-                            capture_output=True, text=True, timeout=60)
+@pytest.mark.parametrize("unit", ["trackerd.service", "trackerd-cpu-latency.service"])
+def test_security_exposure_score(unit: str):
+    result = subprocess.run(["systemd-analyze", "security", "--offline=true", "--no-pager",
+                             str(REPO / "systemd" / unit)], capture_output=True, text=True, timeout=60)
     match = re.search(r"Overall exposure level for \S+: ([0-9.]+) (\w+)", result.stdout)
     assert match, result.stdout[-2000:] + result.stderr
     score = float(match.group(1))
-    print(f"systemd-analyze security: {score} {match.group(2)} (docs/deployment.md records it)")
+    print(f"systemd-analyze security {unit}: {score} {match.group(2)} (docs/deployment.md records it)")
     documented = (REPO / "docs" / "deployment.md").read_text()
-    assert f"{score:.1f}" in documented, "update the score in docs/deployment.md"
+    assert f"Overall exposure level for {unit}: {score:.1f}" in documented, "update the score in docs/deployment.md"
     assert score <= 2.0
 
 
@@ -100,3 +112,20 @@ def test_packet_socket_drop_in_grants_only_cap_net_raw():
     assert settings["CapabilityBoundingSet"] == ["CAP_NET_RAW"]
     assert "AF_PACKET" in settings["RestrictAddressFamilies"][0].split()
     assert settings["PrivateUsers"] == ["no"]
+
+
+def test_cpu_latency_unit_runs_the_command_with_the_daemon_and_no_capabilities():
+    settings = _settings(CPU_LATENCY_UNIT)
+    assert settings["Type"] == ["notify"]  # `trackerd cpu-latency` sends READY=1 once the request is in force
+    assert settings["ExecStart"][0].split()[:2] == ["/opt/trackerd/venv/bin/trackerd", "cpu-latency"]
+    # Started with the daemon once enabled, stopped and restarted with it.
+    assert settings["WantedBy"] == ["trackerd.service"]
+    assert settings["PartOf"] == ["trackerd.service"]
+    assert settings["Before"] == ["trackerd.service"]
+    # Root only because the device is root's: no capability, and no device but that one.
+    assert "User" not in settings
+    assert settings["CapabilityBoundingSet"] == [""]
+    assert settings["NoNewPrivileges"] == ["yes"]
+    assert settings["DevicePolicy"] == ["closed"]
+    assert settings["DeviceAllow"] == ["/dev/cpu_dma_latency rw"]
+    assert settings["PrivateNetwork"] == ["yes"]
