@@ -11,7 +11,8 @@ import json
 import subprocess
 import sys
 
-from trackerd.bench.pipeline import HELD_UP_NS, _format, latency_by_steal, off_cpu_figures
+from trackerd import cpu_latency
+from trackerd.bench.pipeline import HELD_UP_NS, _format, latency_by_steal, latency_by_wakeup, off_cpu_figures
 from trackerd.pipeline.daemon import PairTrace
 from trackerd.pipeline.threadtime import OffCpu
 
@@ -68,10 +69,34 @@ def test_pairs_are_told_apart_by_whether_the_hypervisor_stole_cpu_while_they_wer
     assert latency_by_steal(trace, [(0, None)]) == {}
 
 
+def test_pairs_and_stolen_cpu_are_told_apart_by_whether_the_cpus_were_held_awake():
+    def ticks(steal: int, total: int) -> dict[str, int]:
+        return {"steal": steal, "total": total}
+
+    # Not held from 0, held from 400 ms, not held again from 800 ms.
+    turns = [(0, False), (400 * MS, True), (800 * MS, False)]
+    machine = [(0, ticks(0, 100)), (200 * MS, ticks(6, 200)), (400 * MS, ticks(8, 300)), (600 * MS, ticks(8, 400)),
+               (800 * MS, ticks(9, 500)), (1000 * MS, ticks(13, 600))]
+    trace = [_trace(50, 9.0), _trace(390, 7.0),  # not held (the second published after the turn: its arrival counts)
+             _trace(450, 2.5), _trace(790, 3.0),  # held
+             _trace(850, 8.0)]  # not held
+    figures = latency_by_wakeup(trace, turns, machine)
+    assert figures["held"]["pairs"] == 2 and figures["held"]["max_ms"] == 3.0
+    assert figures["not_held"]["pairs"] == 3 and figures["not_held"]["max_ms"] == 9.0
+    assert figures["held"]["waiting_ms"]["max_ms"] == 0.1
+    # Stolen: 6 + 2 + 4 ticks of 300 not held, 0 + 1 of 200 held.
+    assert figures["not_held"]["steal_percent"] == 4.0
+    assert figures["held"]["steal_percent"] == 0.5
+    # A run that never held them has one condition only.
+    assert list(latency_by_wakeup(trace, [(0, False)], machine)) == ["not_held"]
+    assert latency_by_wakeup(trace, [], machine) == {}
+
+
 def test_a_short_run_reports_every_figure_consistently():
+    request_before = cpu_latency.current_us()
     run = subprocess.run(
         [sys.executable, "-m", "trackerd", "bench", "pipeline", "--seconds", "1", "--json",
-         "--endpoint", "tcp://127.0.0.1:5598"],
+         "--endpoint", "tcp://127.0.0.1:5598", "--block-seconds", "0.4"],
         capture_output=True, text=True, timeout=180,
     )
     assert run.returncode == 0, run.stderr
@@ -89,6 +114,15 @@ def test_a_short_run_reports_every_figure_consistently():
     if by_steal:  # /proc/stat is readable here
         assert by_steal["quiet"]["pairs"] + by_steal["stolen"]["pairs"] <= off["pairs"]
         assert 3 <= by_steal["periods"] <= 7
+    wakeup = figures["cpu_wakeup"]
+    if cpu_latency.available():
+        # As root the CPUs are held awake in turns: both conditions have pairs, and every pair has one.
+        assert wakeup["mode"] == "alternate"
+        assert wakeup["held"]["pairs"] > 0 and wakeup["not_held"]["pairs"] > 0
+        assert wakeup["held"]["pairs"] + wakeup["not_held"]["pairs"] == off["pairs"]
+        assert cpu_latency.current_us() == request_before  # released when the run ended
+    else:
+        assert wakeup["mode"] == "off" and list(wakeup) == ["mode", "turn_s", "not_held"]
     received = figures["messages_received"]
     assert received.get("pointer", 0) >= figures["pairs_processed"] - 5
     # The text the command prints by default says every figure in words, no raw Python values.

@@ -27,11 +27,18 @@ apart (trackerd.pipeline.threadtime): waiting on the guest's run queue, asleep
 on a lock or the GIL, or neither (the hypervisor or interrupts); and the
 latency of the pairs that nothing held up is shown beside that of all, as is
 that of the pairs during which /proc/stat shows no CPU stolen.
+
+And side by side in the same run, as root: the latency while the CPUs are held
+awake (a PM QoS request for 0 µs, as the trackerd-cpu-latency service holds it;
+trackerd.cpu_latency) and while they are not, the two alternating every few
+seconds (``--cpu-wakeup``). On the development VM, a CPU that halts between
+frames is what most of the tail is made of.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import multiprocessing
 import os
@@ -42,6 +49,7 @@ from typing import Any
 import numpy as np
 import zmq
 
+from trackerd import cpu_latency
 from trackerd.config.loader import load_rig
 from trackerd.pipeline.stats import percentiles_ms
 
@@ -49,6 +57,8 @@ HELD_UP_NS = 1_000_000
 """A pair was held up when, in all, it waited this long or longer: to be taken by the processing
 thread, in the hand-over to the publishing thread, and with either thread off the CPU while on it
 (about 0.3 ms for a pair nothing happened to, on the development VM)."""
+
+WAKEUP_MODES = ("auto", "alternate", "held", "off")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,6 +68,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--motion", default="figure8", help="rendered motion (default figure8)")
     parser.add_argument("--source", choices=["memory", "virtual"], default="memory", help="see above")
     parser.add_argument("--endpoint", default="tcp://127.0.0.1:5599", help="publisher endpoint for the run")
+    parser.add_argument(
+        "--cpu-wakeup", choices=WAKEUP_MODES, default="auto",
+        help="hold the CPUs awake (PM QoS 0 µs, as root): alternate (held and not, in turns), held (the whole"
+             " run), off (never); auto (default): alternate where this process may, else off",
+    )
+    parser.add_argument("--block-seconds", type=float, default=5.0,
+                        help="length of each turn with --cpu-wakeup alternate (default 5)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,6 +82,13 @@ def run(args: argparse.Namespace) -> int:
     from trackerd.publish import Publisher
 
     rig = load_rig(args.config).config
+    wakeup = args.cpu_wakeup
+    if wakeup == "auto":
+        wakeup = "alternate" if cpu_latency.available() else "off"
+    elif wakeup != "off" and not cpu_latency.available():
+        # Said now, in one line, rather than after the warm-up.
+        with cpu_latency.held(0):
+            pass
     zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (args.endpoint,)})
     rig = rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
     virtual = None
@@ -102,7 +126,11 @@ def run(args: argparse.Namespace) -> int:
     subscriber = context.Process(target=_subscribe, args=(args.endpoint, stop, results), daemon=True)
     subscriber.start()
     pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq), account_threads=True)
+    wakeup_request = contextlib.ExitStack()
+    turns: list[tuple[int, bool]] = []
     try:
+        if wakeup == "held":
+            wakeup_request.enter_context(cpu_latency.held(0))
         pipeline.start()
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
@@ -114,9 +142,18 @@ def run(args: argparse.Namespace) -> int:
         pipeline.start_trace()
         end = time.monotonic() + args.seconds
         machine = [(machine0_ns, machine0)]
+        turns.append((time.monotonic_ns(), wakeup == "held"))
+        next_turn = time.monotonic() + args.block_seconds
         while time.monotonic() < end and pipeline.failure is None:
             time.sleep(0.2)
             machine.append((time.monotonic_ns(), _cpu_ticks()))
+            if wakeup == "alternate" and time.monotonic() >= next_turn:
+                next_turn += args.block_seconds
+                if turns[-1][1]:
+                    wakeup_request.close()
+                else:
+                    wakeup_request.enter_context(cpu_latency.held(0))
+                turns.append((time.monotonic_ns(), not turns[-1][1]))
         samples = {name: window.recorded() for name, window in windows.items()}
         trace = pipeline.trace()
         cpu1, wall1, machine1 = os.times(), time.monotonic(), _cpu_ticks()
@@ -124,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         status1 = pipeline.source.status()
         queue_drops = pipeline._queue.dropped
     finally:
+        wakeup_request.close()
         pipeline.stop()
         stop.set()
         if virtual is not None:
@@ -148,6 +186,8 @@ def run(args: argparse.Namespace) -> int:
         "machine_interrupt_percent": _share_percent(machine0, machine1, "interrupts"),
         "off_cpu": off_cpu_figures(trace),
         "latency_by_steal": latency_by_steal(trace, machine),
+        "cpu_wakeup": {"mode": wakeup, "turn_s": args.block_seconds if wakeup == "alternate" else None,
+                       **latency_by_wakeup(trace, turns, machine)},
         "cpu_cores": round(cpu_s / elapsed, 3),
         "cpu_ms_per_pair": round(cpu_s / max(pairs, 1) * 1000, 3),
         "dropped_pairs_source": status1.dropped_pairs - status0.dropped_pairs,
@@ -251,6 +291,45 @@ def latency_by_steal(trace: list[Any], machine: list[tuple[int, dict[str, int] |
     }
 
 
+def latency_by_wakeup(
+    trace: list[Any], turns: list[tuple[int, bool]], machine: list[tuple[int, dict[str, int] | None]]
+) -> dict[str, Any]:
+    """The latency, the wait to be taken and the CPU stolen while the CPUs were held awake, and while
+    they were not (pure).
+
+    ``turns`` are (monotonic ns, held) from the run's start, each in force until
+    the next; a pair belongs to the turn it arrived in, a /proc/stat period of
+    ``machine`` to the turn it began in. Only the conditions the run had are given.
+    """
+    if not turns:
+        return {}
+    starts = np.array([at for at, _ in turns], dtype=np.int64)
+    held = np.array([h for _, h in turns], dtype=bool)
+    received = np.array([t.received_ns for t in trace], dtype=np.int64)
+    latency = np.array([t.latency_ns for t in trace], dtype=np.int64)
+    waiting = np.array([t.waiting_ns for t in trace], dtype=np.int64)
+    turn_of_pair = np.searchsorted(starts, received, side="right") - 1
+    pair_held = np.where(turn_of_pair >= 0, held[np.clip(turn_of_pair, 0, None)], False)
+    pair_known = turn_of_pair >= 0
+    stolen = {True: 0, False: 0}
+    total = {True: 0, False: 0}
+    samples = [(at, ticks) for at, ticks in machine if ticks is not None]
+    for (at, before), (_, after) in zip(samples, samples[1:], strict=False):
+        turn = int(np.searchsorted(starts, at, side="right")) - 1
+        if turn >= 0:
+            stolen[bool(held[turn])] += after["steal"] - before["steal"]
+            total[bool(held[turn])] += after["total"] - before["total"]
+    out: dict[str, Any] = {}
+    for name, condition in (("held", True), ("not_held", False)):
+        if not np.any(held == condition):
+            continue
+        chosen = pair_known & (pair_held == condition)
+        steal = round(100.0 * stolen[condition] / total[condition], 2) if total[condition] > 0 else None
+        out[name] = {"pairs": int(chosen.sum()), **percentiles_ms(latency[chosen]),
+                     "waiting_ms": percentiles_ms(waiting[chosen]), "steal_percent": steal}
+    return out
+
+
 _STAT_FIELDS = ("user", "nice", "system", "idle", "iowait", "irq", "softirq", "steal")
 
 
@@ -347,6 +426,20 @@ def _format(f: dict[str, Any]) -> str:
             f" stolen: latency of the {quiet['pairs']} pairs that overlap none of them {_spread(quiet)};"
             f" of the {loud['pairs']} others {_spread(loud)}"
         )
+    wakeup = f["cpu_wakeup"]
+    names = {"held": "held awake (PM QoS 0 µs)", "not_held": "free to halt"}
+    if wakeup["mode"] == "alternate":
+        lines.append(f"CPUs held awake and free to halt in turns of {wakeup['turn_s']:g} s, side by side:")
+    else:
+        lines.append(f"CPUs {'held awake (PM QoS 0 µs) for the whole run' if wakeup['mode'] == 'held' else 'free to halt'}"
+                     " (--cpu-wakeup to compare):")
+    for name in ("held", "not_held"):
+        if name in wakeup:
+            turn = wakeup[name]
+            steal = "unknown" if turn["steal_percent"] is None else f"{turn['steal_percent']} %"
+            latency = (f"latency {_spread(turn)}, max {turn['max_ms']} ms; wait to be taken"
+                       f" p99 {turn['waiting_ms']['p99_ms']} ms" if turn["pairs"] else "no latency")
+            lines.append(f"  {names[name]}: {turn['pairs']} pairs, {latency}; CPU stolen {steal}")
     lines.append(
         f"drops: {f['dropped_pairs_source']} pairs not taken in time by processing,"
         f" {f['dropped_pairs_queue']} at the publisher queue   (target 0 caused by processing)"
