@@ -175,7 +175,10 @@ class Locator:
         if len(images) != len(self.cameras):
             raise ValueError(f"expected {len(self.cameras)} images, got {len(images)}")
         start = time.perf_counter_ns()
-        detections = tuple(det.detect(image) for det, image in zip(self.detectors, images, strict=True))
+        from trackerd.detect import detect_together
+
+        # Every camera's frame, the quick measurements of all taken together (trackerd.detect.detector).
+        detections = tuple(detect_together(self.detectors, images))
         detected = time.perf_counter_ns()
         centroids = tuple(
             {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS}

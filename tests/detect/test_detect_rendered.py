@@ -7,7 +7,7 @@ import pytest
 
 from trackerd.bench.detector import render_frames, trajectory
 from trackerd.config.models import RigConfig
-from trackerd.detect import ColourEndDetector
+from trackerd.detect import ColourEndDetector, detect_together
 from trackerd.sim.scene import random_pose
 
 pytestmark = pytest.mark.slow
@@ -67,6 +67,48 @@ def test_rendered_motion_is_tracked_in_windows(simulated_rig, renderer) -> None:
     assert [r.search for r in results] == ["full"] + ["window"] * 5
     errors, missed = _errors(frames, results)
     assert missed == 0 and errors.max() < 0.6
+
+
+def test_both_cameras_measured_together_give_what_each_gives_alone(simulated_rig, renderer, monkeypatch) -> None:
+    """detect_together (the daemon's way) against each camera's detector on its own, frame by frame:
+    the same searches, the same ends, centres equal but for float32 rounding (1e-5 px). Midway one
+    camera loses its track, so the other is measured alone while it searches in full."""
+    rng = np.random.default_rng(21)
+    path = trajectory(simulated_rig, rng, 12, 0.01, renderer.cameras)
+    frames = [render_frames(renderer, path, cam, rng) for cam in (0, 1)]
+    alone = [detector(simulated_rig, cam) for cam in (0, 1)]
+    together = [detector(simulated_rig, cam) for cam in (0, 1)]
+    # Which frames detect_together leaves to a camera's own detect (the others it measured jointly).
+    on_its_own = []
+    own_detect = ColourEndDetector.detect
+
+    def counted(self, frame):
+        on_its_own.append((k, together.index(self)) if self in together else None)
+        return own_detect(self, frame)
+
+    monkeypatch.setattr(ColourEndDetector, "detect", counted)
+    searches = []
+    for k in range(len(path)):
+        if k == 6:
+            alone[1].reset()
+            together[1].reset()
+        images = [frames[cam][k].image for cam in (0, 1)]
+        expected = [d.detect(image) for d, image in zip(alone, images, strict=True)]
+        got = detect_together(together, images)
+        for want, have in zip(expected, got, strict=True):
+            assert have.search == want.search
+            searches.append(have.search)
+            for colour in ("red", "blue"):
+                a, b = want.end(colour), have.end(colour)
+                assert a.found and b.found
+                np.testing.assert_allclose(b.centroid_px, a.centroid_px, atol=1e-4)
+                assert abs(b.area_px - a.area_px) <= 1e-4 * a.area_px
+                assert b.bbox_px == a.bbox_px
+    assert searches[:2] == ["full", "full"] and searches[13] == "full"
+    assert searches.count("window") == 2 * len(path) - 3
+    # Jointly whenever both cameras track: each on its own only in the first frame, and in the
+    # frame where camera 1 lost its track (camera 0 then has no partner to be measured with).
+    assert [entry for entry in on_its_own if entry is not None] == [(0, 0), (0, 1), (6, 0), (6, 1)]
 
 
 def _across(frames, results) -> np.ndarray:

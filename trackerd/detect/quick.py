@@ -21,6 +21,7 @@ NumPy calls for both ends instead of about 170.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,7 +47,7 @@ ANY_SHAPE = Plain(float("inf"), 0.0)
 
 
 def measure_windows(
-    frame: NDArray[np.uint8],
+    frame: NDArray[np.uint8] | Sequence[NDArray[np.uint8]],
     grid: SampleGrid,
     ends: list[tuple[str, float, float]],
     half_cells: int,
@@ -58,7 +59,9 @@ def measure_windows(
 ) -> list[Measurement] | None:
     """Each (colour, x_px, y_px) end measured in the cells within ``half_cells`` of that point.
 
-    Returns one measurement per end (centre and area from every pixel, or with
+    ``frame`` is the frame of every end, or a sequence of one frame per end (the
+    ends of several cameras measured together: their frames must share ``grid``'s
+    layout). Returns one measurement per end (centre and area from every pixel, or with
     ``every_pixel=False`` from the own samples alone), or None as soon as one end
     is not plainly there: nothing of its colour, touching the window's border,
     not ``plain``, outside its region of ``within`` (frame cells, one per end),
@@ -140,7 +143,7 @@ def measure_windows(
 
 
 def _gather(
-    frame: NDArray[np.uint8],
+    frames: NDArray[np.uint8] | Sequence[NDArray[np.uint8]],
     grid: SampleGrid,
     ends: list[tuple[str, float, float]],
     half_cells: int,
@@ -151,10 +154,11 @@ def _gather(
     (r0, c0) is the frame cell of the window's first cell, (dr, dc) the end's
     colour offset in the cell. None if a window does not fit in the frame.
     """
-    height_px, width_px = frame.shape[:2]
     rows, cols = ws.rows, ws.cols
     origins = []
     for e, (colour, x_px, y_px) in enumerate(ends):
+        frame = frames if isinstance(frames, np.ndarray) else frames[e]
+        height_px, width_px = frame.shape[:2]
         dr, dc = grid.red if colour == "red" else grid.blue
         r0 = round((y_px - dr) / 2.0) - half_cells
         c0 = round((x_px - dc) / 2.0) - half_cells
