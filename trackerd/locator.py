@@ -37,7 +37,7 @@ from trackerd.geometry.pointer_line import (
     line_from_planes,
     sphere_centre_direction,
 )
-from trackerd.geometry.wall import WallFrame, intersect_line_plane
+from trackerd.geometry.wall import WallFloats, WallFrame, WallHitFloats
 
 Array = NDArray[np.float64]
 
@@ -146,6 +146,7 @@ class Locator:
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
         self._wall_floats = (tuple(self._plane.normal.tolist()), float(self._plane.offset_m))
+        self._wall_plain = WallFloats.of(self.wall)
         self._wall_axes = (tuple(self.wall.x_axis.tolist()), tuple(self.wall.y_axis.tolist()))
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         self._all_cameras = _CameraView.build(self.cameras)
@@ -311,29 +312,28 @@ class Locator:
                 " the cameras do not agree on an end",
                 centroids, line, timings_ns={},
             )
-        if abs(float(line.direction @ self._plane.normal)) < self._parallel_sin:
+        back, front = line.back_floats, line.front_floats
+        if self._wall_plain.direction_sin(back, front) < self._parallel_sin:
             return PointerFix(
                 "parallel", f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
                 centroids, line, timings_ns={},
             )
         try:
-            intersection = intersect_line_plane(line.back_m, line.front_m, self._plane)
+            intersection = self._wall_plain.hit(back, front)  # eq. 26-28, and the wall's frame
         except GeometryError as err:
             return PointerFix("parallel", str(err), centroids, line, timings_ns={})
-        u = float(intersection.u)
-        if u <= 0.0:
+        if intersection.u <= 0.0:
             return PointerFix("away", "the pointer points away from the wall", centroids, line, timings_ns={})
-        hit = self._wall_hit(intersection.point_m, line, u)
+        hit = self._wall_hit(intersection, line)
         uncertainty = self._uncertainty(normalised, view)
         status = "hit" if hit.on_wall else "off_wall"
         reason = None if hit.on_wall else "the pointer points at the wall outside the display"
         return PointerFix(status, reason, centroids, line, hit, uncertainty, timings_ns={})
 
-    def _wall_hit(self, point_m: Array, line: PointerLine, u: float) -> WallHit:
-        xy = self.wall.to_wall_m(point_m)
-        display = self.wall.to_display_px(xy) if self.wall.has_display else None
-        distance = (u - 1.0) * line.length_m
-        return WallHit(xy, point_m, display, bool(self.wall.on_wall(xy)), float(distance))
+    def _wall_hit(self, hit: WallHitFloats, line: PointerLine) -> WallHit:
+        display = None if hit.display_px is None else np.array(hit.display_px)
+        distance = (hit.u - 1.0) * line.length_m
+        return WallHit(np.array(hit.wall_xy_m), np.array(hit.point_m), display, hit.on_wall, distance)
 
     def _uncertainty(self, normalised: Array, view: _CameraView) -> float | None:
         """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer.

@@ -14,6 +14,7 @@ from trackerd.geometry.rotation import rotation_from_rvec
 from trackerd.geometry.triangulation import closest_approach
 from trackerd.geometry.wall import (
     Plane,
+    WallFloats,
     WallFrame,
     fit_plane,
     intersect_line_plane,
@@ -190,6 +191,56 @@ def test_property_build_a_plane_and_intersect(
     assert np.linalg.norm(hit.point_m - target) < 1e-9
     assert hit.u == pytest.approx(distance / gap_m, rel=1e-9)
     assert abs(plane.signed_distance_m(hit.point_m)) < 1e-9
+
+
+# ----------------------------------------------------------------- in plain floats (the daemon's per-pair path)
+
+
+@settings(max_examples=300, deadline=None)
+@given(start=points3, through=points3, display=st.booleans())
+def test_property_wall_floats_hit_is_the_numpy_reference(start: Vec3, through: Vec3, display: bool) -> None:
+    """WallFloats.hit against intersect_line_plane and the frame's to_wall_m, to_display_px, on_wall,
+    on a tilted wall: the same hit, or the same refusal."""
+    wall = WallFrame.from_corners(tilted_corners(), display_px=(3840, 1920) if display else None)
+    plain = WallFloats.of(wall)
+    try:
+        reference = intersect_line_plane(start, through, wall.plane)
+    except GeometryError as err:
+        with pytest.raises(GeometryError, match=str(err)):
+            plain.hit(start, through)
+        return
+    assume(abs(float(reference.u)) < 1e6)
+    hit = plain.hit(start, through)
+    scale = 1e-12 * max(1.0, abs(float(reference.u)))
+    assert hit.u == pytest.approx(float(reference.u), rel=1e-9, abs=1e-12)
+    np.testing.assert_allclose(hit.point_m, reference.point_m, atol=100 * scale)
+    xy = wall.to_wall_m(reference.point_m)
+    np.testing.assert_allclose(hit.wall_xy_m, xy, atol=100 * scale)
+    assert hit.on_wall == bool(wall.on_wall(np.array(hit.wall_xy_m)))
+    if display:
+        np.testing.assert_allclose(hit.display_px, wall.to_display_px(xy), atol=1e-6 * max(1.0, abs(float(reference.u))))
+    else:
+        assert hit.display_px is None
+
+
+@pytest.mark.parametrize(
+    ("start", "through", "message"),
+    [([0, 0, 1], [1, 0, 1], "parallel"), ([0, 0, 1], [1, 0, 1 + 1e-9], "parallel"), ([1, 1, 1], [1, 1, 1], "coincide")],
+)
+def test_wall_floats_refuses_what_the_reference_refuses(start: list[float], through: list[float], message: str) -> None:
+    wall = WallFrame.from_corners(DATAWALL_CORNERS)
+    with pytest.raises(GeometryError, match=message):
+        intersect_line_plane(start, through, wall.plane)
+    with pytest.raises(GeometryError, match=message):
+        WallFloats.of(wall).hit(tuple(start), tuple(through))
+
+
+def test_wall_floats_direction_sin() -> None:
+    plain = WallFloats.of(WallFrame.from_corners(DATAWALL_CORNERS))  # the plane z = 0
+    assert plain.direction_sin((0.0, 0.0, 1.0), (0.0, 0.0, 3.0)) == pytest.approx(1.0)
+    assert plain.direction_sin((0.0, 0.0, 1.0), (1.0, 0.0, 2.0)) == pytest.approx(np.sqrt(0.5))
+    assert plain.direction_sin((0.0, 0.0, 1.0), (5.0, 2.0, 1.0)) == 0.0
+    assert plain.direction_sin((1.0, 1.0, 1.0), (1.0, 1.0, 1.0)) == 0.0
 
 
 # ----------------------------------------------------------------- the wall's frame

@@ -22,7 +22,9 @@ All functions are pure: NumPy arrays in, dataclasses of arrays out.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,15 +58,32 @@ class PointerLine:
     plane_angle_sin: float
     """Sine of the angle between the cameras' interpretation planes (conditioning)."""
 
-    @property
+    # Computed once, on first use: the judging and the messages of a pair read them several times.
+    @cached_property
+    def front_floats(self) -> tuple[float, float, float]:
+        """:attr:`front_m` as plain floats."""
+        x, y, z = self.front_m.tolist()
+        return x, y, z
+
+    @cached_property
+    def back_floats(self) -> tuple[float, float, float]:
+        """:attr:`back_m` as plain floats."""
+        x, y, z = self.back_m.tolist()
+        return x, y, z
+
+    @cached_property
     def direction(self) -> Array:
         """Unit vector from the back end to the front end."""
-        axis = self.front_m - self.back_m
-        return axis / np.linalg.norm(axis)
+        (fx, fy, fz), (bx, by, bz) = self.front_floats, self.back_floats
+        length = self.length_m
+        if not length > 0.0:
+            return np.full(3, np.nan)  # coincident ends: no direction
+        return np.array([(fx - bx) / length, (fy - by) / length, (fz - bz) / length])
 
-    @property
+    @cached_property
     def length_m(self) -> float:
-        return float(np.linalg.norm(self.front_m - self.back_m))
+        (fx, fy, fz), (bx, by, bz) = self.front_floats, self.back_floats
+        return math.sqrt((fx - bx) ** 2 + (fy - by) ** 2 + (fz - bz) ** 2)
 
     @property
     def gap_m(self) -> float:
