@@ -96,7 +96,7 @@ def test_a_short_run_reports_every_figure_consistently():
     request_before = cpu_latency.current_us()
     run = subprocess.run(
         [sys.executable, "-m", "trackerd", "bench", "pipeline", "--seconds", "1", "--json",
-         "--endpoint", "tcp://127.0.0.1:5598", "--block-seconds", "0.4"],
+         "--endpoint", "tcp://127.0.0.1:5598", "--block-seconds", "0.4", "--paced-pairs", "20"],
         capture_output=True, text=True, timeout=180,
     )
     assert run.returncode == 0, run.stderr
@@ -114,6 +114,8 @@ def test_a_short_run_reports_every_figure_consistently():
     if by_steal:  # /proc/stat is readable here
         assert by_steal["quiet"]["pairs"] + by_steal["stolen"]["pairs"] <= off["pairs"]
         assert 3 <= by_steal["periods"] <= 7
+    paced = figures["paced_detection_ms"]
+    assert paced["together"]["p50_ms"] > 0 and paced["one_at_a_time"]["p50_ms"] > 0
     wakeup = figures["cpu_wakeup"]
     if cpu_latency.available():
         # As root the CPUs are held awake in turns: both conditions have pairs, and every pair has one.

@@ -75,6 +75,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--block-seconds", type=float, default=5.0,
                         help="length of each turn with --cpu-wakeup alternate (default 5)")
+    parser.add_argument("--paced-pairs", type=int, default=240,
+                        help="pairs detected after a pause, both cameras together and one at a time in"
+                             " turns, before the run (memory source; default 240)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
         source_note = f"rendered '{args.motion}' loop ({loop.n_frames} scenes) from memory at {args.rate:g} pairs/s"
         back_to_back = _back_to_back_ms(rig, image_sets)
+        paced_detection = _paced_detection_ms(rig, image_sets, args.paced_pairs)
     else:
         from trackerd.acquisition.live import AravisPairSource
         from trackerd.sim.rig import VirtualRig
@@ -117,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
             return AravisPairSource(r, on_open=virtual.on_open)
 
         source_note = f"virtual GigE Vision rig, '{args.motion}', {rig.acquisition.trigger}"
-        back_to_back = None
+        back_to_back = paced_detection = None
     # The subscriber is another process, as every real one is: in this one it would take the
     # GIL from the pipeline for every message and count its own cost as the daemon's.
     context = multiprocessing.get_context("fork")
@@ -142,7 +146,8 @@ def run(args: argparse.Namespace) -> int:
         pipeline.start_trace()
         end = time.monotonic() + args.seconds
         machine = [(machine0_ns, machine0)]
-        turns.append((time.monotonic_ns(), wakeup == "held"))
+        # The first turn from the start: the pair in flight when tracing began was received before it.
+        turns.append((0, wakeup == "held"))
         next_turn = time.monotonic() + args.block_seconds
         while time.monotonic() < end and pipeline.failure is None:
             time.sleep(0.2)
@@ -182,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
         "stages_ms": {k: percentiles_ms(v) for k, v in samples.items() if k not in ("processing", "processing_cpu")},
         "processing_thread_cpu_ms": percentiles_ms(samples["processing_cpu"]),
         "back_to_back_cpu_ms": back_to_back,
+        "paced_detection_ms": paced_detection,
         "machine_steal_percent": _share_percent(machine0, machine1, "steal"),
         "machine_interrupt_percent": _share_percent(machine0, machine1, "interrupts"),
         "off_cpu": off_cpu_figures(trace),
@@ -220,6 +226,40 @@ def _back_to_back_ms(rig: Any, image_sets: list[list[np.ndarray]]) -> dict[str, 
         if index >= len(image_sets):
             costs.append(time.thread_time_ns() - start)
     return percentiles_ms(np.asarray(costs, dtype=np.int64))
+
+
+PAUSE_S = 0.014
+"""The pause before each pair in :func:`_paced_detection_ms`: what 60 pairs/s leaves idle."""
+
+
+def _paced_detection_ms(rig: Any, image_sets: list[list[np.ndarray]], pairs: int) -> dict[str, Any] | None:
+    """Detection of a pair after a pause, as the daemon does it (both cameras' windows measured
+    together, trackerd.detect.detect_together) and one camera at a time, in turns pair by pair
+    (each way with its own detectors, so each tracks as it would alone): wall time per pair, ms."""
+    from trackerd.detect import ColourEndDetector, detect_together
+
+    if pairs < 2 or len(rig.cameras) < 2:
+        return None
+
+    def detectors() -> list[ColourEndDetector]:
+        return [ColourEndDetector(rig.detector, c.pixel_format, c.width_px, c.height_px, rig.pointer)
+                for c in rig.cameras]
+
+    ways = {"together": detectors(), "one_at_a_time": detectors()}
+    times: dict[str, list[int]] = {name: [] for name in ways}
+    for index in range(pairs + 2 * len(ways)):
+        name = "together" if index % 2 else "one_at_a_time"
+        images = image_sets[(index // 2) % len(image_sets)]
+        time.sleep(PAUSE_S)
+        start = time.perf_counter_ns()
+        if name == "together":
+            detect_together(ways[name], images)
+        else:
+            for detector, image in zip(ways[name], images, strict=True):
+                detector.detect(image)
+        if index >= 2 * len(ways):  # the first pair of each way searches in full
+            times[name].append(time.perf_counter_ns() - start)
+    return {name: percentiles_ms(np.asarray(values, dtype=np.int64)) for name, values in times.items()}
 
 
 def off_cpu_figures(trace: list[Any]) -> dict[str, Any]:
@@ -397,6 +437,12 @@ def _format(f: dict[str, Any]) -> str:
     if warm is not None:
         lines.append(
             f"  the same work back to back (warm caches): median {warm['p50_ms']} ms, p99 {warm['p99_ms']} ms"
+        )
+    paced = f["paced_detection_ms"]
+    if paced is not None:
+        lines.append(
+            f"  detection of a pair after {PAUSE_S * 1000:g} ms idle: both cameras together (as the daemon)"
+            f" median {paced['together']['p50_ms']} ms, one camera at a time {paced['one_at_a_time']['p50_ms']} ms"
         )
     if f["machine_steal_percent"] is not None:
         lines.append(
