@@ -555,7 +555,7 @@ def detect_together(
     as it would alone.
     """
     results: list[ImageDetections | None] = [None] * len(detectors)
-    plans = []
+    plans: list[tuple[list[tuple[str, float, float]], int] | None] = []
     for detector, frame in zip(detectors, frames, strict=True):
         detector._check(frame)
         track = detector._track
@@ -568,10 +568,11 @@ def detect_together(
             and detector.rim_pixels == detectors[0].rim_pixels
         )
         plans.append(detector._quick_plan(track) if eligible and track is not None else None)
-    together = [i for i, plan in enumerate(plans) if plan is not None]
-    if len(together) >= 2:
-        half_cells = max(plans[i][1] for i in together)  # type: ignore[index]
-        ends = [end for i in together for end in plans[i][0]]  # type: ignore[index]
+    planned = [(i, plan) for i, plan in enumerate(plans) if plan is not None]
+    if len(planned) >= 2:
+        together = [i for i, _ in planned]
+        half_cells = max(half for _, (_, half) in planned)
+        ends = [end for _, (plan_ends, _) in planned for end in plan_ends]
         first = detectors[together[0]]
         found = measure_windows(
             [frames[i] for i in together for _ in COLOURS],
@@ -589,7 +590,6 @@ def detect_together(
                 assert detector._track is not None
                 both = detector._both_plainly(found[2 * k : 2 * k + 2], detector._track)
                 if both is not None:
-                    detector._crowded = set()
                     results[i] = detector._quick_result(both[0], both[1], set())
                     if results[i] is not None:
                         detector._remember(results[i])
