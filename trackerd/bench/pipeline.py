@@ -51,6 +51,7 @@ import zmq
 
 from trackerd import cpu_latency
 from trackerd.config.loader import load_rig
+from trackerd.errors import ConfigError
 from trackerd.pipeline.stats import percentiles_ms
 
 HELD_UP_NS = 1_000_000
@@ -73,7 +74,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="hold the CPUs awake (PM QoS 0 µs, as root): alternate (held and not, in turns), held (the whole"
              " run), off (never); auto (default): alternate where this process may, else off",
     )
-    parser.add_argument("--block-seconds", type=float, default=5.0,
+    parser.add_argument("--turn-seconds", type=float, default=5.0,
                         help="length of each turn with --cpu-wakeup alternate (default 5)")
     parser.add_argument("--paced-pairs", type=int, default=240,
                         help="pairs detected after a pause, both cameras together and one at a time in"
@@ -84,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.publish import Publisher
 
+    if not (args.seconds > 0 and args.turn_seconds > 0 and args.rate > 0 and args.paced_pairs >= 0):
+        raise ConfigError("--seconds, --turn-seconds and --rate must be above 0, --paced-pairs at least 0")
     rig = load_rig(args.config).config
     wakeup = args.cpu_wakeup
     if wakeup == "auto":
@@ -148,12 +151,12 @@ def run(args: argparse.Namespace) -> int:
         machine = [(machine0_ns, machine0)]
         # The first turn from the start: the pair in flight when tracing began was received before it.
         turns.append((0, wakeup == "held"))
-        next_turn = time.monotonic() + args.block_seconds
+        next_turn = time.monotonic() + args.turn_seconds
         while time.monotonic() < end and pipeline.failure is None:
             time.sleep(0.2)
             machine.append((time.monotonic_ns(), _cpu_ticks()))
             if wakeup == "alternate" and time.monotonic() >= next_turn:
-                next_turn += args.block_seconds
+                next_turn += args.turn_seconds
                 if turns[-1][1]:
                     wakeup_request.close()
                 else:
@@ -192,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
         "machine_interrupt_percent": _share_percent(machine0, machine1, "interrupts"),
         "off_cpu": off_cpu_figures(trace),
         "latency_by_steal": latency_by_steal(trace, machine),
-        "cpu_wakeup": {"mode": wakeup, "turn_s": args.block_seconds if wakeup == "alternate" else None,
+        "cpu_wakeup": {"mode": wakeup, "turn_s": args.turn_seconds if wakeup == "alternate" else None,
                        **latency_by_wakeup(trace, turns, machine)},
         "cpu_cores": round(cpu_s / elapsed, 3),
         "cpu_ms_per_pair": round(cpu_s / max(pairs, 1) * 1000, 3),
