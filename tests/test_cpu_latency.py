@@ -6,15 +6,13 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
-import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
+from tests.cpu_holder import run_holder
 from trackerd.cpu_latency import DEVICE, CpuLatencyError, available, current_us, held
 
 needs_device = pytest.mark.skipif(
@@ -58,33 +56,16 @@ def test_the_command_holds_the_request_tells_systemd_and_stops_on_sigterm(tmp_pa
     """As the trackerd-cpu-latency unit runs it: root with no capabilities and no new privileges."""
     if shutil.which("setpriv") is None:
         pytest.skip("setpriv (util-linux) is not installed")
-    notify_path = tmp_path / "notify"
-    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-    notify.bind(str(notify_path))
-    notify.settimeout(20.0)
     before = current_us()
-    command = ["setpriv", "--bounding-set=-all", "--inh-caps=-all", "--no-new-privs",
-               sys.executable, "-m", "trackerd", "cpu-latency", "--max-us", "11"]
-    env = dict(os.environ, NOTIFY_SOCKET=str(notify_path))
-    holder = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        ready = notify.recv(4096).decode()
-        assert "READY=1" in ready.splitlines()
-        assert "STATUS=CPU wake-up latency held at 11 µs" in ready
-        assert current_us() <= 11
-        holder.send_signal(signal.SIGTERM)
-        sent = time.monotonic()
-        out, err = holder.communicate(timeout=5.0)
-        took = time.monotonic() - sent
-    finally:
-        if holder.poll() is None:
-            holder.kill()
-            holder.wait()
-        notify.close()
-    assert holder.returncode == 0, err
-    assert took < 1.0
-    assert "held at 11 µs" in out
-    assert err == ""
+    run = run_holder(["setpriv", "--bounding-set=-all", "--inh-caps=-all", "--no-new-privs",
+                      sys.executable, "-m", "trackerd", "cpu-latency", "--max-us", "11"], tmp_path)
+    assert "READY=1" in run.ready.splitlines()
+    assert "STATUS=CPU wake-up latency held at 11 µs" in run.ready
+    assert run.in_force_us is not None and run.in_force_us <= 11
+    assert run.returncode == 0, run.stderr
+    assert run.stop_s < 1.0
+    assert "held at 11 µs" in run.stdout
+    assert run.stderr == ""
     assert current_us() == before
 
 

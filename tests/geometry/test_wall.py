@@ -218,7 +218,8 @@ def test_property_wall_floats_hit_is_the_numpy_reference(start: Vec3, through: V
     np.testing.assert_allclose(hit.wall_xy_m, xy, atol=100 * scale)
     assert hit.on_wall == bool(wall.on_wall(np.array(hit.wall_xy_m)))
     if display:
-        np.testing.assert_allclose(hit.display_px, wall.to_display_px(xy), atol=1e-6 * max(1.0, abs(float(reference.u))))
+        display_atol = 1e-6 * max(1.0, abs(float(reference.u)))
+        np.testing.assert_allclose(hit.display_px, wall.to_display_px(xy), atol=display_atol)
     else:
         assert hit.display_px is None
 

@@ -25,6 +25,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.cpu_holder import run_holder
+
 HERE = Path(__file__).resolve().parent
 NOBODY = 65534
 CPU_LATENCY_UNIT = HERE.parents[1] / "systemd" / "trackerd-cpu-latency.service"
@@ -137,36 +139,13 @@ def test_cpu_latency_command_works_under_its_units_restrictions(tmp_path: Path):
         reason = "/dev/cpu_dma_latency is not writable here"
     if reason:
         pytest.skip(reason)
-    notify_path = tmp_path / "notify"
-    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-    notify.bind(str(notify_path))
-    notify.settimeout(30.0)
     before = current_us()
     command = ["setpriv", "--inh-caps=-all", "--bounding-set=-all", "--no-new-privs",
                sys.executable, str(HERE / "filtered_exec.py"), str(CPU_LATENCY_UNIT),
                sys.executable, "-m", "trackerd", "cpu-latency", "--max-us", "13"]
-    env = dict(os.environ, NOTIFY_SOCKET=str(notify_path))
-    holder = subprocess.Popen(command, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdin is not None
-        holder.stdin.write(json.dumps(_syscall_lists(CPU_LATENCY_UNIT)))
-        holder.stdin.close()
-        holder.stdin = None  # written and closed: communicate() has nothing more to send
-        try:
-            ready = notify.recv(4096).decode()
-        except TimeoutError:
-            holder.kill()
-            pytest.fail(f"no READY=1 within 30 s: {holder.communicate()[1][-3000:]}")
-        assert "READY=1" in ready.splitlines()
-        assert current_us() <= 13
-        holder.terminate()
-        out, err = holder.communicate(timeout=5.0)
-    finally:
-        if holder.poll() is None:
-            holder.kill()
-            holder.wait()
-        notify.close()
-    assert holder.returncode == 0, err[-3000:]
-    assert err == ""
+    run = run_holder(command, tmp_path, stdin_text=json.dumps(_syscall_lists(CPU_LATENCY_UNIT)))
+    assert "READY=1" in run.ready.splitlines()
+    assert run.in_force_us is not None and run.in_force_us <= 13
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert run.stderr == ""
     assert current_us() == before

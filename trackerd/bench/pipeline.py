@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import itertools
 import json
 import multiprocessing
 import os
@@ -357,7 +358,7 @@ def latency_by_wakeup(
     stolen = {True: 0, False: 0}
     total = {True: 0, False: 0}
     samples = [(at, ticks) for at, ticks in machine if ticks is not None]
-    for (at, before), (_, after) in zip(samples, samples[1:], strict=False):
+    for (at, before), (_, after) in itertools.pairwise(samples):
         turn = int(np.searchsorted(starts, at, side="right")) - 1
         if turn >= 0:
             stolen[bool(held[turn])] += after["steal"] - before["steal"]
@@ -480,8 +481,8 @@ def _format(f: dict[str, Any]) -> str:
     if wakeup["mode"] == "alternate":
         lines.append(f"CPUs held awake and free to halt in turns of {wakeup['turn_s']:g} s, side by side:")
     else:
-        lines.append(f"CPUs {'held awake (PM QoS 0 µs) for the whole run' if wakeup['mode'] == 'held' else 'free to halt'}"
-                     " (--cpu-wakeup to compare):")
+        whole_run = "held awake (PM QoS 0 µs) for the whole run" if wakeup["mode"] == "held" else "free to halt"
+        lines.append(f"CPUs {whole_run} (--cpu-wakeup to compare):")
     for name in ("held", "not_held"):
         if name in wakeup:
             turn = wakeup[name]

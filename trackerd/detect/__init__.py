@@ -3,4 +3,4 @@
 from trackerd.detect.detector import ColourEndDetector, detect_ends, detect_together
 from trackerd.detect.result import EndDetection, ImageDetections
 
-__all__ = ["ColourEndDetector", "EndDetection", "ImageDetections", "detect_ends"]
+__all__ = ["ColourEndDetector", "EndDetection", "ImageDetections", "detect_ends", "detect_together"]
