@@ -5,7 +5,7 @@ frame arrives. In a virtual machine a halted virtual CPU is handed back to the
 hypervisor, which may take milliseconds to run it again. On the development VM
 that wake-up is the largest part of the daemon's latency tail (docs/deployment.md,
 "Wake-up latency"): while a request for 0 µs is held, the processing thread's
-wait to be woken has a p99 of 0.4-0.8 ms instead of 3.2-4.8 ms.
+wait to be woken for a pair has a p99 of 0.4-1.3 ms instead of 1.7-4.4 ms.
 
 The kernel's interface (Documentation/power/pm_qos_interface.rst): whoever
 holds ``/dev/cpu_dma_latency`` open with a 32-bit value written to it asks that
@@ -38,6 +38,10 @@ MAX_REQUEST_US = 1_000_000
 class CpuLatencyError(TrackerdError):
     """The CPU latency request cannot be made (no such device, no permission)."""
 
+    exit_code = 3
+    """Its own exit status, so that trackerd-cpu-latency.service does not restart on it
+    (RestartPreventExitStatus=3): a restart cannot make the device appear or be writable."""
+
 
 @contextlib.contextmanager
 def held(max_wakeup_us: int, device: Path = DEVICE) -> Iterator[None]:
@@ -53,7 +57,10 @@ def held(max_wakeup_us: int, device: Path = DEVICE) -> Iterator[None]:
     except OSError as err:
         raise CpuLatencyError(_why(device, err)) from None
     try:
-        os.write(fd, struct.pack("=i", max_wakeup_us))
+        try:
+            os.write(fd, struct.pack("=i", max_wakeup_us))
+        except OSError as err:
+            raise CpuLatencyError(f"{device}: the request of {max_wakeup_us} µs was refused: {err.strerror}") from None
         yield
     finally:
         os.close(fd)

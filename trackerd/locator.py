@@ -158,7 +158,9 @@ class Locator:
     @property
     def detectors(self) -> list:
         if self._detectors is None:
-            from trackerd.detect import ColourEndDetector
+            from trackerd.detect import ColourEndDetector, detect_together
+
+            self._detect_together = detect_together
 
             self._detectors = [
                 ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.rig.pointer)
@@ -176,10 +178,9 @@ class Locator:
         if len(images) != len(self.cameras):
             raise ValueError(f"expected {len(self.cameras)} images, got {len(images)}")
         start = time.perf_counter_ns()
-        from trackerd.detect import detect_together
-
         # Every camera's frame, the quick measurements of all taken together (trackerd.detect.detector).
-        detections = tuple(detect_together(self.detectors, images))
+        detectors = self.detectors  # made on first use, with the function below
+        detections = tuple(self._detect_together(detectors, images))
         detected = time.perf_counter_ns()
         centroids = tuple(
             {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS}

@@ -73,8 +73,9 @@ def test_pairs_and_stolen_cpu_are_told_apart_by_whether_the_cpus_were_held_awake
     def ticks(steal: int, total: int) -> dict[str, int]:
         return {"steal": steal, "total": total}
 
-    # Not held from 0, held from 400 ms, not held again from 800 ms.
-    turns = [(0, False), (400 * MS, True), (800 * MS, False)]
+    # Not held from 0, held from 400 ms, not held again from 800 ms; as in the bench, each switch is
+    # recorded just after the /proc/stat sample taken at that moment.
+    turns = [(0, False), (401 * MS, True), (801 * MS, False)]
     machine = [(0, ticks(0, 100)), (200 * MS, ticks(6, 200)), (400 * MS, ticks(8, 300)), (600 * MS, ticks(8, 400)),
                (800 * MS, ticks(9, 500)), (1000 * MS, ticks(13, 600))]
     trace = [_trace(50, 9.0), _trace(390, 7.0),  # not held (the second published after the turn: its arrival counts)
@@ -124,7 +125,7 @@ def test_a_short_run_reports_every_figure_consistently():
         assert wakeup["held"]["pairs"] + wakeup["not_held"]["pairs"] == off["pairs"]
         assert cpu_latency.current_us() == request_before  # released when the run ended
     else:
-        assert wakeup["mode"] == "off" and list(wakeup) == ["mode", "turn_s", "not_held"]
+        assert wakeup["mode"] == "off" and list(wakeup) == ["mode", "turn_s", "other_request_us", "not_held"]
     received = figures["messages_received"]
     assert received.get("pointer", 0) >= figures["pairs_processed"] - 5
     # The text the command prints by default says every figure in words, no raw Python values.

@@ -22,7 +22,7 @@ from trackerd.detect.centroid import measure, sample
 from trackerd.detect.colour import Threshold, sample_grid
 from trackerd.detect.coverage import rim_centres
 from trackerd.detect.flat import WorkspaceCache
-from trackerd.detect.quick import ANY_SHAPE, measure_windows
+from trackerd.detect.quick import ANY_SHAPE, measure_windows, window_interior
 
 BAYER = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8")
 CFG = DetectorConfig()
@@ -150,3 +150,37 @@ def test_rims_at_the_frame_edge_keep_the_own_samples_centre(detect_rng) -> None:
     got = rim_centres(frame, grid, rims, WorkspaceCache())
     assert got[0] is None  # the red ball's rim reaches the region's (and frame's) left edge
     assert got[1] is not None
+
+
+def test_a_larger_window_measures_what_the_own_window_does_or_nothing(detect_rng) -> None:
+    """detect_together measures every camera's ends in windows of the largest size any needs, with
+    each end kept inside the interior of the window its camera would use alone (window_interior).
+    Then a larger window gives the own window's result, and refuses whatever the own window would
+    not measure: here a red sticker that reaches the own window's border but lies well inside the
+    larger one."""
+    x, y, radius = 80.0, 60.0, 6.0
+    own_half, large_half = 6, 12  # cells
+    clean = Scene(width=200, height=130, shapes=pointer(x, y, 70.0, 10.0, radius))
+    sticker = Shape(x - 2.0 * own_half - 1.0, y, RED, radius=2.5)  # on the own window's left border
+    cluttered = Scene(width=200, height=130, shapes=[*pointer(x, y, 70.0, 10.0, radius), sticker])
+    for scene, own_measures in ((clean, True), (cluttered, False)):
+        frame, _ = scene.render("BayerRG8", detect_rng)
+        grid = sample_grid("BayerRG8", scene.width, scene.height)
+        cache = WorkspaceCache()
+        ends = [("red", x, y), ("blue", x + 70.0, y + 10.0)]
+        own = measure_windows(frame, grid, ends, own_half, THRESHOLDS, ANY_SHAPE, cache)
+        inside = [window_interior(frame.shape, grid, *end, own_half) for end in ends]
+        assert None not in inside
+        guarded = measure_windows(frame, grid, ends, large_half, THRESHOLDS, ANY_SHAPE, cache, within=inside)
+        unguarded = measure_windows(frame, grid, ends, large_half, THRESHOLDS, ANY_SHAPE, cache)
+        assert (own is not None) == own_measures
+        if own_measures:
+            assert own is not None and guarded is not None
+            for a, b in zip(own, guarded, strict=True):
+                assert abs(a.x_px - b.x_px) < 1e-4 and abs(a.y_px - b.y_px) < 1e-4
+                assert abs(a.area_px - b.area_px) < 1e-4 * a.area_px and a.bbox_px == b.bbox_px
+        else:
+            # The own window stops at the sticker; the larger window alone would measure ball and
+            # sticker as one end (ANY_SHAPE); the guard refuses it, as the own window does.
+            assert guarded is None
+            assert unguarded is not None

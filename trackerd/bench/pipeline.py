@@ -78,8 +78,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--turn-seconds", type=float, default=5.0,
                         help="length of each turn with --cpu-wakeup alternate (default 5)")
     parser.add_argument("--paced-pairs", type=int, default=240,
-                        help="pairs detected after a pause, both cameras together and one at a time in"
-                             " turns, before the run (memory source; default 240)")
+                        help="pairs detected after a pause before the run, half with both cameras together and"
+                             " half one at a time, in turns (memory source; default 240)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -96,6 +96,9 @@ def run(args: argparse.Namespace) -> int:
         # Said now, in one line, rather than after the warm-up.
         with cpu_latency.held(0):
             pass
+    # Someone else's request (trackerd-cpu-latency, tuned) would hold the CPUs in the turns said free.
+    in_force_us = cpu_latency.current_us()
+    other_request = in_force_us if in_force_us is not None and in_force_us < cpu_latency.NO_REQUEST_US else None
     zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (args.endpoint,)})
     rig = rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
     virtual = None
@@ -197,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
         "off_cpu": off_cpu_figures(trace),
         "latency_by_steal": latency_by_steal(trace, machine),
         "cpu_wakeup": {"mode": wakeup, "turn_s": args.turn_seconds if wakeup == "alternate" else None,
-                       **latency_by_wakeup(trace, turns, machine)},
+                       "other_request_us": other_request, **latency_by_wakeup(trace, turns, machine)},
         "cpu_cores": round(cpu_s / elapsed, 3),
         "cpu_ms_per_pair": round(cpu_s / max(pairs, 1) * 1000, 3),
         "dropped_pairs_source": status1.dropped_pairs - status0.dropped_pairs,
@@ -343,7 +346,7 @@ def latency_by_wakeup(
 
     ``turns`` are (monotonic ns, held) from the run's start, each in force until
     the next; a pair belongs to the turn it arrived in, a /proc/stat period of
-    ``machine`` to the turn it began in. Only the conditions the run had are given.
+    ``machine`` to the turn its middle lies in. Only the conditions the run had are given.
     """
     if not turns:
         return {}
@@ -358,8 +361,10 @@ def latency_by_wakeup(
     stolen = {True: 0, False: 0}
     total = {True: 0, False: 0}
     samples = [(at, ticks) for at, ticks in machine if ticks is not None]
-    for (at, before), (_, after) in itertools.pairwise(samples):
-        turn = int(np.searchsorted(starts, at, side="right")) - 1
+    for (at, before), (end, after) in itertools.pairwise(samples):
+        # By the period's middle: the bench switches right after taking a sample, so a period that
+        # begins at a switch lies in the turn that the switch begins.
+        turn = int(np.searchsorted(starts, (at + end) // 2, side="right")) - 1
         if turn >= 0:
             stolen[bool(held[turn])] += after["steal"] - before["steal"]
             total[bool(held[turn])] += after["total"] - before["total"]
@@ -478,8 +483,10 @@ def _format(f: dict[str, Any]) -> str:
         )
     wakeup = f["cpu_wakeup"]
     names = {"held": "held awake (PM QoS 0 µs)", "not_held": "free to halt"}
-    if wakeup["mode"] == "alternate":
+    if wakeup["mode"] == "alternate" and "held" in wakeup:
         lines.append(f"CPUs held awake and free to halt in turns of {wakeup['turn_s']:g} s, side by side:")
+    elif wakeup["mode"] == "alternate":
+        lines.append(f"CPUs free to halt (the run was shorter than one turn of {wakeup['turn_s']:g} s):")
     else:
         whole_run = "held awake (PM QoS 0 µs) for the whole run" if wakeup["mode"] == "held" else "free to halt"
         lines.append(f"CPUs {whole_run} (--cpu-wakeup to compare):")
@@ -490,6 +497,9 @@ def _format(f: dict[str, Any]) -> str:
             latency = (f"latency {_spread(turn)}, max {turn['max_ms']} ms; wait to be taken"
                        f" p99 {turn['waiting_ms']['p99_ms']} ms" if turn["pairs"] else "no latency")
             lines.append(f"  {names[name]}: {turn['pairs']} pairs, {latency}; CPU stolen {steal}")
+    if wakeup["other_request_us"] is not None:
+        lines.append(f"  NOTE: another process holds a CPU wake-up latency request of {wakeup['other_request_us']} µs"
+                     " (trackerd-cpu-latency, tuned?): the CPUs were never free to halt")
     lines.append(
         f"drops: {f['dropped_pairs_source']} pairs not taken in time by processing,"
         f" {f['dropped_pairs_queue']} at the publisher queue   (target 0 caused by processing)"

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 import signal
-import threading
+import time
 from types import FrameType
 
 from trackerd.cpu_latency import MAX_REQUEST_US, current_us, held
@@ -36,11 +36,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=cpu_latency_command)
 
 
-def cpu_latency_command(args: argparse.Namespace) -> int:
-    stop = threading.Event()
+class _Stop(Exception):
+    """Raised by the signal handler: it unwinds the ``with`` that holds the request."""
 
+
+def cpu_latency_command(args: argparse.Namespace) -> int:
+    # The handler raises rather than setting an Event: setting one from a handler can deadlock on the
+    # Event's lock if the signal lands while the main thread holds it in wait().
     def on_stop(_signum: int, _frame: FrameType | None) -> None:
-        stop.set()
+        raise _Stop
 
     previous = {sig: signal.signal(sig, on_stop) for sig in (signal.SIGTERM, signal.SIGINT)}
     notifier = SdNotify()
@@ -52,9 +56,10 @@ def cpu_latency_command(args: argparse.Namespace) -> int:
                 text += f" ({in_force} µs in force: another request is stricter)"
             print(f"trackerd cpu-latency: {text}; stop with Ctrl-C or SIGTERM", flush=True)
             notifier.ready(text)
-            while not stop.wait(3600.0):
-                pass
-            notifier.stopping()
+            while True:
+                time.sleep(3600.0)
+    except _Stop:
+        notifier.stopping()
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

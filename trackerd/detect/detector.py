@@ -53,7 +53,7 @@ from trackerd.detect.centroid import (
 )
 from trackerd.detect.colour import Region, SampleGrid, Threshold, coarse_masks, sample_grid
 from trackerd.detect.flat import WorkspaceCache
-from trackerd.detect.quick import ANY_SHAPE, Plain, measure_windows
+from trackerd.detect.quick import ANY_SHAPE, Plain, measure_windows, window_interior
 from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
 from trackerd.detect.select import choose, missing_reason, pair_consistency, rod_evidence
 from trackerd.errors import ImageError
@@ -550,12 +550,16 @@ def detect_together(
     the ends of all cameras are measured in one set of flat arrays
     (trackerd.detect.quick) instead of one per camera: about half the NumPy
     calls, which is most of the cost of a pair. The windows then have one size,
-    the largest any camera needs; where an end is not plainly there in a window
-    of that size, that camera's frame goes through :meth:`ColourEndDetector.detect`
-    as it would alone.
+    the largest any camera needs, and each end's thresholded samples must lie
+    inside the window that camera would have used alone, off its border (then
+    it sees exactly those samples, and measures what it would alone, to float32
+    rounding). Where the joint measurement fails for any end, every camera's
+    frame goes through :meth:`ColourEndDetector.detect`; where a camera's ends
+    are measured but not accepted (not plainly the ends it tracks, or not a
+    consistent pair), that camera's frame does.
     """
     results: list[ImageDetections | None] = [None] * len(detectors)
-    plans: list[tuple[list[tuple[str, float, float]], int] | None] = []
+    plans: list[tuple[list[tuple[str, float, float]], int, list[Region | None]] | None] = []
     for detector, frame in zip(detectors, frames, strict=True):
         detector._check(frame)
         track = detector._track
@@ -567,12 +571,18 @@ def detect_together(
             and (detector.grid.red, detector.grid.blue) == (detectors[0].grid.red, detectors[0].grid.blue)
             and detector.rim_pixels == detectors[0].rim_pixels
         )
-        plans.append(detector._quick_plan(track) if eligible and track is not None else None)
+        plan = detector._quick_plan(track) if eligible and track is not None else None
+        if plan is not None:
+            # Where the camera's own windows would let its ends lie (None: they would not fit).
+            own = [window_interior(frame.shape, detector.grid, *end, plan[1]) for end in plan[0]]
+            plan = None if None in own else (plan[0], plan[1], own)
+        plans.append(plan)
     planned = [(i, plan) for i, plan in enumerate(plans) if plan is not None]
     if len(planned) >= 2:
         together = [i for i, _ in planned]
-        half_cells = max(half for _, (_, half) in planned)
-        ends = [end for _, (plan_ends, _) in planned for end in plan_ends]
+        half_cells = max(half for _, (_, half, _) in planned)
+        ends = [end for _, (plan_ends, _, _) in planned for end in plan_ends]
+        within = [region for _, (_, _, regions) in planned for region in regions]
         first = detectors[together[0]]
         found = measure_windows(
             [frames[i] for i in together for _ in COLOURS],
@@ -582,6 +592,7 @@ def detect_together(
             first.thresholds,
             first._plain,
             first._work,
+            within=within,  # type: ignore[arg-type]
             every_pixel=first.rim_pixels,
         )
         if found is not None:

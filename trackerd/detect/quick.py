@@ -158,20 +158,47 @@ def _gather(
     origins = []
     for e, (colour, x_px, y_px) in enumerate(ends):
         frame = frames if isinstance(frames, np.ndarray) else frames[e]
-        height_px, width_px = frame.shape[:2]
-        dr, dc = grid.red if colour == "red" else grid.blue
-        r0 = round((y_px - dr) / 2.0) - half_cells
-        c0 = round((x_px - dc) / 2.0) - half_cells
-        # Slide a window that would leave the frame back in (its ring included).
-        r0 = max(1, min(r0, (height_px - dr) // 2 - rows + 1))
-        c0 = max(1, min(c0, (width_px - dc) // 2 - cols + 1))
-        y, x = 2 * r0 - 2 + dr, 2 * c0 - 2 + dc
-        if y + 2 * rows > height_px or x + 2 * cols > width_px:
+        origin = window_origin(frame.shape, grid, colour, x_px, y_px, half_cells)
+        if origin is None:
             return None
+        r0, c0, dr, dc = origin
+        y, x = 2 * r0 - 2 + dr, 2 * c0 - 2 + dc
         ws.pixels[e] = frame[y : y + 2 * rows, x : x + 2 * cols]
-        origins.append((r0, c0, dr, dc))
+        origins.append(origin)
     np.copyto(ws.planes_5d, ws.pixels_as_planes)
     return origins
+
+
+def window_origin(
+    frame_shape: tuple[int, ...], grid: SampleGrid, colour: str, x_px: float, y_px: float, half_cells: int
+) -> tuple[int, int, int, int] | None:
+    """Where :func:`measure_windows` puts the window of ``half_cells`` around an end: (r0, c0, dr, dc),
+    the frame cell of its first cell and the colour's offset in a cell; None if it does not fit."""
+    height_px, width_px = frame_shape[:2]
+    rows = cols = 2 * half_cells + 3  # the window and its ring
+    dr, dc = grid.red if colour == "red" else grid.blue
+    r0 = round((y_px - dr) / 2.0) - half_cells
+    c0 = round((x_px - dc) / 2.0) - half_cells
+    # Slide a window that would leave the frame back in (its ring included).
+    r0 = max(1, min(r0, (height_px - dr) // 2 - rows + 1))
+    c0 = max(1, min(c0, (width_px - dc) // 2 - cols + 1))
+    y, x = 2 * r0 - 2 + dr, 2 * c0 - 2 + dc
+    if y + 2 * rows > height_px or x + 2 * cols > width_px:
+        return None
+    return r0, c0, dr, dc
+
+
+def window_interior(
+    frame_shape: tuple[int, ...], grid: SampleGrid, colour: str, x_px: float, y_px: float, half_cells: int
+) -> Region | None:
+    """The frame cells of that window off its border: a blob measured in it lies there, or it is not
+    measured (it touches the border). None if the window does not fit in the frame."""
+    origin = window_origin(frame_shape, grid, colour, x_px, y_px, half_cells)
+    if origin is None:
+        return None
+    r0, c0, _, _ = origin
+    size = 2 * half_cells + 1
+    return (r0 + 1, r0 + size - 1, c0 + 1, c0 + size - 1)
 
 
 def _set_thresholds(ws: Workspace, thresholds: list[Threshold]) -> bool:

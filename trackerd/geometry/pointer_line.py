@@ -76,9 +76,10 @@ class PointerLine:
         """Unit vector from the back end to the front end."""
         (fx, fy, fz), (bx, by, bz) = self.front_floats, self.back_floats
         length = self.length_m
-        if not length > 0.0:
-            return np.full(3, np.nan)  # coincident ends: no direction
-        return np.array([(fx - bx) / length, (fy - by) / length, (fz - bz) / length])
+        direction = (np.full(3, np.nan) if not length > 0.0  # coincident ends: no direction
+                     else np.array([(fx - bx) / length, (fy - by) / length, (fz - bz) / length]))
+        direction.flags.writeable = False  # one array for every caller
+        return direction
 
     @cached_property
     def length_m(self) -> float:
