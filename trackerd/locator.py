@@ -145,9 +145,7 @@ class Locator:
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
-        self._wall_floats = (tuple(self._plane.normal.tolist()), float(self._plane.offset_m))
-        self._wall_plain = WallFloats.of(self.wall)
-        self._wall_axes = (tuple(self.wall.x_axis.tolist()), tuple(self.wall.y_axis.tolist()))
+        self._wall_plain = WallFloats.of(self.wall)  # the wall in plain floats, for the per-pair geometry
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         self._all_cameras = _CameraView.build(self.cameras)
         self._centres = self._all_cameras.centres_m
@@ -382,11 +380,12 @@ class Locator:
                 moved[4 * index + 2 * end + 1] += shift[1]
                 variants.append(tuple(moved))
         try:
-            hits = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1), variants, *self._wall_floats)
+            hits = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1), variants,
+                                              self._wall_plain.normal, self._wall_plain.offset_m)
         except GeometryError:
             return None
         # The hits lie in the wall's plane: their spread in the wall's frame, along its two axes.
-        (hx, hy, hz), x_axis, y_axis = hits[0], self._wall_axes[0], self._wall_axes[1]
+        (hx, hy, hz), x_axis, y_axis = hits[0], self._wall_plain.x_axis, self._wall_plain.y_axis
         total = 0.0
         for px, py, pz in hits[1:]:
             dx, dy, dz = px - hx, py - hy, pz - hz
