@@ -559,30 +559,35 @@ def detect_together(
     consistent pair), that camera's frame does.
     """
     results: list[ImageDetections | None] = [None] * len(detectors)
-    plans: list[tuple[list[tuple[str, float, float]], int, list[Region | None]] | None] = []
-    for detector, frame in zip(detectors, frames, strict=True):
+    # Per camera that can join: (index, its ends, its windows' half size, where its own windows
+    # would let each end lie).
+    planned: list[tuple[int, list[tuple[str, float, float]], int, list[Region]]] = []
+    reference = detectors[0]
+    for index, (detector, frame) in enumerate(zip(detectors, frames, strict=True)):
         detector._check(frame)
         track = detector._track
-        eligible = (
-            track is not None
-            and detector.flat
-            and not any(t.crowded for t in track.values())
-            and detector.thresholds == detectors[0].thresholds
-            and (detector.grid.red, detector.grid.blue) == (detectors[0].grid.red, detectors[0].grid.blue)
-            and detector.rim_pixels == detectors[0].rim_pixels
-        )
-        plan = detector._quick_plan(track) if eligible and track is not None else None
-        if plan is not None:
-            # Where the camera's own windows would let its ends lie (None: they would not fit).
-            own = [window_interior(frame.shape, detector.grid, *end, plan[1]) for end in plan[0]]
-            plan = None if None in own else (plan[0], plan[1], own)
-        plans.append(plan)
-    planned = [(i, plan) for i, plan in enumerate(plans) if plan is not None]
+        if (
+            track is None
+            or not detector.flat
+            or any(t.crowded for t in track.values())
+            or detector.thresholds != reference.thresholds
+            or (detector.grid.red, detector.grid.blue) != (reference.grid.red, reference.grid.blue)
+            or detector.rim_pixels != reference.rim_pixels
+        ):
+            continue
+        plan = detector._quick_plan(track)
+        if plan is None:
+            continue
+        own_ends, own_half = plan
+        own = [window_interior(frame.shape, detector.grid, *end, own_half) for end in own_ends]
+        regions = [region for region in own if region is not None]
+        if len(regions) == len(own):  # else its own windows would not fit in the frame
+            planned.append((index, own_ends, own_half, regions))
     if len(planned) >= 2:
-        together = [i for i, _ in planned]
-        half_cells = max(half for _, (_, half, _) in planned)
-        ends = [end for _, (plan_ends, _, _) in planned for end in plan_ends]
-        within = [region for _, (_, _, regions) in planned for region in regions]
+        together = [index for index, _, _, _ in planned]
+        half_cells = max(half for _, _, half, _ in planned)
+        ends = [end for _, plan_ends, _, _ in planned for end in plan_ends]
+        within = [region for _, _, _, regions in planned for region in regions]
         first = detectors[together[0]]
         found = measure_windows(
             [frames[i] for i in together for _ in COLOURS],
@@ -592,7 +597,7 @@ def detect_together(
             first.thresholds,
             first._plain,
             first._work,
-            within=within,  # type: ignore[arg-type]
+            within=within,
             every_pixel=first.rim_pixels,
         )
         if found is not None:
