@@ -24,6 +24,7 @@ from trackerd.config.loader import load_rig
 from trackerd.config.models import ZmqOutput
 from trackerd.errors import ConfigError
 from trackerd.publish import SCHEMA_VERSION, Publisher, PublishError, decode
+from trackerd.publish import publisher as publisher_module
 
 
 def _endpoint(kind: str, tmp_path: Path) -> str:
@@ -132,7 +133,6 @@ def test_a_late_joiner_gets_the_current_status_before_the_next_periodic_one(cont
     period_s = 2.0
     with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as publisher:
         publisher.publish_status(status_message(sequence=7))
-        time.sleep(0.05)
         early = subscriber(context, publisher.endpoints[0], b"status")
         hits_only = subscriber(context, publisher.endpoints[0], b"hit")
         start = time.perf_counter()
@@ -156,6 +156,37 @@ def test_a_late_joiner_gets_the_current_status_before_the_next_periodic_one(cont
         assert json.loads(everything.recv_multipart()[1])["sequence"] == 8
         assert early.poll(5000) and json.loads(early.recv_multipart()[1])["sequence"] == 8
         assert not hits_only.poll(200)
+
+
+def _proxy_started_late(monkeypatch, delay_s: float) -> None:
+    """Make the proxy thread begin ``delay_s`` late, as it does on a starved machine."""
+    run_proxy = publisher_module._run_proxy
+
+    def late(*sockets):
+        time.sleep(delay_s)
+        run_proxy(*sockets)
+
+    monkeypatch.setattr(publisher_module, "_run_proxy", late)
+
+
+def test_a_status_published_at_once_is_kept_even_when_the_proxy_thread_starts_late(monkeypatch, context):
+    """A CI run lost this status: the inlet was a PUB that had not yet heard the proxy's
+    subscription, so it dropped the message, and a late joiner got no status at all."""
+    _proxy_started_late(monkeypatch, 0.2)
+    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as publisher:
+        publisher.publish_status(status_message(sequence=3))
+        late_joiner = subscriber(context, publisher.endpoints[0], b"status")
+        assert late_joiner.poll(5000), "the late joiner got no status"
+        assert json.loads(late_joiner.recv_multipart()[1])["sequence"] == 3
+
+
+def test_a_proxy_that_never_starts_is_one_line_and_leaves_nothing_running(monkeypatch):
+    threads_before = set(threading.enumerate())
+    monkeypatch.setattr(publisher_module, "_WIRING_TIMEOUT_MS", 200)
+    _proxy_started_late(monkeypatch, 1.0)
+    with pytest.raises(PublishError, match=r"^the publisher's inlet got no subscription from the ZeroMQ proxy within 200 ms$"):
+        Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",)))
+    assert set(threading.enumerate()) <= threads_before
 
 
 def test_bind_errors_are_one_line_and_leave_nothing_running(tmp_path):

@@ -16,7 +16,13 @@ those two) and answers a new subscription that covers ``status`` by sending the
 last status again through its own PUB into the proxy. docs/protocol.md, "Late
 joiners", says why this was preferred to a request socket.
 
-Never blocking: the inlet is a PUB with XPUB_NODROP, so a full hand-over queue
+Nothing lost at start: a PUB drops what no known subscription covers, and the proxy's own
+``status`` subscription reaches the inlet only once the proxy thread has run. The inlet and the
+last-value thread's sender are therefore XPUBs, and the constructor waits until each has received
+that subscription (``_await_status_subscription``); a status published right after construction
+used to vanish whenever the proxy thread started late, and late joiners then got none.
+
+Never blocking: the inlet is an XPUB with XPUB_NODROP, so a full hand-over queue
 (HANDOVER_HWM) makes a non-blocking send fail (counted as dropped) instead of blocking; a full
 subscriber queue (``send_hwm_messages``) drops that subscriber's messages
 inside ZeroMQ and touches nobody else.
@@ -46,6 +52,9 @@ log = logging.getLogger(__name__)
 
 STATUS_TOPIC = b"status"
 _POLL_MS = 200
+_WIRING_TIMEOUT_MS = 5000
+"""How long the constructor waits for the proxy thread to pass its subscription on; it takes well
+under a millisecond unless the machine is starved."""
 HANDOVER_HWM = 10_000
 """Messages the hand-over pipe holds while the proxy thread waits for a CPU (about 4 MB at most);
 internal, unlike each subscriber's queue (send_hwm_messages)."""
@@ -149,6 +158,13 @@ class Publisher:
         # another thread needs: from here on the proxy's sockets belong to the proxy thread.
         self._proxy = threading.Thread(target=_run_proxy, args=sockets, name="trackerd-zmq-proxy", daemon=True)
         self._proxy.start()
+        try:
+            _await_status_subscription(self._inlet, "the publisher's inlet")
+            _await_status_subscription(self._lvc.sender, "the last-value thread")
+        except BaseException:
+            self._closed = True
+            self._shut_down()
+            raise
         self._lvc.start()
 
     def _wire(self, base: str, xpub: zmq.Socket) -> tuple[zmq.Socket, ...]:
@@ -168,7 +184,8 @@ class Publisher:
         self._control = self._context.socket(zmq.PAIR)
         self._control.setsockopt(zmq.LINGER, 0)
         self._control.connect(f"{base}-control")
-        self._inlet = self._context.socket(zmq.PUB)
+        # An XPUB, not a PUB, only so that the constructor can see the proxy's subscription arrive.
+        self._inlet = self._context.socket(zmq.XPUB)
         self._inlet.setsockopt(zmq.SNDHWM, hwm)
         self._inlet.setsockopt(zmq.XPUB_NODROP, 1)
         self._inlet.setsockopt(zmq.LINGER, 0)
@@ -251,6 +268,9 @@ class Publisher:
         self._counts[name] = self._counts.get(name, 0) + 1
         if topic == STATUS_TOPIC:
             self._statuses_sent += 1
+            # About once a second: the subscriptions the inlet reports are never needed after
+            # start, and would pile up as subscribers come and go.
+            _discard_subscriptions(self._inlet)
         return True
 
     def clock_ns_from_monotonic(self, monotonic_ns: int) -> int:
@@ -277,6 +297,10 @@ class Publisher:
         linger_s = self.config.linger_ms / 1000.0
         # The final status (``stopping``) should reach subscribers: wait until the proxy has passed it on.
         self._lvc.wait_for_statuses(self._statuses_sent, timeout_s=linger_s)
+        self._shut_down()
+
+    def _shut_down(self) -> None:
+        linger_s = self.config.linger_ms / 1000.0
         self._control.send(b"TERMINATE")
         self._proxy.join(timeout=linger_s + 2.0)
         self._lvc.stop()
@@ -298,6 +322,25 @@ class Publisher:
         self.close()
 
 
+def _await_status_subscription(socket: zmq.Socket, name: str) -> None:
+    """Block until the XPUB ``socket`` has received the proxy's ``status`` subscription, so that
+    what it sends from now on is forwarded; PublishError if the proxy thread never passes it on."""
+    deadline = time.monotonic() + _WIRING_TIMEOUT_MS / 1000.0
+    while (left_ms := int((deadline - time.monotonic()) * 1000)) > 0:
+        if socket.poll(left_ms) and socket.recv() == b"\x01" + STATUS_TOPIC:
+            return
+    raise PublishError(f"{name} got no subscription from the ZeroMQ proxy within {_WIRING_TIMEOUT_MS} ms")
+
+
+def _discard_subscriptions(socket: zmq.Socket) -> None:
+    """Read and drop the (un)subscription messages an XPUB holds for its owner."""
+    while True:
+        try:
+            socket.recv(flags=zmq.NOBLOCK)
+        except zmq.Again:
+            return
+
+
 def _run_proxy(frontend: zmq.Socket, xpub: zmq.Socket, capture: zmq.Socket, control: zmq.Socket) -> None:
     """The proxy thread: libzmq forwards frontend -> XPUB (and subscriptions back) until TERMINATE."""
     try:
@@ -315,7 +358,8 @@ class _LastValue:
 
     def __init__(self, context: zmq.Context) -> None:
         self._sub = context.socket(zmq.SUB)
-        self._pub = context.socket(zmq.PUB)
+        # An XPUB so that the constructor can wait for the proxy's subscription (see the module's docstring).
+        self._pub = context.socket(zmq.XPUB)
         self._stop = threading.Event()
         self._seen = threading.Condition()
         self._statuses = 0
@@ -329,6 +373,11 @@ class _LastValue:
         self._pub.setsockopt(zmq.LINGER, 0)
         self._pub.connect(frontend)
 
+    @property
+    def sender(self) -> zmq.Socket:
+        """The socket the answers go out on; the constructor's until ``start``, then this thread's."""
+        return self._pub
+
     def start(self) -> None:
         self._thread.start()
 
@@ -338,6 +387,10 @@ class _LastValue:
             self._seen.wait_for(lambda: self._statuses >= count, timeout=timeout_s)
 
     def stop(self) -> None:
+        if self._thread.ident is None:  # never started: the sockets are still the constructor's
+            self._sub.close(linger=0)
+            self._pub.close(linger=0)
+            return
         self._stop.set()
         self._thread.join(timeout=_POLL_MS / 1000.0 + 2.0)
 
@@ -345,6 +398,7 @@ class _LastValue:
         last: list[bytes] | None = None
         try:
             while not self._stop.is_set():
+                _discard_subscriptions(self._pub)
                 if not self._sub.poll(_POLL_MS):
                     continue
                 parts = self._sub.recv_multipart()
