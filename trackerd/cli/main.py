@@ -2,7 +2,7 @@
 
 Subcommands live in sibling modules (config.py, locate.py, bench.py, ...); each
 defines ``register(subparsers)`` and is discovered here, so adding a command
-never touches this file. Signal handling belongs to the commands that run
+never touches this file. Only the module of the command given is imported. Signal handling belongs to the commands that run
 long (``run``, ``simrig``, ``record``), never to the library.
 """
 
@@ -20,7 +20,27 @@ import trackerd.cli
 from trackerd.errors import TrackerdError
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _command_modules() -> list[str]:
+    """The modules that define commands; a module ``cpu_latency`` defines ``cpu-latency``."""
+    names = (m.name for m in pkgutil.iter_modules(trackerd.cli.__path__))
+    return sorted(n for n in names if not n.startswith("_") and n != "main")
+
+
+def _chosen_command(argv: Sequence[str], commands: set[str]) -> str | None:
+    """The command word in ``argv`` (after the global options), or None (``--help``, a typo)."""
+    words = iter(argv)
+    for word in words:
+        if word == "--log-level":
+            next(words, None)
+        elif not word.startswith("-"):
+            return word if word in commands else None
+    return None
+
+
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The whole parser, or, when ``argv`` names a command, one where only that command's module is
+    imported: the others' imports (OpenCV, the pydantic models) would double the start-up time of a
+    command such as ``trackerd keys`` or ``trackerd listen``. The rest are registered by name only."""
     parser = argparse.ArgumentParser(
         prog="trackerd",
         description="Track a red/blue pointer with two cameras and report where on the wall it points.",
@@ -33,19 +53,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="how much to log on stderr (default: warning)",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for module_info in sorted(pkgutil.iter_modules(trackerd.cli.__path__), key=lambda m: m.name):
-        if module_info.name.startswith("_") or module_info.name == "main":
+    modules = {name.replace("_", "-"): name for name in _command_modules()}
+    chosen = None if argv is None else _chosen_command(argv, set(modules))
+    for command, name in modules.items():
+        if chosen is not None and command != chosen:
+            subparsers.add_parser(command)
             continue
-        module = importlib.import_module(f"trackerd.cli.{module_info.name}")
-        register = getattr(module, "register", None)
+        register = getattr(importlib.import_module(f"trackerd.cli.{name}"), "register", None)
         if register is not None:
             register(subparsers)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(argv).parse_args(argv)
     logging.basicConfig(
         level=getattr(logging, args.log_level.upper()),
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",

@@ -1,0 +1,47 @@
+"""`trackerd COMMAND` imports only that command's module; the parser it builds is the full one's."""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+import pytest
+
+from trackerd.cli.main import _command_modules, build_parser
+
+
+def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+COMMANDS = sorted(_commands(build_parser()))
+
+
+def test_every_command_module_defines_its_command():
+    assert sorted(name.replace("_", "-") for name in _command_modules()) == COMMANDS
+    assert {"run", "listen", "calibrate", "cpu-latency", "replay"} <= set(COMMANDS)
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_command_built_alone_has_the_same_arguments_and_help(command):
+    alone = _commands(build_parser(["--log-level", "info", command]))
+    assert sorted(alone) == COMMANDS  # the others are still known by name, for argparse's messages
+    assert alone[command].format_help() == _commands(build_parser())[command].format_help()
+
+
+def test_a_light_command_starts_without_opencv_or_the_config_models():
+    probe = (
+        "import sys; from trackerd.cli.main import build_parser;"
+        "build_parser(['keys', 'server']).parse_args(['keys', 'server']);"
+        "print(sorted(m for m in ('cv2', 'trackerd.config.models', 'gi') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["nosuch"], ["--log-level", "debug"]])
+def test_without_a_known_command_every_command_is_loaded(argv):
+    loaded, full = _commands(build_parser(argv)), _commands(build_parser())
+    assert [c for c in COMMANDS if loaded[c].format_help() != full[c].format_help()] == []
