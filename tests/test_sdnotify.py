@@ -78,16 +78,29 @@ def test_watchdog_interval_respects_watchdog_pid():
 
 
 def test_progress_feeds_the_watchdog_at_most_every_quarter_interval(notify_socket):
+    """Judged call by call from each call's start and end time, so a stalled test machine cannot
+    make it fail: a ping is sent once a quarter interval has passed since the last, never sooner."""
     path, sock = notify_socket
+    quarter_s = 0.1
     notifier = SdNotify({"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "400000"})  # 0.4 s: a ping per 0.1 s
-    sent = 0
-    start = time.monotonic()
-    while time.monotonic() - start < 0.5:
-        sent += notifier.progress()  # "a pair was processed", 1000 times a second
+    calls: list[tuple[float, float, bool]] = []
+    pings = 0
+    deadline = time.monotonic() + 10.0
+    while pings < 4 and time.monotonic() < deadline:
+        before = time.monotonic()
+        sent = notifier.progress()  # "a pair was processed", about 1000 times a second
+        calls.append((before, time.monotonic(), sent))
+        pings += sent
         time.sleep(0.001)
-    received = _drain(sock)
-    assert received == ["WATCHDOG=1"] * sent
-    assert 3 <= sent <= 7
+    assert _drain(sock) == ["WATCHDOG=1"] * pings == ["WATCHDOG=1"] * 4
+    last_ping: tuple[float, float] | None = None  # (start, end) of the call that last sent
+    for before, after, sent in calls:
+        if last_ping is not None and sent:
+            assert after - last_ping[0] >= quarter_s  # never sooner than a quarter interval...
+        elif last_ping is not None:
+            assert before - last_ping[1] < quarter_s  # ...and a call that sent nothing was too soon
+        if sent:
+            last_ping = (before, after)
     # Without progress, nothing is sent: the watchdog only sees real work.
     time.sleep(0.15)
     assert _drain(sock) == []
