@@ -184,7 +184,8 @@ def test_a_proxy_that_never_starts_is_one_line_and_leaves_nothing_running(monkey
     threads_before = set(threading.enumerate())
     monkeypatch.setattr(publisher_module, "_WIRING_TIMEOUT_MS", 200)
     _proxy_started_late(monkeypatch, 1.0)
-    with pytest.raises(PublishError, match=r"^the publisher's inlet got no subscription from the ZeroMQ proxy within 200 ms$"):
+    refused = r"^the publisher's inlet got no subscription from the ZeroMQ proxy within 200 ms$"
+    with pytest.raises(PublishError, match=refused):
         Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",)))
     assert set(threading.enumerate()) <= threads_before
 

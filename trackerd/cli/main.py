@@ -2,8 +2,9 @@
 
 Subcommands live in sibling modules (config.py, locate.py, bench.py, ...); each
 defines ``register(subparsers)`` and is discovered here, so adding a command
-never touches this file. Only the module of the command given is imported. Signal handling belongs to the commands that run
-long (``run``, ``simrig``, ``record``), never to the library.
+never touches this file; only the module of the command given is imported.
+Signal handling belongs to the commands that run long (``run``, ``simrig``,
+``record``), never to the library.
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 Threads and sockets (all in one ZeroMQ context owned by the publisher)::
 
     caller's thread            proxy thread (libzmq, no GIL)           network
-    inlet PUB  --inproc-->  frontend XSUB ==zmq_proxy==> backend XPUB  --> subscribers
-    last-value thread:      lvc PUB --inproc--^      |
+    inlet XPUB --inproc-->  frontend XSUB ==zmq_proxy==> backend XPUB  --> subscribers
+    last-value thread:      lvc XPUB --inproc-^      |
                             capture SUB <--inproc-- capture PUB (statuses and subscriptions only)
 
 ZeroMQ sockets are not thread-safe and a late joiner must get the current status
@@ -13,7 +13,7 @@ thread. The proxy runs inside libzmq without holding the GIL, so forwarding
 never waits for the pipeline's Python code. The last-value thread sees every
 status and every subscription (through the proxy's capture socket, filtered to
 those two) and answers a new subscription that covers ``status`` by sending the
-last status again through its own PUB into the proxy. docs/protocol.md, "Late
+last status again through its own socket into the proxy. docs/protocol.md, "Late
 joiners", says why this was preferred to a request socket.
 
 Nothing lost at start: a PUB drops what no known subscription covers, and the proxy's own
