@@ -53,10 +53,10 @@ def _lines_until_status(command: list[str]) -> list[str]:
 def _late_joiner_status(lines: list[str]) -> str:
     """The status line: only one status was published, before the subscriber started, so it is
     the last-value answer. It usually comes first; hits sent while the subscription was on its way
-    may come before it (docs/protocol.md, "Late joiners")."""
-    statuses = [i for i, line in enumerate(lines) if line.startswith("status")]
+    may come before it, and the same status may come twice (docs/protocol.md, "Late joiners")."""
+    statuses = {line for line in lines if line.startswith("status")}
     assert len(statuses) == 1, lines
-    return lines[statuses[0]]
+    return statuses.pop()
 
 
 def test_python_subscriber(tmp_path):

@@ -149,8 +149,13 @@ def test_a_late_joiner_gets_the_current_status_before_the_next_periodic_one(cont
         assert first["sequence"] == 7
 
         # A newer status is what the next joiner gets; the earlier joiner sees it again (documented).
+        # Status 7 may have come twice already: when the proxy thread forwarded it only after the
+        # subscription had reached the socket, the subscriber got it sent and answered.
         publisher.publish_status(status_message(sequence=8))
-        assert json.loads(early.recv_multipart()[1])["sequence"] == 8
+        sequences = [7]
+        while sequences[-1] == 7 and early.poll(5000):
+            sequences.append(json.loads(early.recv_multipart()[1])["sequence"])
+        assert sequences in ([7, 8], [7, 7, 8]), sequences
         everything = subscriber(context, publisher.endpoints[0])
         assert everything.poll(5000)
         assert json.loads(everything.recv_multipart()[1])["sequence"] == 8
