@@ -21,10 +21,9 @@ from typing import Any
 
 import zmq
 
-from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError, TrackerdError
+from trackerd.publish.curve_keys import load_curve_key_pair, load_curve_public_key
 from trackerd.publish.messages import SCHEMA_MAJOR, TOPICS
-from trackerd.publish.publisher import load_curve_key_pair, load_curve_public_key
 
 DEFAULT_ENDPOINT = "tcp://127.0.0.1:5560"
 
@@ -97,6 +96,8 @@ def _target(args: argparse.Namespace) -> tuple[str, bytes | None]:
     """Endpoint and server public key from the options, falling back on the rig file."""
     endpoint, server_key = args.endpoint, None
     if args.config:
+        from trackerd.config.loader import load_rig  # the rig's models: only when a rig file is given
+
         zmq_config = load_rig(args.config).config.outputs.zmq
         if endpoint is None:
             endpoint = _connectable(zmq_config.endpoints[0])

@@ -33,7 +33,6 @@ from __future__ import annotations
 import itertools
 import logging
 import os
-import stat
 import threading
 import time
 from collections.abc import Callable
@@ -46,6 +45,7 @@ from zmq.auth.thread import ThreadAuthenticator
 
 from trackerd.config.models import ZmqOutput
 from trackerd.errors import ConfigError, TrackerdError
+from trackerd.publish.curve_keys import load_curve_key_pair
 from trackerd.publish.messages import Message, StatusMessage, encode
 
 log = logging.getLogger(__name__)
@@ -63,39 +63,6 @@ _pipe_ids = itertools.count()
 
 class PublishError(TrackerdError):
     """The publisher cannot bind its endpoints or is used after it was closed."""
-
-
-def load_curve_key_pair(path: Path) -> tuple[bytes, bytes]:
-    """(public, secret) Z85 keys from a ``.key_secret`` file; ConfigError when unusable or exposed."""
-    try:
-        mode = path.stat().st_mode
-        public, secret = zmq.auth.load_certificate(os.fspath(path))
-    except FileNotFoundError as err:
-        raise ConfigError(f"{path}: no such CURVE key file (make one with `trackerd keys server`)") from err
-    except OSError as err:
-        raise ConfigError(f"{path}: cannot read CURVE key file: {err.strerror}") from err
-    except ValueError as err:
-        raise ConfigError(f"{path}: not a CURVE key file ({err})") from err
-    if not secret:
-        raise ConfigError(f"{path}: holds a public key only; give the .key_secret file")
-    if mode & (stat.S_IRWXG | stat.S_IRWXO):
-        raise ConfigError(
-            f"{path}: secret key is accessible to other users (mode {stat.S_IMODE(mode):04o}); chmod 600 it"
-        )
-    return public, secret
-
-
-def load_curve_public_key(path: Path) -> bytes:
-    """The public key from a ``.key`` (or ``.key_secret``) file; ConfigError when unusable."""
-    try:
-        public, _ = zmq.auth.load_certificate(os.fspath(path))
-    except FileNotFoundError as err:
-        raise ConfigError(f"{path}: no such CURVE key file") from err
-    except OSError as err:
-        raise ConfigError(f"{path}: cannot read CURVE key file: {err.strerror}") from err
-    except ValueError as err:
-        raise ConfigError(f"{path}: not a CURVE key file ({err})") from err
-    return public
 
 
 def _authorized_keys_dir(path: Path, allow_empty: bool = False) -> Path:
