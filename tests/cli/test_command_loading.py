@@ -41,7 +41,9 @@ def test_a_light_command_starts_without_opencv_or_the_config_models():
     assert out.strip() == "[]"
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["nosuch"], ["--log-level", "debug"]])
+@pytest.mark.parametrize(
+    "argv", [["--help"], ["-h", "run"], ["--version", "keys"], ["nosuch"], ["--log-level", "debug"]]
+)
 def test_without_a_known_command_every_command_is_loaded(argv):
     loaded, full = _commands(build_parser(argv)), _commands(build_parser())
     assert [c for c in COMMANDS if loaded[c].format_help() != full[c].format_help()] == []

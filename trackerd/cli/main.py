@@ -28,9 +28,12 @@ def _command_modules() -> list[str]:
 
 
 def _chosen_command(argv: Sequence[str], commands: set[str]) -> str | None:
-    """The command word in ``argv`` (after the global options), or None (``--help``, a typo)."""
+    """The command word in ``argv`` (after the global options), or None: none given, a typo, or
+    the main parser's own ``--help`` or ``--version`` before it (whose output lists every command)."""
     words = iter(argv)
     for word in words:
+        if word in ("-h", "--help", "--version"):
+            return None
         if word == "--log-level":
             next(words, None)
         elif not word.startswith("-"):
