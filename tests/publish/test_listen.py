@@ -82,6 +82,17 @@ def test_listen_refuses_a_topic_trackerd_never_publishes():
     assert len(err.splitlines()) == 1
 
 
+def test_listen_names_a_key_file_that_is_missing_or_not_a_key(tmp_path):
+    # Regression: a missing --server-key said "cannot read CURVE key file: None".
+    not_a_key = tmp_path / "server.key"
+    not_a_key.write_text("hello\n")
+    for path, reason in ((tmp_path / "gone.key", "no such CURVE key file"), (not_a_key, "not a CURVE key file")):
+        process = _listen("--endpoint", "tcp://127.0.0.1:9", "--server-key", str(path), "--timeout", "0.5")
+        out, err = process.communicate(timeout=20)
+        assert process.returncode == 2 and out == ""
+        assert err.startswith(f"trackerd listen: {path}: {reason}") and len(err.splitlines()) == 1, err
+
+
 def test_listen_over_ipv6_loopback():
     with Publisher(ZmqOutput(endpoints=("tcp://[::1]:*",))) as publisher:
         process = _listen("--endpoint", publisher.endpoints[0], "--count", "1", "--topic", "hit")
