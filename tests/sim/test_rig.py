@@ -174,6 +174,46 @@ def test_simrig_measures_a_run_and_cleans_up_on_sigterm(tmp_path: Path) -> None:
     assert not {f"{PREFIX}-cam0", f"{PREFIX}-cam1"} & _namespaces()
 
 
+def _camera_processes(parent: int) -> list[int]:
+    """The simulated camera processes started by ``parent``."""
+    children = Path(f"/proc/{parent}/task/{parent}/children").read_text().split()
+    return [int(pid) for pid in children if b"trackerd.sim.gvcamera" in Path(f"/proc/{pid}/cmdline").read_bytes()]
+
+
+@needs_netns
+@pytest.mark.root
+@pytest.mark.aravis
+def test_the_cameras_leave_ctrl_c_to_the_rig_and_never_outlive_it(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C goes to its foreground process group. The cameras are outside it, so the
+    daemon stops before its cameras vanish (they used to die first: 'acquisition thread did not
+    stop in time'); and a rig killed outright still takes its cameras with it."""
+    import os
+    import signal
+    import time
+
+    repo = Path(__file__).resolve().parents[2]
+    args = ["--config", str(repo / "config" / "simulated.toml"), "--synthetic", "--prefix", PREFIX,
+            "--subnet", SUBNET, "--out", str(tmp_path / "out")]
+    serving = _simrig(*args, start_new_session=True)  # its own process group, as in a terminal
+    try:
+        assert "ground truth" in "".join(serving.stdout.readline() for _ in range(5))
+        cameras = _camera_processes(serving.pid)
+        assert len(cameras) == 2
+        assert all(os.getpgid(pid) != os.getpgid(serving.pid) for pid in cameras)
+        serving.kill()
+        serving.communicate(timeout=10)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and any(Path(f"/proc/{pid}").exists() for pid in cameras):
+            time.sleep(0.1)
+        assert not [pid for pid in cameras if Path(f"/proc/{pid}").exists()]
+    finally:
+        if serving.poll() is None:
+            serving.send_signal(signal.SIGTERM)
+            serving.communicate(timeout=60)
+        netns.remove_stale(PREFIX)  # killed outright, the rig could not remove its namespaces
+    assert not {f"{PREFIX}-cam0", f"{PREFIX}-cam1"} & _namespaces()
+
+
 @needs_netns
 @pytest.mark.root
 @pytest.mark.aravis

@@ -32,6 +32,7 @@ import argparse
 import ctypes
 import ctypes.util
 import json
+import os
 import signal
 import struct
 import sys
@@ -297,7 +298,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     server.install()
     print(f"ready {args.interface} {args.serial}", flush=True)
-    while not stop.wait(0.5):
+    # Out of the terminal's process group (trackerd.sim.rig), a camera must not outlive the rig
+    # that started it: a parent killed outright leaves the camera with a new parent.
+    parent = os.getppid()
+    while not stop.wait(0.5) and os.getppid() == parent:
         server.flush()
     server.uninstall()
     del camera

@@ -537,7 +537,12 @@ class VirtualRig:
         env = _child_env()
         log_path = self.out_dir / f"camera-{self.rig.cameras[proc.index].id}.log"
         proc.log = log_path.open("a")
-        proc.process = subprocess.Popen(proc.command, stdout=subprocess.PIPE, stderr=proc.log, text=True, env=env)
+        # Its own process group: a Ctrl-C in the terminal then reaches the daemon and not the cameras,
+        # which are stopped after it. Sharing the group, they vanished under a daemon still streaming
+        # from them, and its acquisition threads were reported as not stopping in time.
+        proc.process = subprocess.Popen(
+            proc.command, stdout=subprocess.PIPE, stderr=proc.log, text=True, env=env, process_group=0
+        )
         line = _read_line(proc.process, READY_TIMEOUT_S)
         if not line.startswith("ready"):
             self._terminate(proc)
