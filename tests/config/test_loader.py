@@ -309,6 +309,21 @@ def test_a_misspelt_required_key_is_one_problem(write: Write, edit: Edit, minima
     assert str(err.value).endswith("end_diameter_m, rod_diameter_m"), err.value
 
 
+def test_the_same_misspelling_in_two_cameras_is_two_problems() -> None:
+    # Regression: the second camera's real key, missing because of its misspelling, was counted
+    # as a third problem ("and 2 more problems").
+    camera = {"width_px": 640, "height_px": 480, "pixelformat": "Mono8"}
+    message = rig_error(
+        {
+            "cameras": [{"id": "a", **camera}, {"id": "b", **camera}],
+            "wall": {"corners_m": [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]},
+            "pointer": {"length_m": 0.45, "end_diameter_m": 0.04},
+        }
+    )
+    assert message.startswith("cameras[0].pixelformat: unknown key 'pixelformat' (did you mean 'pixel_format'?)")
+    assert message.endswith(" (and 1 more problem)"), message
+
+
 def test_unknown_key_inside_a_tagged_union_lists_that_forms_keys() -> None:
     data = {
         "cameras": {

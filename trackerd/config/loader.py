@@ -134,6 +134,13 @@ def _union_tags(root: type[BaseModel], loc: tuple[int | str, ...], key: str) -> 
     return tags
 
 
+def _meant_key(root: type[BaseModel], loc: tuple[int | str, ...]) -> tuple[int | str, ...] | None:
+    """Where the key a misspelt one at ``loc`` was meant to be, or None when nothing is close."""
+    owner = _model_at(root, loc)
+    close = difflib.get_close_matches(str(loc[-1]), list(owner.model_fields) if owner else [], n=1)
+    return (*loc[:-1], close[0]) if close else None
+
+
 def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> str:
     """The first error as ``key.path: what is wrong (allowed ...)``, plus a count of the rest."""
     errors = err.errors(include_url=False)
@@ -147,7 +154,10 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         return e["type"] == "too_short" and bool(inner)
 
     errors = [e for e in errors if not echoes_items(e)] or errors
-    # A misspelt key also shows up as the real key "missing"; report the misspelling first.
+    # A misspelt key also shows up as the real key "missing": one problem, not two (for each
+    # misspelling, not only the one reported). Report the misspelling first.
+    meant = {_meant_key(root, tuple(e["loc"])) for e in errors if e["type"] == "extra_forbidden"}
+    errors = [e for e in errors if not (e["type"] == "missing" and tuple(e["loc"]) in meant)]
     errors.sort(key=lambda e: e["type"] != "extra_forbidden")
     first = errors[0]
     loc = tuple(first["loc"])
@@ -159,10 +169,6 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         allowed = ", ".join(names) if names else "see docs/configuration.md"
         close = difflib.get_close_matches(str(loc[-1]), names, n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
-        if close:
-            # The misspelt key is also why the real one is missing: one problem, not two.
-            meant = (*loc[:-1], close[0])
-            errors = [e for e in errors if not (e["type"] == "missing" and tuple(e["loc"]) == meant)]
         message = f"unknown key '{loc[-1]}'{hint}; allowed keys here: {allowed}"
     elif kind == "missing" and isinstance(loc[-1], int):
         # A fixed-length array (a 3-vector, the four corners) with too few values: pydantic
