@@ -110,6 +110,20 @@ def test_a_config_override_is_applied_and_stated(bundle, first_replay, tmp_path)
     assert len(hits_other) == len(hits_recorded) and hits_other != hits_recorded
 
 
+@pytest.mark.parametrize(
+    ("endpoint", "reason"),
+    [
+        ("tcp://0.0.0.0:5599", "(top level): tcp://0.0.0.0:5599 is reachable from the network; set"),
+        ("bogus", "endpoints: 'bogus' is not a tcp://HOST:PORT or ipc:///path endpoint"),
+    ],
+)
+def test_a_replay_endpoint_is_checked_as_the_rig_files_are(bundle, endpoint, reason) -> None:
+    # Regression: the refusal was pydantic's report, four lines and a URL.
+    run = trackerd("replay", bundle, "--endpoint", endpoint)
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.startswith(f"trackerd replay: --endpoint: {reason}") and len(run.stderr.splitlines()) == 1
+
+
 def test_paced_replay_keeps_the_recorded_intervals_and_loops_on(bundle) -> None:
     with Recording.open(bundle) as recording:
         recorded_ns = [e.timestamp_ns for e in recording.entries]

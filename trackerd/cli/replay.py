@@ -24,7 +24,8 @@ import sys
 import time
 from typing import Any
 
-from trackerd.config.loader import load_rig
+from trackerd.cli._args import positive_seconds
+from trackerd.config.loader import load_rig, with_endpoints
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
 from trackerd.errors import ConfigError
@@ -41,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--speed", type=parse_speed, default=1.0, metavar="S",
                         help="1.0: recorded pace (default); 2.0: twice as fast; max: as fast as possible")
     parser.add_argument("--loop", action="store_true", help="start again from the first pair at the end")
-    parser.add_argument("--seconds", type=float, help="stop after this many seconds (default: at the end)")
+    parser.add_argument("--seconds", type=positive_seconds, help="stop after this many seconds (default: at the end)")
     parser.add_argument("--endpoint", action="append", metavar="E",
                         help="publish on this ZeroMQ endpoint instead of the rig's (repeatable)")
     parser.add_argument("--delay", type=float, default=1.0, metavar="S",
@@ -103,14 +104,8 @@ def replay_rig(recording: Recording, config: str | None, endpoints: list[str] | 
     if rig.recording.enabled:
         notes.append("recording on demand: switched off for the replay")
     update["recording"] = RecordingConfig()
-    if endpoints:
-        zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": tuple(endpoints)})
-        try:
-            zmq_cfg = type(zmq_cfg).model_validate(zmq_cfg.model_dump())
-        except ValueError as err:
-            raise ConfigError(f"--endpoint: {err}") from err
-        update["outputs"] = rig.outputs.model_copy(update={"zmq": zmq_cfg})
-    return rig.model_copy(update=update), notes
+    rig = rig.model_copy(update=update)
+    return (with_endpoints(rig, endpoints) if endpoints else rig), notes
 
 
 def replay_command(args: argparse.Namespace) -> int:

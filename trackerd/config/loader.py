@@ -20,7 +20,7 @@ from typing import Any, TypeVar, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
-from trackerd.config.models import CalibrationFile, CameraConfig, RigConfig
+from trackerd.config.models import CalibrationFile, CameraConfig, RigConfig, ZmqOutput
 from trackerd.errors import ConfigError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -443,6 +443,16 @@ def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) 
         raise ConfigError(
             f"{path}: after merging into the rig: {describe_validation_error(err, RigConfig)}"
         ) from err
+
+
+def with_endpoints(rig: RigConfig, endpoints: list[str], option: str = "--endpoint") -> RigConfig:
+    """The rig publishing on ``endpoints`` instead of its own, checked as the rig file's are
+    (a network address needs CURVE or allow_insecure_network); ConfigError naming ``option``."""
+    try:
+        zmq_config = ZmqOutput.model_validate({**rig.outputs.zmq.model_dump(), "endpoints": tuple(endpoints)})
+    except ValidationError as err:
+        raise ConfigError(f"{option}: {describe_validation_error(err, ZmqOutput)}") from err
+    return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_config})})
 
 
 def dump_rig(rig: RigConfig, header: str = "") -> str:
