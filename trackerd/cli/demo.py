@@ -17,8 +17,9 @@ from typing import Any
 
 import zmq
 
+from trackerd.cli._args import positive_seconds
 from trackerd.cli.simrig import add_network_options
-from trackerd.config.loader import load_rig
+from trackerd.config.loader import load_rig, with_endpoints
 from trackerd.sim import netns
 from trackerd.sim.motion import MOTIONS
 
@@ -32,19 +33,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--config", default=str(DEFAULT_CONFIG), help="rig to simulate (default: config/simulated.toml)")
     parser.add_argument("--motion", default="figure8", choices=MOTIONS, help="scripted pointer motion (default: figure8)")
-    parser.add_argument("--seconds", type=float, help="stop after this long (default: until Ctrl-C)")
+    parser.add_argument("--seconds", type=positive_seconds, help="stop after this long (default: until Ctrl-C)")
     parser.add_argument("--every", type=int, default=6, help="print one hit in this many (default 6: ten a second)")
+    parser.add_argument("--endpoint", help="publish here instead of the rig's endpoint, for example to run"
+                        " beside a daemon that has it: tcp://127.0.0.1:5561")
     add_network_options(parser)
     parser.set_defaults(handler=demo_command)
 
 
 def demo_command(args: argparse.Namespace) -> int:
     from trackerd.acquisition.live import AravisPairSource
-    from trackerd.cli.listen import format_message
-    from trackerd.cli.run import serve
+    from trackerd.cli.listen import connectable_endpoint, format_message
+    from trackerd.cli.run import serve, zmq_publisher
+    from trackerd.publish import PublishError
     from trackerd.sim.rig import VirtualRig
 
     rig = load_rig(args.config).config
+    if args.endpoint is not None:
+        rig = with_endpoints(rig, [args.endpoint])
     network = "netns" if netns.netns_missing_reason() is None else "loopback"
     if network == "loopback" and rig.acquisition.trigger == "software":
         rig = rig.model_copy(update={"acquisition": rig.acquisition.model_copy(update={"trigger": "free_running"})})
@@ -55,24 +61,39 @@ def demo_command(args: argparse.Namespace) -> int:
     )
     with virtual_rig as virtual:
         daemon_rig = virtual.daemon_rig
-        endpoint = daemon_rig.outputs.zmq.endpoints[0]
         where = ", ".join(c.address or c.device_id or "?" for c in daemon_rig.cameras)
         print(f"trackerd demo: simulated GigE Vision cameras at {where}", file=sys.stderr)
         stop = threading.Event()
         summary: dict[str, Any] = {"hits": 0, "status": None, "busy_status": None}
-        listener = threading.Thread(
-            target=_listen, args=(endpoint, args.every, stop, summary, format_message), daemon=True
-        )
-        listener.start()
+        listeners: list[threading.Thread] = []
+
+        def publisher_then_listener(r):
+            # The subscriber connects only once this daemon has bound its endpoint: connecting
+            # before, it printed another daemon's hits there until this one failed to bind.
+            publisher = zmq_publisher(r)
+            if not listeners:
+                endpoint = connectable_endpoint(publisher.endpoints[0])
+                listeners.append(threading.Thread(
+                    target=_listen, args=(endpoint, args.every, stop, summary, format_message), daemon=True
+                ))
+                listeners[0].start()
+            return publisher
+
         try:
             code = serve(
                 daemon_rig, None, lambda r: AravisPairSource(r, on_open=virtual.on_open, wait_for_cameras=True),
-                seconds=args.seconds,
-                banner=f"trackerd demo: daemon publishing on {endpoint}; hits below (Ctrl-C to stop)",
+                seconds=args.seconds, publisher_factory=publisher_then_listener,
+                banner=f"trackerd demo: daemon publishing on {', '.join(daemon_rig.outputs.zmq.endpoints)};"
+                " hits below (Ctrl-C to stop)",
             )
+        except PublishError as err:
+            if "in use" not in str(err):
+                raise
+            raise PublishError(f"{err}; to run beside the daemon there, give --endpoint tcp://127.0.0.1:5561") from err
         finally:
             stop.set()
-            listener.join(2.0)
+            for listener in listeners:
+                listener.join(2.0)
     _print_summary(summary)
     return code
 
@@ -83,7 +104,7 @@ def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str,
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"hit")
     sub.setsockopt(zmq.SUBSCRIBE, b"status")
-    sub.connect(endpoint.replace("*", "127.0.0.1"))
+    sub.connect(endpoint)
     try:
         while not stop.is_set():
             if not sub.poll(100):

@@ -88,9 +88,9 @@ def _settings(args: argparse.Namespace) -> tuple[InteractionConfig, Path | None,
         rig = load_rig(args.config).config
         interaction = rig.interaction
         directory = interaction.gestures.template_dir
-        from trackerd.cli.listen import _connectable
+        from trackerd.cli.listen import connectable_endpoint
 
-        endpoint = _connectable(rig.outputs.zmq.endpoints[0])
+        endpoint = connectable_endpoint(rig.outputs.zmq.endpoints[0])
     if getattr(args, "dir", None):
         directory = Path(args.dir)
     return interaction, directory, endpoint

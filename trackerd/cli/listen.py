@@ -100,7 +100,7 @@ def _target(args: argparse.Namespace) -> tuple[str, bytes | None]:
 
         zmq_config = load_rig(args.config).config.outputs.zmq
         if endpoint is None:
-            endpoint = _connectable(zmq_config.endpoints[0])
+            endpoint = connectable_endpoint(zmq_config.endpoints[0])
         if zmq_config.curve_secret_key_file is not None and not args.server_key:
             secret = Path(zmq_config.curve_secret_key_file)
             public = secret.with_suffix(".key") if secret.suffix == ".key_secret" else secret
@@ -110,7 +110,7 @@ def _target(args: argparse.Namespace) -> tuple[str, bytes | None]:
     return endpoint or DEFAULT_ENDPOINT, server_key
 
 
-def _connectable(endpoint: str) -> str:
+def connectable_endpoint(endpoint: str) -> str:
     """A bind endpoint as a local subscriber connects to it ('*' and 0.0.0.0 mean this host)."""
     for wildcard in ("tcp://*:", "tcp://0.0.0.0:"):
         if endpoint.startswith(wildcard):
