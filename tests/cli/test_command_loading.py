@@ -47,3 +47,17 @@ def test_a_light_command_starts_without_opencv_or_the_config_models():
 def test_without_a_known_command_every_command_is_loaded(argv):
     loaded, full = _commands(build_parser(argv)), _commands(build_parser())
     assert [c for c in COMMANDS if loaded[c].format_help() != full[c].format_help()] == []
+
+
+@pytest.mark.parametrize("command", ["run", "replay", "record", "demo", "simrig"])
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "soon"])
+def test_seconds_must_be_a_positive_number(command, value, capsys):
+    # Regression: `trackerd run --seconds 0` (or -1) ran for a moment and exited 0.
+    rig = ["--config", "rig.toml"]
+    needed = {"run": rig, "replay": ["session.trec"], "record": [*rig, "out.trec"], "simrig": rig, "demo": []}
+    required = needed[command]
+    with pytest.raises(SystemExit) as exit_:
+        build_parser([command]).parse_args([command, *required, "--seconds", value])
+    assert exit_.value.code == 2
+    assert f"argument --seconds: must be a positive number of seconds, not '{value}'" in capsys.readouterr().err
+    assert build_parser([command]).parse_args([command, *required, "--seconds", "2.5"]).seconds == 2.5

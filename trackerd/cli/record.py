@@ -21,6 +21,7 @@ import sys
 import threading
 from pathlib import Path
 
+from trackerd.cli._args import positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.errors import RecordingError
 from trackerd.recording.cameras import add_virtual_arguments
@@ -34,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--config", required=True, help="rig TOML file")
     parser.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
     limit = parser.add_mutually_exclusive_group()
-    limit.add_argument("--seconds", type=float, help="stop after this many seconds of recorded time")
+    limit.add_argument("--seconds", type=positive_seconds, help="stop after this many seconds of recorded time")
     limit.add_argument("--pairs", type=int, help="stop after this many pairs")
     parser.add_argument("--compression", choices=("none", "deflate"),
                         help="frame storage (default: the rig's [recording] compression, normally none)")

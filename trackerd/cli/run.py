@@ -20,6 +20,7 @@ import threading
 import time
 from pathlib import Path
 
+from trackerd.cli._args import positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
 from trackerd.errors import TrackerdError
@@ -34,7 +35,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file, e.g. /etc/trackerd/rig.toml")
-    parser.add_argument("--seconds", type=float, help="stop after this many seconds (default: run until stopped)")
+    parser.add_argument(
+        "--seconds", type=positive_seconds, help="stop after this many seconds (default: run until stopped)"
+    )
     parser.set_defaults(handler=run_command)
 
 

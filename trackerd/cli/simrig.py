@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.cli._args import positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.errors import TrackerdError
 from trackerd.sim import netns
@@ -35,7 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--config", required=True, help="rig TOML file, for example config/simulated.toml")
     parser.add_argument("--motion", default="sweep", choices=MOTIONS, help="scripted motion (default: sweep)")
-    parser.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
+    parser.add_argument(
+        "--seconds", type=positive_seconds, default=None, help="stop after this long (default: until Ctrl-C)"
+    )
     parser.add_argument("--out", type=Path, default=Path("simrig-out"), help="ground truth directory")
     parser.add_argument("--period", type=float, default=DEFAULT_PERIOD_S, help="motion period = loop length, s")
     parser.add_argument("--content-fps", type=float, default=30.0, help="rendered loop frames per second")
