@@ -202,6 +202,9 @@ def test_what_is_not_a_recording_says_so(tmp_path) -> None:
     assert "no such recording" in trackerd("recording", "check", tmp_path / "missing.trec").stderr
     run = trackerd("replay", tmp_path / "empty.trec")
     assert run.returncode == 1 and "Traceback" not in run.stderr
-    assert "recording.json: missing" in run.stderr
+    assert run.stderr.strip() == (
+        f"trackerd replay: {tmp_path / 'empty.trec'}: not a recording (no recording.json; a recording is a folder"
+        " holding recording.json, pairs.dat and pairs.idx)"
+    )
     run = trackerd("recording", "check", tmp_path / "file.trec")
     assert run.returncode == 1 and "not a recording" in run.stderr

@@ -23,8 +23,9 @@ def test_the_summary_quotes_the_last_status_period_that_processed_pairs() -> Non
     stopping = _status(0, None, None, 20.1)  # the last status, sent while stopping
     line = summary_line({"hits": 40, "status": stopping, "busy_status": busy})
     assert line == (
-        "40 hits received in 20 s; pairs processed by outcome: hit 40, not_found 2; processing latency"
-        " p50 21.3 ms, p99 48.0 ms (over 55 pairs of the last status period with pairs)"
+        "40 hits received in 20 s; pairs processed by outcome: hit 40, not_found 2; the daemon's own processing"
+        " latency (last frame of a pair received to hit published; the status lines' latency counts from capture)"
+        " p50 21.3 ms, p99 48.0 ms over the 55 pairs of the last status period"
     )
     assert "None" not in summary_line({"hits": 0, "status": stopping, "busy_status": None})
     assert summary_line({"hits": 0, "status": None, "busy_status": None}).endswith("no pair was processed")

@@ -146,6 +146,7 @@ def summary_line(summary: dict[str, Any]) -> str:
     if latency.get("p50_ms") is None:
         return f"{line}; no pair was processed"
     return (
-        f"{line}; processing latency p50 {latency['p50_ms']:.1f} ms, p99 {latency['p99_ms']:.1f} ms"
-        f" (over {latency.get('samples', 0)} pairs of the last status period with pairs)"
+        f"{line}; the daemon's own processing latency (last frame of a pair received to hit published;"
+        f" the status lines' latency counts from capture) p50 {latency['p50_ms']:.1f} ms,"
+        f" p99 {latency['p99_ms']:.1f} ms over the {latency.get('samples', 0)} pairs of the last status period"
     )

@@ -307,7 +307,10 @@ def read_metadata(folder: Path) -> RecordingMetadata:
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
-        raise RecordingError(f"{path}: missing: {folder} is not a trackerd recording") from None
+        raise RecordingError(
+            f"{folder}: not a recording (no {METADATA_FILE}; a recording is a folder holding"
+            f" {METADATA_FILE}, {DATA_FILE} and {INDEX_FILE})"
+        ) from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise RecordingError(f"{path}: not readable JSON ({err})") from err
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
