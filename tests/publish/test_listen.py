@@ -143,3 +143,9 @@ def test_format_tolerates_unknown_topics_and_missing_fields():
     assert line == "hit      #1  x 1.000 m  y ?  off wall  gap ?"
     status = format_message("status", json.loads(status_message().model_dump_json()))
     assert "right lost 0.0 Hz drops 3" in status and "latency p50 8.1 p99 12.0 ms" in status
+
+
+def test_a_status_detail_that_repeats_the_state_is_not_printed_twice():
+    stopping = json.loads(status_message(state="stopping").model_dump_json())
+    assert format_message("status", {**stopping, "detail": "stopping"}).count("stopping") == 1
+    assert format_message("status", {**stopping, "detail": "right: lost"}).endswith("(right: lost)")

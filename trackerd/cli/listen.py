@@ -279,7 +279,7 @@ def _status(d: dict[str, Any]) -> str:
         parts.append(f"latency p50 {_num(latency.get('p50_ms'), '.1f')} p99 {_num(latency.get('p99_ms'), '.1f')} ms")
     if d.get("version"):
         parts.append(f"v{d['version']}")
-    if d.get("detail"):
+    if d.get("detail") and d["detail"] != d.get("state"):  # "stopping (stopping)" says it twice
         parts.append(f"({d['detail']})")
     return "  ".join(parts)
 

@@ -115,6 +115,7 @@ def simrig_command(args: argparse.Namespace) -> int:
             " 127.0.0.1 plus Aravis's in-process Fake camera (docs/acquisition.md)"
         )
     network = "netns" if not missing else "loopback"
+    interrupted = False
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         virtual = VirtualRig(
@@ -138,19 +139,25 @@ def simrig_command(args: argparse.Namespace) -> int:
                 _write_rig(virtual.daemon_rig, args.write_rig, Path(args.config))
                 print(f"rig for the daemon written to {args.write_rig}: trackerd run --config {args.write_rig}",
                       file=log, flush=True)
+            elif not args.measure:
+                print(f"the daemon on these cameras, in another terminal: trackerd run --config {args.config}",
+                      file=log, flush=True)
             started = time.monotonic()
-            if args.measure:
-                figures = measure(virtual, args.seconds or 60.0)
-                print(json.dumps(figures) if args.json else format_figures(figures))
-            else:
-                _wait(args.seconds)
+            try:
+                if args.measure:
+                    figures = measure(virtual, args.seconds or 60.0)
+                    print(json.dumps(figures) if args.json else format_figures(figures))
+                else:
+                    _wait(args.seconds)
+            except (_Stop, KeyboardInterrupt):
+                interrupted = True  # what was served so far is still worth saying
             elapsed = time.monotonic() - started
         print(served_summary(virtual, elapsed), file=log)
     except (_Stop, KeyboardInterrupt):
         return 130
     finally:
         signal.signal(signal.SIGTERM, previous)
-    return 0
+    return 130 if interrupted else 0
 
 
 def _write_rig(rig: Any, path: Path, source: Path) -> None:
