@@ -133,6 +133,9 @@ def test_a_late_joiner_gets_the_current_status_before_the_next_periodic_one(cont
     period_s = 2.0
     with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as publisher:
         publisher.publish_status(status_message(sequence=7))
+        # Joining only once status 7 has gone through the proxy: joining while it is on its way,
+        # a subscriber may get it twice (docs/protocol.md), which is not what this test is about.
+        publisher._lvc.wait_for_statuses(1, timeout_s=5.0)
         early = subscriber(context, publisher.endpoints[0], b"status")
         hits_only = subscriber(context, publisher.endpoints[0], b"hit")
         start = time.perf_counter()
@@ -149,13 +152,8 @@ def test_a_late_joiner_gets_the_current_status_before_the_next_periodic_one(cont
         assert first["sequence"] == 7
 
         # A newer status is what the next joiner gets; the earlier joiner sees it again (documented).
-        # Status 7 may have come twice already: when the proxy thread forwarded it only after the
-        # subscription had reached the socket, the subscriber got it sent and answered.
         publisher.publish_status(status_message(sequence=8))
-        sequences = [7]
-        while sequences[-1] == 7 and early.poll(5000):
-            sequences.append(json.loads(early.recv_multipart()[1])["sequence"])
-        assert sequences in ([7, 8], [7, 7, 8]), sequences
+        assert early.poll(5000) and json.loads(early.recv_multipart()[1])["sequence"] == 8
         everything = subscriber(context, publisher.endpoints[0])
         assert everything.poll(5000)
         assert json.loads(everything.recv_multipart()[1])["sequence"] == 8

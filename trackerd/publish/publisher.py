@@ -126,8 +126,9 @@ class Publisher:
         self._proxy = threading.Thread(target=_run_proxy, args=sockets, name="trackerd-zmq-proxy", daemon=True)
         self._proxy.start()
         try:
-            _await_status_subscription(self._inlet, "the publisher's inlet")
-            _await_status_subscription(self._lvc.sender, "the last-value thread")
+            deadline = time.monotonic() + _WIRING_TIMEOUT_MS / 1000.0
+            _await_status_subscription(self._inlet, "the publisher's inlet", deadline)
+            _await_status_subscription(self._lvc.sender, "the last-value thread", deadline)
         except BaseException:
             self._closed = True
             self._shut_down()
@@ -289,10 +290,10 @@ class Publisher:
         self.close()
 
 
-def _await_status_subscription(socket: zmq.Socket, name: str) -> None:
+def _await_status_subscription(socket: zmq.Socket, name: str, deadline: float) -> None:
     """Block until the XPUB ``socket`` has received the proxy's ``status`` subscription, so that
-    what it sends from now on is forwarded; PublishError if the proxy thread never passes it on."""
-    deadline = time.monotonic() + _WIRING_TIMEOUT_MS / 1000.0
+    what it sends from now on is forwarded; PublishError if the proxy thread has not passed it on
+    by ``deadline`` (time.monotonic())."""
     while (left_ms := int((deadline - time.monotonic()) * 1000)) > 0:
         if socket.poll(left_ms) and socket.recv() == b"\x01" + STATUS_TOPIC:
             return
