@@ -174,6 +174,14 @@ def test_simrig_measures_a_run_and_cleans_up_on_sigterm(tmp_path: Path) -> None:
     assert not {f"{PREFIX}-cam0", f"{PREFIX}-cam1"} & _namespaces()
 
 
+def _running(pid: int) -> bool:
+    """Whether the process exists and has not exited (a zombie waits only to be reaped)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
 def _camera_processes(parent: int) -> list[int]:
     """The simulated camera processes started by ``parent``."""
     children = Path(f"/proc/{parent}/task/{parent}/children").read_text().split()
@@ -203,9 +211,9 @@ def test_the_cameras_leave_ctrl_c_to_the_rig_and_never_outlive_it(tmp_path: Path
         serving.kill()
         serving.communicate(timeout=10)
         deadline = time.monotonic() + 10.0
-        while time.monotonic() < deadline and any(Path(f"/proc/{pid}").exists() for pid in cameras):
+        while time.monotonic() < deadline and any(_running(pid) for pid in cameras):
             time.sleep(0.1)
-        assert not [pid for pid in cameras if Path(f"/proc/{pid}").exists()]
+        assert not [pid for pid in cameras if _running(pid)]
     finally:
         if serving.poll() is None:
             serving.send_signal(signal.SIGTERM)

@@ -263,6 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--phase-us", type=float, default=0.0, help="capture delay when free running")
     parser.add_argument("--no-tag", action="store_true", help="do not stamp the frame tag")
     parser.add_argument("--truth-out", type=Path, help="append per-frame ground truth (JSONL) here")
+    parser.add_argument("--parent-pid", type=int, default=None, help="exit when this process is no longer the parent")
     args = parser.parse_args(argv)
 
     import gi
@@ -299,15 +300,19 @@ def main(argv: list[str] | None = None) -> int:
     server.install()
     print(f"ready {args.interface} {args.serial}", flush=True)
     # Out of the terminal's process group (trackerd.sim.rig), a camera must not outlive the rig
-    # that started it: a parent killed outright leaves the camera with a new parent.
-    parent = os.getppid()
+    # that started it: a parent killed outright leaves the camera with a new parent. The rig names
+    # itself, so that a rig killed while this camera was starting is noticed too.
+    parent = os.getppid() if args.parent_pid is None else args.parent_pid
     while not stop.wait(0.5) and os.getppid() == parent:
         server.flush()
     server.uninstall()
     del camera
     if truth_out is not None:
         truth_out.close()
-    print(f"served {server.served}", flush=True)
+    try:
+        print(f"served {server.served}", flush=True)
+    except BrokenPipeError:  # the rig that would read it is gone; nothing left to flush at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

@@ -523,6 +523,8 @@ class VirtualRig:
             str(drift),
             "--phase-us",
             f"{self.phase_us(index):.1f}",
+            "--parent-pid",
+            str(os.getpid()),
         ]
         command += ["--truth-out", str(self.truth_path(index))]
         if self.loop is None:
