@@ -61,3 +61,9 @@ def test_seconds_must_be_a_positive_number(command, value, capsys):
     assert exit_.value.code == 2
     assert f"argument --seconds: must be a positive number of seconds, not '{value}'" in capsys.readouterr().err
     assert build_parser([command]).parse_args([command, *required, "--seconds", "2.5"]).seconds == 2.5
+
+
+def test_the_global_options_are_not_abbreviated(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        build_parser(["--he", "keys", "server"]).parse_args(["--he", "keys", "server"])
+    assert exit_.value.code == 2 and "unrecognized arguments: --he" in capsys.readouterr().err

@@ -48,6 +48,9 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="trackerd",
         description="Track a red/blue pointer with two cameras and report where on the wall it points.",
+        # No abbreviations of the global options: `--he run` would be the help of a parser in
+        # which only `run` was loaded.
+        allow_abbrev=False,
     )
     parser.add_argument("--version", action="version", version=f"trackerd {trackerd.__version__}")
     parser.add_argument(
