@@ -113,7 +113,7 @@ def test_a_config_override_is_applied_and_stated(bundle, first_replay, tmp_path)
 @pytest.mark.parametrize(
     ("endpoint", "reason"),
     [
-        ("tcp://0.0.0.0:5599", "(top level): tcp://0.0.0.0:5599 is reachable from the network; set"),
+        ("tcp://0.0.0.0:5599", "tcp://0.0.0.0:5599 is reachable from the network; set"),
         ("bogus", "endpoints: 'bogus' is not a tcp://HOST:PORT or ipc:///path endpoint"),
     ],
 )

@@ -89,13 +89,21 @@ def demo_command(args: argparse.Namespace) -> int:
         except PublishError as err:
             if "in use" not in str(err):
                 raise
-            raise PublishError(f"{err}; to run beside the daemon there, give --endpoint tcp://127.0.0.1:5561") from err
+            raise PublishError(f"{err}; to run beside the daemon there, give {_another_endpoint(daemon_rig)}") from err
         finally:
             stop.set()
             for listener in listeners:
                 listener.join(2.0)
     _print_summary(summary)
     return code
+
+
+def _another_endpoint(rig: Any) -> str:
+    """An --endpoint next to the rig's first (the port after it), for a demo beside a daemon."""
+    host, _, port = rig.outputs.zmq.endpoints[0].rpartition(":")
+    if host.startswith("tcp://") and port.isdigit():
+        return f"--endpoint {host}:{int(port) + 1}"
+    return "another --endpoint"
 
 
 def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str, Any], fmt) -> None:

@@ -50,7 +50,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--write-rig", type=Path, metavar="FILE",
         help="write the rig as the daemon must open it (the simulated cameras' addresses) to FILE,"
-        " for `trackerd run --config FILE` in another terminal",
+        " for `trackerd run --config FILE` in another terminal (default: OUT/daemon-rig.toml)",
     )
     parser.set_defaults(handler=simrig_command)
 
@@ -135,12 +135,12 @@ def simrig_command(args: argparse.Namespace) -> int:
             print(f"preparing the '{args.motion}' loop ({args.period:g} s at {args.content_fps:g} fps)...", file=log)
         with virtual:
             print(describe(virtual), file=log, flush=True)
-            if args.write_rig is not None:
-                _write_rig(virtual.daemon_rig, args.write_rig, Path(args.config))
-                print(f"rig for the daemon written to {args.write_rig}: trackerd run --config {args.write_rig}",
-                      file=log, flush=True)
-            elif not args.measure:
-                print(f"the daemon on these cameras, in another terminal: trackerd run --config {args.config}",
+            if args.write_rig is not None or not args.measure:
+                # The daemon must open the cameras as daemon_rig says (addresses, packet size,
+                # trigger pacing), so the next step is always a written rig, never the rig file itself.
+                written = args.write_rig if args.write_rig is not None else virtual.out_dir / "daemon-rig.toml"
+                _write_rig(virtual.daemon_rig, written, Path(args.config))
+                print(f"the daemon on these cameras, in another terminal: trackerd run --config {written}",
                       file=log, flush=True)
             started = time.monotonic()
             try:

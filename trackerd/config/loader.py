@@ -451,7 +451,8 @@ def with_endpoints(rig: RigConfig, endpoints: list[str], option: str = "--endpoi
     try:
         zmq_config = ZmqOutput.model_validate({**rig.outputs.zmq.model_dump(), "endpoints": tuple(endpoints)})
     except ValidationError as err:
-        raise ConfigError(f"{option}: {describe_validation_error(err, ZmqOutput)}") from err
+        problem = describe_validation_error(err, ZmqOutput).removeprefix("(top level): ")
+        raise ConfigError(f"{option}: {problem}") from err
     return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_config})})
 
 
