@@ -52,7 +52,7 @@ def record_command(args: argparse.Namespace) -> int:
 
     loaded = load_rig(args.config)
     out = Path(args.out)
-    if (args.pairs is not None and args.pairs < 1) or (args.seconds is not None and args.seconds <= 0):
+    if args.pairs is not None and args.pairs < 1:  # --seconds is checked by its argument type
         raise RecordingError("--pairs and --seconds must be positive")
     update: dict[str, object] = {"max_pairs": args.pairs, "max_duration_s": args.seconds}
     if args.compression:

@@ -167,8 +167,8 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         owner = _model_at(root, loc)
         names = list(owner.model_fields) if owner else []
         allowed = ", ".join(names) if names else "see docs/configuration.md"
-        close = difflib.get_close_matches(str(loc[-1]), names, n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        meant_here = _meant_key(root, loc)
+        hint = f" (did you mean '{meant_here[-1]}'?)" if meant_here else ""
         message = f"unknown key '{loc[-1]}'{hint}; allowed keys here: {allowed}"
     elif kind == "missing" and isinstance(loc[-1], int):
         # A fixed-length array (a 3-vector, the four corners) with too few values: pydantic
