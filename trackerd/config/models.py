@@ -345,6 +345,14 @@ class LocatorConfig(_Model):
     projection of its centre) before estimating the line."""
     centroid_sigma_px: float = Field(default=0.05, gt=0.0)
     """Assumed standard deviation of a centroid across the pointer, used for the hit's uncertainty."""
+    refine: Literal["auto", "always", "never"] = "auto"
+    """When each end's outline is fitted and the pointer fitted to every camera at once
+    (docs/geometry.md, "The pointer fit"): ``auto`` on every first sighting and whenever the quick
+    measurement cannot be trusted (an end partly hidden, dim, or not consistent with the others),
+    ``always`` on every pair, ``never`` only the interpretation planes on the detector's centroids."""
+    length_sigma_m: float = Field(default=0.003, gt=0.0)
+    """How exactly the pointer's length (pointer.length_m) is known: the pointer fit holds the two
+    ends this far apart, within this standard deviation."""
 
 
 # --------------------------------------------------------------------------- outputs

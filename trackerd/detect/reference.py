@@ -94,3 +94,26 @@ def report_baseline(
         centre = np.array([x0 + (x1 - x0) / 2.0, y0 + (y1 - y0) / 2.0])  # eq. 12
         ends[colour] = EndDetection(True, centre, float(xs.size), (x0, y0, x1, y1), 1.0, None)
     return ImageDetections(ends["red"], ends["blue"], "full")
+
+
+def naive_ends(frame: NDArray[np.uint8], pixel_format: str) -> dict[str, NDArray[np.float64] | None]:
+    """The naive tracker a newcomer writes first: each end is the bounding-box midpoint of the largest
+    connected blob of its hue (demosaic, HSV, ``inRange``, connected components).
+
+    No thresholds tuned to any scene, no shape test, no sub-pixel work: the yardstick
+    ``trackerd bench robustness`` holds the detector to on scenes neither was designed for.
+    """
+    hsv = cv2.cvtColor(to_bgr(frame, pixel_format), cv2.COLOR_BGR2HSV)
+    ends: dict[str, NDArray[np.float64] | None] = {}
+    for colour, hue in (("red", 0), ("blue", 120)):
+        mask = cv2.inRange(hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40), (min(hue + HUE_HALF_WIDTH, 179), 255, 255))
+        if hue - HUE_HALF_WIDTH < 0:
+            mask |= cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, 40), (179, 255, 255))
+        count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        if count <= 1:
+            ends[colour] = None
+            continue
+        largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+        x, y, w, h = (int(v) for v in stats[largest, :4])
+        ends[colour] = np.array([x + (w - 1) / 2.0, y + (h - 1) / 2.0])
+    return ends

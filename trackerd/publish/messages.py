@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-SCHEMA_VERSION = "1.2"
+SCHEMA_VERSION = "1.3"
 """MAJOR.MINOR of the message set this code writes."""
 
 SCHEMA_MAJOR = int(SCHEMA_VERSION.split(".")[0])
@@ -128,9 +128,11 @@ class PointerMessage(Message):
     """Ray gap at the front end (see hit.ray_gap_mm)."""
     back_gap_mm: float = Field(ge=0.0)
     """Ray gap at the back end."""
-    method: Literal["planes", "points"]
-    """How the line was estimated: interpretation planes, or the report's two triangulated points
-    (used when the planes are ill-conditioned)."""
+    method: Literal["planes", "points", "fit"]
+    """How the line was estimated: interpretation planes, the report's two triangulated points (used
+    when the planes are ill-conditioned), or (1.3) the pointer fit, both ends fitted to every camera's
+    measurements of the balls' outlines with the pointer's known length (docs/geometry.md). Open: treat
+    a value you do not know as one more way of estimating the same line."""
 
 
 class CameraStatusPart(_Part):

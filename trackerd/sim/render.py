@@ -18,8 +18,10 @@ into the scene of :mod:`trackerd.sim.scene`, so the ground truth is exact:
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from pathlib import Path
 from typing import Any
 
@@ -30,13 +32,10 @@ from trackerd.config.models import RigConfig
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
 from trackerd.pixelformat import from_rgb
+from trackerd.sim.appearance import DEFAULT_LOOK, Look, Occluder
 from trackerd.sim.scene import (
-    BLUE_BALL_RGB,
     HAND_RADIUS_M,
     HANDLE_LENGTH_FACTOR,
-    RED_BALL_RGB,
-    ROD_RGB,
-    SKIN_RGB,
     PointerPose,
     Room,
     build_room,
@@ -48,11 +47,11 @@ RENDER_VERSION = 1
 """Bump when the background rendering changes, so cached backgrounds are not reused."""
 
 TILE_PX = 16
-AMBIENT = 0.62
-DIFFUSE = 0.38
+AMBIENT = DEFAULT_LOOK.ambient
+DIFFUSE = DEFAULT_LOOK.diffuse
 
 # Primitive ids in the pointer's sample buffers.
-_NONE, _RED, _BLUE, _ROD, _HAND = 0, 1, 2, 3, 4
+_NONE, _RED, _BLUE, _ROD, _HAND, _OCCLUDER = 0, 1, 2, 3, 4, 5
 
 
 @dataclass(frozen=True)
@@ -65,6 +64,14 @@ class ViewTruth:
     """Centroid of the ball's visible image region (NaN if fully hidden or off-image)."""
     area_px: dict[str, float]
     """Visible area of the ball's image, in pixels."""
+    full_area_px: dict[str, float] = dataclass_field(default_factory=dict)
+    """Area the ball's image would have with nothing in front of it and no frame edge (its
+    silhouette, projected through the lens), in pixels."""
+
+    def visible_fraction(self, colour: str) -> float:
+        """Share of the ball's silhouette that is visible in the frame (0 when hidden or off-image)."""
+        full = self.full_area_px.get(colour, 0.0)
+        return float(min(1.0, self.area_px[colour] / full)) if full > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -93,8 +100,17 @@ class SceneRenderer:
         cameras: list[CameraModel] | None = None,
         *,
         cache_dir: Path | bool | None = True,
+        look: Look = DEFAULT_LOOK,
+        background_step: int = 1,
     ) -> None:
+        """``look``: paints and light (the default is the look every bench was rendered with);
+        ``background_step``: render the static room every this many pixels and interpolate (for
+        large sensors in randomized scenes, where the room behind the pointer needs no detail)."""
         self.rig = rig
+        self.look = look
+        self.background_step = max(1, int(background_step))
+        self._display_maps: dict[int, tuple[NDArray[np.float32], NDArray[np.float32], tuple[int, int, int, int]]] = {}
+        self._illumination: dict[int, NDArray[np.float32] | None] = {}
         self.cameras = cameras if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
         self.pixel_formats = [c.pixel_format for c in rig.cameras]
         self.wall = WallFrame.from_config(rig.wall)
@@ -123,46 +139,135 @@ class SceneRenderer:
         motion_steps: int = 6,
         pixel_format: str | None = None,
         noise: bool = True,
+        occluders: tuple[Occluder, ...] = (),
+        content: NDArray[np.float32] | None = None,
     ) -> RenderedView:
         """Render one camera's view with the pointer at ``pose`` (None: no pointer).
 
         With ``motion_to``, the pointer moves linearly from ``pose`` to ``motion_to``
         during the exposure, sampled at ``motion_steps`` instants (motion blur);
-        the truth is then averaged over the exposure.
+        the truth is then averaged over the exposure. ``occluders`` stand in front
+        of (or behind) the pointer; ``content`` is what the display shows
+        (:func:`trackerd.sim.appearance.wall_content`), where the room's own slide is
+        shown otherwise.
         """
         fmt = pixel_format or self.pixel_formats[camera_index]
         camera = self.cameras[camera_index]
-        mosaic = self._background_in_format(camera_index, fmt).copy()
+        illumination = self._illumination_map(camera_index)
+        # The room's mosaic is cached per format; a scene with its own light or content is composed in
+        # RGB and mosaiced at the end.
+        plain = illumination is None and content is None
+        if plain:
+            mosaic = self._background_in_format(camera_index, fmt).copy()
+            background = self._background(camera_index)
+        else:
+            background = self._background_showing(camera_index, content)
+            scene_rgb = background.copy()
         truth_centre = {c: np.full(2, np.nan) for c in ("red", "blue")}
         truth_centroid = {c: np.full(2, np.nan) for c in ("red", "blue")}
         truth_area = {"red": 0.0, "blue": 0.0}
+        full_area = {"red": 0.0, "blue": 0.0}
         if pose is not None:
             poses = [pose] if motion_to is None else [
                 pose.interpolate(motion_to, f) for f in np.linspace(0.0, 1.0, max(motion_steps, 2))
             ]
-            patch = self._pointer_patch(camera_index, poses)
+            patch = self._pointer_patch(camera_index, poses, occluders)
             if patch is not None:
                 x0, y0, rgb, coverage, sums = patch
-                background = self._background(camera_index)[y0 : y0 + rgb.shape[0], x0 : x0 + rgb.shape[1]]
-                blended = rgb + (1.0 - coverage[..., None]) * background
-                region = _format_values(blended.astype(np.float32), fmt, x0, y0)
-                if region.ndim == 2:
-                    mosaic[y0 : y0 + region.shape[0], x0 : x0 + region.shape[1]] = region
+                behind = background[y0 : y0 + rgb.shape[0], x0 : x0 + rgb.shape[1]]
+                blended = rgb + (1.0 - coverage[..., None]) * behind
+                if plain:
+                    region = _format_values(blended.astype(np.float32), fmt, x0, y0)
+                    if region.ndim == 2:
+                        mosaic[y0 : y0 + region.shape[0], x0 : x0 + region.shape[1]] = region
+                    else:
+                        mosaic[y0 : y0 + region.shape[0], x0 : x0 + region.shape[1], :] = region
                 else:
-                    mosaic[y0 : y0 + region.shape[0], x0 : x0 + region.shape[1], :] = region
+                    scene_rgb[y0 : y0 + rgb.shape[0], x0 : x0 + rgb.shape[1]] = blended
                 for colour, (count, sx, sy) in sums.items():
                     if count > 0:
                         truth_centroid[colour] = np.array([sx / count, sy / count])
                         truth_area[colour] = count
             mid = poses[len(poses) // 2] if len(poses) % 2 else poses[0].interpolate(poses[-1], 0.5)
+            radius = self.rig.pointer.end_diameter_m / 2.0
             for colour in ("red", "blue"):
-                truth_centre[colour] = camera.project(mid.centre_of(colour, self.front_colour)[None])[0]
+                centre = mid.centre_of(colour, self.front_colour)
+                truth_centre[colour] = camera.project(centre[None])[0]
+                full_area[colour] = silhouette_area_px(camera, centre, radius)
+        if not plain:
+            if illumination is not None:
+                scene_rgb *= illumination
+            mosaic = _format_values(scene_rgb, fmt, 0, 0)
         image = _quantise(mosaic, rng, self.rig.simulation.noise_sigma, self.rig.simulation.shot_noise, noise)
-        return RenderedView(image, fmt, ViewTruth(truth_centre, truth_centroid, truth_area))
+        return RenderedView(image, fmt, ViewTruth(truth_centre, truth_centroid, truth_area, full_area))
 
     def background_rgb(self, camera_index: int) -> NDArray[np.float32]:
         """The empty room as camera ``camera_index`` sees it, (H, W, 3) floats in [0, 1]."""
         return self._background(camera_index)
+
+    def _illumination_map(self, index: int) -> NDArray[np.float32] | None:
+        if index not in self._illumination:
+            cam = self.cameras[index]
+            self._illumination[index] = self.look.illumination(cam.width_px, cam.height_px)
+        return self._illumination[index]
+
+    def _background_showing(self, index: int, content: NDArray[np.float32] | None) -> NDArray[np.float32]:
+        """The room with the display showing ``content`` (a texture, row 0 at the top), or as it is."""
+        room = self._background(index)
+        if content is None:
+            return room
+        map_x, map_y, (r0, r1, c0, c1) = self._display_map(index)
+        out = room.copy()
+        if r1 <= r0:
+            return out
+        h, w = content.shape[:2]
+        # A fourth channel of ones says where the texture was sampled: the display's own coverage.
+        rgba = np.dstack([content.astype(np.float32), np.ones((h, w), dtype=np.float32)])
+        shown = cv2_remap(rgba, map_x * np.float32(w) - np.float32(0.5), map_y * np.float32(h) - np.float32(0.5))
+        alpha = shown[..., 3:4]
+        out[r0:r1, c0:c1] = room[r0:r1, c0:c1] * (np.float32(1.0) - alpha) + shown[..., :3]
+        return out
+
+    def _display_map(
+        self, index: int
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], tuple[int, int, int, int]]:
+        """Where each pixel's ray meets the display, as fractions of its width (left to right) and
+        height (top to bottom), -1 where the room or a ball in it is seen instead; cropped to the
+        rows and columns (r0, r1, c0, c1) that see the display, padded by a pixel."""
+        cached = self._display_maps.get(index)
+        if cached is not None:
+            return cached
+        cam = self.cameras[index]
+        xs = np.arange(cam.width_px, dtype=np.float64)
+        map_x = np.full((cam.height_px, cam.width_px), -1.0, dtype=np.float32)
+        map_y = np.full((cam.height_px, cam.width_px), -1.0, dtype=np.float32)
+        x0, y0, x1, y1 = self.room.display
+        rows_per_chunk = max(1, 400_000 // cam.width_px)
+        for r0 in range(0, cam.height_px, rows_per_chunk):
+            ys = np.arange(r0, min(cam.height_px, r0 + rows_per_chunk), dtype=np.float64)
+            gx, gy = np.meshgrid(xs, ys)
+            dirs = self._rays(index, gx.ravel(), gy.ravel())
+            axis, t, points = room_hits(self.room, cam.centre_m, dirs)
+            on_wall = (axis == self.room.faces[0].axis) & np.isclose(points[:, 2], self.room.faces[0].value, atol=1e-6)
+            for ball in self.room.balls:
+                on_wall &= ~(_ray_sphere(cam.centre_m, dirs, np.asarray(ball.centre_m), ball.radius_m) < t)
+            fx = (points[:, 0] - x0) / (x1 - x0)
+            fy = (y1 - points[:, 1]) / (y1 - y0)
+            inside = on_wall & (fx >= 0) & (fx <= 1) & (fy >= 0) & (fy <= 1)
+            block_x = np.where(inside, fx, -1.0).reshape(len(ys), cam.width_px)
+            block_y = np.where(inside, fy, -1.0).reshape(len(ys), cam.width_px)
+            map_x[r0 : r0 + len(ys)] = block_x
+            map_y[r0 : r0 + len(ys)] = block_y
+        rows, cols = np.nonzero(map_x >= 0)
+        if rows.size:
+            box = (max(int(rows.min()) - 1, 0), min(int(rows.max()) + 2, cam.height_px),
+                   max(int(cols.min()) - 1, 0), min(int(cols.max()) + 2, cam.width_px))
+        else:
+            box = (0, 0, 0, 0)
+        r0, r1, c0, c1 = box
+        cropped = (np.ascontiguousarray(map_x[r0:r1, c0:c1]), np.ascontiguousarray(map_y[r0:r1, c0:c1]), box)
+        self._display_maps[index] = cropped
+        return cropped
 
     # ------------------------------------------------------------------ rays
 
@@ -239,6 +344,7 @@ class SceneRenderer:
             cam.matrix.round(9).tolist(), cam.distortion.round(12).tolist(),
             cam.rotation.round(12).tolist(), cam.translation_m.round(12).tolist(),
             self.rig.simulation.background_supersampling,
+            *(() if self.background_step == 1 else (self.background_step,)),
         ))
         digest = hashlib.sha256(key.encode()).hexdigest()[:24]
         return self.cache_dir / f"bg-{digest}.npy"
@@ -246,19 +352,27 @@ class SceneRenderer:
     def _render_background(self, index: int) -> NDArray[np.float32]:
         cam = self.cameras[index]
         ss = self.rig.simulation.background_supersampling
+        step = self.background_step
         offsets = (np.arange(ss) + 0.5) / ss - 0.5
-        out = np.empty((cam.height_px, cam.width_px, 3), dtype=np.float32)
-        rows_per_chunk = max(1, 400_000 // (cam.width_px * ss * ss))
-        xs = np.arange(cam.width_px, dtype=np.float64)
-        for y0 in range(0, cam.height_px, rows_per_chunk):
-            ys = np.arange(y0, min(cam.height_px, y0 + rows_per_chunk), dtype=np.float64)
-            acc = np.zeros((len(ys), cam.width_px, 3), dtype=np.float64)
+        # Every step-th pixel (the centre of each step x step block), interpolated between.
+        width, height = -(-cam.width_px // step), -(-cam.height_px // step)
+        out = np.empty((height, width, 3), dtype=np.float32)
+        rows_per_chunk = max(1, 400_000 // (width * ss * ss))
+        xs = np.arange(width, dtype=np.float64) * step + (step - 1) / 2.0
+        for y0 in range(0, height, rows_per_chunk):
+            ys = np.arange(y0, min(height, y0 + rows_per_chunk), dtype=np.float64) * step + (step - 1) / 2.0
+            acc = np.zeros((len(ys), width, 3), dtype=np.float64)
             for oy in offsets:
                 for ox in offsets:
                     gx, gy = np.meshgrid(xs + ox, ys + oy)
                     dirs = self._rays(index, gx.ravel(), gy.ravel())
-                    acc += shade_room(self.room, cam.centre_m, dirs).reshape(len(ys), cam.width_px, 3)
+                    acc += shade_room(self.room, cam.centre_m, dirs).reshape(len(ys), width, 3)
             out[y0 : y0 + len(ys)] = acc / (ss * ss)
+        if step > 1:
+            import cv2
+
+            out = cv2.resize(out, (step * width, step * height), interpolation=cv2.INTER_LINEAR)
+            out = np.ascontiguousarray(out[: cam.height_px, : cam.width_px])
         return out
 
     def _background_in_format(self, index: int, fmt: str) -> NDArray[np.float32]:
@@ -271,19 +385,19 @@ class SceneRenderer:
 
     # ------------------------------------------------------------------ pointer
 
-    def _pointer_patch(self, index: int, poses: list[PointerPose]):
+    def _pointer_patch(self, index: int, poses: list[PointerPose], occluders: tuple[Occluder, ...] = ()):
         """``_render_pointer``, remembered for the last poses of each camera: a pointer held still
         (a presenter asked to hold it there) is ray-cast once; each frame still gets its own noise."""
-        key = tuple(p.front_m.tobytes() + p.back_m.tobytes() for p in poses)
+        key = (tuple(p.front_m.tobytes() + p.back_m.tobytes() for p in poses), occluders)
         last = self._last_patch.get(index)
         if last is not None and last[0] == key:
             return last[1]
-        patch = self._render_pointer(index, poses)
+        patch = self._render_pointer(index, poses, occluders)
         self._last_patch[index] = (key, patch)
         return patch
 
     def _render_pointer(
-        self, index: int, poses: list[PointerPose]
+        self, index: int, poses: list[PointerPose], occluders: tuple[Occluder, ...] = ()
     ) -> tuple[int, int, Array, Array, dict[str, tuple[float, float, float]]] | None:
         """Render the pointer alone in the tiles its image touches, averaged over ``poses``.
 
@@ -293,7 +407,7 @@ class SceneRenderer:
         cam = self.cameras[index]
         tiles = set()
         for pose in poses:
-            tiles |= self._tiles_near_pointer(cam, pose)
+            tiles |= self._tiles_near_pointer(cam, pose, occluders)
         if not tiles:
             return None
         tx = np.array([t[0] for t in tiles])
@@ -313,7 +427,7 @@ class SceneRenderer:
         weight = 1.0 / len(poses)
         for pose in poses:
             self._accumulate_pose(index, pose, x0, y0, local_x, local_y, centre_dirs, in_tiles.shape,
-                                  weight, rgb, coverage, sums)
+                                  weight, rgb, coverage, sums, occluders)
         result = {c: (float(v[0]), float(v[1]), float(v[2])) for c, v in sums.items()}
         return x0, y0, rgb, coverage, result
 
@@ -331,6 +445,7 @@ class SceneRenderer:
         rgb: Array,
         coverage: Array,
         sums: dict[str, Array],
+        occluders: tuple[Occluder, ...] = (),
     ) -> None:
         """Adaptive supersampling: one ray per pixel, then ss x ss rays where ids change.
 
@@ -341,7 +456,7 @@ class SceneRenderer:
         """
         cam = self.cameras[index]
         ss = self.rig.simulation.supersampling
-        ids_c, colours_c = shade_pointer(self, cam.centre_m, centre_dirs, pose)
+        ids_c, colours_c = shade_pointer(self, cam.centre_m, centre_dirs, pose, occluders)
         id_grid = np.zeros(shape, dtype=np.int8)
         id_grid[local_y, local_x] = ids_c
         padded = np.pad(id_grid, 1, mode="edge")
@@ -369,7 +484,7 @@ class SceneRenderer:
         ox, oy = np.meshgrid(offsets, offsets)
         sample_x = ((ex + x0)[:, None] + ox.ravel()[None, :]).ravel()
         sample_y = ((ey + y0)[:, None] + oy.ravel()[None, :]).ravel()
-        ids, colours = shade_pointer(self, cam.centre_m, self._rays(index, sample_x, sample_y), pose)
+        ids, colours = shade_pointer(self, cam.centre_m, self._rays(index, sample_x, sample_y), pose, occluders)
         n = ss * ss
         coverage[ey, ex] += weight * (ids != _NONE).reshape(-1, n).sum(axis=1) / n
         rgb[ey, ex] += weight * colours.reshape(-1, n, 3).sum(axis=1) / n
@@ -378,8 +493,10 @@ class SceneRenderer:
             if np.any(mask):
                 sums[colour] += (weight / n) * np.array([mask.sum(), sample_x[mask].sum(), sample_y[mask].sum()])
 
-    def _tiles_near_pointer(self, cam: CameraModel, pose: PointerPose) -> set[tuple[int, int]]:
-        """Tiles whose centre lies within reach of the pointer's projected outline."""
+    def _tiles_near_pointer(
+        self, cam: CameraModel, pose: PointerPose, occluders: tuple[Occluder, ...] = ()
+    ) -> set[tuple[int, int]]:
+        """Tiles whose centre lies within reach of the pointer's (and the occluders') projected outline."""
         pointer = self.rig.pointer
         length = pose.length_m
         handle_end = pose.back_m - HANDLE_LENGTH_FACTOR * length * pose.direction
@@ -397,7 +514,6 @@ class SceneRenderer:
             return set()
         projected = cam.project(points[ahead])
         reach = cam.focal_px * radius[ahead] / in_cam[ahead, 2] * 1.3 + 3.0 + TILE_PX * 0.75
-        tiles: set[tuple[int, int]] = set()
         n_tx = (cam.width_px + TILE_PX - 1) // TILE_PX
         n_ty = (cam.height_px + TILE_PX - 1) // TILE_PX
         # Candidate tiles around each projected point and along segments between them.
@@ -410,33 +526,92 @@ class SceneRenderer:
             for f in np.linspace(0, 1, steps):
                 dense.append((a + f * (b - a), reach[k] + f * (reach[k + 1] - reach[k])))
         dense.append((projected[-1], reach[-1]))
+        dense += self._occluder_reach(cam, occluders)
+        marked = np.zeros((n_ty, n_tx), dtype=bool)
         for centre, r in dense:
             if not np.all(np.isfinite(centre)):
                 continue
             lo = np.floor((centre - r) / TILE_PX).astype(int)
             hi = np.floor((centre + r) / TILE_PX).astype(int)
-            for tx in range(max(lo[0], 0), min(hi[0], n_tx - 1) + 1):
-                for ty in range(max(lo[1], 0), min(hi[1], n_ty - 1) + 1):
-                    tiles.add((tx, ty))
-        return tiles
+            marked[max(lo[1], 0) : min(hi[1], n_ty - 1) + 1, max(lo[0], 0) : min(hi[0], n_tx - 1) + 1] = True
+        rows, cols = np.nonzero(marked)
+        return set(zip(cols.tolist(), rows.tolist(), strict=True))
+
+
+    def _occluder_reach(self, cam: CameraModel, occluders: tuple[Occluder, ...]) -> list[tuple[Array, float]]:
+        """(image point, reach in pixels) along each occluder, for the tiles to render."""
+        out: list[tuple[Array, float]] = []
+        for occ in occluders:
+            centre = np.asarray(occ.centre_m, dtype=np.float64)
+            if occ.kind == "sphere":
+                points = centre[None]
+            else:
+                steps = max(2, int(occ.height_m / max(occ.radius_m, 0.01)) * 2 + 1)
+                points = centre + np.linspace(-0.5, 0.5, steps)[:, None] * np.array([0.0, occ.height_m, 0.0])
+            depth = cam.to_camera_frame(points)[:, 2]
+            ahead = depth > 0.05
+            if not np.any(ahead):
+                continue
+            projected = cam.project(points[ahead])
+            reach = cam.focal_px * occ.radius_m / depth[ahead] * 1.3 + 3.0 + TILE_PX * 0.75
+            step_px = TILE_PX / 2
+            for k in range(len(projected)):
+                out.append((projected[k], float(reach[k])))
+                if k + 1 < len(projected):
+                    a, b = projected[k], projected[k + 1]
+                    if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+                        n = max(2, int(np.linalg.norm(b - a) / step_px) + 1)
+                        for f in np.linspace(0, 1, n)[1:-1]:
+                            out.append((a + f * (b - a), float(reach[k] + f * (reach[k + 1] - reach[k]))))
+        return out
+
+
+def silhouette_area_px(camera: CameraModel, centre_m: Array, radius_m: float, points: int = 48) -> float:
+    """Area of a ball's image with nothing in front of it, unclipped: its outline projected through the lens.
+
+    The rays that graze a sphere touch it on a circle centred at ``c - (r^2 / d) u``
+    with radius ``r sqrt(1 - r^2 / d^2)``, in the plane perpendicular to the
+    viewing direction ``u`` (``d`` the distance to the centre); projecting that
+    circle gives the outline, whose polygon area is the image's area.
+    """
+    offset = np.asarray(centre_m, dtype=np.float64) - camera.centre_m
+    distance = float(np.linalg.norm(offset))
+    if distance <= radius_m or camera.to_camera_frame(np.asarray(centre_m, dtype=np.float64)[None])[0, 2] <= radius_m:
+        return 0.0
+    u = offset / distance
+    helper = np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(u, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    ring_radius = radius_m * math.sqrt(1.0 - (radius_m / distance) ** 2)
+    ring_centre = np.asarray(centre_m, dtype=np.float64) - (radius_m**2 / distance) * u
+    angles = np.linspace(0.0, 2.0 * math.pi, points, endpoint=False)
+    ring = ring_centre + ring_radius * (np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2)
+    px = camera.project(ring)
+    if not np.all(np.isfinite(px)):
+        return 0.0
+    x, y = px[:, 0], px[:, 1]
+    return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 # ----------------------------------------------------------------------------- shading
 
 
 def shade_pointer(
-    renderer: SceneRenderer, origin: Array, dirs: Array, pose: PointerPose
+    renderer: SceneRenderer, origin: Array, dirs: Array, pose: PointerPose, occluders: tuple[Occluder, ...] = ()
 ) -> tuple[NDArray[np.int8], Array]:
-    """Intersect rays (N, 3) from ``origin`` with the pointer; per ray the primitive id and shaded colour."""
+    """Intersect rays (N, 3) from ``origin`` with the pointer (and any occluders); per ray the
+    primitive id and shaded colour."""
     pointer = renderer.rig.pointer
+    look = renderer.look
     light = np.asarray(renderer.room.light_m)
     length = pose.length_m
     direction = pose.direction
     handle_end = pose.back_m - HANDLE_LENGTH_FACTOR * length * direction
     ball_r = pointer.end_diameter_m / 2.0
     rod_r = pointer.rod_diameter_m / 2.0
-    front_rgb = RED_BALL_RGB if renderer.front_colour == "red" else BLUE_BALL_RGB
-    back_rgb = BLUE_BALL_RGB if renderer.front_colour == "red" else RED_BALL_RGB
+    front_rgb = look.red_rgb if renderer.front_colour == "red" else look.blue_rgb
+    back_rgb = look.blue_rgb if renderer.front_colour == "red" else look.red_rgb
     front_id = _RED if renderer.front_colour == "red" else _BLUE
     back_id = _BLUE if renderer.front_colour == "red" else _RED
 
@@ -446,27 +621,48 @@ def shade_pointer(
     normals = np.zeros((n, 3))
     base = np.zeros((n, 3))
 
-    def consider(t: Array, normal: Array, prim: int, rgb: tuple[float, float, float]) -> None:
-        closer = t < best_t
-        if np.any(closer):
-            best_t[closer] = t[closer]
-            ids[closer] = prim
-            normals[closer] = normal[closer]
-            base[closer] = rgb
+    def near(centre: Array, bound_m: float) -> NDArray[np.intp]:
+        """The rays that pass within ``bound_m`` of ``centre``: the only ones that can hit what it bounds."""
+        offset = centre - origin
+        along = dirs @ offset
+        miss2 = offset @ offset - along * along
+        return np.flatnonzero((miss2 <= bound_m * bound_m) | (offset @ offset <= bound_m * bound_m))
 
-    for centre, radius, prim, rgb in (
-        (pose.front_m, ball_r, front_id, front_rgb),
-        (pose.back_m, ball_r, back_id, back_rgb),
-    ):
-        t = _ray_sphere(origin, dirs, centre, radius)
-        consider(t, (origin + t[:, None] * dirs - centre) / radius, prim, rgb)
+    def consider(rays: NDArray[np.intp], t: Array, normal: Array, prim: int, rgb: tuple[float, float, float]) -> None:
+        closer = t < best_t[rays]
+        if np.any(closer):
+            chosen = rays[closer]
+            best_t[chosen] = t[closer]
+            ids[chosen] = prim
+            normals[chosen] = normal[closer]
+            base[chosen] = rgb
+
+    def sphere(centre: Array, radius: float, prim: int, rgb: tuple[float, float, float]) -> None:
+        rays = near(centre, radius * 1.001)
+        if rays.size:
+            sub = dirs[rays]
+            t = _ray_sphere(origin, sub, centre, radius)
+            consider(rays, t, (origin + t[:, None] * sub - centre) / radius, prim, rgb)
+
+    def cylinder(start: Array, end: Array, radius: float, prim: int, rgb: tuple[float, float, float]) -> None:
+        rays = near(0.5 * (start + end), 0.5 * float(np.linalg.norm(end - start)) + radius * 1.001)
+        if rays.size:
+            t, normal = _ray_cylinder(origin, dirs[rays], start, end, radius)
+            consider(rays, t, normal, prim, rgb)
+
+    sphere(pose.front_m, ball_r, front_id, front_rgb)
+    sphere(pose.back_m, ball_r, back_id, back_rgb)
     for start, end in ((pose.front_m, pose.back_m), (pose.back_m, handle_end)):
-        t, normal = _ray_cylinder(origin, dirs, start, end, rod_r)
-        consider(t, normal, _ROD, ROD_RGB)
+        cylinder(start, end, rod_r, _ROD, look.rod_rgb)
     if renderer.rig.simulation.hand:
-        hand_centre = handle_end - HAND_RADIUS_M * 0.5 * direction
-        t = _ray_sphere(origin, dirs, hand_centre, HAND_RADIUS_M)
-        consider(t, (origin + t[:, None] * dirs - hand_centre) / HAND_RADIUS_M, _HAND, SKIN_RGB)
+        sphere(handle_end - HAND_RADIUS_M * 0.5 * direction, HAND_RADIUS_M, _HAND, look.skin_rgb)
+    for occ in occluders:
+        centre = np.asarray(occ.centre_m, dtype=np.float64)
+        if occ.kind == "sphere":
+            sphere(centre, occ.radius_m, _OCCLUDER, occ.rgb)
+        else:
+            half = np.array([0.0, occ.height_m / 2.0, 0.0])
+            cylinder(centre - half, centre + half, occ.radius_m, _OCCLUDER, occ.rgb)
 
     hit = ids != _NONE
     colours = np.zeros((n, 3))
@@ -475,12 +671,20 @@ def shade_pointer(
         to_light = light - points
         to_light /= np.linalg.norm(to_light, axis=1, keepdims=True)
         lambert = np.clip(np.sum(normals[hit] * to_light, axis=1), 0.0, 1.0)
-        colours[hit] = base[hit] * (AMBIENT + DIFFUSE * lambert)[:, None]
+        colours[hit] = base[hit] * (look.ambient + look.diffuse * lambert)[:, None]
+        if look.specular > 0.0:
+            # A white Phong highlight on the glossy balls: the light mirrored about the normal, seen along the ray.
+            ball = (ids[hit] == _RED) | (ids[hit] == _BLUE)
+            n_hit = normals[hit]
+            reflected = 2.0 * np.sum(n_hit * to_light, axis=1)[:, None] * n_hit - to_light
+            facing = np.clip(-np.sum(reflected * dirs[hit], axis=1), 0.0, 1.0)
+            colours[hit] += (ball * look.specular * facing**look.shininess)[:, None]
     return ids, colours
 
 
-def shade_room(room: Room, origin: Array, dirs: Array) -> Array:
-    """Colour (N, 3) seen along rays (N, 3) from ``origin`` inside the room box."""
+def room_hits(room: Room, origin: Array, dirs: Array) -> tuple[NDArray[np.int64], Array, Array]:
+    """Where rays (N, 3) from ``origin`` inside the room box leave it: the axis of the face hit,
+    the distance and the point."""
     lower = np.asarray(room.lower_m)
     upper = np.asarray(room.upper_m)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -490,7 +694,12 @@ def shade_room(room: Room, origin: Array, dirs: Array) -> Array:
     t_axes[t_axes <= 0] = np.inf
     axis = np.argmin(t_axes, axis=1)
     t = t_axes[np.arange(len(dirs)), axis]
-    points = origin + t[:, None] * dirs
+    return axis, t, origin + t[:, None] * dirs
+
+
+def shade_room(room: Room, origin: Array, dirs: Array) -> Array:
+    """Colour (N, 3) seen along rays (N, 3) from ``origin`` inside the room box."""
+    axis, t, points = room_hits(room, origin, dirs)
     colour = np.zeros((len(dirs), 3))
     for face_index, face in enumerate(room.faces):
         on_face = (axis == face.axis) & (np.isclose(points[:, face.axis], face.value, atol=1e-6))
@@ -604,6 +813,13 @@ def _ray_cylinder(origin: Array, dirs: Array, start: Array, end: Array, radius: 
 
 
 # ----------------------------------------------------------------------------- output
+
+
+def cv2_remap(image: NDArray[np.float32], map_x: NDArray[np.float32], map_y: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Bilinear lookup of ``image`` at (map_x, map_y) pixel positions, zero outside it."""
+    import cv2
+
+    return cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
 def _undistort_fast(cam: CameraModel, pixels: Array) -> Array:

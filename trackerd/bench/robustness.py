@@ -1,0 +1,299 @@
+"""Robustness: the pointer found and located in randomized rooms trackerd was not tuned on.
+
+Draws ``--rigs`` installations from wide distributions (trackerd/sim/randomized.py:
+camera placement, lenses and sensors, lighting, paints, pointer sizes) and renders
+``--poses`` frames in each (what the display shows, motion blur, a hand or the
+presenter's body in front of an end). Every frame is located two ways on the
+same images:
+
+* trackerd: `Locator.locate`, the rig's defaults, tracking reset for every frame
+  (each frame is a first sighting, the hardest case);
+* naive: the bounding-box midpoint of the largest blob of each end's hue in every
+  camera (trackerd/detect/reference.py, `naive_ends`), each end triangulated from
+  the cameras that found it, the line through the two points.
+
+Printed per factor (placement, content, lighting, blur, occlusion, paint, number
+of cameras, resolution) and overall: how many frames were *eligible* (each ball at
+least 60 % visible in at least two cameras), the share of those located, the wall
+error's median, 95th percentile and worst, how often the error exceeds 3 and 5
+times trackerd's own 1-sigma estimate, how often it is within 1 and 2 sigma, and
+the naive method's figures beside them. Frames that are not eligible (an end
+truly hidden) count separately: trackerd should say "not found" there, never give
+a confidently wrong hit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import sys
+import time
+from collections import Counter
+from typing import Any
+
+import numpy as np
+
+from trackerd.errors import GeometryError
+
+FACTORS = ("placement", "content", "lighting", "blur", "occlusion", "paint", "cameras", "resolution")
+MIN_VISIBLE = 0.6
+"""A ball counts as visible in a camera when at least this share of its silhouette is seen."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--rigs", type=_positive_int, default=30, help="randomized installations (default 30)")
+    parser.add_argument("--poses", type=_positive_int, default=40, help="frames per installation (default 40)")
+    parser.add_argument("--seed", type=int, default=2026, help="seed of the whole run (default 2026)")
+    parser.add_argument("--refine", choices=("auto", "always", "never"), default=None,
+                        help="override [locator] refine for trackerd (default: the rig's, auto)")
+    parser.add_argument("--workers", type=_positive_int, default=min(2, multiprocessing.cpu_count()),
+                        help="processes rendering and locating (default 2)")
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value
+
+
+def run(args: argparse.Namespace) -> int:
+    start = time.time()
+    tasks = [(args.seed, index, args.poses, args.refine) for index in range(args.rigs)]
+    records: list[dict[str, Any]] = []
+    progress = _Progress(args.rigs)
+    if args.workers > 1 and args.rigs > 1:
+        with multiprocessing.get_context("fork").Pool(args.workers) as pool:
+            for result in pool.imap_unordered(run_rig, tasks):
+                records.extend(result)
+                progress.step()
+    else:
+        for task in tasks:
+            records.extend(run_rig(task))
+            progress.step()
+    progress.done()
+    summary = summarise(records)
+    summary["seconds"] = round(time.time() - start, 1)
+    summary["arguments"] = {"rigs": args.rigs, "poses": args.poses, "seed": args.seed, "refine": args.refine}
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(format_summary(summary))
+    return 0
+
+
+class _Progress:
+    """One line on stderr per finished installation (a bar on a terminal)."""
+
+    def __init__(self, total: int) -> None:
+        self.total = total
+        self.finished = 0
+        self.start = time.time()
+        self.tty = sys.stderr.isatty()
+
+    def step(self) -> None:
+        self.finished += 1
+        elapsed = time.time() - self.start
+        text = f"robustness: {self.finished}/{self.total} installations, {elapsed:.0f} s"
+        if self.tty:
+            print(f"\r{text}", end="", file=sys.stderr, flush=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def done(self) -> None:
+        if self.tty:
+            print(file=sys.stderr)
+
+
+# --------------------------------------------------------------------------- one installation
+
+
+def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
+    """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
+    from trackerd.geometry.wall import WallFrame
+    from trackerd.locator import Locator
+    from trackerd.sim.appearance import wall_content
+    from trackerd.sim.randomized import random_rig, random_shot
+    from trackerd.sim.render import SceneRenderer
+    from trackerd.sim.scene import true_wall_hit
+
+    seed, index, poses, refine = task
+    rng = np.random.default_rng([seed, index])
+    drawn = random_rig(rng, name=f"random-{seed}-{index}")
+    rig = drawn.rig
+    if refine is not None:
+        rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": refine})})
+    widest = max(c.width_px for c in drawn.cameras)
+    renderer = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
+                             background_step=1 if widest <= 2000 else 2)
+    wall = WallFrame.from_config(drawn.rig.wall)
+    locator = Locator(rig, cameras=drawn.cameras)
+    records = []
+    for _ in range(poses):
+        shot = random_shot(drawn, rng, wall)
+        content = wall_content(shot.content_kind, rng)
+        views = [renderer.render(i, shot.pose, rng, motion_to=shot.motion_to, motion_steps=shot.motion_steps,
+                                 occluders=shot.occluders, content=content) for i in range(len(drawn.cameras))]
+        # The truth of a blurred frame is the middle of the exposure.
+        middle = shot.pose if shot.motion_to is None else shot.pose.interpolate(shot.motion_to, 0.5)
+        truth = true_wall_hit(middle, wall).wall_xy_m
+        visible = [[v.truth.visible_fraction(c) for c in ("red", "blue")] for v in views]
+        seeing = sum(1 for pair in visible if min(pair) >= MIN_VISIBLE)
+        images = [v.image for v in views]
+        locator.reset()
+        began = time.perf_counter()
+        fix = locator.locate(images)
+        seconds = time.perf_counter() - began
+        record: dict[str, Any] = {
+            "rig": index,
+            "factors": {**drawn.factors, **shot.factors},
+            "eligible": seeing >= 2,
+            "visible": visible,
+            "status": fix.status,
+            "reason": fix.reason,
+            "error_m": None,
+            "sigma_m": fix.uncertainty_m,
+            "seconds": seconds,
+            "naive_error_m": None,
+        }
+        if fix.hit is not None and truth is not None:
+            record["error_m"] = float(np.linalg.norm(fix.hit.wall_xy_m - truth))
+        naive = naive_hit(drawn.cameras, wall, [v.image for v in views], [v.pixel_format for v in views],
+                          drawn.rig.pointer.front_colour)
+        if naive is not None and truth is not None:
+            record["naive_error_m"] = float(np.linalg.norm(naive - truth))
+        records.append(record)
+    return records
+
+
+def naive_hit(cameras, wall, images, pixel_formats, front_colour: str) -> np.ndarray | None:
+    """The naive method's wall hit: largest blob's box midpoints, each end triangulated, eq. 26-28."""
+    from trackerd.detect.reference import naive_ends
+    from trackerd.geometry.triangulation import triangulate_least_squares
+    from trackerd.geometry.wall import intersect_line_plane
+
+    found = [naive_ends(image, fmt) for image, fmt in zip(images, pixel_formats, strict=True)]
+    ends = {}
+    for colour in ("red", "blue"):
+        origins, dirs = [], []
+        for cam, per_camera in zip(cameras, found, strict=True):
+            pixel = per_camera[colour]
+            if pixel is not None:
+                o, d = cam.pixel_to_ray(pixel[None])
+                origins.append(o[0])
+                dirs.append(d[0])
+        if len(origins) < 2:
+            return None
+        try:
+            ends[colour], _ = triangulate_least_squares(np.array(origins), np.array(dirs))
+        except GeometryError:
+            return None
+    back = ends["blue" if front_colour == "red" else "red"]
+    front = ends[front_colour]
+    try:
+        hit = intersect_line_plane(back, front, wall.plane)
+    except GeometryError:
+        return None
+    if float(hit.u) <= 0:
+        return None
+    return wall.to_wall_m(hit.point_m)
+
+
+# --------------------------------------------------------------------------- figures
+
+
+def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """The figures of a set of frames (see the module's docstring)."""
+    eligible = [r for r in records if r["eligible"]]
+    located = [r for r in eligible if r["error_m"] is not None]
+    errors = np.array([r["error_m"] for r in located]) * 1000.0
+    with_sigma = [r for r in located if r["sigma_m"]]
+    ratios = np.array([r["error_m"] / r["sigma_m"] for r in with_sigma])
+    naive = np.array([r["naive_error_m"] for r in eligible if r["naive_error_m"] is not None]) * 1000.0
+    hidden = [r for r in records if not r["eligible"]]
+    hidden_hits = [r for r in hidden if r["error_m"] is not None]
+    wrong_hidden = [r for r in hidden_hits if r["sigma_m"] and r["error_m"] > 5.0 * r["sigma_m"]]
+
+    def stats(values: np.ndarray) -> dict[str, float | None]:
+        if values.size == 0:
+            return {"median_mm": None, "p95_mm": None, "worst_mm": None}
+        return {"median_mm": round(float(np.median(values)), 2), "p95_mm": round(float(np.percentile(values, 95)), 2),
+                "worst_mm": round(float(np.max(values)), 1)}
+
+    def share(count: int, total: int) -> float | None:
+        return round(100.0 * count / total, 1) if total else None
+
+    return {
+        "frames": len(records),
+        "eligible": len(eligible),
+        "trackerd": {
+            "found_percent": share(len(located), len(eligible)),
+            **stats(errors),
+            "over_3_sigma_percent": share(int(np.sum(ratios > 3.0)), len(ratios)),
+            "over_5_sigma_percent": share(int(np.sum(ratios > 5.0)), len(ratios)),
+            "within_1_sigma_percent": share(int(np.sum(ratios <= 1.0)), len(ratios)),
+            "within_2_sigma_percent": share(int(np.sum(ratios <= 2.0)), len(ratios)),
+        },
+        "naive": {"found_percent": share(len(naive), len(eligible)), **stats(naive)},
+        "hidden": {"frames": len(hidden), "hits": len(hidden_hits), "confidently_wrong": len(wrong_hidden)},
+    }
+
+
+def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {"overall": figures(records), "factors": {}}
+    for factor in FACTORS:
+        levels = sorted({r["factors"][factor] for r in records})
+        out["factors"][factor] = {
+            level: figures([r for r in records if r["factors"][factor] == level]) for level in levels
+        }
+    misses = Counter(_first_clause(r["reason"]) for r in records if r["eligible"] and r["error_m"] is None)
+    out["misses"] = dict(misses.most_common(12))
+    seconds = np.array([r["seconds"] for r in records]) * 1000.0
+    out["locate_ms"] = {"median": round(float(np.median(seconds)), 2), "p95": round(float(np.percentile(seconds, 95)), 2)}
+    return out
+
+
+def _first_clause(reason: str | None) -> str:
+    """A miss's reason without the figures that make every one different, to count them."""
+    if not reason:
+        return "(no reason)"
+    text = reason.split(";")[0]
+    if ":" in text:
+        text = text.split(":", 1)[1]
+    return "".join(" N" if ch.isdigit() else ch for ch in text).replace(" N N", " N").replace("NN", "N").strip()[:90]
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    head = (f"  {'':<22}{'frames':>7}{'elig.':>6} | {'found':>6}{'median':>8}{'p95':>8}{'worst':>8}"
+            f"{'>3s':>6}{'>5s':>6}{'<=1s':>6}{'<=2s':>6} | {'naive':>6}{'median':>8}{'p95':>8}{'worst':>8}"
+            f" | hidden: hits, wrong")
+    lines = ["Wall error on randomized installations, trackerd against the naive method (mm; % of eligible frames;"
+             " s: trackerd's own sigma)", head]
+
+    def row(label: str, f: dict[str, Any]) -> str:
+        t, n, h = f["trackerd"], f["naive"], f["hidden"]
+
+        def cell(value: Any, width: int, fmt: str = ".1f") -> str:
+            return f"{'-':>{width}}" if value is None else f"{value:>{width}{fmt}}"
+
+        return (f"  {label:<22}{f['frames']:>7}{f['eligible']:>6} | {cell(t['found_percent'], 6)}"
+                f"{cell(t['median_mm'], 8, '.2f')}{cell(t['p95_mm'], 8, '.2f')}{cell(t['worst_mm'], 8)}"
+                f"{cell(t['over_3_sigma_percent'], 6)}{cell(t['over_5_sigma_percent'], 6)}"
+                f"{cell(t['within_1_sigma_percent'], 6, '.0f')}{cell(t['within_2_sigma_percent'], 6, '.0f')} | "
+                f"{cell(n['found_percent'], 6)}{cell(n['median_mm'], 8, '.2f')}{cell(n['p95_mm'], 8, '.2f')}"
+                f"{cell(n['worst_mm'], 8)} | {h['hits']:>4} {h['confidently_wrong']:>3}")
+
+    lines.append(row("overall", summary["overall"]))
+    for factor, levels in summary["factors"].items():
+        lines.append(f"  {factor}:")
+        for level, f in levels.items():
+            lines.append(row("  " + level, f))
+    if summary["misses"]:
+        lines.append("eligible frames not located, by reason:")
+        lines += [f"  {count:>4}  {reason}" for reason, count in summary["misses"].items()]
+    lines.append(f"trackerd locate per frame: median {summary['locate_ms']['median']} ms,"
+                 f" p95 {summary['locate_ms']['p95']} ms (a first sighting: full search)")
+    lines.append(f"({summary['seconds']} s; --rigs {summary['arguments']['rigs']} --poses"
+                 f" {summary['arguments']['poses']} --seed {summary['arguments']['seed']})")
+    return "\n".join(lines)

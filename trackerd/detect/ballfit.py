@@ -1,0 +1,351 @@
+"""A ball's outline, found where it is visible and fitted with a circle: a centre that partial occlusion,
+shading and a brightness the thresholds were not set for do not pull.
+
+The thresholded blob of an end is only the part of the ball that passes the
+colour test: in dim light its shaded side fails, a specular highlight punches a
+hole in it, and the rod, a finger or the presenter's body hides part of it from
+a camera behind the presenter. Its centroid then moves by pixels, which the
+wall magnifies to centimetres. The *outline* of the ball, where it is visible,
+is still a circle (a perspective sphere's image is an ellipse within a small
+fraction of a pixel of one at the sizes seen here; the locator fits the exact
+cone, :func:`trackerd.geometry.sphere.fit_sphere_direction`), and its centre is
+the ball's.
+
+So, around a rough position (a blob's centre, a tracked position, a prediction):
+
+1. the colour's *excess* (its sample minus the larger of the other channels
+   interpolated at the sample's own position; :func:`trackerd.detect.colour.excess_window`)
+   is read along 48 rays from the rough centre, every 0.5 px, by bilinear
+   interpolation on the colour's own sample lattice;
+2. along each ray the rim is where the excess falls through the midpoint
+   between the ball's level on that ray (the highest excess inside) and the
+   background's level beyond it: a threshold of that ray's own, so shading,
+   gain and white balance do not move it;
+3. a circle is fitted to the rim points robustly (the best of many three-point
+   circles, then iteratively reweighted least squares with Tukey's weights),
+   which leaves out the stretches of rim that belong to an occluder (points
+   inside the circle) or to a background of the ball's colour (outside it);
+4. twice: the second pass starts from the first circle.
+
+The result carries the rim points that agree with the circle (for the
+locator's exact fit), the share of rays whose rim agreed (how much of the
+outline is visible), the rim points' scatter and the centre's standard error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.detect.colour import EXCESS_SCALE, SampleGrid, excess_window
+
+Array = NDArray[np.float64]
+
+RAYS = 48
+"""Directions the outline is looked for along."""
+
+STEP_PX = 0.5
+"""Spacing of the samples along each ray."""
+
+MIN_CONTRAST = 10.0
+"""A ray's ball level must exceed its background level by this many grey levels for a rim to count."""
+
+MIN_RIM_FRACTION = 0.35
+"""At least this share of the rays must find a rim that agrees with the circle."""
+
+TUKEY_C = 4.685
+"""Tukey's biweight constant, in units of the residuals' robust scale."""
+
+ROD_EXCLUSION_DEG = 30.0
+"""Rays this close to the pointer's axis (either way) are not used when the axis is given."""
+
+MIN_SCALE_PX = 0.25
+"""The rim residuals' scale is never taken below this (exact renders would otherwise give zero)."""
+
+
+@dataclass(frozen=True, slots=True)
+class BallFit:
+    """A ball's circle in one image, or why there is none."""
+
+    found: bool
+    centre_px: Array
+    """(x, y) of the circle's centre; NaN when not found."""
+    radius_px: float
+    rim_px: Array
+    """(N, 2) rim points that agree with the circle."""
+    rim_fraction: float
+    """Share of the rays looked along (all, or those off the pointer's axis) whose rim agrees with the
+    circle: how much of the outline is visible."""
+    residual_px: float
+    """Robust scatter of the agreeing rim points about the circle."""
+    centre_sigma_px: float
+    """Standard error of the centre along each axis, from the scatter and the rim's coverage."""
+    contrast: float
+    """Median ball-over-background excess on the agreeing rays, grey levels."""
+    reason: str | None = None
+
+    @staticmethod
+    def missing(reason: str) -> BallFit:
+        nan = np.full(2, np.nan)
+        return BallFit(False, nan, math.nan, np.zeros((0, 2)), 0.0, math.nan, math.nan, 0.0, reason)
+
+
+_ANGLES = np.linspace(0.0, 2.0 * math.pi, RAYS, endpoint=False)
+_COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
+
+
+def fit_ball(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    colour: str,
+    x_px: float,
+    y_px: float,
+    radius_px: float,
+    *,
+    axis: tuple[float, float] | None = None,
+    passes: int = 2,
+) -> BallFit:
+    """The circle of the ``colour`` ball near (x_px, y_px), of roughly ``radius_px`` (see the module).
+
+    ``axis``: the direction of the pointer's image at this ball, (dx, dy) towards the other ball. The
+    rays within ROD_EXCLUSION_DEG of it, either way, are left out: there the rod (and the handle behind
+    the back ball) meets the ball, and the rim is a mix of ball and rod that pulls a fit along the
+    pointer. Leaving out both directions keeps what is left symmetric about the axis.
+    """
+    if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:
+        return BallFit.missing("no position to look at")
+    fit = BallFit.missing("not looked for")
+    cx, cy, radius = float(x_px), float(y_px), max(float(radius_px), 2.0)
+    for _ in range(passes):
+        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis)
+        if not fit.found:
+            return fit
+        cx, cy = (float(v) for v in fit.centre_px)
+        radius = fit.radius_px
+    return fit
+
+
+def _one_pass(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, cx: float, cy: float,
+              radius: float, axis: tuple[float, float] | None) -> BallFit:
+    reach = 2.0 * radius + 3.0
+    s = grid.cell_px
+    dr, dc = grid.offset(colour)
+    lo_r, hi_r, lo_c, hi_c = grid.interior()
+    region = (
+        max(lo_r, int(math.floor((cy - reach - dr) / s)) - 1),
+        min(hi_r, int(math.ceil((cy + reach - dr) / s)) + 2),
+        max(lo_c, int(math.floor((cx - reach - dc) / s)) - 1),
+        min(hi_c, int(math.ceil((cx + reach - dc) / s)) + 2),
+    )
+    if region[1] - region[0] < 3 or region[3] - region[2] < 3:
+        return BallFit.missing("the ball is at the frame's edge")
+    excess, _ = excess_window(frame, grid, colour, region)
+    levels = excess.astype(np.float32) / np.float32(EXCESS_SCALE)
+    # Samples along the rays, as lattice coordinates of the window.
+    rho = np.arange(0.15 * radius, reach, STEP_PX)
+    xs = cx + _COS[:, None] * rho[None, :]
+    ys = cy + _SIN[:, None] * rho[None, :]
+    u = (xs - dc) / s - region[2]
+    v = (ys - dr) / s - region[0]
+    profile = _bilinear(levels, u, v)  # (RAYS, M), NaN outside the window
+    rim, contrast = _rims(profile, rho, radius, float(s))
+    usable = RAYS
+    if axis is not None and math.hypot(*axis) > 0:
+        ax, ay = axis[0] / math.hypot(*axis), axis[1] / math.hypot(*axis)
+        off_axis = np.abs(_COS * ax + _SIN * ay) < math.cos(math.radians(ROD_EXCLUSION_DEG))
+        rim = np.where(off_axis, rim, np.nan)
+        usable = int(np.count_nonzero(off_axis))
+    ok = np.isfinite(rim)
+    if np.count_nonzero(ok) < max(6, int(MIN_RIM_FRACTION * usable)):
+        return BallFit.missing(f"the ball's outline is not visible (rim on {np.count_nonzero(ok)} of {usable} rays)")
+    points = np.column_stack([cx + _COS[ok] * rim[ok], cy + _SIN[ok] * rim[ok]])
+    circle = robust_circle(points)
+    if circle is None:
+        return BallFit.missing("the rim points are not a circle")
+    centre, r, weights, scale = circle
+    agree = weights > 0.0
+    fraction = float(np.count_nonzero(agree)) / usable
+    if fraction < MIN_RIM_FRACTION or not (0.3 * radius <= r <= 3.0 * radius):
+        return BallFit.missing(f"too little of the ball's outline is a circle ({fraction:.0%} of its rays)")
+    used = points[agree]
+    # The centre's standard error: the scatter over the rim, spread over the directions it covers.
+    directions = (used - centre) / r
+    information = directions.T @ (directions * weights[agree, None])
+    smallest = float(np.linalg.eigvalsh(information)[0])
+    sigma = scale / math.sqrt(max(smallest, 1e-9))
+    return BallFit(True, centre, r, used, fraction, scale, sigma, float(np.median(contrast[ok][agree])))
+
+
+def _bilinear(image: NDArray[np.float32], u: Array, v: Array) -> Array:
+    """``image`` at fractional (column u, row v), NaN outside."""
+    h, w = image.shape
+    inside = (u >= 0) & (v >= 0) & (u <= w - 1) & (v <= h - 1)
+    u0 = np.clip(np.floor(u).astype(np.intp), 0, max(w - 2, 0))
+    v0 = np.clip(np.floor(v).astype(np.intp), 0, max(h - 2, 0))
+    fu = u - u0
+    fv = v - v0
+    top = image[v0, u0] * (1.0 - fu) + image[v0, u0 + 1] * fu
+    bottom = image[v0 + 1, u0] * (1.0 - fu) + image[v0 + 1, u0 + 1] * fu
+    out = top * (1.0 - fv) + bottom * fv
+    return np.where(inside, out, np.nan)
+
+
+def _rims(profile: Array, rho: Array, radius: float, lattice_px: float) -> tuple[Array, Array]:
+    """Per ray, the radius where the excess falls through the midpoint of the levels just inside and
+    just outside the rim (NaN where there is no such fall), and that ray's contrast.
+
+    The fall is first located against the ray's own ball level (the highest excess inside) and its
+    background level (beyond 1.5 radii); the midpoint is then taken between the levels a lattice
+    spacing and a half either side of it, so a ball that darkens towards its limb (or is shaded on
+    one side) does not pull its rim inwards.
+    """
+    rays, count = profile.shape
+    row = np.arange(rays)
+    index = np.arange(count)
+    step = rho[1] - rho[0]
+    inner = rho <= 1.25 * radius
+    outer = rho >= 1.5 * radius
+    with np.errstate(all="ignore"):
+        peak_at = np.nanargmax(np.where(inner[None, :] & np.isfinite(profile), profile, -np.inf), axis=1)
+        peak = profile[row, peak_at]
+        background = _row_medians(np.where(outer[None, :], profile, np.nan))
+        contrast = peak - background
+        threshold = 0.5 * (peak + background)
+        below = (profile < threshold[:, None]) & (index[None, :] > peak_at[:, None])
+    has = below.any(axis=1) & (contrast >= MIN_CONTRAST) & np.isfinite(contrast)
+    first = np.argmax(below, axis=1)
+    # The levels either side of the fall, then the fall through their midpoint near it.
+    half = max(1, int(round(1.5 * lattice_px / step)))
+    inside_at = np.clip(np.maximum(first - 1 - half, peak_at), 0, count - 1)
+    outside_at = np.clip(first + half, 0, count - 1)
+    with np.errstate(all="ignore"):
+        local = 0.5 * (profile[row, inside_at] + profile[row, outside_at])
+        local = np.where(np.isfinite(local), local, threshold)
+    offsets = np.arange(-half - 1, half + 1)
+    span = np.clip(first[:, None] + offsets[None, :], 0, count - 1)
+    values = profile[row[:, None], span]
+    falls = (values[:, :-1] >= local[:, None]) & (values[:, 1:] < local[:, None])
+    found_local = falls.any(axis=1)
+    # The fall nearest the first one (the last such fall before it, else the first after it).
+    last_before = np.where(found_local, (falls.shape[1] - 1) - np.argmax(falls[:, ::-1], axis=1), 0)
+    k = np.where(found_local, span[row, last_before], np.clip(first - 1, 0, count - 1))
+    level = np.where(found_local, local, threshold)
+    a = profile[row, k]
+    b = profile[row, np.clip(k + 1, 0, count - 1)]
+    with np.errstate(all="ignore"):
+        frac = np.clip((a - level) / (a - b), 0.0, 1.0)
+    rim = rho[k] + frac * step
+    rim = np.where(has & np.isfinite(rim), rim, np.nan)
+    return rim, contrast
+
+
+def _row_medians(values: Array) -> Array:
+    """Median of each row's finite values (NaN for a row with none); np.nanmedian is ten times slower."""
+    ordered = np.sort(np.where(np.isfinite(values), values, np.inf), axis=1)
+    count = np.sum(np.isfinite(values), axis=1)
+    rows = np.arange(len(values))
+    low = ordered[rows, np.clip((count - 1) // 2, 0, values.shape[1] - 1)]
+    high = ordered[rows, np.clip(count // 2, 0, values.shape[1] - 1)]
+    return np.where(count > 0, 0.5 * (low + high), np.nan)
+
+
+_TRIPLES: dict[int, NDArray[np.intp]] = {}
+
+
+def _triples(n: int, trials: int) -> NDArray[np.intp]:
+    """Fixed, well spread index triples for ``n`` points (cached): the same every call, so a fit is
+    reproducible, and cheap."""
+    key = n * 1000 + trials
+    cached = _TRIPLES.get(key)
+    if cached is None:
+        rng = np.random.default_rng(n)
+        cached = np.sort(np.array([rng.choice(n, 3, replace=False) for _ in range(trials)]), axis=1)
+        _TRIPLES[key] = cached
+    return cached
+
+
+def _circle_of(points: Array) -> tuple[Array, float] | None:
+    """Least-squares (algebraic) circle through points (N, 2): centre, radius."""
+    x, y = points[:, 0], points[:, 1]
+    mx, my = x.mean(), y.mean()
+    a = np.column_stack([x - mx, y - my, np.ones(len(x))])
+    b = (x - mx) ** 2 + (y - my) ** 2
+    try:
+        sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    except np.linalg.LinAlgError:
+        return None
+    cx, cy = sol[0] / 2.0, sol[1] / 2.0
+    r2 = sol[2] + cx * cx + cy * cy
+    if not r2 > 0:
+        return None
+    return np.array([cx + mx, cy + my]), math.sqrt(r2)
+
+
+def robust_circle(points: Array, trials: int = 48) -> tuple[Array, float, Array, float] | None:
+    """A circle through most of ``points`` (N, 2), ignoring the rest: centre, radius, per-point weights
+    (0 for points left out) and the residuals' robust scale.
+
+    Starts from the best of ``trials`` circles through three points (the most points within two
+    scales of it; deterministic for a seed), then iteratively reweighted least squares with Tukey's
+    biweight, the scale re-estimated from the median absolute residual each time.
+    """
+    n = len(points)
+    if n < 5:
+        return None
+    triples = _triples(n, trials)
+    p1, p2, p3 = points[triples[:, 0]], points[triples[:, 1]], points[triples[:, 2]]
+    # Circumcentres of all triples at once.
+    ax, ay = p1[:, 0], p1[:, 1]
+    bx, by = p2[:, 0], p2[:, 1]
+    cx, cy = p3[:, 0], p3[:, 1]
+    d = 2.0 * (ax * (by - cy) + bx * (cy - ay) + cx * (ay - by))
+    good = np.abs(d) > 1e-9
+    if not np.any(good):
+        return None
+    d = np.where(good, d, 1.0)
+    a2, b2, c2 = ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy
+    ux = (a2 * (by - cy) + b2 * (cy - ay) + c2 * (ay - by)) / d
+    uy = (a2 * (cx - bx) + b2 * (ax - cx) + c2 * (bx - ax)) / d
+    r = np.hypot(ax - ux, ay - uy)
+    residual = np.abs(np.hypot(points[None, :, 0] - ux[:, None], points[None, :, 1] - uy[:, None]) - r[:, None])
+    support = np.where(good[:, None], residual < 2.0 * max(MIN_SCALE_PX, 0.05 * float(np.median(r[good]))), False)
+    best = int(np.argmax(support.sum(axis=1)))
+    centre, radius = np.array([ux[best], uy[best]]), float(r[best])
+    weights = np.ones(n)
+    scale = MIN_SCALE_PX
+    x, y = points[:, 0], points[:, 1]
+    for _ in range(6):
+        distance = np.hypot(x - centre[0], y - centre[1])
+        res = distance - radius
+        kept = np.abs(res[weights > 0]) if np.any(weights > 0) else np.abs(res)
+        scale = max(MIN_SCALE_PX, 1.4826 * float(np.median(kept)))
+        z = res / (TUKEY_C * scale)
+        weights = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
+        if np.count_nonzero(weights) < 5:
+            return None
+        # Weighted algebraic circle (normal equations of x^2 + y^2 = a x + b y + c, about the weighted
+        # mean): a few rounds converge to the geometric fit for small residuals.
+        sw = weights.sum()
+        mx, my = (weights @ x) / sw, (weights @ y) / sw
+        dx, dy = x - mx, y - my
+        design = np.column_stack([dx, dy, np.ones(n)])
+        weighted = design * weights[:, None]
+        try:
+            sol = np.linalg.solve(weighted.T @ design, weighted.T @ (dx * dx + dy * dy))
+        except np.linalg.LinAlgError:
+            return None
+        new_centre = np.array([sol[0] / 2.0 + mx, sol[1] / 2.0 + my])
+        r2 = sol[2] + (sol[0] / 2.0) ** 2 + (sol[1] / 2.0) ** 2
+        if not r2 > 0:
+            return None
+        moved = float(np.hypot(*(new_centre - centre)))
+        centre, radius = new_centre, math.sqrt(r2)
+        if moved < 1e-3:
+            break
+    distance = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
+    z = (distance - radius) / (TUKEY_C * scale)
+    weights = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
+    return centre, radius, weights, scale

@@ -1,0 +1,127 @@
+"""Every place in a frame that could be one of the pointer's balls, by a colour test relative to brightness.
+
+The detector's thresholds (``[detector.red]``, ``[detector.blue]``) are absolute:
+a ball in dim light, or painted darker, fails them, and a display showing reds
+and blues passes them. This search asks less of each pixel and more of the
+geometry that follows (:mod:`trackerd.joint`):
+
+* a sample is of an end's colour when its channel exceeds the larger of the
+  other two by at least :data:`RELATIVE_EXCESS` of its own value and by
+  :data:`MIN_EXCESS` grey levels (above the sensor's noise): a hue test, the
+  same at any exposure;
+* connected groups of such samples on a subsampled grid are *seeds*; those of a
+  size a ball can have in this camera (``radius_range_px``) are kept, largest
+  and roundest first;
+* each seed's outline is fitted (:func:`trackerd.detect.ballfit.fit_ball`); the
+  fits are the candidates.
+
+It runs on a first sighting and when the quick detector's answer does not hold
+together; it is not on the tracking path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.detect.ballfit import BallFit, fit_ball
+from trackerd.detect.blobs import blob_stats, find_runs, label_runs
+from trackerd.detect.colour import SampleGrid, _plane
+
+RELATIVE_EXCESS = 0.3
+"""A sample's own channel must exceed the others by this share of itself."""
+
+MIN_EXCESS = 12
+"""And by this many grey levels."""
+
+MAX_SEEDS = 12
+"""Seeds fitted per colour, best first."""
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """One possible ball of one colour in one frame: its fitted outline."""
+
+    colour: str
+    fit: BallFit
+    seed_px: tuple[float, float]
+    """Where the seed was (its samples' centroid)."""
+    seed_radius_px: float
+
+
+def search_candidates(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    radius_range_px: tuple[float, float],
+    *,
+    colours: tuple[str, ...] = ("red", "blue"),
+    max_seeds: int = MAX_SEEDS,
+) -> dict[str, list[Candidate]]:
+    """The fitted candidates of each colour (see the module), best seeds first."""
+    smallest, largest = radius_range_px
+    # Sample spacing: a ball of the smallest radius still covers a few samples.
+    step = max(1, int(smallest // (1.5 * grid.cell_px)))
+    spacing = step * grid.cell_px
+    region = grid.interior()
+    r = _plane(frame, grid, "red", region, step).astype(np.int16)
+    b = _plane(frame, grid, "blue", region, step).astype(np.int16)
+    g = _plane(frame, grid, "green_a", region, step).astype(np.int16)
+    if grid.is_bayer:
+        np.maximum(g, _plane(frame, grid, "green_b", region, step), out=g)
+    rows = min(r.shape[0], b.shape[0], g.shape[0])
+    cols = min(r.shape[1], b.shape[1], g.shape[1])
+    r, g, b = r[:rows, :cols], g[:rows, :cols], b[:rows, :cols]
+    out: dict[str, list[Candidate]] = {}
+    for colour in colours:
+        own, other = (r, b) if colour == "red" else (b, r)
+        excess = own - np.maximum(g, other)
+        mask = (excess >= MIN_EXCESS) & (10 * excess >= int(10 * RELATIVE_EXCESS) * own)
+        seeds = _seeds(mask, region, step, grid, colour, spacing, smallest, largest)
+        found: list[Candidate] = []
+        for x, y, radius in seeds[:max_seeds]:
+            fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
+            if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
+                found.append(Candidate(colour, fit, (x, y), radius))
+        out[colour] = _distinct(found)
+    return out
+
+
+def _seeds(mask: NDArray[np.bool_], region: tuple[int, int, int, int], step: int, grid: SampleGrid, colour: str,
+           spacing: float, smallest: float, largest: float) -> list[tuple[float, float, float]]:
+    """(x, y, radius) in pixels of the mask's blobs of a ball's size, roundest and largest first."""
+    if not mask.any():
+        return []
+    runs = find_runs(mask)
+    labels, count = label_runs(runs)
+    stats = blob_stats(runs, labels, count)
+    dr, dc = grid.offset(colour)
+    r0, _, c0, _ = region
+    s = grid.cell_px
+    scored = []
+    for k in range(count):
+        n = float(stats.count[k])
+        width = (stats.x1[k] - stats.x0[k] + 1) * spacing
+        height = (stats.y1[k] - stats.y0[k] + 1) * spacing
+        radius = 0.5 * max(width, height)
+        area_radius = math.sqrt(n / math.pi) * spacing
+        if radius < 0.5 * smallest or area_radius > 1.6 * largest:
+            continue
+        fill = n * spacing * spacing / max(width * height, 1e-9)
+        x = (c0 + step * float(stats.mean_x[k])) * s + dc
+        y = (r0 + step * float(stats.mean_y[k])) * s + dr
+        roundness = min(width, height) / max(width, height)
+        scored.append((roundness * min(1.0, fill / 0.6) * min(n, 400.0), x, y, max(radius, area_radius)))
+    scored.sort(reverse=True)
+    return [(x, y, radius) for _, x, y, radius in scored]
+
+
+def _distinct(candidates: list[Candidate]) -> list[Candidate]:
+    """One candidate per ball: fits of two seeds that found the same circle are one."""
+    kept: list[Candidate] = []
+    for cand in sorted(candidates, key=lambda c: -c.fit.rim_fraction):
+        if all(np.hypot(*(cand.fit.centre_px - k.fit.centre_px)) > 0.5 * k.fit.radius_px for k in kept):
+            kept.append(cand)
+    return kept

@@ -1,0 +1,151 @@
+"""Each end as a measurement the pointer fit can weigh: where it is in a camera's normalised image
+plane, and how well that is known in each direction.
+
+Two measurements of an end exist (docs/detection.md):
+
+* the detector's centroid of the thresholded blob, with the coverage of every
+  pixel: very precise *across* the pointer's image (the rod hides a ball
+  symmetrically about the pointer's axis, 0.02-0.05 px), but pulled along the
+  pointer by the rod, and in any direction by a finger, the presenter's body, a
+  specular highlight, or light too dim for the thresholds to take the whole ball;
+* the ball's fitted outline (:mod:`trackerd.detect.ballfit`): the circle through
+  the visible rim, which none of those pull, a little less precise (0.05-0.1 px).
+
+:func:`measure_end` fits the outline and, where the centroid agrees with it
+across the pointer, adds the centroid's information in that direction; where it
+does not agree, the centroid is left out as biased. The result is one 2-vector
+in undistorted normalised coordinates with its 2x2 covariance, the input of
+:func:`trackerd.geometry.pointer_fit.fit_pointer`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.detect.ballfit import BallFit, fit_ball
+from trackerd.detect.colour import SampleGrid
+from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.sphere import fit_sphere_direction
+
+Array = NDArray[np.float64]
+
+MIN_SIGMA_PX = 0.03
+"""No end is measured better than this (pixels, 1 sigma), whatever its fit says."""
+
+FALLBACK_SIGMA_PX = 0.6
+"""A centroid whose ball outline could not be fitted is used with this isotropic error: it is all
+there is, and it is likely pulled by whatever hides the outline."""
+
+WHOLE_BLOB = 0.8
+WHOLE_RIM = 0.75
+"""A blob covering at least WHOLE_BLOB of its fitted disc, whose outline is seen on WHOLE_RIM of its rays,
+is a whole ball: its centroid is trusted across the pointer."""
+
+AGREE_SIGMAS = 3.0
+"""The centroid joins the outline's measurement across the pointer when the two agree there within
+this many of their combined standard errors."""
+
+
+@dataclass(frozen=True)
+class EndMeasurement:
+    """One end in one camera, as the pointer fit takes it."""
+
+    camera: int
+    colour: str
+    centre_px: Array
+    """Where the measurement puts the ball's centre's image (the outline's centre, or the centroid)."""
+    normalised: Array
+    """(2,) undistorted normalised coordinates of the ball's centre (outline) or image centroid."""
+    covariance: Array
+    """(2, 2) covariance of ``normalised``."""
+    radius_px: float
+    """The ball's image radius (from its outline, or the blob's area when there is none)."""
+    source: str
+    """'outline', 'outline+centroid' (the centroid agreed across the pointer and was combined) or 'centroid'."""
+    rim_fraction: float
+    """Share of the outline seen (0 for a centroid alone)."""
+    fit: BallFit | None = None
+
+
+def measure_end(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    camera: CameraModel,
+    camera_index: int,
+    colour: str,
+    rough_px: Array,
+    radius_px: float,
+    centroid_px: Array | None,
+    across_px: Array | None,
+    centroid_sigma_px: float,
+    blob_area_px: float = 0.0,
+) -> EndMeasurement | None:
+    """Measure one end near ``rough_px`` (see the module).
+
+    ``across_px`` is a unit vector across the pointer's image in this camera (None when unknown); the
+    centroid is combined only in that direction, and only when it agrees with the outline there, unless
+    the blob it comes from (``blob_area_px``) covers the fitted disc and the outline is mostly seen:
+    then nothing asymmetric hides the ball, the centroid is the better measurement across the pointer,
+    and it is kept even if the outline disagrees. Returns None when neither an outline nor a centroid is
+    there.
+    """
+    axis = None if across_px is None else (float(-across_px[1]), float(across_px[0]))
+    fit = fit_ball(frame, grid, colour, float(rough_px[0]), float(rough_px[1]), radius_px, axis=axis)
+    if not fit.found:
+        if centroid_px is None:
+            return None
+        normalised = camera.normalized_from_pixels(np.asarray(centroid_px)[None])[0]
+        sigma = FALLBACK_SIGMA_PX / camera.focal_px
+        return EndMeasurement(camera_index, colour, np.asarray(centroid_px, dtype=np.float64), normalised,
+                              np.eye(2) * sigma * sigma, radius_px, "centroid", 0.0, fit)
+    measurement = from_fit(camera, camera_index, colour, fit)
+    if measurement is None or centroid_px is None or across_px is None:
+        return measurement
+    whole = blob_area_px >= WHOLE_BLOB * math.pi * fit.radius_px**2 and fit.rim_fraction >= WHOLE_RIM
+    combined = _with_centroid(camera, measurement.normalised, measurement.covariance,
+                              np.asarray(centroid_px, dtype=np.float64), np.asarray(across_px, dtype=np.float64),
+                              centroid_sigma_px, always=whole)
+    if combined is None:
+        return measurement
+    normalised, covariance = combined
+    return EndMeasurement(camera_index, colour, fit.centre_px, normalised, covariance, fit.radius_px,
+                          "outline+centroid", fit.rim_fraction, fit)
+
+
+def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) -> EndMeasurement | None:
+    """An end measured by its fitted outline alone: the cone through its rim points, undistorted."""
+    focal = camera.focal_px
+    rim = camera.normalized_from_pixels(fit.rim_px)
+    cone = fit_sphere_direction(rim, rim_sigma_normalised=fit.residual_px / focal)
+    if cone is None:
+        return None
+    covariance = cone.covariance + np.eye(2) * (MIN_SIGMA_PX / focal) ** 2
+    return EndMeasurement(camera_index, colour, fit.centre_px, cone.normalised, covariance, fit.radius_px,
+                          "outline", fit.rim_fraction, fit)
+
+
+def _with_centroid(camera: CameraModel, normalised: Array, covariance: Array, centroid_px: Array,
+                   across_px: Array, centroid_sigma_px: float, always: bool = False) -> tuple[Array, Array] | None:
+    """The outline's measurement with the centroid's across-the-pointer information added, when they
+    agree across the pointer; None when they do not (the centroid is pulled by something)."""
+    focal = camera.focal_px
+    # Across the pointer in normalised units: the pixel direction is close enough (the lens map is smooth).
+    across = across_px / max(float(np.linalg.norm(across_px)), 1e-12)
+    centroid_n = camera.normalized_from_pixels(centroid_px[None])[0]
+    difference = float((centroid_n - normalised) @ across)
+    sigma_c = centroid_sigma_px / focal
+    sigma_o = math.sqrt(max(float(across @ covariance @ across), 0.0))
+    if not always and abs(difference) > AGREE_SIGMAS * math.hypot(sigma_c, sigma_o):
+        return None
+    # Information form: the outline's full 2x2 plus the centroid's across the pointer only.
+    info_o = np.linalg.inv(covariance)
+    info_c = np.outer(across, across) / (sigma_c * sigma_c)
+    info = info_o + info_c
+    cov = np.linalg.inv(info)
+    # The centroid's value across the pointer; along it, the outline's (info_c has nothing along).
+    mean = cov @ (info_o @ normalised + info_c @ centroid_n)
+    return mean, cov

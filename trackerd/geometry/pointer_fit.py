@@ -1,0 +1,242 @@
+"""The pointer's two end centres fitted to every camera's measurements at once, with the known length.
+
+The interpretation planes (trackerd/geometry/pointer_line.py) use only what each
+camera sees *across* the pointer, and are ill-conditioned when the cameras' planes
+through it are nearly parallel (cameras behind the presenter, looking along the
+pointer); the report's two triangulated points (eq. 15-17, 26) use everything
+each camera sees, including the ends' positions *along* the pointer, which a
+partly hidden ball shifts. Neither is right for every rig. Here the two centres
+F and B are the maximum-likelihood estimate given
+
+* each end's measured position in each camera's undistorted normalised image
+  plane, with its own 2x2 covariance (small across the pointer, where the
+  measurement is good; larger along it where a ball is partly hidden; large in
+  every direction for a poor measurement), and
+* the pointer's known length, |F - B| = L, within its manufacturing tolerance,
+
+by Gauss-Newton on the whitened residuals. So each camera and each direction
+weighs by how well it is measured, two or more cameras are used alike, and the
+covariance of (F, B) comes out of the same normal equations: the hit's
+uncertainty is that covariance carried through eq. 26-28 to the wall, inflated
+when the cameras disagree by more than their stated errors (reduced chi-square
+above 1).
+
+Shapes: C cameras; world-to-camera rotations (C, 3, 3) and translations (C, 3);
+measurements (C, 2 ends, 2) with covariances (C, 2, 2, 2); ends are [front, back].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.errors import GeometryError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PointerFit:
+    """The fitted end centres and what they rest on."""
+
+    front_m: Array
+    back_m: Array
+    covariance: Array
+    """6x6 covariance of (front, back), world metres, already inflated by :attr:`inflation`."""
+    chi2: float
+    """Sum of squared whitened residuals (length prior included)."""
+    dof: int
+    inflation: float
+    """Factor the covariance was multiplied by: max(1, chi2 / dof)."""
+    iterations: int
+    downweighted: tuple[tuple[int, int], ...] = ()
+    """(camera, end) measurements whose residual was an outlier and whose covariance was widened
+    along it (a ball's outline fitted to the wrong arc, say)."""
+
+
+OUTLIER_SIGMAS = 4.0
+"""A measurement whose whitened residual exceeds this is widened along its residual and the fit redone."""
+
+
+def fit_pointer_robust(
+    rotations: Array,
+    translations_m: Array,
+    measured: Array,
+    covariances: Array,
+    length_m: float,
+    length_sigma_m: float,
+    front0_m: Array,
+    back0_m: Array,
+    ball_radius_m: float = 0.0,
+    rounds: int = 3,
+) -> PointerFit:
+    """:func:`fit_pointer`, then each measurement whose whitened residual exceeds OUTLIER_SIGMAS has its
+    covariance widened along that residual (to what would make it a 2-sigma residual) and the fit is
+    redone, up to ``rounds`` times: one end's measurement pulled by an occluder does not drag the line."""
+    cov = np.array(covariances, dtype=np.float64)
+    widened: set[tuple[int, int]] = set()
+    fit = fit_pointer(rotations, translations_m, measured, cov, length_m, length_sigma_m, front0_m, back0_m,
+                      ball_radius_m)
+    for _ in range(rounds):
+        predicted = predict(np.asarray(rotations, dtype=np.float64), np.asarray(translations_m, dtype=np.float64),
+                            fit.front_m, fit.back_m, ball_radius_m)
+        residual = np.asarray(measured, dtype=np.float64) - predicted  # (C, 2, 2)
+        info = np.linalg.inv(cov)
+        d2 = np.einsum("cei,ceij,cej->ce", residual, info, residual)
+        worst = np.unravel_index(int(np.argmax(d2)), d2.shape)
+        if d2[worst] <= OUTLIER_SIGMAS**2:
+            break
+        c, e = int(worst[0]), int(worst[1])
+        r = residual[c, e]
+        norm = float(np.linalg.norm(r))
+        if norm <= 0:
+            break
+        unit = r / norm
+        # Widen along the residual so that it becomes a 2-sigma residual there.
+        current = float(unit @ cov[c, e] @ unit)
+        wanted = (norm / 2.0) ** 2
+        cov[c, e] = cov[c, e] + np.outer(unit, unit) * max(wanted - current, 0.0)
+        widened.add((c, e))
+        fit = fit_pointer(rotations, translations_m, measured, cov, length_m, length_sigma_m, fit.front_m,
+                          fit.back_m, ball_radius_m)
+    if widened:
+        fit = PointerFit(fit.front_m, fit.back_m, fit.covariance, fit.chi2, fit.dof, fit.inflation, fit.iterations,
+                         tuple(sorted(widened)))
+    return fit
+
+
+def predict(rotations: Array, translations_m: Array, front_m: Array, back_m: Array, ball_radius_m: float = 0.0
+            ) -> Array:
+    """Where the fit puts each end in each camera's normalised image plane: (C, 2 ends, 2)."""
+    ends = np.stack([np.asarray(front_m, dtype=np.float64), np.asarray(back_m, dtype=np.float64)])
+    xc = np.einsum("cij,ej->cei", rotations, ends) + translations_m[:, None, :]
+    z = xc[..., 2]
+    factor = 1.0 / (1.0 - ball_radius_m**2 / (z * z)) if ball_radius_m > 0 else 1.0
+    return np.stack([xc[..., 0] / z * factor, xc[..., 1] / z * factor], axis=-1)
+
+
+def fit_pointer(
+    rotations: Array,
+    translations_m: Array,
+    measured: Array,
+    covariances: Array,
+    length_m: float,
+    length_sigma_m: float,
+    front0_m: Array,
+    back0_m: Array,
+    ball_radius_m: float = 0.0,
+    max_iterations: int = 8,
+) -> PointerFit:
+    """Fit F and B (see the module). ``ball_radius_m`` > 0 predicts each measurement as the centre of
+    the ball's image ellipse (a centroid), 0 as the projection of the ball's centre (a fitted outline)."""
+    rot = np.asarray(rotations, dtype=np.float64)
+    trans = np.asarray(translations_m, dtype=np.float64)
+    obs = np.asarray(measured, dtype=np.float64)
+    cov = np.asarray(covariances, dtype=np.float64)
+    cameras = rot.shape[0]
+    # Whitening: L^T with L L^T = cov^-1, per camera and end.
+    try:
+        info = np.linalg.inv(cov)
+        whiten = np.linalg.cholesky(info).transpose(0, 1, 3, 2)
+    except np.linalg.LinAlgError as err:
+        raise GeometryError("a measurement's covariance is not positive definite") from err
+    params = np.concatenate([np.asarray(front0_m, dtype=np.float64), np.asarray(back0_m, dtype=np.float64)])
+    k2 = ball_radius_m * ball_radius_m
+    iterations = 0
+    chi2 = math.inf
+    jtj = np.eye(6)
+    for iterations in range(1, max_iterations + 1):
+        residuals, jacobian = _linearise(params, rot, trans, obs, whiten, k2, length_m, length_sigma_m, cameras)
+        jtj = jacobian.T @ jacobian
+        gradient = jacobian.T @ residuals
+        chi2 = float(residuals @ residuals)
+        try:
+            step = np.linalg.solve(jtj + 1e-12 * np.trace(jtj) * np.eye(6), -gradient)
+        except np.linalg.LinAlgError as err:
+            raise GeometryError("the cameras do not constrain the pointer (singular fit)") from err
+        params = params + step
+        if float(np.max(np.abs(step))) < 1e-7:
+            break
+    residuals, jacobian = _linearise(params, rot, trans, obs, whiten, k2, length_m, length_sigma_m, cameras)
+    chi2 = float(residuals @ residuals)
+    jtj = jacobian.T @ jacobian
+    try:
+        covariance = np.linalg.inv(jtj)
+    except np.linalg.LinAlgError as err:
+        raise GeometryError("the cameras do not constrain the pointer (singular fit)") from err
+    dof = max(residuals.size - 6, 1)
+    inflation = max(1.0, chi2 / dof)
+    return PointerFit(params[:3].copy(), params[3:].copy(), covariance * inflation, chi2, dof, inflation, iterations)
+
+
+def _linearise(params: Array, rot: Array, trans: Array, obs: Array, whiten: Array, k2: float, length_m: float,
+               length_sigma_m: float, cameras: int) -> tuple[Array, Array]:
+    """Whitened residuals (4C + 1,) and their Jacobian (4C + 1, 6) at ``params``."""
+    ends = params.reshape(2, 3)
+    # Camera coordinates of both ends in every camera: (C, 2, 3).
+    xc = np.einsum("cij,ej->cei", rot, ends) + trans[:, None, :]
+    z = xc[..., 2]
+    if np.any(z <= 1e-6):
+        raise GeometryError("an end would be behind a camera")
+    scale = 1.0 / z
+    if k2 > 0.0:
+        # The centre of a sphere's image ellipse lies 1 / (1 - r^2 / z^2) further out than its centre's projection.
+        factor = 1.0 / (1.0 - k2 / (z * z))
+    else:
+        factor = np.ones_like(z)
+    px = xc[..., 0] * scale * factor
+    py = xc[..., 1] * scale * factor
+    predicted = np.stack([px, py], axis=-1)
+    raw = predicted - obs  # (C, 2, 2)
+    # d(predicted)/d(xc), ignoring the ellipse factor's own derivative (a fraction of a percent).
+    d = np.zeros((cameras, 2, 2, 3))
+    d[..., 0, 0] = scale * factor
+    d[..., 0, 2] = -xc[..., 0] * scale * scale * factor
+    d[..., 1, 1] = scale * factor
+    d[..., 1, 2] = -xc[..., 1] * scale * scale * factor
+    # d(predicted)/d(end) = d(predicted)/d(xc) @ R.
+    d_end = np.einsum("ceki,cij->cekj", d, rot)
+    white = np.einsum("cekl,cel->cek", whiten, raw)
+    white_jac = np.einsum("cekl,celj->cekj", whiten, d_end)  # (C, 2, 2, 3)
+    jacobian = np.zeros((cameras, 2, 2, 6))
+    jacobian[:, 0, :, 0:3] = white_jac[:, 0]
+    jacobian[:, 1, :, 3:6] = white_jac[:, 1]
+    axis = ends[0] - ends[1]
+    length = float(np.linalg.norm(axis))
+    if length < 1e-9:
+        raise GeometryError("the pointer's ends coincide")
+    unit = axis / length
+    length_row = np.concatenate([unit, -unit]) / length_sigma_m
+    residuals = np.concatenate([white.reshape(-1), [(length - length_m) / length_sigma_m]])
+    jacobian_rows = np.vstack([jacobian.reshape(-1, 6), length_row[None, :]])
+    return residuals, jacobian_rows
+
+
+def hit_covariance(front_m: Array, back_m: Array, covariance: Array, plane_normal: Array, plane_offset_m: float,
+                   wall_axes: Array) -> Array:
+    """2x2 covariance of the wall hit (in the wall's x, y axes, metres) of the line back -> front, from the
+    6x6 covariance of (front, back): eq. 26-28 linearised.
+
+    The hit is ``B + u (F - B)`` with ``u = -(n . B + d) / (n . (F - B))``; ``wall_axes`` (2, 3) are the
+    wall frame's x and y axes.
+    """
+    front = np.asarray(front_m, dtype=np.float64)
+    back = np.asarray(back_m, dtype=np.float64)
+    normal = np.asarray(plane_normal, dtype=np.float64)
+    direction = front - back
+    denominator = float(normal @ direction)
+    if abs(denominator) < 1e-12:
+        raise GeometryError("the pointer is parallel to the wall")
+    u = -(float(normal @ back) + plane_offset_m) / denominator
+    eye = np.eye(3)
+    # du/dF and du/dB.
+    du_df = u * (-normal / denominator)
+    du_db = (-normal - u * (-normal)) / denominator
+    # dH/dF = u I + direction du/dF^T ; dH/dB = (1 - u) I + direction du/dB^T.
+    dh_df = u * eye + np.outer(direction, du_df)
+    dh_db = (1.0 - u) * eye + np.outer(direction, du_db)
+    jac = np.asarray(wall_axes, dtype=np.float64) @ np.hstack([dh_df, dh_db])  # (2, 6)
+    return jac @ covariance @ jac.T

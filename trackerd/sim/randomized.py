@@ -1,0 +1,395 @@
+"""Randomized rigs and scenes, drawn from wide distributions, seeded and reproducible.
+
+The simulator's own rig (config/simulated.toml) always has two cameras at the
+sides of the wall, one lighting, one pair of paints and a muted slide on the
+display: a detector tuned there can be brittle anywhere else. This module draws
+everything that differs between real installations instead:
+
+* **placement** of 2 to 4 cameras: side-on, behind the presenter (high and low),
+  on the ceiling, a mix of those (asymmetric), close and far;
+* **lenses**: 720p to 4K sensors, wide to narrow fields of view, strong barrel
+  distortion, any Bayer layout or RGB;
+* **lighting**: dim to bright, warm to cold white balance, a spotlight, uneven
+  shading and vignetting, glossy balls with specular highlights, sensor noise
+  that grows with gain;
+* **paint** and **pointer**: darker, brighter, orange-red, crimson, navy and
+  cyan-blue paints; balls of 20-50 mm, rods of 6-16 mm, pointers of 0.3-0.6 m;
+* per frame: what the **display shows** (a photo, saturated blocks near the
+  paints' colours, a slide with red text, a dark slide, nothing), **motion
+  blur** (speed times exposure) and **occlusion** (a hand over part of a ball,
+  the presenter's body between one camera and an end; the rod over a ball comes
+  with the placement).
+
+Every rig and shot carries the factor levels it was drawn with, so a benchmark
+can report per factor (:mod:`trackerd.bench.robustness`). A rig is a plain
+:class:`~trackerd.config.models.RigConfig` with the detector's and locator's
+defaults: what an operator would start from.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.config.models import RigConfig
+from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.wall import WallFrame
+from trackerd.sim.appearance import CONTENT_KINDS, Look, Occluder
+from trackerd.sim.scene import PointerPose, pose_aimed_at, true_wall_hit
+
+Array = NDArray[np.float64]
+
+PLACEMENTS = ("side-on", "behind high", "behind low", "ceiling", "asymmetric", "close", "far")
+LIGHTINGS = ("standard", "dim", "bright", "warm", "cold", "spotlight", "uneven", "glossy")
+PAINTS = ("standard", "dark", "orange-red", "crimson and navy", "bright and cyan")
+OCCLUSIONS = ("none", "hand", "body")
+RESOLUTIONS = ((1280, 720), (1920, 1080), (1920, 1200), (2448, 2048), (3840, 2160))
+
+_PAINT_RGB: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "standard": ((0.86, 0.10, 0.08), (0.10, 0.20, 0.86)),
+    "dark": ((0.52, 0.07, 0.05), (0.06, 0.10, 0.48)),
+    "orange-red": ((0.95, 0.32, 0.08), (0.16, 0.36, 0.92)),
+    "crimson and navy": ((0.72, 0.05, 0.20), (0.08, 0.08, 0.42)),
+    "bright and cyan": ((1.00, 0.20, 0.26), (0.05, 0.48, 0.95)),
+}
+
+_CLOTHES_RGB = ((0.12, 0.12, 0.14), (0.10, 0.12, 0.30), (0.35, 0.08, 0.10), (0.55, 0.55, 0.52), (0.20, 0.30, 0.20))
+
+MIN_BALL_DIAMETER_PX = 14.0
+"""A drawn rig is kept only if the balls image at least this wide (at the presenter area's
+far side) in every camera: a smaller ball is below what the detector's full search is set
+to find, which an installer would fix by choosing the lens."""
+
+
+@dataclass(frozen=True)
+class RandomRig:
+    """A drawn installation: its rig file, the cameras' true models, the scene's look, and the
+    factor levels it was drawn with."""
+
+    rig: RigConfig
+    cameras: tuple[CameraModel, ...]
+    look: Look
+    factors: dict[str, str]
+    presenter_box_m: tuple[tuple[float, float, float], tuple[float, float, float]]
+    """Where the pointer's tip may be: (x, y, z) lower and upper corners, world metres."""
+
+
+@dataclass(frozen=True)
+class RandomShot:
+    """One frame's pointer and what else differs per frame."""
+
+    pose: PointerPose
+    motion_to: PointerPose | None
+    """Where the pointer is at the end of the exposure (None: held still)."""
+    occluders: tuple[Occluder, ...]
+    content_kind: str
+    factors: dict[str, str]
+    motion_steps: int = 2
+    """Instants the exposure is sampled at: enough that the pointer moves at most about 1.5 px
+    between them."""
+
+
+# ----------------------------------------------------------------------------- rigs
+
+
+def random_rig(rng: np.random.Generator, name: str = "random", placement: str | None = None) -> RandomRig:
+    """Draw an installation (camera placement, lenses, wall, pointer, light and paint)."""
+    for _ in range(200):
+        drawn = _try_rig(rng, name, placement)
+        if drawn is not None:
+            return drawn
+    raise RuntimeError("could not draw a rig whose cameras see the presenter's area")  # pragma: no cover
+
+
+def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> RandomRig | None:
+    placement = placement or str(rng.choice(PLACEMENTS))
+    width = float(rng.uniform(2.4, 4.8))
+    height = float(rng.uniform(0.9, 1.8))
+    above_floor = float(rng.uniform(0.7, 1.1))
+    floor = -above_floor
+    lower = (0.12 * width, floor + 1.0, 1.0)
+    upper = (0.88 * width, floor + 1.8, 2.8)
+    centre = np.array([(lower[i] + upper[i]) / 2.0 for i in range(3)])
+    count = int(rng.choice([2, 2, 2, 3, 3, 4]))
+    positions = _camera_positions(rng, placement, count, width, floor, centre)
+    ball_d = float(rng.uniform(0.02, 0.05))
+    rod_d = float(min(rng.uniform(0.006, 0.016), 0.6 * ball_d))
+    length = float(rng.uniform(0.3, 0.6))
+    cameras = []
+    configs = []
+    box = np.array([[x, y, z] for x in (lower[0], upper[0]) for y in (lower[1], upper[1]) for z in (lower[2], upper[2])])
+    for index, position in enumerate(positions):
+        camera = _aimed_camera(rng, f"cam{index}", position, centre, box)
+        if camera is None:
+            return None
+        model, fmt = camera
+        # Ball image size at the far corner of the presenter's area, by the focal length.
+        far = float(np.max(np.linalg.norm(box - model.centre_m, axis=1)))
+        if model.focal_px * ball_d / far < MIN_BALL_DIAMETER_PX:
+            return None
+        cameras.append(model)
+        configs.append(_camera_config(model, fmt))
+    lighting = str(rng.choice(LIGHTINGS))
+    paint = str(rng.choice(PAINTS))
+    look, noise_sigma, shot_noise = _look(rng, lighting, paint)
+    corners = [[0.0, 0.0, 0.0], [width, 0.0, 0.0], [width, height, 0.0], [0.0, height, 0.0]]
+    rig = RigConfig.model_validate({
+        "name": name,
+        "cameras": configs,
+        "wall": {"corners_m": corners, "display_width_px": 3840, "display_height_px": int(3840 * height / width)},
+        "pointer": {"length_m": length, "end_diameter_m": ball_d, "rod_diameter_m": rod_d,
+                    "front_colour": str(rng.choice(["red", "red", "blue"]))},
+        "simulation": {
+            "seed": int(rng.integers(0, 2**31)), "clutter": int(rng.integers(4, 16)),
+            "noise_sigma": noise_sigma, "shot_noise": shot_noise, "supersampling": 3,
+            "background_supersampling": 1, "display_height_above_floor_m": above_floor,
+            "room_depth_m": 7.0, "presenter_distance_m": (lower[2], upper[2]),
+            "hand_height_m": (1.0, 1.8),
+        },
+    })
+    widest = max(c.width_px for c in cameras)
+    factors = {
+        "placement": placement,
+        "lighting": lighting,
+        "paint": paint,
+        "cameras": str(count),
+        "resolution": "4K-class" if widest > 2000 else ("1080p-class" if widest > 1300 else "720p"),
+    }
+    return RandomRig(rig, tuple(cameras), look, factors, (lower, upper))
+
+
+def _camera_positions(rng: np.random.Generator, placement: str, count: int, width: float, floor: float,
+                      centre: Array) -> list[Array]:
+    """Positions of ``count`` cameras for a placement family (world: x along the wall, y up, z out of it)."""
+
+    def side(k: int) -> Array:
+        x = -rng.uniform(0.2, 1.2) if k % 2 == 0 else width + rng.uniform(0.2, 1.2)
+        return np.array([x, floor + rng.uniform(1.8, 2.6), rng.uniform(2.3, 3.6)])
+
+    def behind(k: int, high: bool) -> Array:
+        spread = rng.uniform(0.6, 2.2) * (1 if k % 2 == 0 else -1) + rng.uniform(-0.3, 0.3)
+        y = floor + (rng.uniform(2.2, 2.9) if high else rng.uniform(0.7, 1.3))
+        return np.array([width / 2.0 + spread, y, rng.uniform(4.5, 6.5)])
+
+    def ceiling(k: int) -> Array:
+        spread = rng.uniform(0.6, 1.8) * (1 if k % 2 == 0 else -1)
+        return np.array([width / 2.0 + spread, floor + rng.uniform(2.7, 2.95), rng.uniform(1.6, 3.6)])
+
+    families = {
+        "side-on": lambda k: side(k),
+        "behind high": lambda k: behind(k, True),
+        "behind low": lambda k: behind(k, False),
+        "ceiling": ceiling,
+    }
+    if placement in families:
+        return [families[placement](k) for k in range(count)]
+    if placement == "asymmetric":
+        kinds = list(rng.permutation(list(families)))
+        return [families[kinds[k % len(kinds)]](k) for k in range(count)]
+    # close / far: side-on or behind, moved towards or away from the presenter's area.
+    base = side if rng.uniform() < 0.5 else (lambda k: behind(k, rng.uniform() < 0.5))
+    scale = rng.uniform(0.55, 0.75) if placement == "close" else rng.uniform(1.3, 1.6)
+    out = []
+    for k in range(count):
+        position = centre + scale * (base(k) - centre)
+        position[1] = min(max(position[1], floor + 0.4), floor + 2.95)
+        out.append(position)
+    return out
+
+
+def _aimed_camera(rng: np.random.Generator, camera_id: str, position: Array, target: Array, box: Array
+                  ) -> tuple[CameraModel, str] | None:
+    """A camera at ``position`` looking at ``target``, with a lens that takes in the presenter's area."""
+    width_px, height_px = RESOLUTIONS[int(rng.choice(len(RESOLUTIONS), p=[0.25, 0.4, 0.15, 0.12, 0.08]))]
+    aim = target + rng.normal(0.0, 0.15, size=3)
+    forward = aim - position
+    forward /= np.linalg.norm(forward)
+    up = np.array([0.0, 1.0, 0.0])
+    right = np.cross(forward, up)
+    if np.linalg.norm(right) < 1e-6:
+        return None
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    roll = math.radians(float(rng.uniform(-8.0, 8.0)))
+    right, down = (math.cos(roll) * right + math.sin(roll) * down, -math.sin(roll) * right + math.cos(roll) * down)
+    world_from_cam = np.column_stack([right, down, forward])
+    # The field of view the presenter's area needs from here, then a lens a little wider or narrower.
+    in_cam = (box - position) @ world_from_cam
+    if np.any(in_cam[:, 2] <= 0.3):
+        return None
+    need_x = float(np.max(np.abs(in_cam[:, 0] / in_cam[:, 2])))
+    need_y = float(np.max(np.abs(in_cam[:, 1] / in_cam[:, 2])))
+    tan_half = max(need_x, need_y * width_px / height_px) * float(rng.uniform(1.0, 1.35))
+    hfov = 2.0 * math.degrees(math.atan(tan_half))
+    if not 30.0 <= hfov <= 115.0:
+        return None
+    focal = (width_px / 2.0) / tan_half * float(rng.uniform(0.995, 1.005))
+    cx = (width_px - 1) / 2.0 + float(rng.uniform(-0.02, 0.02)) * width_px
+    cy = (height_px - 1) / 2.0 + float(rng.uniform(-0.02, 0.02)) * height_px
+    matrix = np.array([[focal, 0.0, cx], [0.0, focal * float(rng.uniform(0.998, 1.002)), cy], [0.0, 0.0, 1.0]])
+    # Wide lenses are distorted more; keep the radial map monotonic out to the corners.
+    strength = min(1.0, hfov / 100.0)
+    k1 = float(rng.uniform(-0.35, 0.05)) * strength
+    k2 = float(rng.uniform(-0.02, 0.12)) * strength
+    corner_r2 = ((width_px / 2.0) ** 2 + (height_px / 2.0) ** 2) / focal**2 * 1.1
+    r2 = np.linspace(0.0, corner_r2, 200)
+    if np.any(np.diff(np.sqrt(r2) * (1.0 + k1 * r2 + k2 * r2 * r2)) <= 0):
+        k1, k2 = k1 / 3.0, 0.0
+    distortion = np.array([k1, k2, float(rng.uniform(-5e-4, 5e-4)), float(rng.uniform(-5e-4, 5e-4)), 0.0])
+    fmt = str(rng.choice(["BayerRG8", "BayerRG8", "BayerBG8", "BayerGR8", "BayerGB8", "RGB8"]))
+    model = CameraModel.from_pose(camera_id, width_px, height_px, matrix, distortion, position, world_from_cam)
+    return model, fmt
+
+
+def _camera_config(model: CameraModel, pixel_format: str) -> dict:
+    k = model.matrix
+    return {
+        "id": model.camera_id, "serial": f"RND-{model.camera_id}", "width_px": model.width_px,
+        "height_px": model.height_px, "pixel_format": pixel_format,
+        "intrinsics": {"model": "opencv", "fx_px": float(k[0, 0]), "fy_px": float(k[1, 1]), "cx_px": float(k[0, 2]),
+                       "cy_px": float(k[1, 2]), "distortion": [float(v) for v in model.distortion]},
+        "extrinsics": {"kind": "opencv", "rotation_matrix": model.rotation.tolist(),
+                       "tvec_m": model.translation_m.tolist()},
+    }
+
+
+def _look(rng: np.random.Generator, lighting: str, paint: str) -> tuple[Look, float, float]:
+    """The scene's look, read noise and shot noise for a lighting and a paint."""
+    red, blue = (tuple(float(np.clip(c * rng.uniform(0.9, 1.1), 0.0, 1.0)) for c in rgb) for rgb in _PAINT_RGB[paint])
+    values: dict = {"red_rgb": red, "blue_rgb": blue}
+    noise, shot = float(rng.uniform(0.6, 1.5)), float(rng.uniform(0.15, 0.3))
+    if lighting == "dim":
+        gain = float(rng.uniform(0.35, 0.6))
+        values["gain"] = gain
+        # The camera's gain that makes up for the light amplifies the read noise with the signal.
+        noise, shot = noise / gain * 0.6, shot / math.sqrt(gain)
+    elif lighting == "bright":
+        values["gain"] = float(rng.uniform(1.2, 1.55))
+    elif lighting == "warm":
+        values["white_balance"] = (float(rng.uniform(1.1, 1.25)), 1.0, float(rng.uniform(0.65, 0.85)))
+    elif lighting == "cold":
+        values["white_balance"] = (float(rng.uniform(0.75, 0.9)), 1.0, float(rng.uniform(1.1, 1.25)))
+    elif lighting == "spotlight":
+        values["gain"] = float(rng.uniform(0.6, 0.8))
+        values["spot"] = (float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.1, 0.3)),
+                          float(rng.uniform(0.5, 1.2)))
+    elif lighting == "uneven":
+        values["gradient"] = (float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5)))
+        values["vignetting"] = float(rng.uniform(0.2, 0.5))
+    elif lighting == "glossy":
+        values["specular"] = float(rng.uniform(0.3, 0.8))
+        values["shininess"] = float(rng.uniform(15.0, 80.0))
+    return Look(**values), noise, shot
+
+
+# ----------------------------------------------------------------------------- shots
+
+
+def random_shot(drawn: RandomRig, rng: np.random.Generator, wall: WallFrame | None = None) -> RandomShot:
+    """A pointer pose aimed at the wall from the presenter's area, seen by at least two cameras, with
+    its motion during the exposure, occluders and what the display shows."""
+    wall = wall or WallFrame.from_config(drawn.rig.wall)
+    pointer = drawn.rig.pointer
+    lower, upper = (np.asarray(v) for v in drawn.presenter_box_m)
+    for _ in range(2000):
+        tip = rng.uniform(lower, upper)
+        target_xy = rng.uniform([0.0, 0.0], [wall.width_m, wall.height_m])
+        if rng.uniform() < 0.1:
+            target_xy = rng.uniform([-0.4, -0.3], [wall.width_m + 0.4, wall.height_m + 0.3])
+        pose = pose_aimed_at(tip, wall.from_wall_m(target_xy), pointer.length_m)
+        if true_wall_hit(pose, wall).wall_xy_m is None or _seen_by(pose, drawn.cameras) < 2:
+            continue
+        motion_to, blur_px = _motion(rng, pose, drawn.cameras)
+        occlusion = str(rng.choice(OCCLUSIONS, p=[0.5, 0.25, 0.25]))
+        occluders = _occluders(rng, occlusion, pose, drawn)
+        if occluders is None:
+            continue
+        content = str(rng.choice(CONTENT_KINDS))
+        blur = "none" if blur_px < 1.0 else ("some" if blur_px < 4.0 else "strong")
+        steps = int(min(6, max(2, math.ceil(blur_px / 1.5) + 1)))
+        return RandomShot(pose, motion_to, occluders, content,
+                          {"content": content, "occlusion": occlusion, "blur": blur}, steps)
+    raise RuntimeError("could not draw a pointer pose two cameras see")  # pragma: no cover
+
+
+def _seen_by(pose: PointerPose, cameras: tuple[CameraModel, ...], margin_px: float = 30.0) -> int:
+    """How many cameras have both ball centres inside their image, ``margin_px`` from its edge."""
+    points = np.stack([pose.front_m, pose.back_m])
+    seen = 0
+    for cam in cameras:
+        if np.any(cam.to_camera_frame(points)[:, 2] <= 0.2):
+            continue
+        px = cam.project(points)
+        if np.all(np.isfinite(px)) and np.all(cam.contains(px, margin_px)):
+            seen += 1
+    return seen
+
+
+def _motion(rng: np.random.Generator, pose: PointerPose, cameras: tuple[CameraModel, ...]
+            ) -> tuple[PointerPose | None, float]:
+    """The pose at the end of the exposure (a sweep about the hand), and the tip's largest image motion."""
+    if rng.uniform() < 0.4:
+        return None, 0.0
+    speed = float(rng.uniform(0.2, 2.0))  # tip speed, m/s
+    exposure = float(rng.uniform(0.002, 0.010))
+    sideways = np.cross(pose.direction, rng.normal(size=3))
+    sideways /= np.linalg.norm(sideways)
+    step = speed * exposure * sideways
+    # The hand holds the back end: the tip moves most, the back end a third as far.
+    moved = PointerPose(pose.front_m + step, pose.back_m + step / 3.0)
+    points = np.stack([pose.front_m, moved.front_m])
+    blur = 0.0
+    for cam in cameras:
+        px = cam.project(points)
+        if np.all(np.isfinite(px)):
+            blur = max(blur, float(np.linalg.norm(px[1] - px[0])))
+    return moved, blur
+
+
+def _occluders(rng: np.random.Generator, occlusion: str, pose: PointerPose, drawn: RandomRig
+               ) -> tuple[Occluder, ...] | None:
+    """What stands in front of the pointer for an occlusion level; None when it cannot be placed."""
+    if occlusion == "none":
+        return ()
+    ball_r = drawn.rig.pointer.end_diameter_m / 2.0
+    if occlusion == "hand":
+        # A finger or thumb against one ball, from the side.
+        centre = pose.front_m if rng.uniform() < 0.5 else pose.back_m
+        side = np.cross(pose.direction, rng.normal(size=3))
+        side /= np.linalg.norm(side)
+        radius = ball_r * float(rng.uniform(0.45, 0.8))
+        place = centre + side * (ball_r + radius * float(rng.uniform(0.2, 0.7)))
+        skin = tuple(float(c) for c in np.clip(np.array([0.80, 0.58, 0.47]) * rng.uniform(0.7, 1.1), 0, 1))
+        return (Occluder("sphere", tuple(float(v) for v in place), radius, skin, label="hand"),)  # type: ignore[arg-type]
+    # The presenter's body between one camera and one end, partly or wholly hiding it there.
+    camera = drawn.cameras[int(rng.integers(0, len(drawn.cameras)))]
+    end = pose.front_m if rng.uniform() < 0.5 else pose.back_m
+    radius = float(rng.uniform(0.14, 0.22))
+    for _ in range(20):
+        along = float(rng.uniform(0.25, 0.6))
+        point = end + along * (camera.centre_m - end)
+        to_camera = camera.centre_m - end
+        across = np.cross(to_camera, [0.0, 1.0, 0.0])
+        if np.linalg.norm(across) < 1e-6:
+            return None
+        across /= np.linalg.norm(across)
+        point = point + across * radius * float(rng.uniform(-1.3, 1.3))
+        centre = (float(point[0]), float(point[1] - 0.1), float(point[2]))
+        if _clear_of_pointer(np.asarray(centre), radius, 0.7, pose, ball_r):
+            clothes = _CLOTHES_RGB[int(rng.integers(0, len(_CLOTHES_RGB)))]
+            return (Occluder("cylinder", centre, radius, clothes, height_m=0.7, label="body"),)
+    return None
+
+
+def _clear_of_pointer(centre: Array, radius: float, height: float, pose: PointerPose, ball_r: float) -> bool:
+    """Whether an upright cylinder stays clear of the pointer (both balls and the rod between)."""
+    for f in np.linspace(0.0, 1.0, 12):
+        p = pose.back_m + f * (pose.front_m - pose.back_m)
+        horizontal = math.hypot(p[0] - centre[0], p[2] - centre[2])
+        within_height = abs(p[1] - centre[1]) <= height / 2.0 + ball_r
+        if within_height and horizontal < radius + ball_r + 0.02:
+            return False
+    return True
