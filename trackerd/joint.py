@@ -20,6 +20,7 @@ colour, which candidate (or none), so the pointer fit
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,6 +68,14 @@ class JointChoice:
     notes: list[str] = field(default_factory=list)
 
 
+Look = Callable[[int, str, float, float, float], "Candidate | None"]
+"""``look(camera, colour, x_px, y_px, radius_px)``: fit a ball of that colour where the geometry says one
+should be, in a camera whose search did not offer it (it merged with something of its colour)."""
+
+GUIDED_POINTS = 4
+"""Best points of one colour from which the other colour's ball is looked for, when it has none."""
+
+
 def choose_jointly(
     cameras: list[CameraModel],
     candidates: list[dict[str, list[Candidate]]],
@@ -75,27 +84,33 @@ def choose_jointly(
     length_tolerance_m: float,
     max_gap_m: float,
     room_side: tuple[Array, float] | None = None,
+    look: Look | None = None,
 ) -> JointChoice | str:
     """The most consistent choice (see the module), or the reason there is none.
 
     ``room_side``: (normal, offset) of the wall's plane, oriented so that the room (where the cameras
-    are) has positive signed distance; points behind the wall are ruled out.
+    are) has positive signed distance; points behind the wall are ruled out. ``look``: where a ball
+    must be in a camera that offered no candidate there (a third camera, or the second camera of a ball
+    whose partner was triangulated), it is looked for with this; what it finds joins ``candidates``.
     """
-    rays = []
-    for cam, per_camera in zip(cameras, candidates, strict=True):
-        entry = {}
-        for colour in ("red", "blue"):
-            cands = per_camera.get(colour, [])
-            if cands:
-                centres = np.array([c.fit.centre_px for c in cands])
-                _, dirs = cam.pixel_to_ray(centres)
-                dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-                radii = np.array([c.fit.radius_px for c in cands])
-            else:
-                dirs, radii = np.zeros((0, 3)), np.zeros(0)
-            entry[colour] = (dirs, radii)
-        rays.append(entry)
+    candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
+    rays = [_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
     points = {colour: _points(cameras, rays, colour, ball_radius_m, max_gap_m, room_side) for colour in ("red", "blue")}
+    choice = _pair(points, candidates, length_m, length_tolerance_m)
+    if not isinstance(choice, str) or look is None:
+        return choice
+    # Nothing pairs: one ball may have merged, in some camera, with something of its colour. Look for each
+    # colour where the pointer's length puts it from the other colour's best points.
+    for colour, other in (("red", "blue"), ("blue", "red")):
+        if points[other]:
+            points[colour] = points[colour] + _guided(cameras, candidates, colour, points[other][:GUIDED_POINTS],
+                                                      ball_radius_m, length_m, room_side, look)
+    return _pair(points, candidates, length_m, length_tolerance_m)
+
+
+def _pair(points: dict[str, list[_Point]], candidates: list[dict[str, list[Candidate]]], length_m: float,
+          length_tolerance_m: float) -> JointChoice | str:
+    """The best red and blue points the pointer's length apart, or why there are none."""
     if not points["red"] or not points["blue"]:
         missing = [c for c in ("red", "blue") if not points[c]]
         return (f"no {' or '.join(missing)} ball seen consistently by two cameras"
@@ -128,6 +143,76 @@ def choose_jointly(
             pick[colour] = per_camera[colour][k] if k is not None else None
         chosen.append(pick)
     return JointChoice(chosen, red.point_m, blue.point_m, score, consistent - 1)
+
+
+def _rays(cam: CameraModel, per_camera: dict[str, list[Candidate]]) -> dict[str, tuple[Array, Array]]:
+    """Unit world rays through each candidate's centre, and its radius, per colour."""
+    entry = {}
+    for colour in ("red", "blue"):
+        cands = per_camera.get(colour, [])
+        if cands:
+            centres = np.array([c.fit.centre_px for c in cands])
+            _, dirs = cam.pixel_to_ray(centres)
+            dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+            radii = np.array([c.fit.radius_px for c in cands])
+        else:
+            dirs, radii = np.zeros((0, 3)), np.zeros(0)
+        entry[colour] = (dirs, radii)
+    return entry
+
+
+def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidate]]], colour: str,
+            partners: list[_Point], ball_radius_m: float, length_m: float, room_side: tuple[Array, float] | None,
+            look: Look) -> list[_Point]:
+    """Points of ``colour`` found by looking where the pointer's length puts them: for each candidate ray
+    of ``colour`` in one camera, where it meets the sphere of the pointer's length around a partner
+    point, the other cameras are looked into (``look``)."""
+    found: list[_Point] = []
+    for partner in partners:
+        for a, cam in enumerate(cameras):
+            for i, cand in enumerate(candidates[a][colour]):
+                _, d = cam.pixel_to_ray(cand.fit.centre_px[None])
+                d = d[0] / np.linalg.norm(d[0])
+                # |c + s d - P| = L: s^2 + 2 s d.(c - P) + |c - P|^2 - L^2 = 0.
+                offset = cam.centre_m - partner.point_m
+                b = float(d @ offset)
+                disc = b * b - (float(offset @ offset) - length_m**2)
+                if disc < 0:
+                    continue
+                for s in (-b - math.sqrt(disc), -b + math.sqrt(disc)):
+                    point = cam.centre_m + s * d
+                    if s <= 0.2 or (room_side is not None and float(point @ room_side[0] + room_side[1]) <= 0):
+                        continue
+                    expected_a = cam.focal_px * ball_radius_m / s
+                    ratio = cand.fit.radius_px / expected_a
+                    if not 1.0 / MAX_SIZE_RATIO < ratio < MAX_SIZE_RATIO:
+                        continue
+                    members = {a: i}
+                    score = (math.log(ratio) / SIZE_SCALE) ** 2
+                    for c, other in enumerate(cameras):
+                        if c == a:
+                            continue
+                        depth = float(other.to_camera_frame(point[None])[0, 2])
+                        if depth <= 0.2:
+                            continue
+                        px = other.project(point[None])[0]
+                        if not (np.all(np.isfinite(px)) and bool(other.contains(px[None], 2.0)[0])):
+                            continue
+                        expected = other.focal_px * ball_radius_m / float(np.linalg.norm(point - other.centre_m))
+                        seen = look(c, colour, float(px[0]), float(px[1]), expected)
+                        if seen is None:
+                            continue
+                        miss = float(np.hypot(*(seen.fit.centre_px - px)))
+                        size = seen.fit.radius_px / expected
+                        if miss < max(3.0, 0.5 * expected) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                            candidates[c][colour].append(seen)
+                            members[c] = len(candidates[c][colour]) - 1
+                            # Where it was found against where the geometry put it (a ray gap, in effect).
+                            score += (miss / max(1.0, 0.1 * expected)) ** 2 + (math.log(size) / SIZE_SCALE) ** 2
+                    if len(members) >= 2:
+                        found.append(_Point(point, members, score - EXTRA_CAMERA_BONUS * (len(members) - 2)))
+    found.sort(key=lambda p: p.score)
+    return found[:MAX_HYPOTHESES]
 
 
 def _same(per_camera: dict[str, list[Candidate]], red_index: int, blue_index: int) -> bool:

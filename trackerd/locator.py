@@ -38,12 +38,19 @@ from trackerd.geometry.pointer_line import (
     line_from_planes,
     sphere_centre_direction,
 )
-from trackerd.geometry.pointer_fit import fit_pointer_robust, hit_covariance
+from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, fit_pointer_robust, hit_covariance
 from trackerd.geometry.wall import WallFloats, WallFrame, WallHitFloats
 
 Array = NDArray[np.float64]
 
 COLOURS = ("red", "blue")
+
+MAX_RADIUS_RATIO = 1.3
+"""A ball's fitted outline more than this much larger or smaller than a ball at its distance is left out
+of the pointer fit (when its end is measured by two other cameras)."""
+
+MAX_GUIDED_RESIDUAL_PX = 0.6
+"""A ball looked for where the geometry puts it must be a circle this closely (rim scatter, pixels)."""
 
 PARALLEL_ANGLE_DEG = 0.5
 """A pointer within this angle of the wall's plane is reported as parallel: its line would meet
@@ -80,6 +87,9 @@ class PointerFix:
     timings_ns: dict[str, int] = field(default_factory=dict)
     detections: tuple = ()
     """The detector's full results, per camera (empty when centroids were given directly)."""
+    measurements: tuple = ()
+    """Per camera, per colour: the end measurement the pointer fit used (trackerd.ends.EndMeasurement, or
+    None where that camera did not measure that end); empty when the fit was not used."""
 
     @property
     def found(self) -> bool:
@@ -246,17 +256,17 @@ class Locator:
         for index, (cam, detection, image) in enumerate(zip(self.cameras, detections, images, strict=True)):
             ends: dict[str, Any] = {c: None for c in COLOURS}
             per_camera.append(ends)
-            if not detection.both_found:
-                continue
             red, blue = detection.red, detection.blue
-            along = red.centroid_px - blue.centroid_px
-            length = float(np.hypot(*along))
-            across = np.array([-along[1], along[0]]) / length if length > 1e-9 else None
+            across = None
+            if detection.both_found:
+                along = red.centroid_px - blue.centroid_px
+                length = float(np.hypot(*along))
+                across = np.array([-along[1], along[0]]) / length if length > 1e-9 else None
+            # A camera that sees one end only (the other hidden) still measures that one, by its outline.
             for colour, end in (("red", red), ("blue", blue)):
-                ends[colour] = measure_end(image, self.grids[index], cam, index, colour, end.centroid_px,
-                                           _blob_radius_px(end), end.centroid_px, across, sigma_px, end.area_px)
-            if ends["red"] is None or ends["blue"] is None:
-                ends["red"] = ends["blue"] = None
+                if end.found:
+                    ends[colour] = measure_end(image, self.grids[index], cam, index, colour, end.centroid_px,
+                                               _blob_radius_px(end), end.centroid_px, across, sigma_px, end.area_px)
         fix = self._fix_from_measurements(per_camera, None, detections, start)
         if fix.found:
             return fix
@@ -267,7 +277,8 @@ class Locator:
 
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
-        from trackerd.detect.search import search_candidates
+        from trackerd.detect.ballfit import fit_ball
+        from trackerd.detect.search import Candidate, search_candidates
         from trackerd.ends import from_fit
         from trackerd.joint import choose_jointly
 
@@ -275,8 +286,15 @@ class Locator:
                       for index, image in enumerate(images)]
         pointer = self.rig.pointer
         room = self._room_side()
+        def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float) -> Candidate | None:
+            fit = fit_ball(images[camera], self.grids[camera], colour, x_px, y_px, radius_px,
+                           radius_range_px=(radius_px / 1.3, radius_px * 1.3))
+            if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
+                return None
+            return Candidate(colour, fit, (x_px, y_px), radius_px)
+
         choice = choose_jointly(self.cameras, candidates, pointer.end_diameter_m / 2.0, pointer.length_m,
-                                pointer.length_tolerance_m, self.rig.locator.max_ray_gap_m, room)
+                                pointer.length_tolerance_m, self.rig.locator.max_ray_gap_m, room, look)
         if isinstance(choice, str):
             missing = self._missing(detections)
             reason = "; ".join([choice, *missing]) if missing else choice
@@ -357,10 +375,24 @@ class Locator:
                 if m is None:
                     xc = rotations[k] @ start_points[e] + translations[k]
                     measured[k, e] = xc[:2] / xc[2]
-                    covariances[k, e] = np.eye(2) * 1e4
+                    covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
                 else:
                     measured[k, e] = m.normalised
                     covariances[k, e] = m.covariance
+        # A ball's outline of the wrong size for its distance is a fit to something else (part of a ball the
+        # presenter's body hides, a disc on the display beside it): left out, while each end keeps two cameras.
+        ball_radius = pointer.end_diameter_m / 2.0
+        for k, i in enumerate(used):
+            for e, colour in enumerate((front, back)):
+                m = per_camera[i][colour]
+                if m is None or m.source == "centroid":
+                    continue
+                distance = float(np.linalg.norm(start_points[e] - self.cameras[i].centre_m))
+                expected = self.cameras[i].focal_px * ball_radius / math.sqrt(max(distance**2 - ball_radius**2, 1e-6))
+                ratio = m.radius_px / expected
+                seen_by = int(np.count_nonzero(np.trace(covariances[:, e], axis1=1, axis2=2) < DROPPED_VARIANCE))
+                if not (1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO) and seen_by > 2:
+                    covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
         try:
             fitted = fit_pointer_robust(rotations, translations, measured, covariances, pointer.length_m,
                                         self.rig.locator.length_sigma_m, start_points[0], start_points[1])
@@ -377,7 +409,8 @@ class Locator:
             pass
         fix = self._judge(line, centroids, measured, view, uncertainty)
         return PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
-                          {"triangulate_ns": time.perf_counter_ns() - start}, detections)
+                          {"triangulate_ns": time.perf_counter_ns() - start}, detections,
+                          tuple(dict(ends) for ends in per_camera))
 
     # ------------------------------------------------------------------ geometry
 

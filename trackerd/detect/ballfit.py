@@ -62,6 +62,11 @@ TUKEY_C = 4.685
 ROD_EXCLUSION_DEG = 30.0
 """Rays this close to the pointer's axis (either way) are not used when the axis is given."""
 
+MAX_SCATTER_PX = 1.0
+MAX_SCATTER_SHARE = 0.1
+"""A rim scattering about its circle by more than the larger of these (pixels, share of the radius) is
+not a ball's outline (a bar, a letter, a smear)."""
+
 MIN_SCALE_PX = 0.25
 """The rim residuals' scale is never taken below this (exact renders would otherwise give zero)."""
 
@@ -106,6 +111,7 @@ def fit_ball(
     radius_px: float,
     *,
     axis: tuple[float, float] | None = None,
+    radius_range_px: tuple[float, float] | None = None,
     passes: int = 2,
 ) -> BallFit:
     """The circle of the ``colour`` ball near (x_px, y_px), of roughly ``radius_px`` (see the module).
@@ -114,13 +120,16 @@ def fit_ball(
     rays within ROD_EXCLUSION_DEG of it, either way, are left out: there the rod (and the handle behind
     the back ball) meets the ball, and the rim is a mix of ball and rod that pulls a fit along the
     pointer. Leaving out both directions keeps what is left symmetric about the axis.
+    ``radius_range_px``: only circles of a radius in this range are considered (where the geometry says
+    how large the ball must be): the ball's arc is then found even where its outline runs into a disc
+    of its colour of another size.
     """
     if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:
         return BallFit.missing("no position to look at")
     fit = BallFit.missing("not looked for")
     cx, cy, radius = float(x_px), float(y_px), max(float(radius_px), 2.0)
     for _ in range(passes):
-        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis)
+        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis, radius_range_px)
         if not fit.found:
             return fit
         cx, cy = (float(v) for v in fit.centre_px)
@@ -129,7 +138,8 @@ def fit_ball(
 
 
 def _one_pass(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, cx: float, cy: float,
-              radius: float, axis: tuple[float, float] | None) -> BallFit:
+              radius: float, axis: tuple[float, float] | None,
+              radius_range_px: tuple[float, float] | None = None) -> BallFit:
     reach = 2.0 * radius + 3.0
     s = grid.cell_px
     dr, dc = grid.offset(colour)
@@ -162,7 +172,7 @@ def _one_pass(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, cx: float
     if np.count_nonzero(ok) < max(6, int(MIN_RIM_FRACTION * usable)):
         return BallFit.missing(f"the ball's outline is not visible (rim on {np.count_nonzero(ok)} of {usable} rays)")
     points = np.column_stack([cx + _COS[ok] * rim[ok], cy + _SIN[ok] * rim[ok]])
-    circle = robust_circle(points)
+    circle = robust_circle(points, radius_range_px=radius_range_px)
     if circle is None:
         return BallFit.missing("the rim points are not a circle")
     centre, r, weights, scale = circle
@@ -170,6 +180,8 @@ def _one_pass(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, cx: float
     fraction = float(np.count_nonzero(agree)) / usable
     if fraction < MIN_RIM_FRACTION or not (0.3 * radius <= r <= 3.0 * radius):
         return BallFit.missing(f"too little of the ball's outline is a circle ({fraction:.0%} of its rays)")
+    if scale > max(MAX_SCATTER_PX, MAX_SCATTER_SHARE * r):
+        return BallFit.missing(f"the outline is not round (its rim scatters by {scale:.1f} px about a circle)")
     used = points[agree]
     # The centre's standard error: the scatter over the rim, spread over the directions it covers.
     directions = (used - centre) / r
@@ -284,7 +296,8 @@ def _circle_of(points: Array) -> tuple[Array, float] | None:
     return np.array([cx + mx, cy + my]), math.sqrt(r2)
 
 
-def robust_circle(points: Array, trials: int = 48) -> tuple[Array, float, Array, float] | None:
+def robust_circle(points: Array, trials: int = 48, radius_range_px: tuple[float, float] | None = None
+                  ) -> tuple[Array, float, Array, float] | None:
     """A circle through most of ``points`` (N, 2), ignoring the rest: centre, radius, per-point weights
     (0 for points left out) and the residuals' robust scale.
 
@@ -310,6 +323,10 @@ def robust_circle(points: Array, trials: int = 48) -> tuple[Array, float, Array,
     ux = (a2 * (by - cy) + b2 * (cy - ay) + c2 * (ay - by)) / d
     uy = (a2 * (cx - bx) + b2 * (ax - cx) + c2 * (bx - ax)) / d
     r = np.hypot(ax - ux, ay - uy)
+    if radius_range_px is not None:
+        good &= (r >= radius_range_px[0]) & (r <= radius_range_px[1])
+        if not np.any(good):
+            return None
     residual = np.abs(np.hypot(points[None, :, 0] - ux[:, None], points[None, :, 1] - uy[:, None]) - r[:, None])
     support = np.where(good[:, None], residual < 2.0 * max(MIN_SCALE_PX, 0.05 * float(np.median(r[good]))), False)
     best = int(np.argmax(support.sum(axis=1)))
@@ -345,6 +362,8 @@ def robust_circle(points: Array, trials: int = 48) -> tuple[Array, float, Array,
         centre, radius = new_centre, math.sqrt(r2)
         if moved < 1e-3:
             break
+    if radius_range_px is not None and not radius_range_px[0] <= radius <= radius_range_px[1]:
+        return None
     distance = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
     z = (distance - radius) / (TUKEY_C * scale)
     weights = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)

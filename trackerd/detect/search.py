@@ -37,7 +37,10 @@ RELATIVE_EXCESS = 0.3
 MIN_EXCESS = 12
 """And by this many grey levels."""
 
-MAX_SEEDS = 12
+STRICTER = (0.5, 0.65)
+"""Shares of its own value a sample's excess must reach, in turn, inside a group too large to be a ball."""
+
+MAX_SEEDS = 20
 """Seeds fitted per colour, best first."""
 
 
@@ -79,7 +82,18 @@ def search_candidates(
         own, other = (r, b) if colour == "red" else (b, r)
         excess = own - np.maximum(g, other)
         mask = (excess >= MIN_EXCESS) & (10 * excess >= int(10 * RELATIVE_EXCESS) * own)
-        seeds = _seeds(mask, region, step, grid, colour, spacing, smallest, largest)
+        seeds, merged = _seeds(mask, region, step, grid, colour, spacing, smallest, largest)
+        # A ball in front of a picture of a nearby hue merges with it; a stricter hue test, inside the merged
+        # group only, separates what is only nearly the paint's colour (a magenta beside a red).
+        for share in STRICTER:
+            if not merged:
+                break
+            stricter = (excess >= MIN_EXCESS) & (100 * excess >= int(100 * share) * own)
+            keep = np.zeros_like(mask)
+            for y0, y1, x0, x1 in merged:
+                keep[y0:y1, x0:x1] = stricter[y0:y1, x0:x1]
+            more, merged = _seeds(keep, region, step, grid, colour, spacing, smallest, largest)
+            seeds += more
         found: list[Candidate] = []
         for x, y, radius in seeds[:max_seeds]:
             fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
@@ -90,10 +104,12 @@ def search_candidates(
 
 
 def _seeds(mask: NDArray[np.bool_], region: tuple[int, int, int, int], step: int, grid: SampleGrid, colour: str,
-           spacing: float, smallest: float, largest: float) -> list[tuple[float, float, float]]:
-    """(x, y, radius) in pixels of the mask's blobs of a ball's size, roundest and largest first."""
+           spacing: float, smallest: float, largest: float
+           ) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int, int]]]:
+    """(x, y, radius) in pixels of the mask's blobs of a ball's size, roundest and largest first; and the
+    boxes (row0, row1, col0, col1 in mask samples) of the blobs too large to be one ball."""
     if not mask.any():
-        return []
+        return [], []
     runs = find_runs(mask)
     labels, count = label_runs(runs)
     stats = blob_stats(runs, labels, count)
@@ -101,21 +117,25 @@ def _seeds(mask: NDArray[np.bool_], region: tuple[int, int, int, int], step: int
     r0, _, c0, _ = region
     s = grid.cell_px
     scored = []
+    merged = []
     for k in range(count):
         n = float(stats.count[k])
         width = (stats.x1[k] - stats.x0[k] + 1) * spacing
         height = (stats.y1[k] - stats.y0[k] + 1) * spacing
         radius = 0.5 * max(width, height)
         area_radius = math.sqrt(n / math.pi) * spacing
+        if radius > 1.6 * largest:
+            merged.append((int(stats.y0[k]), int(stats.y1[k]) + 1, int(stats.x0[k]), int(stats.x1[k]) + 1))
         if radius < 0.5 * smallest or area_radius > 1.6 * largest:
             continue
         fill = n * spacing * spacing / max(width * height, 1e-9)
         x = (c0 + step * float(stats.mean_x[k])) * s + dc
         y = (r0 + step * float(stats.mean_y[k])) * s + dr
         roundness = min(width, height) / max(width, height)
-        scored.append((roundness * min(1.0, fill / 0.6) * min(n, 400.0), x, y, max(radius, area_radius)))
+        # Ball-like first, whatever the size: a small ball must not wait behind the large letters of a slide.
+        scored.append((roundness * min(1.0, fill / 0.6) * min(1.0, radius / smallest), x, y, max(radius, area_radius)))
     scored.sort(reverse=True)
-    return [(x, y, radius) for _, x, y, radius in scored]
+    return [(x, y, radius) for _, x, y, radius in scored], merged
 
 
 def _distinct(candidates: list[Candidate]) -> list[Candidate]:

@@ -52,13 +52,13 @@ class PointerFit:
     inflation: float
     """Factor the covariance was multiplied by: max(1, chi2 / dof)."""
     iterations: int
-    downweighted: tuple[tuple[int, int], ...] = ()
-    """(camera, end) measurements whose residual was an outlier and whose covariance was widened
-    along it (a ball's outline fitted to the wrong arc, say)."""
+    dropped: tuple[tuple[int, int], ...] = ()
+    """(camera, end) measurements left out as not agreeing with the others (a ball's outline fitted
+    to the wrong arc, say)."""
 
 
 OUTLIER_SIGMAS = 4.0
-"""A measurement whose whitened residual exceeds this is widened along its residual and the fit redone."""
+"""A fit with a measurement whose whitened residual exceeds this looks for one to leave out."""
 
 
 def fit_pointer_robust(
@@ -71,41 +71,63 @@ def fit_pointer_robust(
     front0_m: Array,
     back0_m: Array,
     ball_radius_m: float = 0.0,
-    rounds: int = 3,
+    rounds: int = 2,
+    min_cameras: int = 2,
 ) -> PointerFit:
-    """:func:`fit_pointer`, then each measurement whose whitened residual exceeds OUTLIER_SIGMAS has its
-    covariance widened along that residual (to what would make it a 2-sigma residual) and the fit is
-    redone, up to ``rounds`` times: one end's measurement pulled by an occluder does not drag the line."""
+    """:func:`fit_pointer`, leaving out measurements that do not agree with the others.
+
+    While some whitened residual exceeds OUTLIER_SIGMAS, the fit is redone without each measurement in
+    turn, and the measurement whose absence leaves the others agreeing best (the smallest chi-square) is
+    left out for good; up to ``rounds`` of them, and never so many that an end is measured by fewer than
+    ``min_cameras`` cameras. Leaving each out in turn, rather than the one with the largest residual,
+    is what finds the culprit: a bad measurement pulls the fit towards itself, and the largest residuals
+    are then often the good ones.
+    """
+    rot = np.asarray(rotations, dtype=np.float64)
+    trans = np.asarray(translations_m, dtype=np.float64)
+    obs = np.asarray(measured, dtype=np.float64)
     cov = np.array(covariances, dtype=np.float64)
-    widened: set[tuple[int, int]] = set()
-    fit = fit_pointer(rotations, translations_m, measured, cov, length_m, length_sigma_m, front0_m, back0_m,
-                      ball_radius_m)
+    present = np.array([[float(np.trace(cov[c, e])) < DROPPED_VARIANCE for e in range(2)] for c in range(len(cov))])
+    dropped: list[tuple[int, int]] = []
+    fit = fit_pointer(rot, trans, obs, cov, length_m, length_sigma_m, front0_m, back0_m, ball_radius_m)
     for _ in range(rounds):
-        predicted = predict(np.asarray(rotations, dtype=np.float64), np.asarray(translations_m, dtype=np.float64),
-                            fit.front_m, fit.back_m, ball_radius_m)
-        residual = np.asarray(measured, dtype=np.float64) - predicted  # (C, 2, 2)
-        info = np.linalg.inv(cov)
-        d2 = np.einsum("cei,ceij,cej->ce", residual, info, residual)
-        worst = np.unravel_index(int(np.argmax(d2)), d2.shape)
-        if d2[worst] <= OUTLIER_SIGMAS**2:
+        if _worst_sigma2(rot, trans, obs, cov, present, fit, ball_radius_m) <= OUTLIER_SIGMAS**2:
             break
-        c, e = int(worst[0]), int(worst[1])
-        r = residual[c, e]
-        norm = float(np.linalg.norm(r))
-        if norm <= 0:
+        best: tuple[float, tuple[int, int], PointerFit] | None = None
+        for c, e in zip(*np.nonzero(present), strict=True):
+            if int(np.count_nonzero(present[:, e])) <= min_cameras:
+                continue
+            trial = cov.copy()
+            trial[c, e] = np.eye(2) * DROPPED_VARIANCE
+            try:
+                candidate = fit_pointer(rot, trans, obs, trial, length_m, length_sigma_m, fit.front_m, fit.back_m,
+                                        ball_radius_m)
+            except GeometryError:
+                continue
+            if best is None or candidate.chi2 < best[0]:
+                best = (candidate.chi2, (int(c), int(e)), candidate)
+        if best is None:
             break
-        unit = r / norm
-        # Widen along the residual so that it becomes a 2-sigma residual there.
-        current = float(unit @ cov[c, e] @ unit)
-        wanted = (norm / 2.0) ** 2
-        cov[c, e] = cov[c, e] + np.outer(unit, unit) * max(wanted - current, 0.0)
-        widened.add((c, e))
-        fit = fit_pointer(rotations, translations_m, measured, cov, length_m, length_sigma_m, fit.front_m,
-                          fit.back_m, ball_radius_m)
-    if widened:
+        _, (c, e), fit = best
+        cov[c, e] = np.eye(2) * DROPPED_VARIANCE
+        present[c, e] = False
+        dropped.append((c, e))
+    if dropped:
         fit = PointerFit(fit.front_m, fit.back_m, fit.covariance, fit.chi2, fit.dof, fit.inflation, fit.iterations,
-                         tuple(sorted(widened)))
+                         tuple(dropped))
     return fit
+
+
+DROPPED_VARIANCE = 1e4
+"""The covariance (normalised units squared) of a measurement that is not there: it weighs nothing."""
+
+
+def _worst_sigma2(rot: Array, trans: Array, obs: Array, cov: Array, present: Array, fit: PointerFit,
+                  ball_radius_m: float) -> float:
+    """The largest squared whitened residual of the measurements present."""
+    residual = obs - predict(rot, trans, fit.front_m, fit.back_m, ball_radius_m)
+    d2 = np.einsum("cei,ceij,cej->ce", residual, np.linalg.inv(cov), residual)
+    return float(np.max(np.where(present, d2, 0.0)))
 
 
 def predict(rotations: Array, translations_m: Array, front_m: Array, back_m: Array, ball_radius_m: float = 0.0

@@ -119,7 +119,7 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
     rod_d = float(min(rng.uniform(0.006, 0.016), 0.6 * ball_d))
     length = float(rng.uniform(0.3, 0.6))
     cameras = []
-    configs = []
+    formats = []
     box = np.array([[x, y, z] for x in (lower[0], upper[0]) for y in (lower[1], upper[1]) for z in (lower[2], upper[2])])
     for index, position in enumerate(positions):
         camera = _aimed_camera(rng, f"cam{index}", position, centre, box)
@@ -131,25 +131,16 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
         if model.focal_px * ball_d / far < MIN_BALL_DIAMETER_PX:
             return None
         cameras.append(model)
-        configs.append(_camera_config(model, fmt))
+        formats.append(fmt)
     lighting = str(rng.choice(LIGHTINGS))
     paint = str(rng.choice(PAINTS))
     look, noise_sigma, shot_noise = _look(rng, lighting, paint)
-    corners = [[0.0, 0.0, 0.0], [width, 0.0, 0.0], [width, height, 0.0], [0.0, height, 0.0]]
-    rig = RigConfig.model_validate({
-        "name": name,
-        "cameras": configs,
-        "wall": {"corners_m": corners, "display_width_px": 3840, "display_height_px": int(3840 * height / width)},
-        "pointer": {"length_m": length, "end_diameter_m": ball_d, "rod_diameter_m": rod_d,
-                    "front_colour": str(rng.choice(["red", "red", "blue"]))},
-        "simulation": {
-            "seed": int(rng.integers(0, 2**31)), "clutter": int(rng.integers(4, 16)),
-            "noise_sigma": noise_sigma, "shot_noise": shot_noise, "supersampling": 3,
-            "background_supersampling": 1, "display_height_above_floor_m": above_floor,
-            "room_depth_m": 7.0, "presenter_distance_m": (lower[2], upper[2]),
-            "hand_height_m": (1.0, 1.8),
-        },
-    })
+    rig = build_rig(name, list(zip(cameras, formats, strict=True)), width, height, above_floor,
+                    {"length_m": length, "end_diameter_m": ball_d, "rod_diameter_m": rod_d,
+                     "front_colour": str(rng.choice(["red", "red", "blue"]))},
+                    {"seed": int(rng.integers(0, 2**31)), "clutter": int(rng.integers(4, 16)),
+                     "noise_sigma": noise_sigma, "shot_noise": shot_noise,
+                     "presenter_distance_m": (lower[2], upper[2])})
     widest = max(c.width_px for c in cameras)
     factors = {
         "placement": placement,
@@ -159,6 +150,42 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
         "resolution": "4K-class" if widest > 2000 else ("1080p-class" if widest > 1300 else "720p"),
     }
     return RandomRig(rig, tuple(cameras), look, factors, (lower, upper))
+
+
+def build_rig(name: str, cameras: list[tuple[CameraModel, str]], wall_width_m: float, wall_height_m: float,
+              above_floor_m: float, pointer: dict, simulation: dict | None = None) -> RigConfig:
+    """A rig file for cameras (their true models and pixel formats) in front of a wall in the plane z = 0,
+    from (0, 0) to (width, height), its display's bottom edge ``above_floor_m`` over the floor."""
+    corners = [[0.0, 0.0, 0.0], [wall_width_m, 0.0, 0.0], [wall_width_m, wall_height_m, 0.0], [0.0, wall_height_m, 0.0]]
+    return RigConfig.model_validate({
+        "name": name,
+        "cameras": [_camera_config(model, fmt) for model, fmt in cameras],
+        "wall": {"corners_m": corners, "display_width_px": 3840,
+                 "display_height_px": int(3840 * wall_height_m / wall_width_m)},
+        "pointer": pointer,
+        "simulation": {
+            "supersampling": 2, "background_supersampling": 1, "display_height_above_floor_m": above_floor_m,
+            "room_depth_m": 7.0, "hand_height_m": (1.0, 1.8), **(simulation or {}),
+        },
+    })
+
+
+def aimed_camera(camera_id: str, position: Array, target: Array, width_px: int, height_px: int, hfov_deg: float,
+                 distortion: Array | None = None, roll_deg: float = 0.0) -> CameraModel:
+    """A camera at ``position`` looking at ``target`` (image y down, world y up), with a horizontal field
+    of view and the principal point at the image's centre."""
+    forward = np.asarray(target, dtype=np.float64) - np.asarray(position, dtype=np.float64)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    roll = math.radians(roll_deg)
+    right, down = (math.cos(roll) * right + math.sin(roll) * down, -math.sin(roll) * right + math.cos(roll) * down)
+    focal = (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+    matrix = np.array([[focal, 0.0, (width_px - 1) / 2.0], [0.0, focal, (height_px - 1) / 2.0], [0.0, 0.0, 1.0]])
+    return CameraModel.from_pose(camera_id, width_px, height_px, matrix,
+                                 np.zeros(5) if distortion is None else np.asarray(distortion, dtype=np.float64),
+                                 np.asarray(position, dtype=np.float64), np.column_stack([right, down, forward]))
 
 
 def _camera_positions(rng: np.random.Generator, placement: str, count: int, width: float, floor: float,
@@ -203,7 +230,7 @@ def _camera_positions(rng: np.random.Generator, placement: str, count: int, widt
 def _aimed_camera(rng: np.random.Generator, camera_id: str, position: Array, target: Array, box: Array
                   ) -> tuple[CameraModel, str] | None:
     """A camera at ``position`` looking at ``target``, with a lens that takes in the presenter's area."""
-    width_px, height_px = RESOLUTIONS[int(rng.choice(len(RESOLUTIONS), p=[0.25, 0.4, 0.15, 0.12, 0.08]))]
+    width_px, height_px = RESOLUTIONS[int(rng.choice(len(RESOLUTIONS), p=[0.28, 0.4, 0.16, 0.10, 0.06]))]
     aim = target + rng.normal(0.0, 0.15, size=3)
     forward = aim - position
     forward /= np.linalg.norm(forward)
@@ -378,9 +405,9 @@ def _occluders(rng: np.random.Generator, occlusion: str, pose: PointerPose, draw
         across /= np.linalg.norm(across)
         point = point + across * radius * float(rng.uniform(-1.3, 1.3))
         centre = (float(point[0]), float(point[1] - 0.1), float(point[2]))
-        if _clear_of_pointer(np.asarray(centre), radius, 0.7, pose, ball_r):
+        if _clear_of_pointer(np.asarray(centre), radius, 0.5, pose, ball_r):
             clothes = _CLOTHES_RGB[int(rng.integers(0, len(_CLOTHES_RGB)))]
-            return (Occluder("cylinder", centre, radius, clothes, height_m=0.7, label="body"),)
+            return (Occluder("cylinder", centre, radius, clothes, height_m=0.5, label="body"),)
     return None
 
 

@@ -154,15 +154,14 @@ class SceneRenderer:
         fmt = pixel_format or self.pixel_formats[camera_index]
         camera = self.cameras[camera_index]
         illumination = self._illumination_map(camera_index)
-        # The room's mosaic is cached per format; a scene with its own light or content is composed in
-        # RGB and mosaiced at the end.
-        plain = illumination is None and content is None
-        if plain:
-            mosaic = self._background_in_format(camera_index, fmt).copy()
-            background = self._background(camera_index)
-        else:
-            background = self._background_showing(camera_index, content)
-            scene_rgb = background.copy()
+        # The room, lit and mosaiced, is cached per format; each frame changes only the display's region
+        # (its content) and the pointer's, which are composed in RGB, lit and mosaiced on their own.
+        mosaic = self._lit_room_in_format(camera_index, fmt).copy()
+        display = None
+        if content is not None:
+            display = self._display_showing(camera_index, content)
+            r0, r1, c0, c1, shown = display
+            self._put(mosaic, shown, camera_index, fmt, c0, r0)
         truth_centre = {c: np.full(2, np.nan) for c in ("red", "blue")}
         truth_centroid = {c: np.full(2, np.nan) for c in ("red", "blue")}
         truth_area = {"red": 0.0, "blue": 0.0}
@@ -174,16 +173,12 @@ class SceneRenderer:
             patch = self._pointer_patch(camera_index, poses, occluders)
             if patch is not None:
                 x0, y0, rgb, coverage, sums = patch
-                behind = background[y0 : y0 + rgb.shape[0], x0 : x0 + rgb.shape[1]]
+                h, w = rgb.shape[:2]
+                behind = self._background(camera_index)[y0 : y0 + h, x0 : x0 + w]
+                if display is not None:
+                    behind = _overlay(behind, display, x0, y0)
                 blended = rgb + (1.0 - coverage[..., None]) * behind
-                if plain:
-                    region = _format_values(blended.astype(np.float32), fmt, x0, y0)
-                    if region.ndim == 2:
-                        mosaic[y0 : y0 + region.shape[0], x0 : x0 + region.shape[1]] = region
-                    else:
-                        mosaic[y0 : y0 + region.shape[0], x0 : x0 + region.shape[1], :] = region
-                else:
-                    scene_rgb[y0 : y0 + rgb.shape[0], x0 : x0 + rgb.shape[1]] = blended
+                self._put(mosaic, blended.astype(np.float32), camera_index, fmt, x0, y0)
                 for colour, (count, sx, sy) in sums.items():
                     if count > 0:
                         truth_centroid[colour] = np.array([sx / count, sy / count])
@@ -194,12 +189,33 @@ class SceneRenderer:
                 centre = mid.centre_of(colour, self.front_colour)
                 truth_centre[colour] = camera.project(centre[None])[0]
                 full_area[colour] = silhouette_area_px(camera, centre, radius)
-        if not plain:
-            if illumination is not None:
-                scene_rgb *= illumination
-            mosaic = _format_values(scene_rgb, fmt, 0, 0)
         image = _quantise(mosaic, rng, self.rig.simulation.noise_sigma, self.rig.simulation.shot_noise, noise)
         return RenderedView(image, fmt, ViewTruth(truth_centre, truth_centroid, truth_area, full_area))
+
+    def _put(self, mosaic: NDArray[np.float32], rgb: NDArray[np.float32], index: int, fmt: str, x0: int,
+             y0: int) -> None:
+        """Write an RGB region at (x0, y0) into a frame's raw values, lit as the rest of the frame."""
+        h, w = rgb.shape[:2]
+        illumination = self._illumination_map(index)
+        if illumination is not None:
+            rgb = rgb * illumination[y0 : y0 + h, x0 : x0 + w]
+        region = _format_values(rgb, fmt, x0, y0)
+        if region.ndim == 2:
+            mosaic[y0 : y0 + h, x0 : x0 + w] = region
+        else:
+            mosaic[y0 : y0 + h, x0 : x0 + w, :] = region
+
+    def _lit_room_in_format(self, index: int, fmt: str) -> NDArray[np.float32]:
+        """The empty room as the camera delivers it (lit by the look, in its pixel format), cached."""
+        illumination = self._illumination_map(index)
+        if illumination is None:
+            return self._background_in_format(index, fmt)
+        key = (index, "lit-" + fmt)
+        cached = self._mosaics.get(key)
+        if cached is None:
+            cached = _format_values(self._background(index) * illumination, fmt, 0, 0)
+            self._mosaics[key] = cached
+        return cached
 
     def background_rgb(self, camera_index: int) -> NDArray[np.float32]:
         """The empty room as camera ``camera_index`` sees it, (H, W, 3) floats in [0, 1]."""
@@ -211,22 +227,20 @@ class SceneRenderer:
             self._illumination[index] = self.look.illumination(cam.width_px, cam.height_px)
         return self._illumination[index]
 
-    def _background_showing(self, index: int, content: NDArray[np.float32] | None) -> NDArray[np.float32]:
-        """The room with the display showing ``content`` (a texture, row 0 at the top), or as it is."""
-        room = self._background(index)
-        if content is None:
-            return room
+    def _display_showing(self, index: int, content: NDArray[np.float32]
+                         ) -> tuple[int, int, int, int, NDArray[np.float32]]:
+        """The room over the display's region (r0, r1, c0, c1) with the display showing ``content`` (a
+        texture, row 0 at the top), in RGB."""
         map_x, map_y, (r0, r1, c0, c1) = self._display_map(index)
-        out = room.copy()
+        room = self._background(index)[r0:r1, c0:c1]
         if r1 <= r0:
-            return out
+            return r0, r1, c0, c1, room
         h, w = content.shape[:2]
         # A fourth channel of ones says where the texture was sampled: the display's own coverage.
         rgba = np.dstack([content.astype(np.float32), np.ones((h, w), dtype=np.float32)])
         shown = cv2_remap(rgba, map_x * np.float32(w) - np.float32(0.5), map_y * np.float32(h) - np.float32(0.5))
         alpha = shown[..., 3:4]
-        out[r0:r1, c0:c1] = room[r0:r1, c0:c1] * (np.float32(1.0) - alpha) + shown[..., :3]
-        return out
+        return r0, r1, c0, c1, room * (np.float32(1.0) - alpha) + shown[..., :3]
 
     def _display_map(
         self, index: int
@@ -813,6 +827,20 @@ def _ray_cylinder(origin: Array, dirs: Array, start: Array, end: Array, radius: 
 
 
 # ----------------------------------------------------------------------------- output
+
+
+def _overlay(behind: NDArray[np.float32], display: tuple[int, int, int, int, NDArray[np.float32]], x0: int,
+             y0: int) -> NDArray[np.float32]:
+    """``behind`` (a region at (x0, y0)) with the part the display's region covers taken from it."""
+    r0, r1, c0, c1, shown = display
+    h, w = behind.shape[:2]
+    top, bottom = max(y0, r0), min(y0 + h, r1)
+    left, right = max(x0, c0), min(x0 + w, c1)
+    if top >= bottom or left >= right:
+        return behind
+    out = behind.copy()
+    out[top - y0 : bottom - y0, left - x0 : right - x0] = shown[top - r0 : bottom - r0, left - c0 : right - c0]
+    return out
 
 
 def cv2_remap(image: NDArray[np.float32], map_x: NDArray[np.float32], map_y: NDArray[np.float32]) -> NDArray[np.float32]:

@@ -1,0 +1,109 @@
+"""A ball's outline fitted where it is visible (trackerd/detect/ballfit.py), on analytic frames whose
+truth is exact: the disc's centre, whatever hides part of it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from detect_synthetic import RED, ROD, WALL, Scene, Shape
+
+from trackerd.config.models import DetectorConfig
+from trackerd.detect import ColourEndDetector
+from trackerd.detect.ballfit import fit_ball, robust_circle
+from trackerd.detect.colour import sample_grid
+
+FORMATS = ("BayerRG8", "BayerGB8", "RGB8")
+
+
+def _fit(frame, fmt, x, y, r, **kw):
+    grid = sample_grid(fmt, frame.shape[1], frame.shape[0])
+    return fit_ball(frame, grid, "red", x, y, r, **kw)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_whole_ball_is_found_to_a_small_fraction_of_a_pixel(fmt, detect_rng) -> None:
+    errors = []
+    for k in range(6):
+        x, y = 100.3 + 0.37 * k, 70.6 - 0.29 * k
+        frame, _ = Scene(shapes=[Shape(x, y, RED, radius=11.0)]).render(fmt, detect_rng)
+        fit = _fit(frame, fmt, x + 1.5, y - 1.0, 8.0)  # a rough start, as a blob's centre gives
+        assert fit.found, fit.reason
+        errors.append(np.hypot(*(fit.centre_px - [x, y])))
+        assert abs(fit.radius_px - 11.0) < 0.4
+        assert fit.rim_fraction > 0.9
+    assert np.median(errors) < 0.08 and max(errors) < 0.2
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_ball_partly_hidden_keeps_its_centre_where_the_blob_centroid_moves(fmt, detect_rng) -> None:
+    """A skin-coloured finger over part of the ball: the detector's centroid moves by most of a pixel,
+    the fitted outline stays on the ball's centre (its rim inside the finger is left out)."""
+    x, y, r = 100.4, 75.2, 12.0
+    finger = Shape(x + 10.0, y + 3.0, (0.80, 0.58, 0.47), radius=9.0)
+    frame, _ = Scene(shapes=[Shape(x, y, RED, radius=r), finger]).render(fmt, detect_rng)
+    detector = ColourEndDetector(DetectorConfig(), fmt, frame.shape[1], frame.shape[0])
+    red = detector.detect(frame).red
+    assert red.found
+    moved = np.hypot(*(red.centroid_px - [x, y]))
+    assert moved > 0.5
+    fit = _fit(frame, fmt, *red.centroid_px, np.sqrt(red.area_px / np.pi))
+    assert fit.found, fit.reason
+    assert np.hypot(*(fit.centre_px - [x, y])) < min(0.2, moved / 4)
+    assert 0.5 < fit.rim_fraction < 0.95  # the finger's arc is not counted as the ball's
+
+
+def test_a_dim_shaded_ball_is_measured_whole_where_the_thresholds_take_only_its_lit_side(detect_rng) -> None:
+    """A ball at a third of the light the thresholds were set for, shaded top to bottom: the detector
+    keeps only its lit part (or nothing); the outline is found from the ball's own contrast."""
+    x, y, r = 96.7, 70.1, 12.0
+    dim = tuple(0.35 * c for c in RED)
+    frame, _ = Scene(background=tuple(0.35 * c for c in WALL),
+                     shapes=[Shape(x, y, dim, radius=r, shading=0.4)]).render("BayerRG8", detect_rng, noise=1.5)
+    detector = ColourEndDetector(DetectorConfig(), "BayerRG8", frame.shape[1], frame.shape[0])
+    red = detector.detect(frame).red
+    assert not red.found or red.area_px < 0.6 * np.pi * r * r
+    fit = _fit(frame, "BayerRG8", x - 2.0, y - 3.0, 7.0)
+    assert fit.found, fit.reason
+    assert np.hypot(*(fit.centre_px - [x, y])) < 0.25
+    assert abs(fit.radius_px - r) < 0.8
+
+
+def test_the_rod_side_is_left_out_when_the_axis_is_given(detect_rng) -> None:
+    """The rod meets the ball along the pointer's axis; with the axis given, those rays are not used."""
+    x, y, r = 100.2, 75.1, 11.0
+    scene = Scene(shapes=[Shape(x, y, RED, radius=r)], rods=[(x, y, x + 60.0, y + 10.0, 3.5)])
+    frame, _ = scene.render("BayerRG8", detect_rng)
+    with_axis = _fit(frame, "BayerRG8", x, y, r, axis=(60.0, 10.0))
+    assert with_axis.found and np.hypot(*(with_axis.centre_px - [x, y])) < 0.12
+
+
+def test_nothing_round_there_is_said_so(detect_rng) -> None:
+    frame, _ = Scene(shapes=[Shape(100.0, 75.0, RED, half_size=(30.0, 3.0))]).render("BayerRG8", detect_rng)
+    fit = _fit(frame, "BayerRG8", 100.0, 75.0, 10.0)
+    assert not fit.found and fit.reason
+    blank, _ = Scene(background=WALL).render("BayerRG8", detect_rng)
+    assert not _fit(blank, "BayerRG8", 100.0, 75.0, 10.0).found
+
+
+def test_a_size_range_finds_the_ball_beside_a_larger_disc_of_its_colour(detect_rng) -> None:
+    """A ball overlapping a larger disc of its own paint (a sticker, a slide's dot): told the ball's
+    size, the fit takes the ball's arc; without it, it may take either."""
+    x, y = 95.3, 72.8
+    frame, _ = Scene(shapes=[Shape(x + 22.0, y + 6.0, RED, radius=20.0), Shape(x, y, ROD, radius=10.5),
+                             Shape(x, y, RED, radius=10.0)]).render("BayerRG8", detect_rng)
+    fit = _fit(frame, "BayerRG8", x, y, 10.0, radius_range_px=(8.0, 12.5))
+    assert fit.found, fit.reason
+    assert np.hypot(*(fit.centre_px - [x, y])) < 0.3 and abs(fit.radius_px - 10.0) < 0.8
+
+
+def test_robust_circle_ignores_a_quarter_of_wild_points() -> None:
+    rng = np.random.default_rng(3)
+    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    points = np.column_stack([50 + 9 * np.cos(angles), 40 + 9 * np.sin(angles)]) + rng.normal(0, 0.05, (40, 2))
+    # An occluder's edge: a quarter of the points 2.5 px inside the circle.
+    points[:10] = np.column_stack([50 + 6.5 * np.cos(angles[:10]), 40 + 6.5 * np.sin(angles[:10])])
+    circle = robust_circle(points)
+    assert circle is not None
+    centre, radius, weights, _ = circle
+    assert np.hypot(*(centre - [50, 40])) < 0.05 and abs(radius - 9) < 0.05
+    assert np.all(weights[:10] == 0) and np.all(weights[10:] > 0)

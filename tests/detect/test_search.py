@@ -1,0 +1,51 @@
+"""The relative colour search (trackerd/detect/search.py): candidates where the absolute thresholds see
+nothing, and a ball split from a picture of a nearby hue that it merged with."""
+
+from __future__ import annotations
+
+import numpy as np
+from detect_synthetic import BLUE, RED, WALL, Scene, Shape
+
+from trackerd.config.models import DetectorConfig
+from trackerd.detect import ColourEndDetector
+from trackerd.detect.colour import sample_grid
+from trackerd.detect.search import search_candidates
+
+MAGENTA = (0.85, 0.15, 0.55)
+
+
+def _nearest(cands, x: float, y: float) -> float:
+    return min((float(np.hypot(*(c.fit.centre_px - [x, y]))) for c in cands), default=np.inf)
+
+
+def test_dark_paint_in_dim_light_is_a_candidate_where_the_thresholds_find_nothing(detect_rng) -> None:
+    dim = 0.4
+    shapes = [Shape(70.2, 80.3, tuple(dim * 0.6 * c for c in RED), radius=10.0),
+              Shape(140.6, 60.1, tuple(dim * 0.55 * c for c in BLUE), radius=10.0)]
+    frame, _ = Scene(background=tuple(dim * c for c in WALL), shapes=shapes).render("BayerRG8", detect_rng, noise=1.5)
+    detector = ColourEndDetector(DetectorConfig(), "BayerRG8", frame.shape[1], frame.shape[0])
+    result = detector.detect(frame)
+    assert not result.red.found and not result.blue.found
+    cands = search_candidates(frame, sample_grid("BayerRG8", 200, 150), (6.0, 30.0))
+    assert _nearest(cands["red"], 70.2, 80.3) < 0.3
+    assert _nearest(cands["blue"], 140.6, 60.1) < 0.3
+
+
+def test_a_ball_in_front_of_a_magenta_picture_is_split_from_it(detect_rng) -> None:
+    """The red ball half over a magenta rectangle: one blob at the detector's thresholds, "too large";
+    the stricter hue test inside the merged group leaves the ball."""
+    x, y = 95.4, 70.7
+    scene = Scene(width=240, shapes=[Shape(140.0, 70.0, MAGENTA, half_size=(45.0, 40.0)), Shape(x, y, RED, radius=11.0)])
+    frame, _ = scene.render("BayerRG8", detect_rng)
+    cfg = DetectorConfig(max_area_px=2000.0)
+    detector = ColourEndDetector(cfg, "BayerRG8", frame.shape[1], frame.shape[0])
+    red = detector.detect(frame).red
+    assert not red.found or np.hypot(*(red.centroid_px - [x, y])) > 3.0
+    cands = search_candidates(frame, sample_grid("BayerRG8", 240, 150), (6.0, 25.0))
+    assert _nearest(cands["red"], x, y) < 0.4
+
+
+def test_a_grey_room_offers_no_candidates(detect_rng) -> None:
+    frame, _ = Scene(shapes=[Shape(100.0, 75.0, (0.7, 0.68, 0.66), radius=15.0)]).render("BayerRG8", detect_rng)
+    cands = search_candidates(frame, sample_grid("BayerRG8", 200, 150), (6.0, 30.0))
+    assert cands == {"red": [], "blue": []}

@@ -1,0 +1,198 @@
+"""The pointer fit (trackerd/geometry/pointer_fit.py) and the cone of a ball's outline (sphere.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from trackerd.errors import GeometryError
+from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.pointer_fit import (
+    DROPPED_VARIANCE,
+    fit_pointer,
+    fit_pointer_robust,
+    hit_covariance,
+    predict,
+)
+from trackerd.geometry.sphere import fit_sphere_direction
+
+K = np.array([[1600.0, 0.0, 960.0], [0.0, 1600.0, 540.0], [0.0, 0.0, 1.0]])
+
+
+def _camera(name: str, position, target=(1.7, 0.9, 1.8)) -> CameraModel:
+    """A camera at ``position`` looking at ``target`` (x right, y down in its image, world y up)."""
+    position = np.asarray(position, float)
+    forward = np.asarray(target, float) - position
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    return CameraModel.from_pose(name, 1920, 1080, K, np.zeros(0), position, np.column_stack([right, down, forward]))
+
+
+def _behind_pair() -> list[CameraModel]:
+    """Two cameras high at the back of the room, looking at the wall past the presenter: the
+    interpretation planes of a pointer aimed at the wall between them are nearly parallel."""
+    return [_camera("a", [0.6, 1.5, 5.5]), _camera("b", [2.9, 1.5, 5.5])]
+
+
+def _arrays(cameras: list[CameraModel]):
+    return np.stack([c.rotation for c in cameras]), np.stack([c.translation_m for c in cameras])
+
+
+FRONT = np.array([1.7, 0.9, 1.6])
+BACK = np.array([1.78, 0.98, 2.03])  # 0.45 m behind, aimed at the wall (z = 0)
+
+
+def test_exact_measurements_give_the_ends_back_from_a_poor_start() -> None:
+    cameras = _behind_pair()
+    rot, trans = _arrays(cameras)
+    measured = predict(rot, trans, FRONT, BACK)
+    covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (2, 2, 1, 1))
+    length = float(np.linalg.norm(FRONT - BACK))
+    fit = fit_pointer(rot, trans, measured, covariances, length, 0.003, FRONT + [0.05, -0.03, 0.1], BACK - 0.04)
+    assert np.allclose(fit.front_m, FRONT, atol=1e-7) and np.allclose(fit.back_m, BACK, atol=1e-7)
+    assert fit.chi2 < 1e-8 and fit.inflation == 1.0
+
+
+def test_the_covariance_describes_the_scatter_of_fits_to_noisy_measurements() -> None:
+    """Monte Carlo: the fitted front end's errors, whitened by the fit's own covariance, have unit
+    variance (the uncertainty the daemon publishes is not made up)."""
+    cameras = _behind_pair() + [_camera("c", [-1.0, 1.8, 3.0])]
+    rot, trans = _arrays(cameras)
+    truth = predict(rot, trans, FRONT, BACK)
+    sigma = 0.2 / 1600
+    covariances = np.tile(np.eye(2) * sigma**2, (3, 2, 1, 1))
+    length = float(np.linalg.norm(FRONT - BACK))
+    rng = np.random.default_rng(4)
+    z = []
+    for _ in range(300):
+        noisy = truth + rng.normal(0.0, sigma, truth.shape)
+        fit = fit_pointer(rot, trans, noisy, covariances, length, 1e-4, FRONT, BACK)
+        # Without inflation: the scatter itself is what is checked.
+        raw = fit.covariance / fit.inflation
+        error = fit.front_m - FRONT
+        z.append(float(error @ np.linalg.inv(raw[:3, :3]) @ error))
+    # chi-square with 3 degrees of freedom: mean 3.
+    assert 2.6 < np.mean(z) < 3.4
+
+
+def test_one_measurement_pulled_by_an_occluder_is_left_out() -> None:
+    """Four cameras, one end in one camera 6 px off (an outline fitted to the wrong arc): the robust fit
+    drops it and lands on the truth; the plain fit is pulled by it."""
+    cameras = _behind_pair() + [_camera("c", [-1.0, 1.8, 3.0]),
+                                _camera("d", [4.5, 1.8, 3.0])]
+    rot, trans = _arrays(cameras)
+    measured = predict(rot, trans, FRONT, BACK)
+    measured[1, 0] += np.array([6.0, -2.0]) / 1600
+    covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (4, 2, 1, 1))
+    length = float(np.linalg.norm(FRONT - BACK))
+    plain = fit_pointer(rot, trans, measured, covariances, length, 0.003, FRONT, BACK)
+    robust = fit_pointer_robust(rot, trans, measured, covariances, length, 0.003, FRONT, BACK)
+    assert np.linalg.norm(plain.front_m - FRONT) > 2e-3
+    assert robust.dropped == ((1, 0),)
+    assert np.linalg.norm(robust.front_m - FRONT) < 1e-6
+
+
+def test_a_missing_measurement_weighs_nothing() -> None:
+    cameras = _behind_pair() + [_camera("c", [-1.0, 1.8, 3.0])]
+    rot, trans = _arrays(cameras)
+    measured = predict(rot, trans, FRONT, BACK)
+    covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (3, 2, 1, 1))
+    measured[2, 1] = [0.3, -0.2]  # nonsense, but "not there"
+    covariances[2, 1] = np.eye(2) * DROPPED_VARIANCE
+    fit = fit_pointer(rot, trans, measured, covariances, float(np.linalg.norm(FRONT - BACK)), 0.003, FRONT, BACK)
+    assert np.linalg.norm(fit.back_m - BACK) < 1e-6
+
+
+def test_the_hit_covariance_is_the_linearised_hit() -> None:
+    """hit_covariance against finite differences of the line's intersection with z = 0."""
+    normal, offset = np.array([0.0, 0.0, 1.0]), 0.0
+    axes = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+    def hit(params: np.ndarray) -> np.ndarray:
+        f, b = params[:3], params[3:]
+        u = -(normal @ b + offset) / (normal @ (f - b))
+        return axes @ (b + u * (f - b))
+
+    params = np.concatenate([FRONT, BACK])
+    jac = np.zeros((2, 6))
+    for k in range(6):
+        step = np.zeros(6)
+        step[k] = 1e-6
+        jac[:, k] = (hit(params + step) - hit(params - step)) / 2e-6
+    covariance = np.diag(np.arange(1.0, 7.0)) * 1e-6
+    expected = jac @ covariance @ jac.T
+    assert np.allclose(hit_covariance(FRONT, BACK, covariance, normal, offset, axes), expected, rtol=1e-5)
+    with pytest.raises(GeometryError):
+        hit_covariance(FRONT, FRONT + [1.0, 0.0, 0.0], covariance, normal, offset, axes)
+
+
+@pytest.mark.parametrize("distortion", [np.zeros(0), np.array([-0.3, 0.1, 0.001, -0.001, 0.0])])
+def test_a_balls_outline_gives_its_centres_direction_exactly(distortion) -> None:
+    """The rim of a sphere, projected through a distorted lens and undistorted again, fits a cone whose
+    axis is the ray through the sphere's centre, off-axis where the image ellipse's centre is not."""
+    cam = CameraModel("c", 1920, 1080, K, distortion, np.eye(3), np.zeros(3))
+    centre = np.array([0.9, -0.4, 2.0])  # far off-axis
+    radius = 0.03
+    d = np.linalg.norm(centre)
+    u = centre / d
+    e1 = np.cross(u, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    ring = (centre - radius**2 / d * u) + radius * np.sqrt(1 - (radius / d) ** 2) * (
+        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2)
+    rim_px = cam.project(ring)
+    cone = fit_sphere_direction(cam.normalized_from_pixels(rim_px))
+    assert cone is not None
+    assert np.allclose(cone.normalised, centre[:2] / centre[2], atol=1e-9)
+    assert abs(np.sin(cone.half_angle_rad) - radius / d) < 1e-9
+    # Half the rim (the other half hidden) still gives the centre.
+    half = fit_sphere_direction(cam.normalized_from_pixels(rim_px[:20]))
+    assert half is not None and np.allclose(half.normalised, centre[:2] / centre[2], atol=1e-9)
+
+
+def test_near_parallel_interpretation_planes_a_good_line_and_an_honest_uncertainty() -> None:
+    """Cameras behind the presenter with the pointer's line, extended back, passing between them: their
+    planes through the pointer are within a few degrees of each other, and the line rests on where the
+    ends are along it. The fit is at least as good there as the two triangulated points the old code fell
+    back to, and the hit's covariance it reports covers its errors as a covariance should (whitened
+    squared errors averaging 2, the wall's two axes)."""
+    from trackerd.geometry.pointer_line import estimate_pointer_line
+    from trackerd.geometry.wall import Plane, intersect_line_plane
+
+    front, back = np.array([1.72, 0.6, 1.6]), np.array([1.78, 0.605, 2.02])
+    # Both cameras 5.5 m from the wall, close to the plane that holds the pointer and the wall's x axis.
+    at_back = back + (5.5 - back[2]) / (back[2] - front[2]) * (back - front)
+    cameras = [_camera("a", at_back + [-1.3, 0.012, 0.0], [1.75, 0.6, 1.0]),
+               _camera("b", at_back + [0.6, 0.02, 0.0], [1.75, 0.6, 1.0])]
+    rot, trans = _arrays(cameras)
+    truth = predict(rot, trans, front, back)
+    wall = Plane(np.array([0.0, 0.0, 1.0]), 0.0)
+    axes = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    true_hit = intersect_line_plane(back, front, wall).point_m
+    rng = np.random.default_rng(9)
+    old_errors, fit_errors, whitened = [], [], []
+    for _ in range(200):
+        measured = truth.copy()
+        covariances = np.zeros((2, 2, 2, 2))
+        for c in range(2):
+            along = truth[c, 0] - truth[c, 1]
+            along /= np.linalg.norm(along)
+            across = np.array([-along[1], along[0]])
+            # Outline measurements: 0.05 px across the pointer, 0.4 px along it (where the rod meets the ball).
+            measured[c] += rng.normal(0, 0.05 / 1600, (2, 1)) * across + rng.normal(0, 0.4 / 1600, (2, 1)) * along
+            covariances[c] = (np.outer(across, across) * 0.05**2 + np.outer(along, along) * 0.4**2) / 1600**2
+        dirs = np.einsum("cej,cjk->cek", np.concatenate([measured, np.ones((2, 2, 1))], axis=2), rot)
+        old = estimate_pointer_line(np.stack([c.centre_m for c in cameras]), dirs[:, 0], dirs[:, 1])
+        assert old.plane_angle_sin < 0.08 and old.method == "points"
+        old_errors.append(np.linalg.norm(intersect_line_plane(old.back_m, old.front_m, wall).point_m - true_hit))
+        fit = fit_pointer(rot, trans, measured, covariances, 0.42, 1e-4, old.front_m, old.back_m)
+        hit = intersect_line_plane(fit.back_m, fit.front_m, wall).point_m
+        fit_errors.append(np.linalg.norm(hit - true_hit))
+        cov = hit_covariance(fit.front_m, fit.back_m, fit.covariance / fit.inflation, wall.normal, 0.0, axes)
+        error = axes @ (hit - true_hit)
+        whitened.append(float(error @ np.linalg.inv(cov) @ error))
+    assert np.median(fit_errors) <= np.median(old_errors)
+    assert 1.6 < np.mean(whitened) < 2.5

@@ -1,0 +1,100 @@
+"""Choosing each ball's candidate in every camera at once (trackerd/joint.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trackerd.detect.ballfit import BallFit
+from trackerd.detect.search import Candidate
+from trackerd.geometry.camera import CameraModel
+from trackerd.joint import JointChoice, choose_jointly
+
+K = np.array([[1600.0, 0.0, 960.0], [0.0, 1600.0, 540.0], [0.0, 0.0, 1.0]])
+BALL_R = 0.02
+LENGTH = 0.45
+RED = np.array([1.4, 0.8, 1.6])
+BLUE = RED + np.array([0.1, 0.08, 0.43]) / np.linalg.norm([0.1, 0.08, 0.43]) * LENGTH
+
+
+def _camera(name: str, position) -> CameraModel:
+    position = np.asarray(position, float)
+    forward = np.array([1.8, 0.6, 1.8]) - position
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    return CameraModel.from_pose(name, 1920, 1080, K, np.zeros(0), position,
+                                 np.column_stack([right, np.cross(forward, right), forward]))
+
+
+CAMERAS = [_camera("left", [-1.2, 1.6, 3.2]), _camera("right", [4.8, 1.6, 3.2]), _camera("back", [1.9, 2.2, 5.8])]
+
+
+def _ball(cam: CameraModel, point, colour: str, radius_m: float = BALL_R) -> Candidate:
+    centre = cam.project(np.asarray(point, float)[None])[0]
+    radius = cam.focal_px * radius_m / float(np.linalg.norm(np.asarray(point) - cam.centre_m))
+    fit = BallFit(True, centre, radius, np.zeros((0, 2)), 1.0, 0.25, 0.05, 100.0)
+    return Candidate(colour, fit, (float(centre[0]), float(centre[1])), radius)
+
+
+def _choose(candidates, cameras=CAMERAS, look=None):
+    room = (np.array([0.0, 0.0, 1.0]), 0.0)  # the wall is z = 0, the room at z > 0
+    return choose_jointly(cameras, candidates, BALL_R, LENGTH, 0.05, 0.03, room, look)
+
+
+def test_decoys_on_the_wall_and_in_one_camera_do_not_win() -> None:
+    """Each camera sees the two balls and red decoys: a red sticker on the wall (it triangulates, but is
+    not the pointer's length from the blue ball), a large red disc near the ball in one image, and
+    a red blob only one camera sees."""
+    sticker = np.array([2.2, 0.5, 0.0])
+    candidates = []
+    for k, cam in enumerate(CAMERAS):
+        decoys = [_ball(cam, sticker, "red", 0.025)]
+        if k == 0:
+            near = _ball(cam, RED, "red", 0.05)  # the size of a ball twice as close
+            near.fit.centre_px[:] += [30.0, 10.0]
+            decoys += [near, _ball(cam, RED + [0.3, -0.5, 0.4], "red")]
+        candidates.append({"red": [*decoys, _ball(cam, RED, "red")], "blue": [_ball(cam, BLUE, "blue")]})
+    choice = _choose(candidates)
+    assert isinstance(choice, JointChoice)
+    assert np.linalg.norm(choice.red_m - RED) < 1e-6 and np.linalg.norm(choice.blue_m - BLUE) < 1e-6
+    for k, picks in enumerate(choice.chosen):
+        assert picks["red"] is candidates[k]["red"][-1] and picks["blue"] is candidates[k]["blue"][0]
+
+
+def test_a_ball_one_camera_misses_is_chosen_from_the_others() -> None:
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, BLUE, "blue")]} for cam in CAMERAS]
+    candidates[2]["red"] = []  # the presenter's body hides it from the back camera
+    choice = _choose(candidates)
+    assert isinstance(choice, JointChoice)
+    assert choice.chosen[2]["red"] is None and choice.chosen[2]["blue"] is not None
+    assert np.linalg.norm(choice.red_m - RED) < 1e-6
+
+
+def test_a_ball_merged_in_one_of_two_cameras_is_looked_for_where_the_length_puts_it() -> None:
+    """Two cameras; the red ball is no candidate in the right camera (it merged with a picture): it is
+    looked for on the sphere of the pointer's length around the blue point, where the left camera's ray
+    meets it."""
+    cameras = CAMERAS[:2]
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, BLUE, "blue")]} for cam in cameras]
+    candidates[1]["red"] = []
+    asked = []
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float):
+        asked.append((camera, colour))
+        truth = _ball(cameras[camera], RED, "red")
+        near = np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0
+        return truth if colour == "red" and near else None
+
+    assert isinstance(_choose(candidates, cameras), str)  # without looking: no red point
+    choice = _choose(candidates, cameras, look)
+    assert isinstance(choice, JointChoice), choice
+    assert (1, "red") in asked
+    assert np.linalg.norm(choice.red_m - RED) < 1e-6
+
+
+def test_no_pointer_is_a_reason() -> None:
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + [1.0, 0.0, 0.0], "blue")]}
+                  for cam in CAMERAS]
+    reason = _choose(candidates)
+    assert isinstance(reason, str) and "length apart" in reason
+    assert "no red" in _choose([{"red": [], "blue": []} for _ in CAMERAS])
