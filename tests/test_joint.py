@@ -52,7 +52,7 @@ def test_decoys_on_the_wall_and_in_one_camera_do_not_win() -> None:
         if k == 0:
             near = _ball(cam, RED, "red", 0.05)  # the size of a ball twice as close
             near.fit.centre_px[:] += [30.0, 10.0]
-            decoys += [near, _ball(cam, RED + [0.3, -0.5, 0.4], "red")]
+            decoys += [near, _ball(cam, RED + np.array([0.3, -0.5, 0.4]), "red")]
         candidates.append({"red": [*decoys, _ball(cam, RED, "red")], "blue": [_ball(cam, BLUE, "blue")]})
     choice = _choose(candidates)
     assert isinstance(choice, JointChoice)
@@ -93,7 +93,7 @@ def test_a_ball_merged_in_one_of_two_cameras_is_looked_for_where_the_length_puts
 
 
 def test_no_pointer_is_a_reason() -> None:
-    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + [1.0, 0.0, 0.0], "blue")]}
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + np.array([1.0, 0.0, 0.0]), "blue")]}
                   for cam in CAMERAS]
     reason = _choose(candidates)
     assert isinstance(reason, str) and "length apart" in reason

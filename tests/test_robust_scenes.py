@@ -13,7 +13,6 @@ hand with [locator] refine = "never", which is that code's path: not found, or e
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from trackerd.geometry.wall import WallFrame
 from trackerd.locator import Locator
@@ -27,10 +26,10 @@ POINTER = {"length_m": 0.42, "end_diameter_m": 0.036, "rod_diameter_m": 0.012}
 PRESENTER = np.array([1.8, 0.5, 1.8])  # the middle of where the presenter stands (floor at y = -0.9)
 
 
-def _scene(cameras, look: Look = Look(), **simulation):
+def _scene(cameras, look: Look | None = None, **simulation):
     rig = build_rig("scene", [(cam, "BayerRG8") for cam in cameras], WALL_W, WALL_H, ABOVE_FLOOR, POINTER,
                     {"seed": 11, "clutter": 6, **simulation})
-    renderer = SceneRenderer(rig, list(cameras), look=look, cache_dir=False)
+    renderer = SceneRenderer(rig, list(cameras), look=look or Look(), cache_dir=False)
     return rig, renderer
 
 
@@ -50,7 +49,7 @@ def _side_cameras():
 
 def _behind_cameras():
     """High at the back of the room, either side of the presenter, looking at the wall past them."""
-    target = PRESENTER + [0.0, 0.0, -0.4]
+    target = PRESENTER + np.array([0.0, 0.0, -0.4])
     return [aimed_camera("back-left", [0.9, 1.9, 5.6], target, 1920, 1080, 42.0),
             aimed_camera("back-right", [2.7, 1.9, 5.6], target, 1920, 1080, 42.0)]
 

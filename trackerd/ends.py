@@ -42,8 +42,10 @@ mixed rim, whose points scatter more, is not a circle as exactly as its centre's
 says, and the benchmark on randomized scenes (trackerd bench robustness) finds the errors that large."""
 
 FALLBACK_SIGMA_PX = 0.6
-"""A centroid whose ball outline could not be fitted is used with this isotropic error: it is all
-there is, and it is likely pulled by whatever hides the outline."""
+FALLBACK_SIGMA_SHARE = 0.25
+"""A centroid whose ball outline could not be fitted is used with an isotropic error of the larger of
+FALLBACK_SIGMA_PX and this share of the ball's radius: it is all there is, and whatever hides the
+outline likely pulls it by a good part of the radius."""
 
 WHOLE_BLOB = 0.8
 WHOLE_RIM = 0.75
@@ -104,7 +106,7 @@ def measure_end(
         if centroid_px is None:
             return None
         normalised = camera.normalized_from_pixels(np.asarray(centroid_px)[None])[0]
-        sigma = FALLBACK_SIGMA_PX / camera.focal_px
+        sigma = max(FALLBACK_SIGMA_PX, FALLBACK_SIGMA_SHARE * radius_px) / camera.focal_px
         return EndMeasurement(camera_index, colour, np.asarray(centroid_px, dtype=np.float64), normalised,
                               np.eye(2) * sigma * sigma, radius_px, "centroid", 0.0, fit)
     measurement = from_fit(camera, camera_index, colour, fit)

@@ -38,19 +38,18 @@ from trackerd.geometry.pointer_line import (
     line_from_planes,
     sphere_centre_direction,
 )
-from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, fit_pointer_robust, hit_covariance
 from trackerd.geometry.wall import WallFloats, WallFrame, WallHitFloats
 
 Array = NDArray[np.float64]
 
 COLOURS = ("red", "blue")
 
-MAX_RADIUS_RATIO = 1.3
-"""A ball's fitted outline more than this much larger or smaller than a ball at its distance is left out
-of the pointer fit (when its end is measured by two other cameras)."""
+TIGHT_GAP_M = 0.004
+TIGHT_LENGTH_M = 0.012
+"""While tracking, a fix from the detector's centroids whose rays miss by more than TIGHT_GAP_M or whose
+length is off by more than TIGHT_LENGTH_M is refined: a good one is within a millimetre or two of both."""
 
-MAX_GUIDED_RESIDUAL_PX = 0.6
-"""A ball looked for where the geometry puts it must be a circle this closely (rim scatter, pixels)."""
+
 
 PARALLEL_ANGLE_DEG = 0.5
 """A pointer within this angle of the wall's plane is reported as parallel: its line would meet
@@ -96,15 +95,6 @@ class PointerFix:
         """Both ends were seen and triangulated to a plausible pointer."""
         return self.line is not None and self.status != "rejected"
 
-
-def _blob_radius_px(end) -> float:
-    """A ball's image radius as its blob suggests: the larger of the blob's area's and its box's, since
-    a ball whose shaded side failed the colour test leaves a blob smaller than the ball."""
-    radius = math.sqrt(max(end.area_px, 1.0) / math.pi)
-    if end.bbox_px is not None:
-        x0, y0, x1, y1 = end.bbox_px
-        radius = max(radius, 0.5 * max(x1 - x0 + 1, y1 - y0 + 1))
-    return radius
 
 
 def _finite_point(point_px: Array | None) -> bool:
@@ -173,6 +163,10 @@ class Locator:
         self._centres = self._all_cameras.centres_m
         self._rotations = self._all_cameras.rotations
         self._grids: list | None = None
+        self._refined: Any = None
+        """The refined path (trackerd/refine.py), made on first use."""
+        self._distrust = False
+        """Whether the last refined pair found the detector's centroids pulled (then every pair is refined)."""
 
     # ------------------------------------------------------------------ detection
 
@@ -193,6 +187,9 @@ class Locator:
         """Forget tracking state (the pointer left, a new recording starts)."""
         for detector in self._detectors or []:
             detector.reset()
+        self._distrust = False
+        if self._refined is not None:
+            self._refined.reset()
 
     def locate(self, images: Sequence[NDArray[np.uint8]]) -> PointerFix:
         """Detect the ends in one image per camera (rig order) and locate the pointer."""
@@ -204,12 +201,25 @@ class Locator:
         detections = tuple(self._detect_together(detectors, images))
         detected = time.perf_counter_ns()
         mode = self.rig.locator.refine
-        if mode == "always" or (mode == "auto" and any(d.search == "full" for d in detections)):
-            fix = self._locate_refined(images, detections)
-        else:
+        fix = None
+        if mode == "auto" and not self._distrust and all(d.search == "window" for d in detections):
+            # Tracking, with the detector's centroids trusted at the last refined pair: the quick path, as
+            # long as its pointer holds together as tightly as a good one does (an end becoming partly
+            # hidden moves its centroid, which shows as rays that miss or a pointer of the wrong length).
             fix = self._locate_detected(detections)
+            if not fix.found or not self._tight(fix):
+                fix = None
+        if fix is None:
+            fix = self._locate_detected(detections) if mode == "never" else self._locate_refined(images, detections)
         fix.timings_ns["detect_ns"] = detected - start
         return fix
+
+    def _tight(self, fix: PointerFix) -> bool:
+        """Whether a fix from the detector's centroids holds together as a good one does."""
+        line = fix.line
+        assert line is not None
+        return (line.gap_m <= TIGHT_GAP_M
+                and abs(line.length_m - self.rig.pointer.length_m) <= TIGHT_LENGTH_M)
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""
@@ -237,6 +247,7 @@ class Locator:
 
     @property
     def grids(self) -> list:
+        """Each camera's sample layout (for the refined path's outline fits)."""
         if self._grids is None:
             from trackerd.detect.colour import sample_grid
 
@@ -245,172 +256,11 @@ class Locator:
         return self._grids
 
     def _locate_refined(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix:
-        """Each end's outline fitted, then the pointer fitted to every camera's ends at once with the
-        pointer's length (trackerd/ends.py, trackerd/geometry/pointer_fit.py). When the detector's ends do
-        not make a pointer, every camera's candidates are searched and chosen jointly (trackerd/joint.py)."""
-        from trackerd.ends import measure_end
+        if self._refined is None:
+            from trackerd.refine import RefinedPath
 
-        start = time.perf_counter_ns()
-        sigma_px = self.rig.locator.centroid_sigma_px
-        per_camera: list[dict[str, Any]] = []
-        for index, (cam, detection, image) in enumerate(zip(self.cameras, detections, images, strict=True)):
-            ends: dict[str, Any] = {c: None for c in COLOURS}
-            per_camera.append(ends)
-            red, blue = detection.red, detection.blue
-            across = None
-            if detection.both_found:
-                along = red.centroid_px - blue.centroid_px
-                length = float(np.hypot(*along))
-                across = np.array([-along[1], along[0]]) / length if length > 1e-9 else None
-            # A camera that sees one end only (the other hidden) still measures that one, by its outline.
-            for colour, end in (("red", red), ("blue", blue)):
-                if end.found:
-                    ends[colour] = measure_end(image, self.grids[index], cam, index, colour, end.centroid_px,
-                                               _blob_radius_px(end), end.centroid_px, across, sigma_px, end.area_px)
-        fix = self._fix_from_measurements(per_camera, None, detections, start)
-        if fix.found:
-            return fix
-        searched = self._locate_searched(images, detections, start)
-        if searched.found or fix.status == "not_found":
-            return searched
-        return fix
-
-    def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
-        """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
-        from trackerd.detect.ballfit import fit_ball
-        from trackerd.detect.search import Candidate, search_candidates
-        from trackerd.ends import from_fit
-        from trackerd.joint import choose_jointly
-
-        candidates = [search_candidates(image, self.grids[index], self._radius_range_px(index))
-                      for index, image in enumerate(images)]
-        pointer = self.rig.pointer
-        room = self._room_side()
-        def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float) -> Candidate | None:
-            fit = fit_ball(images[camera], self.grids[camera], colour, x_px, y_px, radius_px,
-                           radius_range_px=(radius_px / 1.3, radius_px * 1.3))
-            if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
-                return None
-            return Candidate(colour, fit, (x_px, y_px), radius_px)
-
-        choice = choose_jointly(self.cameras, candidates, pointer.end_diameter_m / 2.0, pointer.length_m,
-                                pointer.length_tolerance_m, self.rig.locator.max_ray_gap_m, room, look)
-        if isinstance(choice, str):
-            missing = self._missing(detections)
-            reason = "; ".join([choice, *missing]) if missing else choice
-            empty = tuple({c: None for c in COLOURS} for _ in self.cameras)
-            return PointerFix("not_found", reason, empty, timings_ns={"triangulate_ns": time.perf_counter_ns() - start},
-                              detections=detections)
-        per_camera = []
-        for index, (cam, picks) in enumerate(zip(self.cameras, choice.chosen, strict=True)):
-            ends = {}
-            for colour in COLOURS:
-                cand = picks[colour]
-                ends[colour] = None if cand is None else from_fit(cam, index, colour, cand.fit)
-            per_camera.append(ends)
-        points = {"red": choice.red_m, "blue": choice.blue_m}
-        init = (points[self.front_colour], points[self.back_colour])
-        return self._fix_from_measurements(per_camera, init, detections, start)
-
-    def _radius_range_px(self, index: int) -> tuple[float, float]:
-        """The image radius a ball can have in camera ``index``: from half a metre away to as far as the
-        wall's farthest corner (it is held in front of the wall)."""
-        cam = self.cameras[index]
-        radius = self.rig.pointer.end_diameter_m / 2.0
-        farthest = float(np.max(np.linalg.norm(self.wall.corners_m - cam.centre_m, axis=1))) + 0.5
-        return cam.focal_px * radius / farthest, cam.focal_px * radius / 0.5
-
-    def _room_side(self) -> tuple[Array, float]:
-        """The wall's plane, oriented so that the cameras (the room) are on its positive side."""
-        plane = self._plane
-        sign = 1.0 if float(np.mean(plane.signed_distance_m(self._centres))) >= 0 else -1.0
-        return sign * plane.normal, sign * plane.offset_m
-
-    def _fix_from_measurements(self, per_camera: list[dict[str, Any]], init: tuple[Array, Array] | None,
-                               detections: tuple, start: int) -> PointerFix:
-        """The pointer fit on each camera's end measurements (None where a camera does not see an end)."""
-        front, back = self.front_colour, self.back_colour
-        centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS}
-                          for ends in per_camera)
-        used = [i for i, ends in enumerate(per_camera) if ends[front] is not None or ends[back] is not None]
-        seeing = {end: sum(1 for ends in per_camera if ends[end] is not None) for end in (front, back)}
-        timings = {"triangulate_ns": 0}
-        if seeing[front] < 2 or seeing[back] < 2:
-            missing = self._missing(detections)
-            reason = "; ".join(missing) if missing else "fewer than two cameras measured each end"
-            return PointerFix("not_found", reason, centroids, timings_ns=timings, detections=detections)
-        view = _CameraView.of(self, used)
-        both = [k for k, i in enumerate(used) if per_camera[i][front] is not None and per_camera[i][back] is not None]
-        pointer = self.rig.pointer
-        if init is None:
-            if len(both) < 2:
-                return PointerFix("not_found", "fewer than two cameras measured both ends", centroids,
-                                  timings_ns=timings, detections=detections)
-            sub = _CameraView.of(self, [used[k] for k in both])
-            normalised_both = np.stack([np.stack([per_camera[used[k]][front].normalised,
-                                                  per_camera[used[k]][back].normalised]) for k in both])
-            try:
-                first = self._estimate(normalised_both, False, sub)
-            except GeometryError as err:
-                return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
-            if abs(first.length_m - pointer.length_m) > pointer.length_tolerance_m or (
-                    first.gap_m > self.rig.locator.max_ray_gap_m):
-                fix = self._judge(first, centroids, normalised_both, sub)
-                return PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
-                                  {"triangulate_ns": time.perf_counter_ns() - start}, detections)
-            init = (first.front_m, first.back_m)
-            gaps = (first.front_gap_m, first.back_gap_m, first.plane_angle_sin)
-        else:
-            gaps = (0.0, 0.0, 0.0)
-        # Every used camera's two ends; an end a camera does not see is given a covariance so wide it weighs
-        # nothing, at the position the start puts it.
-        rotations = view.rotations
-        translations = np.stack([self.cameras[i].translation_m for i in used])
-        start_points = np.stack([np.asarray(init[0], dtype=np.float64), np.asarray(init[1], dtype=np.float64)])
-        measured = np.zeros((len(used), 2, 2))
-        covariances = np.zeros((len(used), 2, 2, 2))
-        for k, i in enumerate(used):
-            for e, colour in enumerate((front, back)):
-                m = per_camera[i][colour]
-                if m is None:
-                    xc = rotations[k] @ start_points[e] + translations[k]
-                    measured[k, e] = xc[:2] / xc[2]
-                    covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
-                else:
-                    measured[k, e] = m.normalised
-                    covariances[k, e] = m.covariance
-        # A ball's outline of the wrong size for its distance is a fit to something else (part of a ball the
-        # presenter's body hides, a disc on the display beside it): left out, while each end keeps two cameras.
-        ball_radius = pointer.end_diameter_m / 2.0
-        for k, i in enumerate(used):
-            for e, colour in enumerate((front, back)):
-                m = per_camera[i][colour]
-                if m is None or m.source == "centroid":
-                    continue
-                distance = float(np.linalg.norm(start_points[e] - self.cameras[i].centre_m))
-                expected = self.cameras[i].focal_px * ball_radius / math.sqrt(max(distance**2 - ball_radius**2, 1e-6))
-                ratio = m.radius_px / expected
-                seen_by = int(np.count_nonzero(np.trace(covariances[:, e], axis1=1, axis2=2) < DROPPED_VARIANCE))
-                if not (1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO) and seen_by > 2:
-                    covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
-        try:
-            fitted = fit_pointer_robust(rotations, translations, measured, covariances, pointer.length_m,
-                                        self.rig.locator.length_sigma_m, start_points[0], start_points[1])
-        except GeometryError as err:
-            return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
-        line = PointerLine(fitted.front_m, fitted.back_m, gaps[0], gaps[1], "fit", gaps[2])
-        uncertainty = None
-        try:
-            wall = self._wall_plain
-            covariance = hit_covariance(fitted.front_m, fitted.back_m, fitted.covariance, np.array(wall.normal),
-                                        wall.offset_m, np.array([wall.x_axis, wall.y_axis]))
-            uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))
-        except GeometryError:
-            pass
-        fix = self._judge(line, centroids, measured, view, uncertainty)
-        return PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
-                          {"triangulate_ns": time.perf_counter_ns() - start}, detections,
-                          tuple(dict(ends) for ends in per_camera))
+            self._refined = RefinedPath(self)
+        return self._refined.locate(images, detections)
 
     # ------------------------------------------------------------------ geometry
 

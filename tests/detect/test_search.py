@@ -35,7 +35,8 @@ def test_a_ball_in_front_of_a_magenta_picture_is_split_from_it(detect_rng) -> No
     """The red ball half over a magenta rectangle: one blob at the detector's thresholds, "too large";
     the stricter hue test inside the merged group leaves the ball."""
     x, y = 95.4, 70.7
-    scene = Scene(width=240, shapes=[Shape(140.0, 70.0, MAGENTA, half_size=(45.0, 40.0)), Shape(x, y, RED, radius=11.0)])
+    picture = Shape(140.0, 70.0, MAGENTA, half_size=(45.0, 40.0))
+    scene = Scene(width=240, shapes=[picture, Shape(x, y, RED, radius=11.0)])
     frame, _ = scene.render("BayerRG8", detect_rng)
     cfg = DetectorConfig(max_area_px=2000.0)
     detector = ColourEndDetector(cfg, "BayerRG8", frame.shape[1], frame.shape[0])

@@ -50,7 +50,7 @@ def test_exact_measurements_give_the_ends_back_from_a_poor_start() -> None:
     measured = predict(rot, trans, FRONT, BACK)
     covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (2, 2, 1, 1))
     length = float(np.linalg.norm(FRONT - BACK))
-    fit = fit_pointer(rot, trans, measured, covariances, length, 0.003, FRONT + [0.05, -0.03, 0.1], BACK - 0.04)
+    fit = fit_pointer(rot, trans, measured, covariances, length, 0.003, FRONT + np.array([0.05, -0.03, 0.1]), BACK - 0.04)
     assert np.allclose(fit.front_m, FRONT, atol=1e-7) and np.allclose(fit.back_m, BACK, atol=1e-7)
     assert fit.chi2 < 1e-8 and fit.inflation == 1.0
 
@@ -58,7 +58,7 @@ def test_exact_measurements_give_the_ends_back_from_a_poor_start() -> None:
 def test_the_covariance_describes_the_scatter_of_fits_to_noisy_measurements() -> None:
     """Monte Carlo: the fitted front end's errors, whitened by the fit's own covariance, have unit
     variance (the uncertainty the daemon publishes is not made up)."""
-    cameras = _behind_pair() + [_camera("c", [-1.0, 1.8, 3.0])]
+    cameras = [*_behind_pair(), _camera("c", [-1.0, 1.8, 3.0])]
     rot, trans = _arrays(cameras)
     truth = predict(rot, trans, FRONT, BACK)
     sigma = 0.2 / 1600
@@ -80,8 +80,7 @@ def test_the_covariance_describes_the_scatter_of_fits_to_noisy_measurements() ->
 def test_one_measurement_pulled_by_an_occluder_is_left_out() -> None:
     """Four cameras, one end in one camera 6 px off (an outline fitted to the wrong arc): the robust fit
     drops it and lands on the truth; the plain fit is pulled by it."""
-    cameras = _behind_pair() + [_camera("c", [-1.0, 1.8, 3.0]),
-                                _camera("d", [4.5, 1.8, 3.0])]
+    cameras = [*_behind_pair(), _camera("c", [-1.0, 1.8, 3.0]), _camera("d", [4.5, 1.8, 3.0])]
     rot, trans = _arrays(cameras)
     measured = predict(rot, trans, FRONT, BACK)
     measured[1, 0] += np.array([6.0, -2.0]) / 1600
@@ -95,7 +94,7 @@ def test_one_measurement_pulled_by_an_occluder_is_left_out() -> None:
 
 
 def test_a_missing_measurement_weighs_nothing() -> None:
-    cameras = _behind_pair() + [_camera("c", [-1.0, 1.8, 3.0])]
+    cameras = [*_behind_pair(), _camera("c", [-1.0, 1.8, 3.0])]
     rot, trans = _arrays(cameras)
     measured = predict(rot, trans, FRONT, BACK)
     covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (3, 2, 1, 1))
@@ -125,7 +124,7 @@ def test_the_hit_covariance_is_the_linearised_hit() -> None:
     expected = jac @ covariance @ jac.T
     assert np.allclose(hit_covariance(FRONT, BACK, covariance, normal, offset, axes), expected, rtol=1e-5)
     with pytest.raises(GeometryError):
-        hit_covariance(FRONT, FRONT + [1.0, 0.0, 0.0], covariance, normal, offset, axes)
+        hit_covariance(FRONT, FRONT + np.array([1.0, 0.0, 0.0]), covariance, normal, offset, axes)
 
 
 @pytest.mark.parametrize("distortion", [np.zeros(0), np.array([-0.3, 0.1, 0.001, -0.001, 0.0])])
@@ -165,8 +164,8 @@ def test_near_parallel_interpretation_planes_a_good_line_and_an_honest_uncertain
     front, back = np.array([1.72, 0.6, 1.6]), np.array([1.78, 0.605, 2.02])
     # Both cameras 5.5 m from the wall, close to the plane that holds the pointer and the wall's x axis.
     at_back = back + (5.5 - back[2]) / (back[2] - front[2]) * (back - front)
-    cameras = [_camera("a", at_back + [-1.3, 0.012, 0.0], [1.75, 0.6, 1.0]),
-               _camera("b", at_back + [0.6, 0.02, 0.0], [1.75, 0.6, 1.0])]
+    cameras = [_camera("a", at_back + np.array([-1.3, 0.012, 0.0]), [1.75, 0.6, 1.0]),
+               _camera("b", at_back + np.array([0.6, 0.02, 0.0]), [1.75, 0.6, 1.0])]
     rot, trans = _arrays(cameras)
     truth = predict(rot, trans, front, back)
     wall = Plane(np.array([0.0, 0.0, 1.0]), 0.0)

@@ -47,6 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=2026, help="seed of the whole run (default 2026)")
     parser.add_argument("--refine", choices=("auto", "always", "never"), default=None,
                         help="override [locator] refine for trackerd (default: the rig's, auto)")
+    parser.add_argument("--records", metavar="FILE", default=None,
+                        help="also write every frame's record (its installation and frame number, factors, status,"
+                             " reason, error, sigma) as JSON lines, to look into a miss with the same seed")
     parser.add_argument("--workers", type=_positive_int, default=min(2, multiprocessing.cpu_count()),
                         help="processes rendering and locating (default 2)")
 
@@ -73,6 +76,10 @@ def run(args: argparse.Namespace) -> int:
             records.extend(run_rig(task))
             progress.step()
     progress.done()
+    if args.records:
+        with open(args.records, "w", encoding="utf-8") as out:
+            for record in sorted(records, key=lambda r: (r["rig"], r["frame"])):
+                out.write(json.dumps(record) + "\n")
     summary = summarise(records)
     summary["seconds"] = round(time.time() - start, 1)
     summary["arguments"] = {"rigs": args.rigs, "poses": args.poses, "seed": args.seed, "refine": args.refine}
@@ -126,11 +133,11 @@ def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
         rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": refine})})
     widest = max(c.width_px for c in drawn.cameras)
     renderer = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
-                             background_step=1 if widest <= 2000 else 2)
+                             background_step=1 if widest <= 2000 else 2, noise_field=True)
     wall = WallFrame.from_config(drawn.rig.wall)
     locator = Locator(rig, cameras=drawn.cameras)
     records = []
-    for _ in range(poses):
+    for frame in range(poses):
         shot = random_shot(drawn, rng, wall)
         content = wall_content(shot.content_kind, rng)
         views = [renderer.render(i, shot.pose, rng, motion_to=shot.motion_to, motion_steps=shot.motion_steps,
@@ -147,6 +154,7 @@ def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
         seconds = time.perf_counter() - began
         record: dict[str, Any] = {
             "rig": index,
+            "frame": frame,
             "factors": {**drawn.factors, **shot.factors},
             "eligible": seeing >= 2,
             "visible": visible,
@@ -250,7 +258,8 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     misses = Counter(_first_clause(r["reason"]) for r in records if r["eligible"] and r["error_m"] is None)
     out["misses"] = dict(misses.most_common(12))
     seconds = np.array([r["seconds"] for r in records]) * 1000.0
-    out["locate_ms"] = {"median": round(float(np.median(seconds)), 2), "p95": round(float(np.percentile(seconds, 95)), 2)}
+    out["locate_ms"] = {"median": round(float(np.median(seconds)), 2),
+                        "p95": round(float(np.percentile(seconds, 95)), 2)}
     return out
 
 

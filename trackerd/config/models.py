@@ -347,9 +347,15 @@ class LocatorConfig(_Model):
     """Assumed standard deviation of a centroid across the pointer, used for the hit's uncertainty."""
     refine: Literal["auto", "always", "never"] = "auto"
     """When each end's outline is fitted and the pointer fitted to every camera at once
-    (docs/geometry.md, "The pointer fit"): ``auto`` on every first sighting and whenever the quick
-    measurement cannot be trusted (an end partly hidden, dim, or not consistent with the others),
-    ``always`` on every pair, ``never`` only the interpretation planes on the detector's centroids."""
+    (docs/geometry.md, "The pointer fit"): ``auto`` on every first sighting, whenever the detector's ends
+    do not make a pointer or make a loose one (rays that miss by millimetres, a length off by a
+    centimetre), and while the detector's centroids disagree with the balls' outlines (an end partly
+    hidden, dim, merged with a picture); ``always`` on every pair;
+    ``never`` only the interpretation planes on the detector's centroids (the code before the fit)."""
+    search_every_pairs: int = Field(default=6, ge=1, le=600)
+    """While the pointer is not found, the search over every camera's candidates (tens of milliseconds,
+    where a tracked pair takes one or two) runs on every this many-th pair, so a room without the pointer
+    does not keep a core busy; a first sighting after a reset is searched at once."""
     length_sigma_m: float = Field(default=0.003, gt=0.0)
     """How exactly the pointer's length (pointer.length_m) is known: the pointer fit holds the two
     ends this far apart, within this standard deviation."""

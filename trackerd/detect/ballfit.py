@@ -62,8 +62,8 @@ TUKEY_C = 4.685
 ROD_EXCLUSION_DEG = 30.0
 """Rays this close to the pointer's axis (either way) are not used when the axis is given."""
 
-MAX_SCATTER_PX = 1.0
-MAX_SCATTER_SHARE = 0.1
+MAX_SCATTER_PX = 1.5
+MAX_SCATTER_SHARE = 0.12
 """A rim scattering about its circle by more than the larger of these (pixels, share of the radius) is
 not a ball's outline (a bar, a letter, a smear)."""
 
@@ -145,10 +145,10 @@ def _one_pass(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, cx: float
     dr, dc = grid.offset(colour)
     lo_r, hi_r, lo_c, hi_c = grid.interior()
     region = (
-        max(lo_r, int(math.floor((cy - reach - dr) / s)) - 1),
-        min(hi_r, int(math.ceil((cy + reach - dr) / s)) + 2),
-        max(lo_c, int(math.floor((cx - reach - dc) / s)) - 1),
-        min(hi_c, int(math.ceil((cx + reach - dc) / s)) + 2),
+        max(lo_r, math.floor((cy - reach - dr) / s) - 1),
+        min(hi_r, math.ceil((cy + reach - dr) / s) + 2),
+        max(lo_c, math.floor((cx - reach - dc) / s) - 1),
+        min(hi_c, math.ceil((cx + reach - dc) / s) + 2),
     )
     if region[1] - region[0] < 3 or region[3] - region[2] < 3:
         return BallFit.missing("the ball is at the frame's edge")
@@ -230,7 +230,7 @@ def _rims(profile: Array, rho: Array, radius: float, lattice_px: float) -> tuple
     has = below.any(axis=1) & (contrast >= MIN_CONTRAST) & np.isfinite(contrast)
     first = np.argmax(below, axis=1)
     # The levels either side of the fall, then the fall through their midpoint near it.
-    half = max(1, int(round(1.5 * lattice_px / step)))
+    half = max(1, round(1.5 * lattice_px / step))
     inside_at = np.clip(np.maximum(first - 1 - half, peak_at), 0, count - 1)
     outside_at = np.clip(first + half, 0, count - 1)
     with np.errstate(all="ignore"):

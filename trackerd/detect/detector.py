@@ -517,6 +517,15 @@ class ColourEndDetector:
         """The ends' centres and areas from every pixel of their rims (or as measured)."""
         return measure_rims(frame, self.grid, found, self._work) if self.rim_pixels else found
 
+    def follow(self, red_px: NDArray[np.float64], blue_px: NDArray[np.float64], red_radius_px: float,
+               blue_radius_px: float) -> None:
+        """Track the ends from these positions next frame: where a search beyond this detector (the
+        locator's, across cameras) found the balls this frame, whatever this detector took for them."""
+        self._track = {
+            "red": _Track(float(red_px[0]), float(red_px[1]), 0.0, 0.0, math.pi * red_radius_px**2),
+            "blue": _Track(float(blue_px[0]), float(blue_px[1]), 0.0, 0.0, math.pi * blue_radius_px**2),
+        }
+
     def _remember(self, result: ImageDetections) -> None:
         if not result.both_found:
             self._track = None

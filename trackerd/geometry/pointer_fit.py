@@ -27,7 +27,6 @@ measurements (C, 2 ends, 2) with covariances (C, 2, 2, 2); ends are [front, back
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -168,13 +167,11 @@ def fit_pointer(
     params = np.concatenate([np.asarray(front0_m, dtype=np.float64), np.asarray(back0_m, dtype=np.float64)])
     k2 = ball_radius_m * ball_radius_m
     iterations = 0
-    chi2 = math.inf
-    jtj = np.eye(6)
-    for iterations in range(1, max_iterations + 1):
+    for _ in range(max_iterations):
+        iterations += 1
         residuals, jacobian = _linearise(params, rot, trans, obs, whiten, k2, length_m, length_sigma_m, cameras)
         jtj = jacobian.T @ jacobian
         gradient = jacobian.T @ residuals
-        chi2 = float(residuals @ residuals)
         try:
             step = np.linalg.solve(jtj + 1e-12 * np.trace(jtj) * np.eye(6), -gradient)
         except np.linalg.LinAlgError as err:
@@ -204,11 +201,8 @@ def _linearise(params: Array, rot: Array, trans: Array, obs: Array, whiten: Arra
     if np.any(z <= 1e-6):
         raise GeometryError("an end would be behind a camera")
     scale = 1.0 / z
-    if k2 > 0.0:
-        # The centre of a sphere's image ellipse lies 1 / (1 - r^2 / z^2) further out than its centre's projection.
-        factor = 1.0 / (1.0 - k2 / (z * z))
-    else:
-        factor = np.ones_like(z)
+    # The centre of a sphere's image ellipse lies 1 / (1 - r^2 / z^2) further out than its centre's projection.
+    factor = 1.0 / (1.0 - k2 / (z * z)) if k2 > 0.0 else np.ones_like(z)
     px = xc[..., 0] * scale * factor
     py = xc[..., 1] * scale * factor
     predicted = np.stack([px, py], axis=-1)

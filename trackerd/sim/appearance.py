@@ -74,7 +74,8 @@ class Look:
             r2 = (xs[None, :] ** 2 + ys[:, None] ** 2) / 0.5
             level *= np.float32(1.0) - np.float32(self.vignetting) * r2
         if self.gradient != (0.0, 0.0):
-            level *= np.float32(1.0) + np.float32(self.gradient[0]) * xs[None, :] + np.float32(self.gradient[1]) * ys[:, None]
+            gx, gy = (np.float32(g) for g in self.gradient)
+            level *= np.float32(1.0) + gx * xs[None, :] + gy * ys[:, None]
         if self.spot is not None:
             sx, sy, radius, peak = self.spot
             diagonal = math.hypot(width_px, height_px)
