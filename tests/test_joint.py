@@ -79,7 +79,7 @@ def test_a_ball_merged_in_one_of_two_cameras_is_looked_for_where_the_length_puts
     candidates[1]["red"] = []
     asked = []
 
-    def look(camera: int, colour: str, x: float, y: float, radius: float):
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
         asked.append((camera, colour))
         truth = _ball(cameras[camera], RED, "red")
         near = np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0

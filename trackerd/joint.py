@@ -68,9 +68,10 @@ class JointChoice:
     notes: list[str] = field(default_factory=list)
 
 
-Look = Callable[[int, str, float, float, float], "Candidate | None"]
-"""``look(camera, colour, x_px, y_px, radius_px)``: fit a ball of that colour where the geometry says one
-should be, in a camera whose search did not offer it (it merged with something of its colour)."""
+Look = Callable[[int, str, float, float, float, "tuple[float, float] | None"], "Candidate | None"]
+"""``look(camera, colour, x_px, y_px, radius_px, axis)``: fit a ball of that colour where the geometry says
+one should be, in a camera whose search did not offer it (it merged with something of its colour); ``axis``
+is the image direction towards the pointer's other ball (where the rod meets this one), when known."""
 
 GUIDED_POINTS = 4
 """Best points of one colour from which the other colour's ball is looked for, when it has none."""
@@ -199,7 +200,10 @@ def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidat
                         if not (np.all(np.isfinite(px)) and bool(other.contains(px[None], 2.0)[0])):
                             continue
                         expected = other.focal_px * ball_radius_m / float(np.linalg.norm(point - other.centre_m))
-                        seen = look(c, colour, float(px[0]), float(px[1]), expected)
+                        partner_px = other.project(partner.point_m[None])[0]
+                        axis = (float(partner_px[0] - px[0]), float(partner_px[1] - px[1]))
+                        seen = look(c, colour, float(px[0]), float(px[1]), expected,
+                                    axis if np.all(np.isfinite(partner_px)) else None)
                         if seen is None:
                             continue
                         miss = float(np.hypot(*(seen.fit.centre_px - px)))

@@ -34,8 +34,11 @@ MAX_RADIUS_RATIO = 1.3
 """A ball's fitted outline more than this much larger or smaller than a ball at its distance is left out
 of the pointer fit (when its end is measured by two other cameras)."""
 
-MAX_GUIDED_RESIDUAL_PX = 0.6
+MAX_GUIDED_RESIDUAL_PX = 1.0
 """A ball looked for where the geometry puts it must be a circle this closely (rim scatter, pixels)."""
+
+GUIDED_SIZE = 1.15
+"""And its radius within this factor of a ball's at the distance the geometry puts it."""
 
 
 def blob_radius_px(end: EndDetection) -> float:
@@ -85,7 +88,7 @@ class RefinedPath:
                 if end.found:
                     ends[colour] = measure_end(image, self.loc.grids[index], cam, index, colour, end.centroid_px,
                                                blob_radius_px(end), end.centroid_px, across, sigma_px, end.area_px)
-        fix = self._fix_from_measurements(per_camera, None, detections, start)
+        fix = self._fix_from_measurements(per_camera, None, detections, start, images)
         if fix.found:
             self._after_refined(fix)
             return fix
@@ -129,9 +132,11 @@ class RefinedPath:
                       for index, image in enumerate(images)]
         pointer = self.loc.rig.pointer
         room = self._room_side()
-        def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float) -> Candidate | None:
-            fit = fit_ball(images[camera], self.loc.grids[camera], colour, x_px, y_px, radius_px,
-                           radius_range_px=(radius_px / 1.3, radius_px * 1.3))
+        def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float,
+                 axis: tuple[float, float] | None) -> Candidate | None:
+            # The geometry knows the ball's size to a few percent and where the rod meets it.
+            fit = fit_ball(images[camera], self.loc.grids[camera], colour, x_px, y_px, radius_px, axis=axis,
+                           radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE))
             if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
                 return None
             return Candidate(colour, fit, (x_px, y_px), radius_px)
@@ -153,7 +158,27 @@ class RefinedPath:
             per_camera.append(ends)
         points = {"red": choice.red_m, "blue": choice.blue_m}
         init = (points[self.loc.front_colour], points[self.loc.back_colour])
-        return self._fix_from_measurements(per_camera, init, detections, start)
+        return self._fix_from_measurements(per_camera, init, detections, start, images)
+
+    def _look_again(self, images: Sequence[NDArray[np.uint8]], camera_index: int, colour: str, point_m: Array,
+                    partner_m: Array, expected_px: float) -> Any:
+        """The ball looked for where ``point_m`` projects, told its image radius and where the rod meets it
+        (towards ``partner_m``); its measurement, or None."""
+        from trackerd.detect.ballfit import fit_ball
+        from trackerd.ends import from_fit
+
+        camera = self.loc.cameras[camera_index]
+        at, partner = camera.project(np.stack([point_m, partner_m]))
+        if not (np.all(np.isfinite(at)) and np.all(np.isfinite(partner))):
+            return None
+        fit = fit_ball(images[camera_index], self.loc.grids[camera_index], colour, float(at[0]), float(at[1]),
+                       expected_px, axis=(float(partner[0] - at[0]), float(partner[1] - at[1])),
+                       radius_range_px=(expected_px / GUIDED_SIZE, expected_px * GUIDED_SIZE))
+        if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
+            return None
+        if float(np.hypot(*(fit.centre_px - at))) > max(3.0, 0.5 * expected_px):
+            return None
+        return from_fit(camera, camera_index, colour, fit)
 
     def _radius_range_px(self, index: int) -> tuple[float, float]:
         """The image radius a ball can have in camera ``index``: from half a metre away to as far as the
@@ -170,7 +195,7 @@ class RefinedPath:
         return sign * plane.normal, sign * plane.offset_m
 
     def _fix_from_measurements(self, per_camera: list[dict[str, Any]], init: tuple[Array, Array] | None,
-                               detections: tuple, start: int) -> PointerFix:
+                               detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]) -> PointerFix:
         """The pointer fit on each camera's end measurements (None where a camera does not see an end)."""
         front, back = self.loc.front_colour, self.loc.back_colour
         centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS}
@@ -222,8 +247,11 @@ class RefinedPath:
                 else:
                     measured[k, e] = m.normalised
                     covariances[k, e] = m.covariance
-        # A ball's outline of the wrong size for its distance is a fit to something else (part of a ball the
-        # presenter's body hides, a disc on the display beside it): left out, while each end keeps two cameras.
+        # A ball's outline of the wrong size for its distance is likely a fit to something else (the part of a
+        # ball a hand leaves, a disc on the display beside it). Off by more than GUIDED_SIZE, the ball is looked
+        # for again where the start puts it, told its size; off by more than MAX_RADIUS_RATIO and not found
+        # again, it is left out while each end keeps two cameras, and otherwise kept with an error as large as
+        # its radius is wrong, so that the hit's uncertainty says what it rests on.
         ball_radius = pointer.end_diameter_m / 2.0
         for k, i in enumerate(used):
             for e, colour in enumerate((front, back)):
@@ -234,9 +262,22 @@ class RefinedPath:
                 distance = float(np.linalg.norm(start_points[e] - camera.centre_m))
                 expected = camera.focal_px * ball_radius / math.sqrt(max(distance**2 - ball_radius**2, 1e-6))
                 ratio = m.radius_px / expected
+                if 1.0 / GUIDED_SIZE <= ratio <= GUIDED_SIZE:
+                    continue
+                again = self._look_again(images, i, colour, start_points[e], start_points[1 - e], expected)
+                if again is not None:
+                    per_camera[i][colour] = again
+                    measured[k, e] = again.normalised
+                    covariances[k, e] = again.covariance
+                    continue
+                if 1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO:
+                    continue
                 seen_by = int(np.count_nonzero(np.trace(covariances[:, e], axis1=1, axis2=2) < DROPPED_VARIANCE))
-                if not (1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO) and seen_by > 2:
+                if seen_by > 2:
                     covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
+                else:
+                    wrong = abs(m.radius_px - expected) / camera.focal_px
+                    covariances[k, e] = covariances[k, e] + np.eye(2) * wrong * wrong
         try:
             fitted = fit_pointer_robust(rotations, translations, measured, covariances, pointer.length_m,
                                         self.loc.rig.locator.length_sigma_m, start_points[0], start_points[1])

@@ -57,7 +57,10 @@ class PointerFit:
 
 
 OUTLIER_SIGMAS = 4.0
-"""A fit with a measurement whose whitened residual exceeds this looks for one to leave out."""
+"""A measurement is left out when its absence lowers the fit's chi-square by more than this squared."""
+
+INCONSISTENT = 2.0
+"""A fit whose chi-square exceeds this times its degrees of freedom looks for a measurement to leave out."""
 
 
 def fit_pointer_robust(
@@ -75,12 +78,14 @@ def fit_pointer_robust(
 ) -> PointerFit:
     """:func:`fit_pointer`, leaving out measurements that do not agree with the others.
 
-    While some whitened residual exceeds OUTLIER_SIGMAS, the fit is redone without each measurement in
-    turn, and the measurement whose absence leaves the others agreeing best (the smallest chi-square) is
-    left out for good; up to ``rounds`` of them, and never so many that an end is measured by fewer than
-    ``min_cameras`` cameras. Leaving each out in turn, rather than the one with the largest residual,
-    is what finds the culprit: a bad measurement pulls the fit towards itself, and the largest residuals
-    are then often the good ones.
+    While the measurements disagree (reduced chi-square above INCONSISTENT), the fit is redone without
+    each measurement in turn; the one whose absence lowers the chi-square most is left out for good if it
+    lowers it by more than OUTLIER_SIGMAS squared (a deletion test: that measurement alone is that many
+    standard errors from where the others put it). Up to ``rounds`` of them, never so many that an end
+    is measured by fewer than ``min_cameras`` cameras. Leaving each out in turn, rather than the one with
+    the largest residual, is what finds the culprit: a bad measurement pulls the fit towards itself, and
+    the largest residuals are then often the good ones; where the cameras are nearly in line, it can
+    pull the fit so far along their common direction that its own residual is small.
     """
     rot = np.asarray(rotations, dtype=np.float64)
     trans = np.asarray(translations_m, dtype=np.float64)
@@ -90,7 +95,7 @@ def fit_pointer_robust(
     dropped: list[tuple[int, int]] = []
     fit = fit_pointer(rot, trans, obs, cov, length_m, length_sigma_m, front0_m, back0_m, ball_radius_m)
     for _ in range(rounds):
-        if _worst_sigma2(rot, trans, obs, cov, present, fit, ball_radius_m) <= OUTLIER_SIGMAS**2:
+        if fit.chi2 <= INCONSISTENT * _dof(present):
             break
         best: tuple[float, tuple[int, int], PointerFit] | None = None
         for c, e in zip(*np.nonzero(present), strict=True):
@@ -105,7 +110,7 @@ def fit_pointer_robust(
                 continue
             if best is None or candidate.chi2 < best[0]:
                 best = (candidate.chi2, (int(c), int(e)), candidate)
-        if best is None:
+        if best is None or fit.chi2 - best[0] <= OUTLIER_SIGMAS**2:
             break
         _, (c, e), fit = best
         cov[c, e] = np.eye(2) * DROPPED_VARIANCE
@@ -117,16 +122,13 @@ def fit_pointer_robust(
     return fit
 
 
+def _dof(present: Array) -> int:
+    """Degrees of freedom of a fit to the measurements present: two each, one for the length, less six."""
+    return max(2 * int(np.count_nonzero(present)) + 1 - 6, 1)
+
+
 DROPPED_VARIANCE = 1e4
 """The covariance (normalised units squared) of a measurement that is not there: it weighs nothing."""
-
-
-def _worst_sigma2(rot: Array, trans: Array, obs: Array, cov: Array, present: Array, fit: PointerFit,
-                  ball_radius_m: float) -> float:
-    """The largest squared whitened residual of the measurements present."""
-    residual = obs - predict(rot, trans, fit.front_m, fit.back_m, ball_radius_m)
-    d2 = np.einsum("cei,ceij,cej->ce", residual, np.linalg.inv(cov), residual)
-    return float(np.max(np.where(present, d2, 0.0)))
 
 
 def predict(rotations: Array, translations_m: Array, front_m: Array, back_m: Array, ball_radius_m: float = 0.0
