@@ -118,3 +118,22 @@ def test_an_end_hidden_from_one_camera_of_three_by_the_presenters_arm() -> None:
     assert views[0].truth.visible_fraction("blue") == 0.0 and views[0].truth.visible_fraction("red") > 0.8
     assert error is not None and error < 0.006, (error, fix.reason)
     assert fix.measurements[0]["red"] is not None
+
+
+def test_tracked_pairs_take_the_quick_path_unless_the_centroids_are_pulled() -> None:
+    """A first sighting is refined; while tracking, a pair whose centroids the refined pair trusted takes the
+    interpretation planes (the daemon's latency), and in dim light, where the thresholds take only part of
+    each ball, every pair is refined."""
+    rng = np.random.default_rng(4)
+    start = pose_aimed_at([1.7, 0.5, 1.6], [1.6, 0.6, 0.0], POINTER["length_m"])
+    step = np.array([0.004, 0.002, 0.0])
+    for look, expected in ((Look(), ["fit", "planes", "planes"]), (Look(gain=0.4), ["fit", "fit", "fit"])):
+        rig, renderer = _scene(_side_cameras(), look)
+        locator = Locator(rig, cameras=renderer.cameras)
+        methods = []
+        for k in range(3):
+            pose = PointerPose(start.front_m + k * step, start.back_m + k * step)
+            fix = locator.locate([renderer.render(i, pose, rng).image for i in range(2)])
+            assert fix.found, fix.reason
+            methods.append(fix.line.method)
+        assert methods == expected, (look, methods)

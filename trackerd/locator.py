@@ -165,8 +165,9 @@ class Locator:
         self._grids: list | None = None
         self._refined: Any = None
         """The refined path (trackerd/refine.py), made on first use."""
-        self._distrust = False
-        """Whether the last refined pair found the detector's centroids pulled (then every pair is refined)."""
+        self.centroids_trusted = True
+        """Whether the last refined pair found every detector centroid agreeing with its ball's outline
+        (else every pair is refined until they agree again)."""
 
     # ------------------------------------------------------------------ detection
 
@@ -187,7 +188,7 @@ class Locator:
         """Forget tracking state (the pointer left, a new recording starts)."""
         for detector in self._detectors or []:
             detector.reset()
-        self._distrust = False
+        self.centroids_trusted = True
         if self._refined is not None:
             self._refined.reset()
 
@@ -202,7 +203,7 @@ class Locator:
         detected = time.perf_counter_ns()
         mode = self.rig.locator.refine
         fix = None
-        if mode == "auto" and not self._distrust and all(d.search == "window" for d in detections):
+        if mode == "auto" and self.centroids_trusted and all(d.search == "window" for d in detections):
             # Tracking, with the detector's centroids trusted at the last refined pair: the quick path, as
             # long as its pointer holds together as tightly as a good one does (an end becoming partly
             # hidden moves its centroid, which shows as rays that miss or a pointer of the wrong length).

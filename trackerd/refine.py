@@ -51,6 +51,13 @@ def blob_radius_px(end: EndDetection) -> float:
     return radius
 
 
+def _tracks(detection: Any, red: Any, blue: Any) -> bool:
+    """Whether a detector's ends are the balls these measurements are of (within half a radius)."""
+    for end, m in ((detection.red, red), (detection.blue, blue)):
+        if not end.found or float(np.hypot(*(end.centroid_px - m.centre_px))) > 0.5 * m.radius_px:
+            return False
+    return True
+
 
 class RefinedPath:
     """The refined path of one :class:`~trackerd.locator.Locator` (not thread-safe, like it)."""
@@ -111,15 +118,17 @@ class RefinedPath:
         """Remember whether the detector's centroids could be trusted, and let the detectors track the balls
         the fit used (a search may have found them where a detector took something else)."""
         ends = [m for per_camera in fix.measurements for m in per_camera.values() if m is not None]
-        self.loc._distrust = any(m.source != "outline+centroid" for m in ends)
+        self.loc.centroids_trusted = all(m.source == "outline+centroid" for m in ends)
         self._searched_once = False
         self._since_search = 0
         if self.loc._detectors is None:
             return
-        for detector, per_camera in zip(self.loc._detectors, fix.measurements, strict=True):
+        for detector, detection, per_camera in zip(self.loc._detectors, fix.detections, fix.measurements,
+                                                    strict=True):
             red, blue = per_camera.get("red"), per_camera.get("blue")
-            if red is not None and blue is not None:
-                detector.follow(red.centre_px, blue.centre_px, red.radius_px, blue.radius_px)
+            if red is None or blue is None or _tracks(detection, red, blue):
+                continue  # the detector already follows these balls (with its own motion estimate)
+            detector.follow(red.centre_px, blue.centre_px, red.radius_px, blue.radius_px)
 
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""

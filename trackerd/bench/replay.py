@@ -193,12 +193,21 @@ class _BaselineLocator(Locator):
     """The locator with a baseline detector in place of trackerd's: all else is the pipeline's."""
 
     def __init__(self, rig: RigConfig, function: Any) -> None:
+        # The baseline's centroids go through the interpretation planes, as the pipeline's did before the
+        # refined path: the pointer fit needs trackerd's own detections and outlines.
+        rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": "never"})})
         super().__init__(rig)
         self._baselines = [_Baseline(function, fmt, rig) for fmt in self.pixel_formats]
+        self._detect_together = _each_alone
 
     @property
     def detectors(self) -> list:
         return self._baselines
+
+
+def _each_alone(detectors: list, frames: list) -> list:
+    """Each baseline detector on its own frame (they have no joint measurement)."""
+    return [detector.detect(frame) for detector, frame in zip(detectors, frames, strict=True)]
 
 
 class _KeepingPublisher:
