@@ -13,11 +13,12 @@ magnifies the centroids' noise; [locator] centroid_sigma_px per centroid).
 
 Every pose is located three ways on the same images:
 
-* trackerd: the detector's sub-pixel centres (the rig's [detector] centroid: every
-  pixel's coverage by default), full lens model, the pointer's line
-  from the cameras' interpretation planes (trackerd/geometry/pointer_line.py);
-* two points: the same centroids and lens model, but the line through the two
-  triangulated ends (the report's construction, eq. 15-17 and 26);
+* trackerd: `Locator.locate` as the daemon runs it on a first sighting: the
+  detector's sub-pixel centres and each ball's fitted outline, full lens model,
+  the pointer fitted to both cameras with its length (trackerd/refine.py; with
+  [locator] refine = "never", the interpretation planes on the centroids alone);
+* two points: the centres trackerd used and the same lens model, but the line
+  through the two triangulated ends (the report's construction, eq. 15-17 and 26);
 * report: the report's algorithm: bounding-box midpoints (eq. 12), pixels scaled
   by focal length and field of view only (eq. 14, no distortion, centred
   principal point), two triangulated ends, eq. 26-28.
@@ -167,7 +168,11 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     renderer = SceneRenderer(variant.rig, list(variant.cameras))
     ours = Locator(variant.rig, cameras=variant.cameras)
-    bbox_rig = variant.rig.model_copy(update={"detector": variant.rig.detector.model_copy(update={"centroid": "bbox"})})
+    # The report's method: bounding-box centres through its own camera model and line, never trackerd's fit.
+    bbox_rig = variant.rig.model_copy(update={
+        "detector": variant.rig.detector.model_copy(update={"centroid": "bbox"}),
+        "locator": variant.rig.locator.model_copy(update={"refine": "never"}),
+    })
     report = Locator(bbox_rig, cameras=[report_camera(c) for c in variant.cameras])
     errors: dict[str, list[float]] = {m: [] for m in METHODS}
     failures: dict[str, int] = {m: 0 for m in METHODS}
@@ -329,7 +334,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         "",
     ]
     names = {
-        "trackerd": "trackerd (planes)",
+        "trackerd": "trackerd",
         "two_points": "same centroids, two points",
         "report": "report (eq. 12 + 14)",
     }
