@@ -1,0 +1,26 @@
+"""`trackerd bench replay`: a short run records, replays and compares against the baselines."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+
+def test_a_short_run_completes_with_every_row(tmp_path) -> None:
+    """It crashed once, unnoticed, when the locator's detection changed under its baseline locator."""
+    run = subprocess.run(
+        [sys.executable, "-m", "trackerd", "bench", "replay", "--record-seconds", "1", "--pairs", "30",
+         "--reference-pairs", "10", "--dir", str(tmp_path), "--json"],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert run.returncode == 0, run.stderr
+    figures = json.loads(run.stdout)
+    rows = figures["replay"]
+    assert {"trackerd", "trackerd, checksums off", "report's method (eq. 10-12, whole image)"} <= set(rows)
+    assert any(name.startswith("opencv") for name in rows)
+    for row in rows.values():
+        assert row["pairs"] > 0 and row["pair_rate_hz"] > 0
+    # trackerd hits every pair of the rendered motion, within the accuracy budget.
+    assert rows["trackerd"]["hits"] == rows["trackerd"]["pairs"] and rows["trackerd"]["hit_error_mm"]["p50"] < 2.0
+    assert figures["ratio_trackerd_to_opencv"] > 0
