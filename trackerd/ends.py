@@ -52,6 +52,9 @@ WHOLE_RIM = 0.75
 """A blob of between WHOLE_BLOB and 1 / WHOLE_BLOB times its fitted disc's area, whose outline is seen on
 WHOLE_RIM of its rays, is the whole ball and nothing else: its centroid is trusted across the pointer."""
 
+COMBINED_FLOOR_SHARE = 0.5
+"""An outline joined by its centroid keeps this share of the outline's error floor (RESIDUAL_SHARE)."""
+
 AGREE_SIGMAS = 3.0
 """The centroid joins the outline's measurement across the pointer when the two agree there within
 this many of their combined standard errors."""
@@ -116,13 +119,13 @@ def measure_end(
     whole = WHOLE_BLOB * disc <= blob_area_px <= disc / WHOLE_BLOB and fit.rim_fraction >= WHOLE_RIM
     combined = _with_centroid(camera, measurement.normalised, measurement.covariance,
                               np.asarray(centroid_px, dtype=np.float64), np.asarray(across_px, dtype=np.float64),
-                              centroid_sigma_px, always=whole)
+                              centroid_sigma_px, fit.radius_px, always=whole)
     if combined is None:
         return measurement
     normalised, covariance = combined
-    # The centroid sharpens the measurement across the pointer; the model's own error stays.
-    floor_px = max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
-    covariance = covariance + np.eye(2) * (floor_px / camera.focal_px) ** 2 * 0.25
+    # The centroid sharpens the measurement across the pointer; part of the model's own error stays.
+    floor_px = COMBINED_FLOOR_SHARE * max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
+    covariance = covariance + np.eye(2) * (floor_px / camera.focal_px) ** 2
     return EndMeasurement(camera_index, colour, fit.centre_px, normalised, covariance, fit.radius_px,
                           "outline+centroid", fit.rim_fraction, fit)
 
@@ -141,13 +144,17 @@ def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) 
 
 
 def _with_centroid(camera: CameraModel, normalised: Array, covariance: Array, centroid_px: Array,
-                   across_px: Array, centroid_sigma_px: float, always: bool = False) -> tuple[Array, Array] | None:
+                   across_px: Array, centroid_sigma_px: float, radius_px: float,
+                   always: bool = False) -> tuple[Array, Array] | None:
     """The outline's measurement with the centroid's across-the-pointer information added, when they
     agree across the pointer; None when they do not (the centroid is pulled by something)."""
     focal = camera.focal_px
     # Across the pointer in normalised units: the pixel direction is close enough (the lens map is smooth).
     across = across_px / max(float(np.linalg.norm(across_px)), 1e-12)
-    centroid_n = camera.normalized_from_pixels(centroid_px[None])[0]
+    # A centroid is the centre of the ball's image ellipse, which lies 1 / cos^2 of the ball's half-angle
+    # further from the optical axis than the ray through the ball's centre (trackerd/geometry/sphere.py).
+    half_angle_sin = min(radius_px / focal, 0.5)
+    centroid_n = camera.normalized_from_pixels(centroid_px[None])[0] * (1.0 - half_angle_sin**2)
     difference = float((centroid_n - normalised) @ across)
     sigma_c = centroid_sigma_px / focal
     sigma_o = math.sqrt(max(float(across @ covariance @ across), 0.0))

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -65,7 +65,6 @@ class JointChoice:
     score: float
     alternatives: int = 0
     """How many other consistent combinations there were."""
-    notes: list[str] = field(default_factory=list)
 
 
 Look = Callable[[int, str, float, float, float, "tuple[float, float] | None"], "Candidate | None"]
@@ -74,7 +73,7 @@ one should be, in a camera whose search did not offer it (it merged with somethi
 is the image direction towards the pointer's other ball (where the rod meets this one), when known."""
 
 GUIDED_POINTS = 4
-"""Best points of one colour from which the other colour's ball is looked for, when it has none."""
+"""Best points of one colour from which the other colour's ball is looked for, when nothing pairs."""
 
 
 def choose_jointly(
@@ -90,9 +89,10 @@ def choose_jointly(
     """The most consistent choice (see the module), or the reason there is none.
 
     ``room_side``: (normal, offset) of the wall's plane, oriented so that the room (where the cameras
-    are) has positive signed distance; points behind the wall are ruled out. ``look``: where a ball
-    must be in a camera that offered no candidate there (a third camera, or the second camera of a ball
-    whose partner was triangulated), it is looked for with this; what it finds joins ``candidates``.
+    are) has positive signed distance; points behind the wall are ruled out. ``look``: when nothing
+    pairs, each colour's ball is looked for with it where the pointer's length puts it from the other
+    colour's best points, in the cameras whose search did not offer it; what it finds joins the
+    candidates (a copy: the caller's lists are not changed).
     """
     candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
     rays = [_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]

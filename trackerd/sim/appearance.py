@@ -56,10 +56,6 @@ class Look:
     """A spotlight on the image: (x, y) centre as fractions of the width and height, radius as a
     fraction of the diagonal, and its peak extra brightness."""
 
-    @property
-    def is_default(self) -> bool:
-        return self == DEFAULT_LOOK
-
     def illumination(self, width_px: int, height_px: int) -> NDArray[np.float32] | None:
         """The image-space light (H, W, 3) the scene is multiplied by, or None when it is uniform 1."""
         uniform = (self.gain == 1.0 and self.white_balance == (1.0, 1.0, 1.0) and self.vignetting == 0.0
