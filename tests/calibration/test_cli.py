@@ -229,12 +229,14 @@ def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path)
     unchanged = _unchanged(ws)
     base = (*INTRINSICS, "left")
 
-    # No board in any image: pointer scenes.
+    # No board in any image: pointer scenes. Nothing says the size is wrong.
     run = trackerd(*base, "--board", "chessboard:10x7:60", *images(ws / "waving")[:6], cwd=ws)
-    one_line_error(run, "no usable view of the board in 6 image(s)", "no board found in any", "counts squares")
-    # The board is there, but described wrongly (inner corners instead of squares).
+    line = one_line_error(run, "no usable view of the board in 6 image(s)", "no detector found 9 x 6 inner corners",
+                          "nor a neighbouring size", "in view, lit and in focus")
+    assert "--board" not in line
+    # The board is there, but described wrongly (inner corners instead of squares): the size it has is named.
     run = trackerd(*base, "--board", "chessboard:9x6:60", *images(ws / "intrinsics-left")[:3], cwd=ws)
-    one_line_error(run, "no board found in any")
+    one_line_error(run, "none shows 8 x 5 inner corners", "shows 9 x 6", "give --board chessboard:10x7:60")
     # Too few views.
     run = trackerd(*base, "--board", "chessboard:10x7:60", *images(ws / "intrinsics-left")[:4], cwd=ws)
     one_line_error(run, "too few usable views: 4, need at least 8")

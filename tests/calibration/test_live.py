@@ -73,7 +73,7 @@ def test_intrinsics_session_guides_accepts_and_saves_snapshots(
     # One numbering: frame 4 (the third view again) is named left-004, and the view it repeats
     # is named as its snapshot is saved, so the message can be traced to the image.
     assert any(line.startswith("  left-004: too similar to 'left-003' (") for line in lines), lines
-    assert "  left-005: no board found" in lines
+    assert "  left-005: no whole board found by any detector" in lines
     assert accepted[-1].startswith(f"[ {len(names)}/{len(names)} views] accepted left-{len(pairs):03d}: ")
     assert session.done
     # The snapshots are the accepted frames, under the names the report lists them by.

@@ -21,6 +21,7 @@ face), in metres. Inner corner (i, j) (i-th column, j-th row) is at
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
@@ -261,7 +262,8 @@ class BoardView:
     """Corners the whole board has."""
     name: str = ""
     """Where the view came from (a file name, a frame number)."""
-    meta: dict[str, float] = field(default_factory=dict)
+    meta: dict[str, str] = field(default_factory=dict)
+    """``detector``: which detector found the board (BOARD_FINDERS)."""
 
     @property
     def complete(self) -> bool:
@@ -278,7 +280,8 @@ class Detection:
 
     view: BoardView | None
     reason: str | None = None
-    """Why the image gives no usable view: 'no board found', 'blurred (...)', 'partial (...)'."""
+    """Why the image gives no usable view: 'no whole board found by any detector', 'blurred (...)',
+    'partial (...)', 'too little contrast (...)'."""
     found: BoardView | None = None
     """The board as found even when rejected (for showing it), else None."""
 
@@ -298,10 +301,18 @@ def detect_board(grey: NDArray[np.uint8], spec: BoardSpec, name: str = "", quali
     find = _find_chessboard if spec.kind == "chessboard" else _find_charuco
     found = find(grey, spec, name)
     if found is None:
-        return Detection(None, "no board found")
+        what = "board" if spec.kind == "charuco" else "whole board"
+        return Detection(None, f"no {what} found by any detector")
     if len(found.ids) < quality.min_corners or found.fraction < quality.min_corner_fraction:
         return Detection(None, f"partial: {len(found.ids)} of {spec.corner_count} corners in view", found)
-    if not np.isfinite(found.sharpness_px) or found.sharpness_px > quality.max_sharpness_px:
+    if not np.isfinite(found.sharpness_px):
+        return Detection(
+            None,
+            f"too little contrast between the squares (under {MIN_EDGE_CONTRAST} grey levels near most corners)"
+            " to judge the focus; more light or a longer exposure",
+            found,
+        )
+    if found.sharpness_px > quality.max_sharpness_px:
         return Detection(
             None,
             f"blurred: edges rise over {found.sharpness_px:.1f} px"
@@ -318,18 +329,23 @@ def _find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> Boa
     # tiny. Where its squares are small (a distant or steeply tilted board) the
     # half-resolution corners can be pixels off, so the board is found again at full
     # resolution in a window around it; the corners are refined below either way.
+    finder = ""
     if min(grey.shape[:2]) >= 720:
         small = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-        corners = _sector_corners(small, cols, rows)
-        if corners is not None:
+        found = _sector_corners(small, cols, rows)
+        if found is not None:
             # Pixel centres sit at integers in both images: x_full = (x_small + 0.5) * 2 - 0.5.
-            corners = (corners + 0.5) * 2.0 - 0.5
+            corners, finder = (found[0] + 0.5) * 2.0 - 0.5, found[1] + ", half resolution"
             if _shortest_spacing_px(corners.reshape(rows, cols, 2)) < 40.0:
                 corners = _sector_corners_near(grey, corners, cols, rows)
+                finder = finder.removesuffix(", half resolution") + ", again near it"
     if corners is None:
-        corners = _sector_corners(grey, cols, rows)
-    if corners is None:
-        return None
+        # Every detector was tried at half resolution; at full resolution only the sector detector is
+        # (the quad detector and OpenCV's quick check can take 20 s on a cluttered 1080p frame).
+        found = _sector_corners(grey, cols, rows, every_detector=min(grey.shape[:2]) < 720)
+        if found is None:
+            return None
+        corners, finder = found
     grid = corners.reshape(rows, cols, 2)
     # The sector-based detector is robust but noisy (about 0.15 px on a noisy image);
     # gradient refinement over a window scaled to the squares brings it to about 0.06 px.
@@ -360,14 +376,146 @@ def _find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> Boa
         edge_sharpness_px(grey, points, square),
         spec.corner_count,
         name,
+        {"detector": finder},
     )
 
 
-def _sector_corners(image: NDArray[np.uint8], cols: int, rows: int) -> Array | None:
-    ok, found = cv2.findChessboardCornersSB(image, (cols, rows), flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+def _sb(image: NDArray[np.uint8], cols: int, rows: int, flags: int) -> Array | None:
+    ok, found = cv2.findChessboardCornersSB(image, (cols, rows), flags=flags)
     if not ok or found is None or len(found) != cols * rows:
         return None
     return found.reshape(-1, 2).astype(np.float64)
+
+
+def _classic(image: NDArray[np.uint8], cols: int, rows: int) -> Array | None:
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FILTER_QUADS
+    ok, found = cv2.findChessboardCorners(image, (cols, rows), flags=flags)
+    if not ok or found is None or len(found) != cols * rows:
+        return None
+    return found.reshape(-1, 2).astype(np.float64)
+
+
+def stretched(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """The image's 1st to 99th percentile of grey spread over 0-255 (a dim, low-contrast photo)."""
+    low, high = (float(v) for v in np.percentile(image[::2, ::2], (1, 99)))
+    if high - low < 1.0:
+        return image
+    return np.clip((image.astype(np.float32) - low) * (255.0 / (high - low)), 0, 255).astype(np.uint8)
+
+
+BOARD_FINDERS: tuple[tuple[str, Callable[[NDArray[np.uint8], int, int], Array | None]], ...] = (
+    ("sector, normalised", lambda image, c, r: _sb(image, c, r, cv2.CALIB_CB_NORMALIZE_IMAGE)),
+    ("sector", lambda image, c, r: _sb(image, c, r, 0)),
+    ("sector, contrast stretched", lambda image, c, r: _sb(stretched(image), c, r, 0)),
+    ("quads, adaptive threshold", _classic),
+)
+"""The chessboard detectors tried in turn, most exact first, until one finds the whole board:
+OpenCV's sector-based detector with its normalisation and without (which finds the boards of some dim
+photos that normalising loses), the same on a contrast-stretched copy, and the classic quad detector
+with adaptive thresholding. Corners are refined the same way whichever found them."""
+
+
+def _sector_corners(
+    image: NDArray[np.uint8], cols: int, rows: int, every_detector: bool = True
+) -> tuple[Array, str] | None:
+    """The board's corners by the first detector that finds them all, and that detector's name.
+
+    The first detector is tried on every image; the others only where OpenCV's quick check for a board
+    (about 10 ms on a 960 x 540 image) says there may be one, on the image or its contrast-stretched
+    copy, so that the many frames without a board (live capture, a recording) do not pay for four
+    detectors. ``every_detector=False`` tries the sector detectors alone: on a large cluttered image the
+    quick check and the quad detector take tens of seconds.
+    """
+    (name, find), rest = BOARD_FINDERS[0], BOARD_FINDERS[1:]
+    corners = find(image, cols, rows)
+    if corners is not None and corners_are_junctions(image, corners.reshape(rows, cols, 2)):
+        return corners, name
+    if not every_detector:
+        rest = tuple((n, f) for n, f in rest if n.startswith("sector"))
+    elif not (_board_likely(image, cols, rows) or _board_likely(stretched(image), cols, rows)):
+        return None
+    for name, find in rest:
+        corners = find(image, cols, rows)
+        if corners is not None and corners_are_junctions(image, corners.reshape(rows, cols, 2)):
+            return corners, name
+    return None
+
+
+MIN_JUNCTION_SHARE = 0.3
+"""A corner with an edge between two of its four squares weaker than this share of the board's typical
+edge is not a corner between four squares (see :func:`corners_are_junctions`)."""
+
+
+def corners_are_junctions(image: NDArray[np.uint8], grid: Array) -> bool:
+    """Whether every corner of a found grid (rows, cols, 2) sits where four squares meet, dark and
+    light alternating in the pattern the grid's numbering implies.
+
+    OpenCV's detectors can return a grid shifted by a row or a column onto the board's printed edge
+    (the white margin then stands in for a row of squares), most often in dim, glared photos; along
+    that edge the two outer "squares" are both margin. Each corner's four squares are sampled a third
+    of the way to the next corners, and each of the four edges between them must have the sign the
+    chessboard's parity gives and at least MIN_JUNCTION_SHARE of the board's median edge.
+    """
+    rows, cols = grid.shape[:2]
+    if rows < 2 or cols < 2:
+        return True
+    # Vectors to the next corner along a row (u) and a column (v), and to the previous one (the first
+    # row and column mirror the next); the outer squares of a tilted board are smaller, so samples
+    # stay well inside a square.
+    u = np.diff(grid, axis=1)
+    u_ahead = np.concatenate([u, u[:, -1:]], axis=1)
+    u_back = np.concatenate([u[:, :1], u], axis=1)
+    v = np.diff(grid, axis=0)
+    v_ahead = np.concatenate([v, v[-1:]], axis=0)
+    v_back = np.concatenate([v[:1], v], axis=0)
+    spacing = float(np.median(np.hypot(*u.reshape(-1, 2).T)))
+    radius = max(1, round(0.1 * spacing))
+    blurred = cv2.blur(image, (2 * radius + 1, 2 * radius + 1)).astype(np.float32)
+    h, w = blurred.shape[:2]
+
+    def level(offset: Array) -> Array:
+        at = np.rint(grid + 0.35 * offset).astype(np.int64)
+        inside = (at[..., 0] >= 0) & (at[..., 0] < w) & (at[..., 1] >= 0) & (at[..., 1] < h)
+        values = blurred[np.clip(at[..., 1], 0, h - 1), np.clip(at[..., 0], 0, w - 1)]
+        return np.where(inside, values, np.nan)
+
+    # a and b are the squares on one diagonal, c and d on the other.
+    a, b = level(u_ahead + v_ahead), level(-u_back - v_back)
+    c, d = level(u_ahead - v_back), level(-u_back + v_ahead)
+    parity = np.where((np.add.outer(np.arange(rows), np.arange(cols)) % 2) == 0, 1.0, -1.0)
+    edges = np.stack([a - c, a - d, b - c, b - d], axis=-1) * parity[..., None]
+    # A corner whose outer squares leave the image cannot be judged; the rest must all pass.
+    judged = edges[np.all(np.isfinite(edges), axis=-1)]
+    if len(judged) < 4:
+        return True
+    judged = judged * np.sign(np.median(judged))
+    typical = float(np.median(judged))
+    return typical > 0 and bool(np.all(judged >= MIN_JUNCTION_SHARE * typical))
+
+
+def _board_likely(image: NDArray[np.uint8], cols: int, rows: int) -> bool:
+    flags = cv2.CALIB_CB_FAST_CHECK | cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    ok, _ = cv2.findChessboardCorners(image, (cols, rows), flags=flags)
+    return bool(ok)
+
+
+def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
+    """A board of another size that is in the image (one more or one fewer inner corner each way, or
+    the two swapped), as the --board to give; None when none is. For when no image shows the board."""
+    if spec.kind != "chessboard":
+        return None
+    cols, rows = spec.inner_corners
+    if min(grey.shape[:2]) >= 720:
+        grey = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    tried = set()
+    for dc, dr in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
+        for c, r in ((cols + dc, rows + dr), (rows + dr, cols + dc)):
+            if (c, r) in tried or (c, r) == (cols, rows) or min(c, r) < 2:
+                continue
+            tried.add((c, r))
+            if _sb(grey, c, r, cv2.CALIB_CB_NORMALIZE_IMAGE) is not None or _sb(grey, c, r, 0) is not None:
+                return f"chessboard:{c + 1}x{r + 1}:{_mm(spec.square_m)}"
+    return None
 
 
 def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows: int) -> Array | None:
@@ -376,8 +524,8 @@ def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows:
     h, w = grey.shape[:2]
     x0, y0 = max(0, int(rough[:, 0].min() - pad)), max(0, int(rough[:, 1].min() - pad))
     x1, y1 = min(w, int(rough[:, 0].max() + pad) + 1), min(h, int(rough[:, 1].max() + pad) + 1)
-    found = _sector_corners(np.ascontiguousarray(grey[y0:y1, x0:x1]), cols, rows)
-    return None if found is None else found + np.array([x0, y0], dtype=np.float64)
+    found = _sector_corners(np.ascontiguousarray(grey[y0:y1, x0:x1]), cols, rows, every_detector=False)
+    return None if found is None else found[0] + np.array([x0, y0], dtype=np.float64)
 
 
 def _canonical_order(grey: NDArray[np.uint8], grid: Array, spec: BoardSpec) -> Array:
@@ -440,9 +588,15 @@ def _square_px(grid: Array) -> float:
 
 def _find_charuco(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> BoardView | None:
     detector = _charuco_detector(spec)
+    # A dim photo's markers can fall below the marker detector's thresholds; a contrast-stretched
+    # copy is the second try.
+    finder = "charuco"
     corners, ids, _, _ = detector.detectBoard(grey)
     if ids is None or corners is None or len(ids) < 4:
-        return None
+        finder = "charuco, contrast stretched"
+        corners, ids, _, _ = detector.detectBoard(stretched(grey))
+        if ids is None or corners is None or len(ids) < 4:
+            return None
     ids = np.asarray(ids, dtype=np.int64).ravel()
     points = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     order = np.argsort(ids)
@@ -464,6 +618,7 @@ def _find_charuco(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> BoardV
         edge_sharpness_px(grey, points, square),
         spec.corner_count,
         name,
+        {"detector": finder},
     )
 
 
@@ -481,6 +636,11 @@ def _charuco_detector(spec: BoardSpec) -> cv2.aruco.CharucoDetector:
         detector = cv2.aruco.CharucoDetector(spec.cv_board, charuco, params)
         _DETECTORS[key] = detector
     return detector
+
+
+MIN_EDGE_CONTRAST = 8
+"""Corners whose black and white squares differ by fewer grey levels are not used to judge sharpness
+(noise would decide). A dim photo of a board may have 15-30 levels of contrast and still be sharp."""
 
 
 def edge_sharpness_px(grey: NDArray[np.uint8], points_px: Array, square_px: float) -> float:
@@ -508,7 +668,7 @@ def edge_sharpness_px(grey: NDArray[np.uint8], points_px: Array, square_px: floa
             continue
         contrast = float(np.percentile(patch, 95) - np.percentile(patch, 5))
         steepest = float(np.max(magnitude[y0:y1, x0:x1]))
-        if contrast < 20 or steepest <= 0:
+        if contrast < MIN_EDGE_CONTRAST or steepest <= 0:
             continue
         rises.append(0.8 * contrast / steepest)
     return float(np.median(rises)) if rises else float("inf")

@@ -1,7 +1,7 @@
 """From frames to calibration input: board views for one camera, matched pairs for two.
 
 Every frame gets a verdict, accepted or rejected with a reason an operator can
-act on ('no board found', 'blurred ...', 'too similar to view 3 ...'); the same
+act on ('no whole board found by any detector', 'blurred ...', 'too similar to view 3 ...'); the same
 functions serve image files, recordings and live cameras.
 """
 

@@ -46,6 +46,8 @@ class IntrinsicsResult:
     per_view_rms_px: Array
     """(V,) RMS of each view used."""
     view_names: tuple[str, ...]
+    view_detectors: tuple[str, ...]
+    """Which detector found the board in each view used ('' where not recorded)."""
     std_matrix_px: Array
     """Standard errors of (fx, fy, cx, cy) estimated by OpenCV, in pixels."""
     std_distortion: Array
@@ -180,6 +182,7 @@ def _calibrate(
         rms_px=float(rms),
         per_view_rms_px=per_view,
         view_names=tuple(v.name for v in views),
+        view_detectors=tuple(v.meta.get("detector", "") for v in views),
         std_matrix_px=std[:4],
         std_distortion=std[4 : 4 + terms],
         rvecs=np.asarray(rvecs, dtype=np.float64).reshape(-1, 3),

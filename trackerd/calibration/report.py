@@ -35,7 +35,7 @@ def reason_kind(reason: str) -> str:
 
 
 def rejections_summary(rejected: Sequence[tuple[str, str]]) -> list[str]:
-    """Rejected frames grouped by kind of reason: ``12 x no board found``."""
+    """Rejected frames grouped by kind of reason: ``12 x no whole board found by any detector``."""
     kinds = Counter(reason_kind(reason) for _, reason in rejected)
     return [f"{count} x {kind}" for kind, count in kinds.most_common()]
 
@@ -49,8 +49,10 @@ def intrinsics_json(result: IntrinsicsResult, rejected: Sequence[tuple[str, str]
     return {
         "rms_px": _r(result.rms_px),
         "views": [
-            {"name": name, "rms_px": _r(err), "outlier": i in result.outliers}
-            for i, (name, err) in enumerate(zip(result.view_names, result.per_view_rms_px, strict=True))
+            {"name": name, "rms_px": _r(err), "outlier": i in result.outliers, "detector": detector}
+            for i, (name, err, detector) in enumerate(
+                zip(result.view_names, result.per_view_rms_px, result.view_detectors, strict=True)
+            )
         ],
         "dropped": list(result.dropped),
         "corners": result.corners,
@@ -82,9 +84,11 @@ def intrinsics_text(camera_id: str, result: IntrinsicsResult, rejected: Sequence
         "  distortion " + " ".join(f"{d:+.6f}" for d in result.distortion) + "  (k1 k2 p1 p2 [k3 ...])",
         "  per-view RMS (px):",
     ]
-    for i, (name, err) in enumerate(zip(result.view_names, result.per_view_rms_px, strict=True)):
+    views = zip(result.view_names, result.per_view_rms_px, result.view_detectors, strict=True)
+    for i, (name, err, detector) in enumerate(views):
+        found_by = f"  ({detector})" if detector else ""
         flag = "  <- outlier: retake or drop it (--drop-outliers)" if i in result.outliers else ""
-        lines.append(f"    {name or f'view {i + 1}':<28} {err:.3f}{flag}")
+        lines.append(f"    {name or f'view {i + 1}':<28} {err:.3f}{found_by}{flag}")
     if result.dropped:
         lines.append(f"  dropped as outliers: {', '.join(result.dropped)}")
     lines.append(f"  image coverage {result.coverage.fraction * 100:.0f} % ('#' = corners seen):")

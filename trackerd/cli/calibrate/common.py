@@ -161,3 +161,19 @@ def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], c
     else:
         poses = poses_for_pair(scene, spec, count, rng)
     return board_pair_source(BoardRenderer(scene, spec), poses, rng)
+
+
+def no_board_hint(spec: BoardSpec, frame: tuple[str, np.ndarray, str]) -> str:
+    """What to say when no image showed the board: a board of a neighbouring size that one of them does
+    show (the --board to give), else what else to check. Never a guess presented as the cause."""
+    from trackerd.calibration.board import board_size_hint, grey_for_calibration
+
+    name, image, pixel_format = frame
+    other = board_size_hint(grey_for_calibration(image, pixel_format), spec)
+    cols, rows = spec.inner_corners
+    if other is not None:
+        found = BoardSpec.parse(other).inner_corners
+        return (f" (none shows {cols} x {rows} inner corners, but {name} shows {found[0]} x {found[1]}:"
+                f" give --board {other}; --board counts squares)")
+    return (f" (no detector found {cols} x {rows} inner corners, nor a neighbouring size, in any: is the"
+            " board in view, lit and in focus?)")

@@ -17,6 +17,7 @@ from trackerd.calibration.views import ViewSelector
 from trackerd.cli.calibrate.common import (
     Output,
     check_source,
+    no_board_hint,
     rig_camera,
     run_live,
     simulated_boards,
@@ -59,14 +60,11 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         for name, reason in collected.rejected:
             out.say(f"  {name}: {reason}")
     if not collected.views:
-        raise CalibrationError(
-            f"no usable view of the board in {collected.frames} image(s)"
-            + (
-                " (no board found in any: check --board, which counts squares, not inner corners)"
-                if all(r.startswith("no board") for _, r in collected.rejected)
-                else ""
-            )
-        )
+        found_none = all(r.startswith("no whole board") for _, r in collected.rejected)
+        hint = ""
+        if found_none and mode != "live" and args.images:
+            hint = no_board_hint(spec, next(iter(camera_frames(args.images[:1], cam))))
+        raise CalibrationError(f"no usable view of the board in {collected.frames} image(s){hint}")
     result = calibrate_intrinsics(
         collected.views, distortion_terms=args.distortion, min_views=args.min_views, drop_outliers=args.drop_outliers
     )
