@@ -25,8 +25,13 @@ from trackerd.errors import ImageError
 from trackerd.pixelformat import frame_shape, is_bayer
 
 
-def read_frame(path: str | Path, camera: CameraConfig) -> tuple[NDArray[np.uint8], str]:
-    """Read an image file as a frame from ``camera``: (frame, pixel format of the frame)."""
+def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) -> tuple[NDArray[np.uint8], str]:
+    """Read an image file as a frame from ``camera``: (frame, pixel format of the frame).
+
+    A single-channel image is the raw mosaic of a Bayer camera and a Mono8 camera's frame; from a
+    camera of another format it is refused unless ``grey_ok`` (calibration: a board is grey anyway),
+    and then read as Mono8.
+    """
     path = Path(path)
     if not path.exists():
         raise ImageError(f"{path}: no such file")
@@ -54,6 +59,8 @@ def read_frame(path: str | Path, camera: CameraConfig) -> tuple[NDArray[np.uint8
             f" {camera.width_px}x{camera.height_px} (its calibration only holds at that size)"
         )
     if frame.ndim == 2:
+        if camera.pixel_format == "Mono8" or (grey_ok and not is_bayer(camera.pixel_format)):
+            return frame, "Mono8"
         if not is_bayer(camera.pixel_format):
             raise ImageError(
                 f"{path}: single-channel image, but camera '{camera.id}' delivers {camera.pixel_format};"

@@ -204,6 +204,9 @@ def test_a_new_installation_end_to_end(both_lenses: Calibrated, tmp_path: Path) 
     assert figures["fixes"] >= 10 and not figures["suspect"]
     assert figures["ray_gap_mm"]["p50"] < 3.0
     assert len(list(workspace.glob("new-wall-calibration.toml.bak-*"))) == 4  # one per step that wrote
+    # Images without the pointer are no evidence either way: a failure, not a pass.
+    run = trackerd("calibrate", "check", "--config", "rig.toml", "--pairs", "pairs", cwd=workspace)
+    one_line_error(run, "no pointer fixes in 10 frame pair(s): nothing to check the calibration against")
 
 
 @pytest.fixture

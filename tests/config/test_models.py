@@ -282,10 +282,16 @@ def test_colour_pixel_formats_accepted(pixel_format: str) -> None:
     )
 
 
-@pytest.mark.parametrize("pixel_format", MONO_PIXEL_FORMATS)
+@pytest.mark.parametrize("pixel_format", [f for f in MONO_PIXEL_FORMATS if f != "Mono8"])
 def test_monochrome_pixel_formats_rejected_with_the_reason(pixel_format: str) -> None:
     with pytest.raises(ValidationError, match=f"{pixel_format} is monochrome and cannot tell"):
         CameraConfig.model_validate(camera(pixel_format=pixel_format))
+
+
+def test_mono8_is_a_camera_for_calibration_only() -> None:
+    # The model takes it (a rig used to calibrate); load_rig, which tracking uses, refuses it
+    # (tests/config/test_cli_config.py and tests/calibration/test_cli.py).
+    assert CameraConfig.model_validate(camera(pixel_format="Mono8")).pixel_format == "Mono8"
 
 
 def test_camera_ids_are_short_names() -> None:

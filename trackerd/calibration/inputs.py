@@ -3,13 +3,15 @@
 Naming in a folder of pairs (``--pairs DIR``): one image per camera and moment,
 ``<name>-<camera id>.<ext>``, for example ``07-left.png`` and ``07-right.png``
 (the convention of tests/data/pairs and of the snapshots the --live modes
-save). For the wall, ``<name>`` is the target's label, optionally followed by
-``-<n>`` for the n-th place it was pointed at from: ``tl-left.png``,
-``centre-2-right.png``.
+save), or ``<camera id><name>.<ext>`` (``left07.png``), or a subfolder per
+camera (``left/07.png``); :func:`pair_files` says which it used. For the wall,
+``<name>`` is the target's label, optionally followed by ``-<n>`` for the n-th
+place it was pointed at from: ``tl-left.png``, ``centre-2-right.png``.
 
 Images are read as camera frames by :func:`trackerd.images.read_frame`: a
-single-channel image is the camera's raw Bayer mosaic, a colour image is BGR,
-``.npy`` holds the raw frame; the size must be the camera's.
+single-channel image is the camera's raw Bayer mosaic (for a board, a grey image
+from a camera of any other format), a colour image is BGR, ``.npy`` holds the
+raw frame; the size must be the camera's.
 """
 
 from __future__ import annotations
@@ -25,10 +27,9 @@ from trackerd.calibration.collect import Frame
 from trackerd.calibration.wall import CORNER_LABELS, Target
 from trackerd.config.loader import describe_validation_error, read_toml
 from trackerd.config.models import CameraConfig, WallConfig
-from trackerd.errors import ConfigError
+from trackerd.errors import ConfigError, ImageError
+from trackerd.image_pairs import IMAGE_SUFFIXES, PairedImages, images_in, pair_images
 from trackerd.images import read_frame
-
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp", ".npy")
 
 GRID_LABELS = {"bottom": (0.5, 0.0), "top": (0.5, 1.0), "left": (0.0, 0.5), "right": (1.0, 0.5), "centre": (0.5, 0.5)}
 """With the corners, a 3 x 3 grid of display-defined targets, as fractions of the display."""
@@ -46,54 +47,49 @@ def _read_input_toml(path: Path) -> dict:
 def camera_frames(paths: Sequence[str | Path], camera: CameraConfig) -> Iterator[Frame]:
     """Frames of one camera from image files, in the order given (ImageError names a bad file)."""
     for path in paths:
-        frame, fmt = read_frame(path, camera)
+        frame, fmt = read_frame(path, camera, grey_ok=True)
         yield Path(path).name, frame, fmt
 
 
-def pair_files(directory: str | Path, camera_ids: Sequence[str]) -> list[tuple[str, dict[str, Path]]]:
-    """Group a folder's images by moment: [(name, {camera id: path})], sorted by name.
+def pair_files(directory: str | Path, camera_ids: Sequence[str]) -> PairedImages:
+    """A folder's images grouped by moment (:func:`trackerd.image_pairs.pair_images`); a folder that
+    cannot be paired is a bad input (CalibrationError)."""
+    try:
+        return pair_images(directory, camera_ids)
+    except ImageError as err:
+        raise CalibrationError(str(err)) from err
 
-    Raises CalibrationError for a missing folder, a folder without images of
-    these cameras, or a moment that lacks one camera's image.
+
+def image_files(paths: Sequence[str | Path], camera_id: str) -> tuple[list[Path], list[str]]:
+    """The image files named, with each folder among them replaced by its images (natural order).
+
+    From a folder that holds several cameras' images, only those whose name starts or ends with the
+    camera's id are taken. Returns the files and a line for each folder saying what was taken.
     """
-    folder = Path(directory)
-    if not folder.is_dir():
-        raise CalibrationError(f"{folder}: no such folder")
-    ids = sorted(camera_ids, key=len, reverse=True)
-    groups: dict[str, dict[str, Path]] = {}
-    for path in sorted(folder.iterdir()):
-        if path.suffix.lower() not in IMAGE_SUFFIXES or not path.is_file():
+    out: list[Path] = []
+    said: list[str] = []
+    for given in paths:
+        path = Path(given)
+        if not path.is_dir():
+            out.append(path)
             continue
-        for cam_id in ids:
-            if path.stem.endswith(f"-{cam_id}"):
-                name = path.stem[: -len(cam_id) - 1]
-                groups.setdefault(name, {})[cam_id] = path
-                break
-    if not groups:
-        raise CalibrationError(f"{folder}: no images named <name>-<camera>.<ext> for cameras {', '.join(camera_ids)}")
-    out = []
-    for name in sorted(groups, key=_natural_key):
-        files = groups[name]
-        missing = [cam_id for cam_id in camera_ids if cam_id not in files]
-        if missing:
-            have = ", ".join(p.name for p in files.values())
-            raise CalibrationError(
-                f"{folder}: '{name}' has {have} but no image from {', '.join(missing)}:"
-                " every moment needs one image per camera, taken at the same instant"
-            )
-        out.append((name, files))
-    return out
+        images = images_in(path)
+        mine = [p for p in images if p.stem.startswith(camera_id) or p.stem.endswith(camera_id)]
+        taken = mine or images
+        if not taken:
+            raise CalibrationError(f"{path}: a folder without images ({', '.join(IMAGE_SUFFIXES)})")
+        which = f"the {len(taken)} named for camera {camera_id}" if mine else f"all {len(taken)}"
+        said.append(f"{path}: {which} of its {len(images)} image(s)")
+        out.extend(taken)
+    return out, said
 
 
-def _natural_key(text: str) -> list[object]:
-    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", text)]
-
-
-def read_pair(files: dict[str, Path], cameras: Sequence[CameraConfig]) -> list[Frame]:
-    """One frame per camera (rig order) of one moment."""
+def read_pair(files: dict[str, Path], cameras: Sequence[CameraConfig], grey_ok: bool = False) -> list[Frame]:
+    """One frame per camera (rig order) of one moment; grey images from any camera with ``grey_ok``
+    (a board's pairs), else as :func:`trackerd.images.read_frame` reads them for the pointer."""
     frames = []
     for cam in cameras:
-        frame, fmt = read_frame(files[cam.id], cam)
+        frame, fmt = read_frame(files[cam.id], cam, grey_ok=grey_ok)
         frames.append((files[cam.id].name, frame, fmt))
     return frames
 

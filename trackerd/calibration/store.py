@@ -29,7 +29,7 @@ from pydantic import ValidationError
 from trackerd.calibration import CalibrationError
 from trackerd.config.tomlwrite import dumps
 from trackerd.config.loader import describe_validation_error, load_calibration, merge_calibration, parse_rig, read_toml
-from trackerd.config.models import CalibrationFile, RigConfig
+from trackerd.config.models import CALIBRATION_ONLY_FORMAT, CalibrationFile, RigConfig
 from trackerd.errors import ConfigError
 
 WORLD_FRAME_KEY = "world_frame"
@@ -57,6 +57,11 @@ class RigContext:
         """The merged rig, requiring every camera to have intrinsics and extrinsics."""
         rig = self.merged(calibration)
         for cam in rig.cameras:
+            if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
+                raise CalibrationError(
+                    f"camera '{cam.id}' is {cam.pixel_format}: this step locates the pointer, whose red and"
+                    " blue ends only a colour camera tells apart (intrinsics and stereo take Mono8)"
+                )
             missing = [part for part in ("intrinsics", "extrinsics") if getattr(cam, part) is None]
             if missing:
                 raise CalibrationError(

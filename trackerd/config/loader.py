@@ -20,7 +20,14 @@ from typing import Any, TypeVar, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
-from trackerd.config.models import CalibrationFile, CameraConfig, RigConfig, ZmqOutput
+from trackerd.config.models import (
+    CALIBRATION_ONLY_FORMAT,
+    COLOUR_PIXEL_FORMATS,
+    CalibrationFile,
+    CameraConfig,
+    RigConfig,
+    ZmqOutput,
+)
 from trackerd.errors import ConfigError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -273,6 +280,13 @@ def load_rig(path: str | Path) -> LoadedRig:
     """Read a rig file, merge its calibration file, and check the result is complete."""
     rig_path = Path(path)
     rig = parse_rig(read_toml(rig_path), rig_path)
+    for index, cam in enumerate(rig.cameras):
+        if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
+            raise ConfigError(
+                f"{rig_path}: cameras[{index}].pixel_format: {cam.pixel_format} is monochrome and cannot tell"
+                f" the pointer's red end from its blue end; use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
+                f" to track ({cam.pixel_format} is fine for `trackerd calibrate`)"
+            )
     sources = {cam.id: f"inline in {rig_path.name}" for cam in rig.cameras}
     sources["wall"] = f"inline in {rig_path.name}"
     calibration_path: Path | None = None
@@ -319,21 +333,18 @@ MAX_LENS_INVERSION_PX = 0.01
 """A pixel taken to its ray and projected back must land this close to where it started."""
 
 
-def _check_lens(cam: CameraConfig, where: str) -> None:
-    """Refuse a distortion model that cannot be inverted out to the image's edges.
-
-    A calibration fitted without points near the corners can fold over there (the
-    distorted radius stops growing with the true radius); the rays trackerd finds for
-    those pixels would then be silently wrong. Walk the image border and check that
-    pixel -> ray -> pixel comes back.
-    """
+def lens_fold_px(cam: CameraConfig) -> tuple[float, tuple[float, float]]:
+    """How far a pixel on the image border, taken to its ray and projected back, lands from where it
+    started (the worst over the border, px), and that pixel. Above MAX_LENS_INVERSION_PX the lens
+    model folds over: a calibration fitted without points near the corners can have the distorted
+    radius stop growing with the true radius there."""
     import numpy as np
 
     from trackerd.geometry.camera import CameraModel
 
     model = CameraModel.from_config(cam)
     if not model.has_distortion:
-        return
+        return 0.0, (0.0, 0.0)
     w, h = cam.width_px - 0.5, cam.height_px - 0.5
     steps = np.linspace(0.0, 1.0, 65)
     border = np.vstack([
@@ -346,12 +357,19 @@ def _check_lens(cam: CameraConfig, where: str) -> None:
     miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
     miss = np.where(np.isfinite(miss), miss, np.inf)
     worst = int(np.argmax(miss))
-    if miss[worst] > MAX_LENS_INVERSION_PX:
-        u, v = border[worst]
+    return float(miss[worst]), (float(border[worst][0]), float(border[worst][1]))
+
+
+def _check_lens(cam: CameraConfig, where: str) -> None:
+    """Refuse a distortion model that cannot be inverted out to the image's edges (lens_fold_px):
+    the rays trackerd finds for those pixels would be silently wrong."""
+    miss, (u, v) = lens_fold_px(cam)
+    if miss > MAX_LENS_INVERSION_PX:
         raise ConfigError(
             f"{where}.intrinsics.distortion: the lens model folds over near the image edge: the ray"
-            f" for pixel ({u:.1f}, {v:.1f}) projects back {miss[worst]:.3g} px away, so the"
-            " calibration does not hold out to the corners (calibrate with the board near them)"
+            f" for pixel ({u:.1f}, {v:.1f}) projects back {miss:.3g} px away, so the"
+            " calibration does not hold out to the corners (calibrate with the board near them,"
+            " or with fewer distortion terms: --distortion 4)"
         )
 
 

@@ -33,6 +33,8 @@ Vec3 = tuple[float, float, float]
 
 COLOUR_PIXEL_FORMATS = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8")
 MONO_PIXEL_FORMATS = ("Mono8", "Mono10", "Mono12", "Mono16")
+CALIBRATION_ONLY_FORMAT = "Mono8"
+"""A monochrome format a camera may have in a rig used only to calibrate: tracking needs colour."""
 PixelFormat = Literal["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8"]
 
 # OpenCV accepts these distortion vector lengths (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
@@ -170,7 +172,8 @@ class CameraConfig(_Model):
     height_px: int = Field(gt=0)
     """Image height delivered by the camera."""
     pixel_format: str
-    """GenICam pixel format: BayerRG8, BayerGB8, BayerGR8, BayerBG8, RGB8 or BGR8."""
+    """GenICam pixel format: BayerRG8, BayerGB8, BayerGR8, BayerBG8, RGB8 or BGR8; Mono8 in a rig used
+    only to calibrate (`trackerd calibrate` takes it, every tracking command refuses it)."""
     intrinsics: Intrinsics | None = None
     """Lens model; may instead come from the calibration file."""
     extrinsics: Extrinsics | None = None
@@ -181,12 +184,14 @@ class CameraConfig(_Model):
     @field_validator("pixel_format")
     @classmethod
     def _colour_format(cls, value: str) -> str:
-        if value in MONO_PIXEL_FORMATS:
+        # Mono8 is accepted here for a rig used to calibrate (a board is black and white);
+        # load_rig, which every tracking command uses, refuses it with the reason.
+        if value in MONO_PIXEL_FORMATS and value != CALIBRATION_ONLY_FORMAT:
             raise ValueError(
                 f"{value} is monochrome and cannot tell the pointer's red end from its blue end;"
-                f" use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
+                f" use one of {', '.join(COLOUR_PIXEL_FORMATS)} ({CALIBRATION_ONLY_FORMAT} for calibration only)"
             )
-        if value not in COLOUR_PIXEL_FORMATS:
+        if value not in (*COLOUR_PIXEL_FORMATS, CALIBRATION_ONLY_FORMAT):
             raise ValueError(f"'{value}' is not supported; use one of {', '.join(COLOUR_PIXEL_FORMATS)}")
         return value
 

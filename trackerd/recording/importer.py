@@ -1,10 +1,10 @@
 """`trackerd recording import`: a recording from a folder of image pairs, so any images can be replayed.
 
-Pairing by name: every file ``<name>-<camera>.<ext>`` or ``<name>_<camera>.<ext>``
-(``07-left.png``, ``07-right.png``; the convention of tests/data/pairs, of
-`trackerd snap` and of the calibration snapshots), ``<camera>-<name>.<ext>``, or
-``<camera>/<name>.<ext>`` in one sub-folder per camera. Moments are ordered by
-name, numbers compared as numbers. Images are read as camera frames by
+Pairing by name, as :mod:`trackerd.image_pairs` does it for calibration too: files
+``<name>-<camera>.<ext>`` (``07-left.png``; the convention of tests/data/pairs, of
+`trackerd snap` and of the calibration snapshots), ``<camera><name>.<ext>``
+(``left07.png``, ``left-07.png``), or ``<camera>/<name>.<ext>`` in one sub-folder per
+camera. Moments are ordered by name, numbers compared as numbers. Images are read as camera frames by
 :func:`trackerd.images.read_frame` (single channel: the camera's Bayer mosaic;
 three channels: BGR8; ``.npy``: the raw frame), and must have the camera's size.
 
@@ -23,7 +23,6 @@ real sequence at that rate.
 from __future__ import annotations
 
 import csv
-import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -32,11 +31,11 @@ from pathlib import Path
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.config.models import RigConfig
 from trackerd.errors import ImageError, RecordingError
+from trackerd.image_pairs import Moment, pair_images
 from trackerd.images import read_frame
 from trackerd.recording.format import Compression
 from trackerd.recording.writer import RecordingWriter, build_metadata
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp", ".npy")
 _UNITS_NS = {"timestamp_ns": 1, "timestamp_us": 1_000, "timestamp_ms": 1_000_000, "timestamp_s": 1_000_000_000}
 EPOCH_AFTER_NS = 1_000_000_000 * 1_000_000_000
 """Timestamps from this (September 2001, in ns since 1970) on are read as UNIX epoch times."""
@@ -63,59 +62,13 @@ def stills_spacing_ns(rig: RigConfig) -> int:
     return max(STILLS_SPACING_NS, 2 * reset_ns)
 
 
-@dataclass(frozen=True)
-class Moment:
-    """One moment of the folder: its name and one image per camera."""
-
-    name: str
-    files: dict[str, Path]
-
-
-def natural_key(text: str) -> list[object]:
-    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", text)]
-
-
 def find_pairs(folder: Path, camera_ids: Sequence[str]) -> list[Moment]:
-    """Group a folder's images into moments; RecordingError for no images or an incomplete moment."""
-    if not folder.is_dir():
-        raise RecordingError(f"{folder}: no such folder")
-    groups: dict[str, dict[str, Path]] = {}
-    ids = sorted(camera_ids, key=len, reverse=True)  # 'left2' before 'left'
-
-    def add(name: str, cam: str, path: Path) -> None:
-        if cam in groups.setdefault(name, {}):
-            raise RecordingError(f"{folder}: two images of camera '{cam}' for '{name}': {groups[name][cam].name}"
-                                 f" and {path.name}")
-        groups[name][cam] = path
-
-    for path in sorted(folder.iterdir()):
-        if path.is_dir() and path.name in camera_ids:
-            for inner in sorted(path.iterdir()):
-                if inner.is_file() and inner.suffix.lower() in IMAGE_SUFFIXES:
-                    add(inner.stem, path.name, inner)
-            continue
-        if not path.is_file() or path.suffix.lower() not in IMAGE_SUFFIXES:
-            continue
-        stem = path.stem
-        for cam in ids:
-            if any(stem.endswith(sep + cam) for sep in "-_"):
-                add(stem[: -len(cam) - 1], cam, path)
-                break
-            if any(stem.startswith(cam + sep) for sep in "-_"):
-                add(stem[len(cam) + 1:], cam, path)
-                break
-    if not groups:
-        raise RecordingError(f"{folder}: no images named <name>-<camera>.<ext> (or <camera>/<name>.<ext>) for"
-                             f" cameras {', '.join(camera_ids)}")
-    moments = []
-    for name in sorted(groups, key=natural_key):
-        files = groups[name]
-        missing = [cam for cam in camera_ids if cam not in files]
-        if missing:
-            raise RecordingError(f"{folder}: '{name}' has {', '.join(p.name for p in files.values())} but no image"
-                                 f" from {', '.join(missing)}; every moment needs one image per camera")
-        moments.append(Moment(name, files))
-    return moments
+    """Group a folder's images into moments (:func:`trackerd.image_pairs.pair_images`); RecordingError
+    for no images, two of one camera for a moment, or an incomplete moment."""
+    try:
+        return pair_images(folder, camera_ids).moments
+    except ImageError as err:
+        raise RecordingError(str(err)) from err
 
 
 def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, str | None], Stamp]:

@@ -57,8 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--distortion",
         type=int,
         choices=DISTORTION_TERMS,
-        default=5,
-        help="distortion coefficients: 4 (k1 k2 p1 p2), 5 (and k3, default), 8 (rational)",
+        default=None,
+        help="distortion coefficients: 4 (k1 k2 p1 p2), 5 (and k3), 8 (rational); default 5, or 4 where k3"
+        " would make the lens fold over near the image's edge while lowering the RMS by under 5 %",
     )
     p.add_argument("--drop-outliers", action="store_true", help="drop views whose error stands out, and recalibrate")
     _quality(p)
@@ -202,9 +203,10 @@ def _quality(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--min-change",
         type=float,
-        default=MIN_VIEW_CHANGE,
+        default=None,
         help=f"reject views whose corners moved less than this fraction of the image diagonal"
-        f" from an accepted view (default {MIN_VIEW_CHANGE})",
+        f" from an accepted view (default {MIN_VIEW_CHANGE} live, where the board is held still between"
+        " views; 0 for image files, which were chosen)",
     )
     p.add_argument(
         "--max-rms",

@@ -6,6 +6,7 @@ import argparse
 
 import numpy as np
 
+from trackerd.calibration import CalibrationError
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.live import CheckSession
@@ -30,10 +31,11 @@ def check_command(args: argparse.Namespace) -> int:
         run_live(context, rig, args, session, out, lambda: _simulated_pointer(context, args.fixes))
         frames = session.frames
     else:
-        groups = pair_files(args.pairs, [c.id for c in rig.cameras])
+        found = pair_files(args.pairs, [c.id for c in rig.cameras])
+        out.say(f"{args.pairs}: {len(found.moments)} pair(s), {found.layout}")
         locator: Locator | None = None
-        for _, files in groups:
-            loaded = read_pair(files, list(rig.cameras))
+        for moment in found.moments:
+            loaded = read_pair(moment.files, list(rig.cameras))
             formats = [fmt for _, _, fmt in loaded]
             if locator is None or locator.pixel_formats != formats:
                 locator = Locator(rig, cameras=cameras, pixel_formats=formats)
@@ -42,6 +44,12 @@ def check_command(args: argparse.Namespace) -> int:
             frames += 1
     figures = health.figures()
     out.result(health_text(figures, frames), {"frames": frames, **figures.to_json()})
+    if figures.fixes == 0:
+        # No data is no evidence that the calibration fits: a failure, not a pass.
+        raise CalibrationError(
+            f"no pointer fixes in {frames} frame pair(s): nothing to check the calibration against;"
+            " show the pointer to both cameras"
+        )
     return 1 if figures.suspect else 0
 
 

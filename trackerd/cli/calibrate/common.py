@@ -56,6 +56,11 @@ def check_source(args: argparse.Namespace, offline: str, offline_given: bool) ->
         raise CalibrationError(f"give the input: {offline}, --live, or --recording R")
     if len(chosen) > 1:
         raise CalibrationError(f"give one input, not {' and '.join(chosen)}")
+    if chosen[0] == offline and getattr(args, "snapshots", None):
+        raise CalibrationError(
+            f"--snapshots is for --live and --recording (it saves the frames they accept);"
+            f" {offline} are on disk already"
+        )
     # A recording is read like the cameras, pair after pair, by the step's live session.
     return "live" if args.live or args.recording is not None else "files"
 

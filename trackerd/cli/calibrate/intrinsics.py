@@ -5,15 +5,15 @@ from __future__ import annotations
 import argparse
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, Quality
+from trackerd.calibration.board import BoardSpec, BoardView, Quality
 from trackerd.calibration.collect import Collected, collect_views
-from trackerd.calibration.inputs import camera_frames
-from trackerd.calibration.intrinsics import calibrate_intrinsics
+from trackerd.calibration.inputs import camera_frames, image_files
+from trackerd.calibration.intrinsics import IntrinsicsResult, calibrate_intrinsics
 from trackerd.calibration.live import IntrinsicsSession
 from trackerd.calibration.report import intrinsics_json, intrinsics_text
 from trackerd.calibration.store import open_rig
 from trackerd.calibration.update import apply_intrinsics
-from trackerd.calibration.views import ViewSelector
+from trackerd.calibration.views import MIN_VIEW_CHANGE, ViewSelector
 from trackerd.cli.calibrate.common import (
     Output,
     check_source,
@@ -24,6 +24,8 @@ from trackerd.cli.calibrate.common import (
     snapshot_dir,
     write_result,
 )
+from trackerd.config.loader import MAX_LENS_INVERSION_PX, lens_fold_px
+from trackerd.config.models import CameraConfig, PoseExtrinsics
 
 
 def intrinsics_command(args: argparse.Namespace) -> int:
@@ -44,9 +46,9 @@ def intrinsics_command(args: argparse.Namespace) -> int:
             wanted_views=args.views,
             min_views=args.min_views,
             quality=quality,
-            min_change=args.min_change,
+            min_change=MIN_VIEW_CHANGE if args.min_change is None else args.min_change,
             snapshots=snapshot_dir(args, f"intrinsics-{cam.id}"),
-            distortion_terms=args.distortion,
+            distortion_terms=args.distortion or 5,
         )
         out.say(f"show the board to camera {cam.id}; next: {session.selector.guidance(args.views)}")
         run_live(
@@ -55,19 +57,25 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         rejected = [("live", kind) for kind, count in session.rejections.items() for _ in range(count)]
         collected = Collected(views=list(session.views), frames=session.frames, rejected=rejected)
     else:
-        selector = ViewSelector(cam.width_px, cam.height_px, args.min_change)
-        collected = collect_views(camera_frames(args.images, cam), spec, selector, quality)
+        files, said = image_files(args.images, cam.id)
+        for line in said:
+            out.say(line)
+        selector = ViewSelector(cam.width_px, cam.height_px, args.min_change or 0.0)
+        collected = collect_views(camera_frames(files, cam), spec, selector, quality)
         for name, reason in collected.rejected:
             out.say(f"  {name}: {reason}")
     if not collected.views:
         found_none = all(r.startswith("no whole board") for _, r in collected.rejected)
         hint = ""
         if found_none and mode != "live" and args.images:
-            hint = no_board_hint(spec, next(iter(camera_frames(args.images[:1], cam))))
+            hint = no_board_hint(spec, next(iter(camera_frames(files[:1], cam))))
         raise CalibrationError(f"no usable view of the board in {collected.frames} image(s){hint}")
     result = calibrate_intrinsics(
-        collected.views, distortion_terms=args.distortion, min_views=args.min_views, drop_outliers=args.drop_outliers
+        collected.views, distortion_terms=args.distortion or 5, min_views=args.min_views,
+        drop_outliers=args.drop_outliers,
     )
+    if args.distortion is None:
+        result = _without_an_unsupported_k3(result, collected.views, cam, args, out)
     report = intrinsics_json(result, collected.rejected)
     text = intrinsics_text(cam.id, result, collected.rejected)
     if result.rms_px > args.max_rms:
@@ -75,7 +83,7 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
     calibration = apply_intrinsics(
         context.calibration, cam.id, result, spec,
-        (args.recording or "live") if mode == "live" else f"{len(args.images)} images"
+        (args.recording or "live") if mode == "live" else f"{len(files)} images"
     )
     entry = context.calibration.cameras.get(cam.id)
     notes: list[str] = []
@@ -90,3 +98,41 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         out.say(note)
     return 0
 
+
+
+K3_GAIN_NEEDED = 0.05
+"""k3 is kept, where it makes the lens fold over near the image's edge, only if it lowers the RMS by
+more than this fraction."""
+
+
+def _without_an_unsupported_k3(
+    result: IntrinsicsResult, views: list[BoardView], cam: CameraConfig, args: argparse.Namespace, out: Output
+) -> IntrinsicsResult:
+    """The 4-term lens instead of the 5-term one where k3 folds the lens over near the image's edge
+    (views that leave the corners uncovered let k3 run away there) and buys almost nothing: such a
+    calibration could not be written, and the 4-term one describes the covered image as well."""
+    folded, pixel = lens_fold_px(_posed(cam, result))
+    if folded <= MAX_LENS_INVERSION_PX:
+        return result
+    simpler = calibrate_intrinsics(
+        views, distortion_terms=4, min_views=args.min_views, drop_outliers=args.drop_outliers
+    )
+    if lens_fold_px(_posed(cam, simpler))[0] > MAX_LENS_INVERSION_PX:
+        return result
+    if simpler.rms_px > result.rms_px * (1.0 + K3_GAIN_NEEDED):
+        return result
+    out.say(
+        f"k3 left out (--distortion 4): with it the lens folds over near pixel ({pixel[0]:.0f}, {pixel[1]:.0f}),"
+        f" where no corner was seen, and it lowers the RMS only from {simpler.rms_px:.3f} to {result.rms_px:.3f} px"
+    )
+    return simpler
+
+
+def _posed(cam: CameraConfig, result: IntrinsicsResult) -> CameraConfig:
+    """The camera with this lens, at the origin (the fold check needs a complete camera)."""
+    return cam.model_copy(
+        update={
+            "intrinsics": result.to_config(),
+            "extrinsics": PoseExtrinsics(kind="pose", position_m=(0.0, 0.0, 0.0)),
+        }
+    )

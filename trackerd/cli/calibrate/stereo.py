@@ -15,7 +15,7 @@ from trackerd.calibration.report import stereo_json, stereo_text
 from trackerd.calibration.stereo import baseline_warning, calibrate_stereo
 from trackerd.calibration.store import open_rig
 from trackerd.calibration.update import apply_stereo
-from trackerd.calibration.views import ViewSelector
+from trackerd.calibration.views import MIN_VIEW_CHANGE, ViewSelector
 from trackerd.cli.calibrate.common import (
     Output,
     check_source,
@@ -53,7 +53,7 @@ def stereo_command(args: argparse.Namespace) -> int:
             cam1.height_px,
             wanted_pairs=args.views,
             quality=quality,
-            min_change=args.min_change,
+            min_change=MIN_VIEW_CHANGE if args.min_change is None else args.min_change,
             max_skew_ns=int(args.max_skew_ms * 1e6),
             snapshots=snapshot_dir(args, "stereo"),
         )
@@ -61,14 +61,15 @@ def stereo_command(args: argparse.Namespace) -> int:
         run_live(context, rig, args, session, out, lambda: simulated_boards(context, spec, [0, 1], args.views * 2))
         collected = Collected(pairs=list(session.pairs), frames=session.frames)
     else:
-        groups = pair_files(args.pairs, [cam1.id, cam2.id])
+        found = pair_files(args.pairs, [cam1.id, cam2.id])
+        out.say(f"{args.pairs}: {len(found.moments)} pair(s), {found.layout}")
 
         def frame_pairs():
-            for name, files in groups:
-                frames = read_pair(files, [cam1, cam2])
-                yield name, frames[0], frames[1]
+            for moment in found.moments:
+                frames = read_pair(moment.files, [cam1, cam2], grey_ok=True)
+                yield moment.name, frames[0], frames[1]
 
-        selector = ViewSelector(cam1.width_px, cam1.height_px, args.min_change)
+        selector = ViewSelector(cam1.width_px, cam1.height_px, args.min_change or 0.0)
         collected = collect_pairs(frame_pairs(), spec, selector, quality)
         for name, reason in collected.rejected:
             out.say(f"  {name}: {reason}")

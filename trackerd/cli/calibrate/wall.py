@@ -177,11 +177,12 @@ def _touch_targets_in_view(
 def _wall_from_folder(
     folder: str, rig: RigConfig, targets: dict[str, Target], method: str, out: Output
 ) -> tuple[list[Touch], list[Pointing]]:
-    groups = pair_files(folder, [c.id for c in rig.cameras])
+    moments = pair_files(folder, [c.id for c in rig.cameras]).moments
     locator: Locator | None = None
     touches: list[Touch] = []
     pointings: list[Pointing] = []
-    for name, files in groups:
+    for moment in moments:
+        name, files = moment.name, moment.files
         label = split_label(name)
         target = targets.get(label)
         if target is None:

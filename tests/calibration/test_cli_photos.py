@@ -1,0 +1,96 @@
+"""An operator with a folder of real photos: `trackerd calibrate intrinsics` and `stereo` as a new user
+runs them, on OpenCV's stereo sample photos (grey JPEGs named left01.jpg / right01.jpg) from Mono8
+cameras, as photographed and under glare, against plain OpenCV on the same photos."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.calibration.test_cli import one_line_error, trackerd
+from tests.calibration.test_real_photos import RMS_MARGIN, _photos, _plain_opencv, _plain_stereo
+
+REPO = Path(__file__).resolve().parents[2]
+BOARD = ("--board", "chessboard:10x7:25")
+
+
+def _mono_rig(workspace: Path) -> None:
+    """The DataWall's rig with two 640x480 Mono8 cameras and a calibration file to write."""
+    text = (REPO / "config" / "datawall.toml").read_text()
+    text = text.replace("width_px = 1920", "width_px = 640").replace("height_px = 1080", "height_px = 480")
+    text = text.replace('pixel_format = "BayerRG8"', 'pixel_format = "Mono8"')
+    text = re.sub(r"(?m)^# calibration = .*$", 'calibration = "photos-calibration.toml"', text)
+    (workspace / "rig.toml").write_text(text)
+
+
+@pytest.mark.parametrize("variant", ["as photographed", "veiling glare"])
+def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp_path: Path) -> None:
+    photos = _photos(variant)
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for side in ("left", "right"):
+        for name, image in photos[side]:
+            assert cv2.imwrite(str(folder / f"{side}{name}.png"), image)
+    _mono_rig(tmp_path)
+    plain = {side: _plain_opencv(photos[side]) for side in ("left", "right")}
+
+    # Intrinsics from the folder: the camera's own photos are taken from it, every one kept.
+    for side in ("left", "right"):
+        run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", side, *BOARD, "photos",
+                       "--json", cwd=tmp_path)
+        assert run.returncode == 0, run.stderr
+        assert f"photos: the 13 named for camera {side} of its 26 image(s)" in run.stderr
+        report = json.loads(run.stdout)
+        assert len(report["views"]) == 13 and not report["rejected"]
+        assert all(view["detector"] for view in report["views"])
+        assert report["rms_px"] <= RMS_MARGIN * plain[side][1], (side, report["rms_px"], plain[side][1])
+
+    # Stereo from the same folder, paired by the names' camera prefix.
+    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "photos", "--json",
+                   cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "photos: 13 pair(s), files named <camera><name> (left, right)" in run.stderr
+    stereo = json.loads(run.stdout)
+    size = photos["left"][0][1].shape[::-1]
+    plain_rms = _plain_stereo(plain["left"][0], plain["right"][0], plain["left"][2], plain["right"][2], size)
+    assert stereo["rms_px"] <= RMS_MARGIN * plain_rms, (stereo["rms_px"], plain_rms)
+
+    # The same photos in one folder per camera pair alike.
+    for side in ("left", "right"):
+        (tmp_path / "split" / side).mkdir(parents=True)
+        for path in folder.glob(f"{side}*.png"):
+            shutil.copy(path, tmp_path / "split" / side / path.name)
+    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "split", "--json",
+                   "--dry-run", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "split: 13 pair(s), subfolders left/, right/ (files paired by name)" in run.stderr
+    assert json.loads(run.stdout)["rms_px"] == pytest.approx(stereo["rms_px"], abs=1e-6)
+
+
+def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_source(tmp_path: Path) -> None:
+    _mono_rig(tmp_path)
+    folder = tmp_path / "photos"
+    shutil.copytree(REPO / "tests" / "data" / "opencv-stereo-chessboard", folder)
+    run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", *BOARD,
+                   "--snapshots", "saved", "photos", cwd=tmp_path)
+    one_line_error(run, "--snapshots is for --live and --recording", "IMAGE... files are on disk already")
+    assert not (tmp_path / "saved").exists()
+    # Tracking refuses the Mono8 cameras, saying why and that calibrating is fine.
+    run = trackerd("config", "check", "rig.toml", cwd=tmp_path)
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    line = run.stderr.strip().splitlines()[-1]
+    assert "cameras[0].pixel_format: Mono8 is monochrome" in line and "fine for `trackerd calibrate`" in line
+    # The pointer steps say the same.
+    pairs = tmp_path / "pairs"
+    pairs.mkdir()
+    for side in ("left", "right"):
+        image = np.zeros((480, 640), np.uint8)
+        assert cv2.imwrite(str(pairs / f"01-{side}.png"), image)
+    run = trackerd("calibrate", "check", "--config", "rig.toml", "--pairs", "pairs", cwd=tmp_path)
+    one_line_error(run, "camera 'left' is Mono8", "only a colour camera tells apart")
