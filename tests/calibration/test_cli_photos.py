@@ -86,6 +86,18 @@ def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_sou
                    "--snapshots", "saved", "photos", cwd=tmp_path)
     one_line_error(run, "--snapshots is for --live and --recording", "IMAGE... files are on disk already")
     assert not (tmp_path / "saved").exists()
+    # Too few views: refused below the floor, and with --force calibrated with the warning in the JSON.
+    few = [f"photos/left0{k}.jpg" for k in (1, 2, 3, 4, 5)]
+    run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", *BOARD,
+                   "--min-views", "4", *few, cwd=tmp_path)
+    one_line_error(run, "--min-views 4 is under 6", "give --force")
+    run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", *BOARD,
+                   "--min-views", "4", "--force", "--dry-run", "--json", *few, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert any("calibrated from 5 views, fewer than the 8" in w for w in json.loads(run.stdout)["warnings"])
+    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--min-pairs", "2", "--pairs", "photos",
+                   cwd=tmp_path)
+    one_line_error(run, "--min-pairs 2 is under 3", "give --force")
     # Tracking refuses the Mono8 cameras, saying why and that calibrating is fine.
     run = trackerd("config", "check", "rig.toml", cwd=tmp_path)
     assert run.returncode == 2 and "Traceback" not in run.stderr

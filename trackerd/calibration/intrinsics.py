@@ -25,6 +25,9 @@ Array = NDArray[np.float64]
 
 MIN_VIEWS = 8
 """Fewer views than this leave the distortion poorly determined; 15 to 30 are better."""
+MIN_VIEWS_FLOOR = 6
+"""Fewer views than this leave a five-term lens poorly pinned (focal length and k3 trade off): the
+command asks for --force below it."""
 
 DISTORTION_TERMS = (4, 5, 8)
 """4: k1 k2 p1 p2; 5: and k3 (the default); 8: OpenCV's rational model (wide-angle lenses)."""

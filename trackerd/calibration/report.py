@@ -43,7 +43,9 @@ def rejections_summary(rejected: Sequence[tuple[str, str]]) -> list[str]:
 # --------------------------------------------------------------------------- intrinsics
 
 
-def intrinsics_json(result: IntrinsicsResult, rejected: Sequence[tuple[str, str]]) -> dict[str, Any]:
+def intrinsics_json(
+    result: IntrinsicsResult, rejected: Sequence[tuple[str, str]], warnings: Sequence[str] = ()
+) -> dict[str, Any]:
     fx, fy = result.focal_px
     cx, cy = result.principal_point_px
     return {
@@ -69,10 +71,13 @@ def intrinsics_json(result: IntrinsicsResult, rejected: Sequence[tuple[str, str]
         },
         "coverage": result.coverage.to_json(),
         "rejected": [{"name": n, "reason": r} for n, r in rejected],
+        "warnings": [*quality_warnings(result.rms_px, result.coverage.fraction), *warnings],
     }
 
 
-def intrinsics_text(camera_id: str, result: IntrinsicsResult, rejected: Sequence[tuple[str, str]]) -> str:
+def intrinsics_text(
+    camera_id: str, result: IntrinsicsResult, rejected: Sequence[tuple[str, str]], warnings: Sequence[str] = ()
+) -> str:
     fx, fy = result.focal_px
     cx, cy = result.principal_point_px
     sd = result.std_matrix_px
@@ -98,20 +103,23 @@ def intrinsics_text(camera_id: str, result: IntrinsicsResult, rejected: Sequence
         lines.append(f"  not covered: {', '.join(missing)}; distortion there is extrapolated")
     if rejected:
         lines.append(f"  rejected frames: {'; '.join(rejections_summary(rejected))}")
-    lines += _warnings(result.rms_px, result.coverage.fraction)
+    found = quality_warnings(result.rms_px, result.coverage.fraction)
+    lines += [f"  WARNING: {warning}" for warning in (*found, *warnings)]
     return "\n".join(lines)
 
 
-def _warnings(rms_px: float, coverage: float) -> list[str]:
+def quality_warnings(rms_px: float, coverage: float = 1.0) -> list[str]:
+    """What about a result is worth a second look (the text report prefixes each with WARNING;
+    ``--json`` lists them as ``warnings``)."""
     out = []
     if rms_px > GOOD_RMS_PX:
         out.append(
-            f"  WARNING: RMS {rms_px:.2f} px is high (expect 0.1 to 0.3 px): check the board"
+            f"RMS {rms_px:.2f} px is high (expect 0.1 to 0.3 px): check the board"
             " spec, focus, motion blur and outlier views"
         )
     if coverage < GOOD_COVERAGE:
         out.append(
-            f"  WARNING: the corners cover only {coverage * 100:.0f} % of the image; add views"
+            f"the corners cover only {coverage * 100:.0f} % of the image; add views"
             " with the board near the edges and corners"
         )
     return out
@@ -168,8 +176,7 @@ def stereo_text(
     if rejected:
         lines.append(f"  rejected frames: {'; '.join(rejections_summary(rejected))}")
     lines.append(f"  world frame: {world_frame}")
-    lines += _warnings(result.rms_px, 1.0)
-    lines += [f"  {warning}" for warning in warnings]
+    lines += [f"  WARNING: {warning}" for warning in (*quality_warnings(result.rms_px), *warnings)]
     return "\n".join(lines)
 
 

@@ -33,6 +33,9 @@ Array = NDArray[np.float64]
 
 MIN_PAIRS = 5
 """Fewer pairs than this give a relative pose that a single bad pair can move."""
+MIN_PAIRS_FLOOR = 3
+"""Fewer pairs than this leave no way to tell a pair out of sync from the others: the command asks
+for --force below it."""
 
 MIN_SHARED_CORNERS = 8
 
@@ -233,7 +236,7 @@ def baseline_warning(
     if abs(ratio - 1.0) <= tolerance:
         return None
     return (
-        f"WARNING: the calibrated baseline {calibrated_m:.4f} m differs from the rig's {stated_m:.4f} m"
+        f"the calibrated baseline {calibrated_m:.4f} m differs from the rig's {stated_m:.4f} m"
         f" by {(ratio - 1.0) * 100:+.1f} % (more than {tolerance * 100:.0f} %). The board's square size sets"
         f" the baseline's scale: with the rig's baseline the squares would be {square_mm / ratio:.1f} mm, not"
         f" {square_mm:g} mm. Check --board against the printed board; if the cameras were moved, ignore this"

@@ -19,9 +19,9 @@ from __future__ import annotations
 import argparse
 
 from trackerd.calibration.board import MAX_SHARPNESS_PX, BoardSpec
-from trackerd.calibration.intrinsics import DISTORTION_TERMS, MIN_VIEWS
+from trackerd.calibration.intrinsics import DISTORTION_TERMS, MIN_VIEWS, MIN_VIEWS_FLOOR
 from trackerd.calibration.live import SKIP_AFTER_FRAMES
-from trackerd.calibration.stereo import MIN_PAIRS
+from trackerd.calibration.stereo import MIN_PAIRS, MIN_PAIRS_FLOOR
 from trackerd.calibration.views import MIN_VIEW_CHANGE
 from trackerd.calibration.wall import DEFAULT_MAX_RMS_MM
 from trackerd.cli.calibrate.check import check_command
@@ -51,8 +51,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _sources(p)
     p.add_argument("--views", type=int, default=20, help="views to collect in --live mode (default 20)")
     p.add_argument(
-        "--min-views", type=int, default=MIN_VIEWS, help=f"fewest views to calibrate from (default {MIN_VIEWS})"
+        "--min-views",
+        type=int,
+        default=MIN_VIEWS,
+        help=f"fewest views to calibrate from (default {MIN_VIEWS}; under {MIN_VIEWS_FLOOR} only with --force)",
     )
+    _force(p)
     p.add_argument(
         "--distortion",
         type=int,
@@ -72,10 +76,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     _common(p)
     p.add_argument("--board", required=True, type=_board, help="chessboard:10x7:100 or charuco:10x7:100:75[:DICT]")
-    p.add_argument("--pairs", metavar="DIR", help="folder of pairs named <name>-<camera>.<ext>")
+    p.add_argument(
+        "--pairs",
+        metavar="DIR",
+        help="folder of pairs: <name>-<camera>.<ext>, <camera><name>.<ext>, or a subfolder per camera",
+    )
     _sources(p)
     p.add_argument("--views", type=int, default=15, help="pairs to collect in --live mode (default 15)")
-    p.add_argument("--min-pairs", type=int, default=MIN_PAIRS, help=f"fewest pairs (default {MIN_PAIRS})")
+    p.add_argument(
+        "--min-pairs",
+        type=int,
+        default=MIN_PAIRS,
+        help=f"fewest pairs (default {MIN_PAIRS}; under {MIN_PAIRS_FLOOR} only with --force)",
+    )
+    _force(p)
     p.add_argument(
         "--refine-intrinsics",
         action="store_true",
@@ -158,6 +172,14 @@ def _board(text: str) -> BoardSpec:
         return BoardSpec.parse(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from err
+
+
+def _force(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="calibrate from fewer views or pairs than the floor (the result is written with a warning)",
+    )
 
 
 def _common(p: argparse.ArgumentParser) -> None:

@@ -8,7 +8,7 @@ from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardSpec, BoardView, Quality
 from trackerd.calibration.collect import Collected, collect_views
 from trackerd.calibration.inputs import camera_frames, image_files
-from trackerd.calibration.intrinsics import IntrinsicsResult, calibrate_intrinsics
+from trackerd.calibration.intrinsics import MIN_VIEWS, MIN_VIEWS_FLOOR, IntrinsicsResult, calibrate_intrinsics
 from trackerd.calibration.live import IntrinsicsSession
 from trackerd.calibration.report import intrinsics_json, intrinsics_text
 from trackerd.calibration.store import open_rig
@@ -35,6 +35,11 @@ def intrinsics_command(args: argparse.Namespace) -> int:
     mode = check_source(args, "IMAGE... files", bool(args.images))
     quality = Quality(max_sharpness_px=args.max_blur)
     spec: BoardSpec = args.board
+    if args.min_views < MIN_VIEWS_FLOOR and not args.force:
+        raise CalibrationError(
+            f"--min-views {args.min_views} is under {MIN_VIEWS_FLOOR}: so few views pin a lens poorly (its focal"
+            " length and distortion trade off); add views, or give --force to calibrate from so few anyway"
+        )
     out.say(f"board: {spec.describe()}")
     if mode == "live":
         session = IntrinsicsSession(
@@ -76,8 +81,14 @@ def intrinsics_command(args: argparse.Namespace) -> int:
     )
     if args.distortion is None:
         result = _without_an_unsupported_k3(result, collected.views, cam, args, out)
-    report = intrinsics_json(result, collected.rejected)
-    text = intrinsics_text(cam.id, result, collected.rejected)
+    warnings = []
+    if len(result.view_names) < MIN_VIEWS:
+        warnings.append(
+            f"calibrated from {len(result.view_names)} views, fewer than the {MIN_VIEWS} the default asks for"
+            " (15 to 30 are better)"
+        )
+    report = intrinsics_json(result, collected.rejected, warnings)
+    text = intrinsics_text(cam.id, result, collected.rejected, warnings)
     if result.rms_px > args.max_rms:
         out.result(text, {"camera": cam.id, **report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")

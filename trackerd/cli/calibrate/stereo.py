@@ -11,8 +11,8 @@ from trackerd.calibration.board import BoardSpec, Quality
 from trackerd.calibration.collect import Collected, collect_pairs
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.live import StereoSession
-from trackerd.calibration.report import stereo_json, stereo_text
-from trackerd.calibration.stereo import baseline_warning, calibrate_stereo
+from trackerd.calibration.report import quality_warnings, stereo_json, stereo_text
+from trackerd.calibration.stereo import MIN_PAIRS, MIN_PAIRS_FLOOR, baseline_warning, calibrate_stereo
 from trackerd.calibration.store import open_rig
 from trackerd.calibration.update import apply_stereo
 from trackerd.calibration.views import MIN_VIEW_CHANGE, ViewSelector
@@ -38,6 +38,11 @@ def stereo_command(args: argparse.Namespace) -> int:
     mode = check_source(args, "--pairs DIR", args.pairs is not None)
     spec: BoardSpec = args.board
     quality = Quality(max_sharpness_px=args.max_blur)
+    if args.min_pairs < MIN_PAIRS_FLOOR and not args.force:
+        raise CalibrationError(
+            f"--min-pairs {args.min_pairs} is under {MIN_PAIRS_FLOOR}: with so few pairs one taken out of sync"
+            " cannot be told from the others; add pairs, or give --force to calibrate from so few anyway"
+        )
     out.say(f"board: {spec.describe()}")
     if spec.symmetric:
         raise CalibrationError(
@@ -117,13 +122,21 @@ def stereo_command(args: argparse.Namespace) -> int:
     if frame.startswith("camera "):
         frame_text = f"{frame}'s frame (as in the report)"
     warnings = []
+    if len(result.pair_names) < MIN_PAIRS:
+        warnings.append(
+            f"calibrated from {len(result.pair_names)} pairs, fewer than the {MIN_PAIRS} the default asks for"
+            " (10 to 20 are better)"
+        )
     stated = _stated_baseline_m(cam1, cam2)
     if stated is not None:
         warning = baseline_warning(result.baseline_m, stated, spec.square_m * 1000.0)
         if warning is not None:
             warnings.append(warning)
     text = stereo_text((cam1.id, cam2.id), result, collected.rejected, frame_text, warnings)
-    report = {**stereo_json(result, collected.rejected, frame), "warnings": warnings}
+    report = {
+        **stereo_json(result, collected.rejected, frame),
+        "warnings": [*quality_warnings(result.rms_px), *warnings],
+    }
     if result.rms_px > args.max_rms:
         out.result(text, {**report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
@@ -141,7 +154,7 @@ def stereo_command(args: argparse.Namespace) -> int:
             "next: `trackerd calibrate wall`; until then the cameras are in "
             f"{frame}'s frame and the rig's wall (in its own frame) does not match them"
         )
-    if warnings:
+    if stated is not None and baseline_warning(result.baseline_m, stated, spec.square_m * 1000.0):
         # Said again last, where it is seen (and on stderr with --json).
         notes.append(
             f"WARNING: baseline {result.baseline_m:.4f} m vs the rig's {stated:.4f} m: check the --board square size"
