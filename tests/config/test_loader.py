@@ -142,8 +142,31 @@ def test_camera_missing_geometry_names_the_calibration_file_too(
         load_rig(rig)
     assert str(err.value) == (
         f"{rig}: cameras[1] ('right') has no extrinsics; give them in [cameras.extrinsics]"
-        f" or in {cal.resolve()} (a calibration file named by 'calibration')"
+        f" or in {cal.resolve()} (a calibration file named by 'calibration'), or run"
+        " `trackerd calibrate stereo --config rig.toml`"
     )
+
+
+def test_cameras_left_in_camera_1s_frame_name_the_wall_step_as_next(
+    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
+) -> None:
+    # What `calibrate stereo` writes for a rig without poses: both cameras in camera 1's frame, no wall.
+    stereo = (
+        left_calibration.replace('info = { date', 'info = { world_frame = "camera left", date')
+        + '\n[cameras.right]\nextrinsics = { kind = "opencv", rvec = [0.0, 0.2, 0.0], tvec_m = [-1.0, 0.0, 0.1] }\n'
+        + 'info = { world_frame = "camera left" }\n'
+    )
+    write("cal.toml", stereo)
+    rig = write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION))
+    with pytest.raises(ConfigError) as err:
+        load_rig(rig)
+    message = str(err.value)
+    assert "the cameras are in camera left's frame" in message
+    assert "next: `trackerd calibrate wall --config rig.toml`" in message
+    assert "behind the wall" not in message
+    # Once the wall is calibrated in that frame, the file loads.
+    write("cal.toml", stereo + "\n[wall]\ncorners_m = [[0, 1, 3], [2, 1, 3], [2, 0, 3], [0, 0, 3]]\n")
+    assert load_rig(rig).calibration_path is not None
 
 
 def test_wall_from_the_calibration_file(write: Write, edit: Edit, minimal_rig: str) -> None:

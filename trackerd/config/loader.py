@@ -276,8 +276,12 @@ def load_calibration(path: Path) -> CalibrationFile:
     return parse_calibration(read_toml(path), path)
 
 
-def load_rig(path: str | Path) -> LoadedRig:
-    """Read a rig file, merge its calibration file, and check the result is complete."""
+def load_rig(path: str | Path, *, check_wall: bool = True) -> LoadedRig:
+    """Read a rig file, merge its calibration file, and check the result is complete.
+
+    ``check_wall=False`` is for commands that use only the cameras (recording, importing): a rig whose
+    cameras are still in camera 1's frame, before `trackerd calibrate wall`, is fine for them.
+    """
     rig_path = Path(path)
     rig = parse_rig(read_toml(rig_path), rig_path)
     for index, cam in enumerate(rig.cameras):
@@ -314,11 +318,22 @@ def load_rig(path: str | Path) -> LoadedRig:
         for part in ("intrinsics", "extrinsics"):
             if getattr(cam, part) is None:
                 where = f" or in {calibration_path}" if calibration_path else ""
+                step = f"intrinsics --camera {cam.id}" if part == "intrinsics" else "stereo"
                 raise ConfigError(
                     f"{rig_path}: cameras[{index}] ('{cam.id}') has no {part}; give them in"
-                    f" [cameras.{part}]{where} (a calibration file named by 'calibration')"
+                    f" [cameras.{part}]{where} (a calibration file named by 'calibration'), or run"
+                    f" `trackerd calibrate {step} --config {rig_path.name}`"
                 )
-    _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
+    frame = _unfinished_frame(calibration) if rig.calibration is not None and check_wall else None
+    if frame is not None:
+        # After `calibrate stereo` on a rig without poses the cameras are in camera 1's frame and the
+        # rig's wall, in its own frame, does not match them: not a wrong wall, a step still to come.
+        raise ConfigError(
+            f"{calibration_path}: the cameras are in {frame}'s frame (as `trackerd calibrate stereo` left them)"
+            f" and the wall is not calibrated in it yet; next: `trackerd calibrate wall --config {rig_path.name}`"
+        )
+    if check_wall:
+        _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
     rig = _resolve_paths(rig, rig_path)
     for index, cam in enumerate(rig.cameras):
         from_calibration = sources[cam.id].startswith(("from ", "intrinsics from "))
@@ -327,6 +342,17 @@ def load_rig(path: str | Path) -> LoadedRig:
         else:
             _check_lens(cam, f"{rig_path}: cameras[{index}]")
     return LoadedRig(rig, rig_path, calibration_path, sources)
+
+
+def _unfinished_frame(calibration: CalibrationFile) -> str | None:
+    """'camera <id>' when a calibration file has cameras in camera 1's frame and no wall in it."""
+    if calibration.wall is not None:
+        return None
+    for entry in calibration.cameras.values():
+        frame = str(entry.info.get("world_frame", ""))
+        if frame.startswith("camera ") and entry.extrinsics is not None:
+            return frame
+    return None
 
 
 MAX_LENS_INVERSION_PX = 0.01
