@@ -5,7 +5,6 @@ cameras, as photographed and under glare, against plain OpenCV on the same photo
 from __future__ import annotations
 
 import json
-import re
 import shutil
 from pathlib import Path
 
@@ -21,12 +20,15 @@ BOARD = ("--board", "chessboard:10x7:25")
 
 
 def _mono_rig(workspace: Path) -> None:
-    """The DataWall's rig with two 640x480 Mono8 cameras and a calibration file to write."""
-    text = (REPO / "config" / "datawall.toml").read_text()
-    text = text.replace("width_px = 1920", "width_px = 640").replace("height_px = 1080", "height_px = 480")
-    text = text.replace('pixel_format = "BayerRG8"', 'pixel_format = "Mono8"')
-    text = re.sub(r"(?m)^# calibration = .*$", 'calibration = "photos-calibration.toml"', text)
-    (workspace / "rig.toml").write_text(text)
+    """A new installation's rig as an operator writes it before calibrating: two 640x480 Mono8
+    cameras and the calibration file to write, nothing else (no lens, pose, wall or pointer yet)."""
+    cameras = "".join(
+        f'\n[[cameras]]\nid = "{side}"\nwidth_px = 640\nheight_px = 480\npixel_format = "Mono8"\n'
+        for side in ("left", "right")
+    )
+    (workspace / "rig.toml").write_text(
+        f'version = 1\nname = "photos"\ncalibration = "photos-calibration.toml"\n{cameras}'
+    )
 
 
 @pytest.mark.parametrize("variant", ["as photographed", "veiling glare"])
@@ -42,8 +44,18 @@ def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp
 
     # Intrinsics from the folder: the camera's own photos are taken from it, every one kept.
     for side in ("left", "right"):
-        run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", side, *BOARD, "photos",
-                       "--json", cwd=tmp_path)
+        run = trackerd(
+            "calibrate",
+            "intrinsics",
+            "--config",
+            "rig.toml",
+            "--camera",
+            side,
+            *BOARD,
+            "photos",
+            "--json",
+            cwd=tmp_path,
+        )
         assert run.returncode == 0, run.stderr
         assert f"photos: the 13 named for camera {side} of its 26 image(s)" in run.stderr
         report = json.loads(run.stdout)
@@ -57,8 +69,7 @@ def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp
         assert len(report["distortion"]) == (4 if dropped_k3 else 5)
 
     # Stereo from the same folder, paired by the names' camera prefix.
-    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "photos", "--json",
-                   cwd=tmp_path)
+    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "photos", "--json", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     assert "photos: 13 pair(s), files named <camera><name> (left, right)" in run.stderr
     stereo = json.loads(run.stdout)
@@ -71,8 +82,9 @@ def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp
         (tmp_path / "split" / side).mkdir(parents=True)
         for path in folder.glob(f"{side}*.png"):
             shutil.copy(path, tmp_path / "split" / side / path.name)
-    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "split", "--json",
-                   "--dry-run", cwd=tmp_path)
+    run = trackerd(
+        "calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "split", "--json", "--dry-run", cwd=tmp_path
+    )
     assert run.returncode == 0, run.stderr
     assert "split: 13 pair(s), subfolders left/, right/ (files paired by name)" in run.stderr
     assert json.loads(run.stdout)["rms_px"] == pytest.approx(stereo["rms_px"], abs=1e-6)
@@ -82,21 +94,58 @@ def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_sou
     _mono_rig(tmp_path)
     folder = tmp_path / "photos"
     shutil.copytree(REPO / "tests" / "data" / "opencv-stereo-chessboard", folder)
-    run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", *BOARD,
-                   "--snapshots", "saved", "photos", cwd=tmp_path)
+    run = trackerd(
+        "calibrate",
+        "intrinsics",
+        "--config",
+        "rig.toml",
+        "--camera",
+        "left",
+        *BOARD,
+        "--snapshots",
+        "saved",
+        "photos",
+        cwd=tmp_path,
+    )
     one_line_error(run, "--snapshots is for --live and --recording", "IMAGE... files are on disk already")
     assert not (tmp_path / "saved").exists()
     # Too few views: refused below the floor, and with --force calibrated with the warning in the JSON.
     few = [f"photos/left0{k}.jpg" for k in (1, 2, 3, 4, 5)]
-    run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", *BOARD,
-                   "--min-views", "4", *few, cwd=tmp_path)
+    run = trackerd(
+        "calibrate",
+        "intrinsics",
+        "--config",
+        "rig.toml",
+        "--camera",
+        "left",
+        *BOARD,
+        "--min-views",
+        "4",
+        *few,
+        cwd=tmp_path,
+    )
     one_line_error(run, "--min-views 4 is under 6", "give --force")
-    run = trackerd("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left", *BOARD,
-                   "--min-views", "4", "--force", "--dry-run", "--json", *few, cwd=tmp_path)
+    run = trackerd(
+        "calibrate",
+        "intrinsics",
+        "--config",
+        "rig.toml",
+        "--camera",
+        "left",
+        *BOARD,
+        "--min-views",
+        "4",
+        "--force",
+        "--dry-run",
+        "--json",
+        *few,
+        cwd=tmp_path,
+    )
     assert run.returncode == 0, run.stderr
     assert any("calibrated from 5 views, fewer than the 8" in w for w in json.loads(run.stdout)["warnings"])
-    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--min-pairs", "2", "--pairs", "photos",
-                   cwd=tmp_path)
+    run = trackerd(
+        "calibrate", "stereo", "--config", "rig.toml", *BOARD, "--min-pairs", "2", "--pairs", "photos", cwd=tmp_path
+    )
     one_line_error(run, "--min-pairs 2 is under 3", "give --force")
     # Tracking refuses the Mono8 cameras, saying why and that calibrating is fine.
     run = trackerd("config", "check", "rig.toml", cwd=tmp_path)

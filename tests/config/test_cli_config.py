@@ -192,7 +192,7 @@ RIG_EDITS = [
         "missing_section",
         "[pointer]\nlength_m = 0.45\nend_diameter_m = 0.04\n",
         "",
-        "pointer: required key is missing",
+        "pointer: required table is missing; tracking needs it",
         [],
     ),
     (

@@ -14,6 +14,7 @@ from trackerd.config.loader import (
     format_location,
     load_calibration,
     load_rig,
+    parse_rig,
     read_toml,
 )
 from trackerd.config.models import (
@@ -167,6 +168,18 @@ def test_cameras_left_in_camera_1s_frame_name_the_wall_step_as_next(
     # Once the wall is calibrated in that frame, the file loads.
     write("cal.toml", stereo + "\n[wall]\ncorners_m = [[0, 1, 3], [2, 1, 3], [2, 0, 3], [0, 0, 3]]\n")
     assert load_rig(rig).calibration_path is not None
+
+
+def test_a_rig_without_wall_or_pointer_parses_but_does_not_track(write: Write, minimal_rig: str) -> None:
+    # What an operator writes before calibrating: the cameras (intrinsics and stereo need nothing else).
+    cameras_only = minimal_rig[: minimal_rig.index("[wall]")]
+    rig = write("rig.toml", cameras_only)
+    assert parse_rig(read_toml(rig), rig).wall is None
+    with pytest.raises(ConfigError, match=r"rig.toml: wall: required table is missing \(here, or in the calibration"):
+        load_rig(rig)
+    rig = write("rig.toml", minimal_rig[: minimal_rig.index("[pointer]")])
+    with pytest.raises(ConfigError, match=r"rig.toml: pointer: required table is missing; tracking needs it"):
+        load_rig(rig)
 
 
 def test_wall_from_the_calibration_file(write: Write, edit: Edit, minimal_rig: str) -> None:

@@ -68,6 +68,12 @@ class RigContext:
                     f"camera '{cam.id}' has no {' or '.join(missing)} yet; run"
                     f" `trackerd calibrate {'intrinsics' if 'intrinsics' in missing else 'stereo'}` first"
                 )
+        if rig.wall is None or rig.pointer is None:
+            tables = " and ".join(f"[{t}]" for t, v in (("wall", rig.wall), ("pointer", rig.pointer)) if v is None)
+            raise CalibrationError(
+                f"{self.rig_path}: no {tables} table: this step locates the pointer on the wall; see"
+                " config/datawall.toml for one (the wall's nominal size is enough before `calibrate wall`)"
+            )
         return rig
 
 

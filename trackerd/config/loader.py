@@ -314,6 +314,13 @@ def load_rig(path: str | Path, *, check_wall: bool = True) -> LoadedRig:
                 )
         if calibration.wall is not None:
             sources["wall"] = f"from {calibration_path.name}"
+    for table, given in (("wall", rig.wall), ("pointer", rig.pointer)):
+        if given is None:
+            where = " (here, or in the calibration file from `trackerd calibrate wall`)" if table == "wall" else ""
+            raise ConfigError(
+                f"{rig_path}: {table}: required table is missing{where}; tracking needs it"
+                " (config/datawall.toml has one to copy)"
+            )
     for index, cam in enumerate(rig.cameras):
         for part in ("intrinsics", "extrinsics"):
             if getattr(cam, part) is None:
@@ -402,7 +409,7 @@ def _check_lens(cam: CameraConfig, where: str) -> None:
 def check_rig_geometry(rig: RigConfig, path: Path, *, check_wall: bool = True) -> None:
     """The geometric checks load_rig makes (lens invertible to the corners, a sane wall in front of
     the cameras), for a rig assembled in memory, with errors naming ``path``."""
-    complete = True
+    complete = rig.wall is not None
     for cam in rig.cameras:
         if cam.intrinsics is None or cam.extrinsics is None:
             complete = False

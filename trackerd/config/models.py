@@ -521,10 +521,12 @@ class RigConfig(_Model):
     optionally the wall; its values replace the ones given here."""
     cameras: tuple[CameraConfig, ...] = Field(min_length=2)
     """Two or more cameras; the first two are the stereo pair."""
-    wall: WallConfig
-    """The display wall."""
-    pointer: PointerConfig
-    """The pointer."""
+    wall: WallConfig | None = None
+    """The display wall (or from the calibration file). Tracking needs it; `trackerd calibrate
+    intrinsics` and `stereo` do not, `calibrate wall` needs its nominal size."""
+    pointer: PointerConfig | None = None
+    """The pointer. Tracking, `calibrate wall` and `calibrate check` need it; intrinsics and stereo do
+    not."""
     acquisition: RigAcquisition = RigAcquisition()
     """Trigger mode, frame pairing and camera-loss handling shared by all cameras."""
     detector: DetectorConfig = DetectorConfig()

@@ -151,6 +151,8 @@ def simulation_truth(context: RigContext) -> RigConfig:
         raise CalibrationError(
             f"--source simulated renders the rig file's inline geometry, and camera(s) {', '.join(missing)} have none"
         )
+    if rig.wall is None or rig.pointer is None:
+        raise CalibrationError("--source simulated renders the rig file's room, which needs [wall] and [pointer]")
     return rig
 
 

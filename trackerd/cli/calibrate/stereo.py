@@ -31,6 +31,11 @@ from trackerd.geometry.camera import CameraModel
 
 def stereo_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
+    if args.min_pairs < MIN_PAIRS_FLOOR and not args.force:
+        raise CalibrationError(
+            f"--min-pairs {args.min_pairs} is under {MIN_PAIRS_FLOOR}: with so few pairs one taken out of sync"
+            " cannot be told from the others; add pairs, or give --force to calibrate from so few anyway"
+        )
     context = open_rig(args.config, args.output)
     rig = context.merged()
     cam1, cam2 = rig.cameras[0], rig.cameras[1]
@@ -38,11 +43,6 @@ def stereo_command(args: argparse.Namespace) -> int:
     mode = check_source(args, "--pairs DIR", args.pairs is not None)
     spec: BoardSpec = args.board
     quality = Quality(max_sharpness_px=args.max_blur)
-    if args.min_pairs < MIN_PAIRS_FLOOR and not args.force:
-        raise CalibrationError(
-            f"--min-pairs {args.min_pairs} is under {MIN_PAIRS_FLOOR}: with so few pairs one taken out of sync"
-            " cannot be told from the others; add pairs, or give --force to calibrate from so few anyway"
-        )
     out.say(f"board: {spec.describe()}")
     if spec.symmetric:
         raise CalibrationError(
@@ -152,7 +152,11 @@ def stereo_command(args: argparse.Namespace) -> int:
     if frame.startswith("camera ") and not args.dry_run:
         notes.append(
             "next: `trackerd calibrate wall`; until then the cameras are in "
-            f"{frame}'s frame and the rig's wall (in its own frame) does not match them"
+            + (
+                f"{frame}'s frame and the rig's wall (in its own frame) does not match them"
+                if context.rig.wall is not None
+                else f"{frame}'s frame, with no wall"
+            )
         )
     if stated is not None and baseline_warning(result.baseline_m, stated, spec.square_m * 1000.0):
         # Said again last, where it is seen (and on stderr with --json).

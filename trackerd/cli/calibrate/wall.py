@@ -39,7 +39,7 @@ def wall_command(args: argparse.Namespace) -> int:
             raise CalibrationError(f"--points FILE is the whole input; it takes no {' or '.join(extra)}")
         return _measured_wall(context, args, out)
     rig = context.complete()
-    nominal = WallFrame.from_config(context.rig.wall)
+    nominal = WallFrame.from_config(context.rig.wall or rig.wall)
     size = (nominal.width_m, nominal.height_m)
     display = nominal.display_width_px, nominal.display_height_px
     display_px = display if nominal.has_display else None
