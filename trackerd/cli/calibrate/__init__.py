@@ -57,6 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f"fewest views to calibrate from (default {MIN_VIEWS}; under {MIN_VIEWS_FLOOR} only with --force)",
     )
     _force(p)
+    _report(p)
     p.add_argument(
         "--distortion",
         type=int,
@@ -90,6 +91,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f"fewest pairs (default {MIN_PAIRS}; under {MIN_PAIRS_FLOOR} only with --force)",
     )
     _force(p)
+    _report(p)
     p.add_argument(
         "--refine-intrinsics",
         action="store_true",
@@ -179,6 +181,15 @@ def _force(p: argparse.ArgumentParser) -> None:
         "--force",
         action="store_true",
         help="calibrate from fewer views or pairs than the floor (the result is written with a warning)",
+    )
+
+
+def _report(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        help="write pictures of the result (views with residuals, coverage, per-view RMS; for stereo a"
+        " rectified pair) and an index.html into DIR, also with --dry-run",
     )
 
 

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, BoardView, Quality
+from trackerd.calibration.board import BoardSpec, BoardView, Quality, grey_for_calibration
 from trackerd.calibration.collect import Collected, collect_views
 from trackerd.calibration.inputs import camera_frames, image_files
 from trackerd.calibration.intrinsics import MIN_VIEWS, MIN_VIEWS_FLOOR, IntrinsicsResult, calibrate_intrinsics
 from trackerd.calibration.live import IntrinsicsSession
+from trackerd.calibration.pictures import intrinsics_pictures, write_index
 from trackerd.calibration.report import intrinsics_json, intrinsics_text
 from trackerd.calibration.store import open_rig
 from trackerd.calibration.update import apply_intrinsics
@@ -41,7 +43,10 @@ def intrinsics_command(args: argparse.Namespace) -> int:
             " length and distortion trade off); add views, or give --force to calibrate from so few anyway"
         )
     out.say(f"board: {spec.describe()}")
+    image_files_used: list[Path] = []
+    snapshots = None
     if mode == "live":
+        snapshots = snapshot_dir(args, f"intrinsics-{cam.id}")
         session = IntrinsicsSession(
             spec,
             index,
@@ -52,7 +57,7 @@ def intrinsics_command(args: argparse.Namespace) -> int:
             min_views=args.min_views,
             quality=quality,
             min_change=MIN_VIEW_CHANGE if args.min_change is None else args.min_change,
-            snapshots=snapshot_dir(args, f"intrinsics-{cam.id}"),
+            snapshots=snapshots,
             distortion_terms=args.distortion or 5,
         )
         out.say(f"show the board to camera {cam.id}; next: {session.selector.guidance(args.views)}")
@@ -63,6 +68,7 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         collected = Collected(views=list(session.views), frames=session.frames, rejected=rejected)
     else:
         files, said = image_files(args.images, cam.id)
+        image_files_used = files
         for line in said:
             out.say(line)
         selector = ViewSelector(cam.width_px, cam.height_px, args.min_change or 0.0)
@@ -89,6 +95,17 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         )
     report = intrinsics_json(result, collected.rejected, warnings)
     text = intrinsics_text(cam.id, result, collected.rejected, warnings)
+    if args.report:
+        # The views' images: the files given, or the snapshots a live session saved (named as its views).
+        sources = image_files_used or (sorted(snapshots.glob("*.png")) if snapshots and snapshots.is_dir() else [])
+        wanted = set(result.view_names)
+        used = [path for path in sources if Path(path).name in wanted or Path(path).stem in wanted]
+        images = {}
+        for name, frame, fmt in camera_frames(used, cam):
+            images[name] = images[Path(name).stem] = grey_for_calibration(frame, fmt)
+        pictures = intrinsics_pictures(Path(args.report), cam.id, result, collected.views, images)
+        index = write_index(Path(args.report), f"camera {cam.id}", text.splitlines()[:3], pictures)
+        out.say(f"report: {index} ({len(pictures)} pictures)")
     if result.rms_px > args.max_rms:
         out.result(text, {"camera": cam.id, **report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, Quality
+from trackerd.calibration.board import BoardSpec, Quality, grey_for_calibration
 from trackerd.calibration.collect import Collected, collect_pairs
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.live import StereoSession
+from trackerd.calibration.pictures import stereo_pictures, write_index
 from trackerd.calibration.report import quality_warnings, stereo_json, stereo_text
 from trackerd.calibration.stereo import MIN_PAIRS, MIN_PAIRS_FLOOR, baseline_warning, calibrate_stereo
 from trackerd.calibration.store import open_rig
@@ -50,7 +52,10 @@ def stereo_command(args: argparse.Namespace) -> int:
             " by 180 degrees, so the two cameras may number its corners differently; use one with an odd"
             " number of squares on one side and even on the other (e.g. 10x7), or a ChArUco board"
         )
+    moments: dict[str, dict[str, Path]] = {}
+    snapshots = None
     if mode == "live":
+        snapshots = snapshot_dir(args, "stereo")
         session = StereoSession(
             spec,
             (cam1.id, cam2.id),
@@ -60,7 +65,7 @@ def stereo_command(args: argparse.Namespace) -> int:
             quality=quality,
             min_change=MIN_VIEW_CHANGE if args.min_change is None else args.min_change,
             max_skew_ns=int(args.max_skew_ms * 1e6),
-            snapshots=snapshot_dir(args, "stereo"),
+            snapshots=snapshots,
         )
         out.say(f"hold the board where both {cam1.id} and {cam2.id} see its printed face")
         run_live(context, rig, args, session, out, lambda: simulated_boards(context, spec, [0, 1], args.views * 2))
@@ -68,6 +73,7 @@ def stereo_command(args: argparse.Namespace) -> int:
     else:
         found = pair_files(args.pairs, [cam1.id, cam2.id])
         out.say(f"{args.pairs}: {len(found.moments)} pair(s), {found.layout}")
+        moments = {moment.name: moment.files for moment in found.moments}
 
         def frame_pairs():
             for moment in found.moments:
@@ -166,6 +172,22 @@ def stereo_command(args: argparse.Namespace) -> int:
     out.result(text, {**report, **written})
     for note in notes:
         out.say(note)
+    if args.report:
+        if snapshots is not None and snapshots.is_dir():  # a live session's pairs, saved as <name>-<camera>.png
+            moments = {
+                name: {cam.id: snapshots / f"{name}-{cam.id}.png" for cam in (cam1, cam2)}
+                for name in result.pair_names
+                if all((snapshots / f"{name}-{cam.id}.png").exists() for cam in (cam1, cam2))
+            }
+        images = {}
+        for name in result.pair_names:
+            if name in moments:
+                frames = read_pair(moments[name], [cam1, cam2], grey_ok=True)
+                images[name] = (grey_for_calibration(frames[0][1], frames[0][2]),
+                                grey_for_calibration(frames[1][1], frames[1][2]))
+        pictures = stereo_pictures(Path(args.report), (cam1.id, cam2.id), result, collected.pairs, images)
+        index = write_index(Path(args.report), f"stereo {cam1.id} -> {cam2.id}", text.splitlines()[:2], pictures)
+        out.say(f"report: {index} ({len(pictures)} pictures)")
     return 0
 
 
