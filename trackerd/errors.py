@@ -26,6 +26,16 @@ class ConfigError(TrackerdError):
         return self if text.startswith(str(path)) else ConfigError(f"{path}: {text}")
 
 
+class CalibrationPending(ConfigError):
+    """A valid rig that cannot track yet: a calibration step is still to run, or its cameras are
+    monochrome (a rig used only to calibrate). `trackerd config check` reports it and passes; the
+    tracking commands refuse to start with it. ``detail`` is the message without the file."""
+
+    def __init__(self, where: object, detail: str) -> None:
+        super().__init__(f"{where}: {detail}")
+        self.detail = detail
+
+
 class GeometryError(TrackerdError):
     """A geometric configuration that has no answer (parallel rays, a line parallel to the wall)."""
 

@@ -69,6 +69,14 @@ def _name_by_prefix(stem: str, cam_id: str) -> str | None:
     return None
 
 
+def camera_named_in(stem: str, ids_longest_first: Sequence[str]) -> str | None:
+    """The camera a file name is named for (``07-left``, ``left07``), or None."""
+    for cam_id in ids_longest_first:
+        if _name_by_suffix(stem, cam_id) or _name_by_prefix(stem, cam_id):
+            return cam_id
+    return None
+
+
 class _Groups:
     """Moments being filled in, refusing two images of one camera for one moment."""
 

@@ -162,10 +162,14 @@ def test_a_new_installation_end_to_end(both_lenses: Calibrated, tmp_path: Path) 
     assert stereo["epipolar_rms_px"] < 0.2 and len(stereo["pairs"]) >= 8
     assert not [r for r in stereo["rejected"] if "sync" in r["reason"]]
     assert "next: `trackerd calibrate wall`" in run.stderr
-    # The rig cannot track yet, and config check says which step comes next (not that the wall is wrong).
+    # The file written passes config check, which says the rig cannot track yet and which step comes next
+    # (not that the wall is wrong); --ready, as a reload script uses it, fails it.
     run = trackerd("config", "check", "rig.toml", cwd=workspace)
-    assert run.returncode == 2 and "behind the wall" not in run.stderr
-    assert "camera left's frame" in run.stderr and "next: `trackerd calibrate wall --config rig.toml`" in run.stderr
+    assert run.returncode == 0 and "behind the wall" not in run.stdout, run.stderr
+    assert run.stdout.startswith("rig.toml: OK for calibration; not ready to track yet: ")
+    assert "camera left's frame" in run.stdout and "next: `trackerd calibrate wall --config rig.toml`" in run.stdout
+    run = trackerd("config", "check", "--ready", "rig.toml", cwd=workspace)
+    assert run.returncode == 2 and "next: `trackerd calibrate wall --config rig.toml`" in run.stderr
 
     # The same pairs as a recording (imported, as an operator would record the board): the same stereo result.
     run = trackerd("recording", "import", "--config", "rig.toml", "pairs", "board.trec", cwd=workspace)

@@ -146,12 +146,14 @@ def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_sou
     run = trackerd(
         "calibrate", "stereo", "--config", "rig.toml", *BOARD, "--min-pairs", "2", "--pairs", "photos", cwd=tmp_path
     )
-    one_line_error(run, "--min-pairs 2 is under 3", "give --force")
-    # Tracking refuses the Mono8 cameras, saying why and that calibrating is fine.
+    one_line_error(run, "--min-pairs 2 is under 3", "cannot be told from the others")
+    # The new rig passes config check, which names the first step; tracking would refuse it.
     run = trackerd("config", "check", "rig.toml", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("rig.toml: OK for calibration; not ready to track yet: calibration: ")
+    assert "`trackerd calibrate intrinsics --config rig.toml --camera left` writes it" in run.stdout
+    run = trackerd("config", "check", "--ready", "rig.toml", cwd=tmp_path)
     assert run.returncode == 2 and "Traceback" not in run.stderr
-    line = run.stderr.strip().splitlines()[-1]
-    assert "cameras[0].pixel_format: Mono8 is monochrome" in line and "fine for `trackerd calibrate`" in line
     # The pointer steps say the same.
     pairs = tmp_path / "pairs"
     pairs.mkdir()

@@ -24,7 +24,7 @@ from trackerd.config.models import (
     PoseExtrinsics,
     RigConfig,
 )
-from trackerd.errors import ConfigError
+from trackerd.errors import CalibrationPending, ConfigError
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 Edit = Callable[[str, str, str], str]
@@ -243,11 +243,12 @@ def test_calibration_with_an_unknown_camera(
 def test_missing_calibration_file(write: Write, edit: Edit, minimal_rig: str) -> None:
     # Regression: the error named only the calibration path, not the rig that asked for it.
     rig = write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION))
-    with pytest.raises(ConfigError) as err:
+    with pytest.raises(CalibrationPending) as err:
         load_rig(rig)
     assert str(err.value) == (
-        f"{rig}: calibration: {rig.parent.resolve() / 'cal.toml'}: no such file"
-        " (the path is relative to the rig file)"
+        f"{rig}: calibration: {rig.parent.resolve() / 'cal.toml'}: no such file yet"
+        " (the path is relative to the rig file); `trackerd calibrate intrinsics --config rig.toml --camera left`"
+        " writes it"
     )
 
 

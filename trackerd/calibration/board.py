@@ -337,12 +337,13 @@ def _find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> Boa
             # Pixel centres sit at integers in both images: x_full = (x_small + 0.5) * 2 - 0.5.
             corners, finder = (found[0] + 0.5) * 2.0 - 0.5, found[1] + ", half resolution"
             if _shortest_spacing_px(corners.reshape(rows, cols, 2)) < 40.0:
-                corners = _sector_corners_near(grey, corners, cols, rows)
-                finder = finder.removesuffix(", half resolution") + ", again near it"
+                corners = _sector_corners_near(grey, corners, cols, rows, found[1])
+                finder = found[1] + ", again near it"
     if corners is None:
-        # Every detector was tried at half resolution; at full resolution only the sector detector is
-        # (the quad detector and OpenCV's quick check can take 20 s on a cluttered 1080p frame).
-        found = _sector_corners(grey, cols, rows, every_detector=min(grey.shape[:2]) < 720)
+        # Every detector was tried at half resolution; at full resolution only the first is, as before
+        # the others existed (the quad detector and OpenCV's quick check can take 20 s on a cluttered
+        # 1080p frame, and a frame without a board should cost what it did).
+        found = _sector_corners(grey, cols, rows, only=None if min(grey.shape[:2]) < 720 else BOARD_FINDERS[0][0])
         if found is None:
             return None
         corners, finder = found
@@ -416,25 +417,21 @@ with adaptive thresholding. Corners are refined the same way whichever found the
 
 
 def _sector_corners(
-    image: NDArray[np.uint8], cols: int, rows: int, every_detector: bool = True
+    image: NDArray[np.uint8], cols: int, rows: int, only: str | None = None
 ) -> tuple[Array, str] | None:
-    """The board's corners by the first detector that finds them all, and that detector's name.
+    """The board's corners by the first detector that finds them all (and passes the junction check),
+    and that detector's name.
 
     The first detector is tried on every image; the others only where OpenCV's quick check for a board
     (about 10 ms on a 960 x 540 image) says there may be one, on the image or its contrast-stretched
     copy, so that the many frames without a board (live capture, a recording) do not pay for four
-    detectors. ``every_detector=False`` tries the sector detectors alone: on a large cluttered image the
-    quick check and the quad detector take tens of seconds.
+    detectors. ``only`` names the one detector to try, without the quick check: on a large cluttered
+    image the quick check and the quad detector can take tens of seconds.
     """
-    (name, find), rest = BOARD_FINDERS[0], BOARD_FINDERS[1:]
-    corners = find(image, cols, rows)
-    if corners is not None and corners_are_junctions(image, corners.reshape(rows, cols, 2)):
-        return corners, name
-    if not every_detector:
-        rest = tuple((n, f) for n, f in rest if n.startswith("sector"))
-    elif not (_board_likely(image, cols, rows) or _board_likely(stretched(image), cols, rows)):
-        return None
-    for name, find in rest:
+    finders = BOARD_FINDERS if only is None else tuple((n, f) for n, f in BOARD_FINDERS if n == only)
+    for k, (name, find) in enumerate(finders):
+        if k == 1 and not (_board_likely(image, cols, rows) or _board_likely(stretched(image), cols, rows)):
+            return None
         corners = find(image, cols, rows)
         if corners is not None and corners_are_junctions(image, corners.reshape(rows, cols, 2)):
             return corners, name
@@ -518,13 +515,14 @@ def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
     return None
 
 
-def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows: int) -> Array | None:
-    """Find the board again at full resolution, in a window around rough corner positions."""
+def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows: int, finder: str) -> Array | None:
+    """Find the board again at full resolution, in a window around rough corner positions, with the
+    detector that found it at half resolution."""
     pad = 2.0 * _square_px(rough.reshape(rows, cols, 2)) + 8.0
     h, w = grey.shape[:2]
     x0, y0 = max(0, int(rough[:, 0].min() - pad)), max(0, int(rough[:, 1].min() - pad))
     x1, y1 = min(w, int(rough[:, 0].max() + pad) + 1), min(h, int(rough[:, 1].max() + pad) + 1)
-    found = _sector_corners(np.ascontiguousarray(grey[y0:y1, x0:x1]), cols, rows, every_detector=False)
+    found = _sector_corners(np.ascontiguousarray(grey[y0:y1, x0:x1]), cols, rows, only=finder)
     return None if found is None else found[0] + np.array([x0, y0], dtype=np.float64)
 
 

@@ -28,7 +28,7 @@ from trackerd.calibration.wall import CORNER_LABELS, Target
 from trackerd.config.loader import describe_validation_error, read_toml
 from trackerd.config.models import CameraConfig, WallConfig
 from trackerd.errors import ConfigError, ImageError
-from trackerd.image_pairs import IMAGE_SUFFIXES, PairedImages, images_in, pair_images
+from trackerd.image_pairs import IMAGE_SUFFIXES, PairedImages, camera_named_in, images_in, pair_images
 from trackerd.images import read_frame
 
 GRID_LABELS = {"bottom": (0.5, 0.0), "top": (0.5, 1.0), "left": (0.0, 0.5), "right": (1.0, 0.5), "centre": (0.5, 0.5)}
@@ -60,27 +60,39 @@ def pair_files(directory: str | Path, camera_ids: Sequence[str]) -> PairedImages
         raise CalibrationError(str(err)) from err
 
 
-def image_files(paths: Sequence[str | Path], camera_id: str) -> tuple[list[Path], list[str]]:
+def image_files(paths: Sequence[str | Path], camera_id: str, camera_ids: Sequence[str]) -> tuple[list[Path], list[str]]:
     """The image files named, with each folder among them replaced by its images (natural order).
 
-    From a folder that holds several cameras' images, only those whose name starts or ends with the
-    camera's id are taken. Returns the files and a line for each folder saying what was taken.
+    From a folder whose images are named for the rig's cameras (``left01.jpg``, ``07-left.png``), only
+    this camera's are taken; a folder none of whose images is named for a camera is taken whole, and
+    the line said for it says so. Returns the files and a line for each folder saying what was taken.
     """
     out: list[Path] = []
     said: list[str] = []
+    ids = sorted(camera_ids, key=len, reverse=True)  # 'left2' is tried before 'left'
     for given in paths:
         path = Path(given)
         if not path.is_dir():
             out.append(path)
             continue
         images = images_in(path)
-        mine = [p for p in images if p.stem.startswith(camera_id) or p.stem.endswith(camera_id)]
-        taken = mine or images
-        if not taken:
+        if not images:
             raise CalibrationError(f"{path}: a folder without images ({', '.join(IMAGE_SUFFIXES)})")
-        which = f"the {len(taken)} named for camera {camera_id}" if mine else f"all {len(taken)}"
-        said.append(f"{path}: {which} of its {len(images)} image(s)")
-        out.extend(taken)
+        owner = {image: camera_named_in(image.stem, ids) for image in images}
+        mine = [image for image in images if owner[image] == camera_id]
+        if any(owner.values()):
+            if not mine:
+                raise CalibrationError(
+                    f"{path}: no image named for camera {camera_id} (its images are named for"
+                    f" {', '.join(sorted({c for c in owner.values() if c}))})"
+                )
+            said.append(f"{path}: the {len(mine)} named for camera {camera_id} of its {len(images)} image(s)")
+            out.extend(mine)
+        else:
+            said.append(
+                f"{path}: all {len(images)} image(s) (none is named for a camera; all are taken as {camera_id}'s)"
+            )
+            out.extend(images)
     return out, said
 
 

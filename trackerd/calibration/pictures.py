@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardView
 from trackerd.calibration.intrinsics import IntrinsicsResult
 from trackerd.calibration.stereo import StereoPair, StereoResult
@@ -56,8 +57,15 @@ def _fit_width(image: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], float]:
 
 def _write(folder: Path, name: str, image: NDArray[np.uint8]) -> str:
     if not cv2.imwrite(str(folder / name), image):
-        raise OSError(f"{folder / name}: could not be written")
+        raise CalibrationError(f"--report: {folder / name}: could not be written")
     return name
+
+
+def _report_folder(folder: Path) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise CalibrationError(f"--report: {folder}: cannot make the folder ({err.strerror or err})") from err
 
 
 def _label(image: NDArray[np.uint8], text: str) -> None:
@@ -161,7 +169,7 @@ def intrinsics_pictures(
 ) -> list[Picture]:
     """Write a lens's pictures into ``folder``; ``images`` are the grey images by view name (views without
     one get no picture of their own)."""
-    folder.mkdir(parents=True, exist_ok=True)
+    _report_folder(folder)
     by_name = {view.name: view for view in views}
     used = [by_name[name] for name in result.view_names if name in by_name]
     pictures = [
@@ -243,7 +251,7 @@ def stereo_pictures(
     images: Mapping[str, tuple[NDArray[np.uint8], NDArray[np.uint8]]],
 ) -> list[Picture]:
     """Write the pair's pictures: per-pair RMS bars and each pair (with images) rectified."""
-    folder.mkdir(parents=True, exist_ok=True)
+    _report_folder(folder)
     pictures = [
         Picture(
             _write(
@@ -289,10 +297,14 @@ def write_index(folder: Path, title: str, figures: Sequence[str], pictures: Sequ
             f"<figcaption>{html.escape(picture.caption)}</figcaption></figure>"
         )
     sections.append("\n".join(body) + "\n")
-    index.write_text(
+    text = (
         '<!doctype html>\n<html><head><meta charset="utf-8"><title>trackerd calibration report</title>\n'
         "<style>body{font-family:sans-serif;margin:2em} img{max-width:100%;border:1px solid #ccc}"
         " figure{margin:1em 0}</style></head><body>\n<h1>trackerd calibration report</h1>\n"
         "<!-- sections -->" + "".join(sections) + "<!-- end -->\n</body></html>\n"
     )
+    try:
+        index.write_text(text)
+    except OSError as err:
+        raise CalibrationError(f"--report: {index}: cannot be written ({err.strerror or err})") from err
     return index

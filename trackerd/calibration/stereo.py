@@ -34,8 +34,7 @@ Array = NDArray[np.float64]
 MIN_PAIRS = 5
 """Fewer pairs than this give a relative pose that a single bad pair can move."""
 MIN_PAIRS_FLOOR = 3
-"""Fewer pairs than this leave no way to tell a pair out of sync from the others: the command asks
-for --force below it."""
+"""Fewer pairs than this leave no way to tell a pair out of sync from the others (check_sync needs 3)."""
 
 MIN_SHARED_CORNERS = 8
 

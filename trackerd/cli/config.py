@@ -8,7 +8,7 @@ import json
 import numpy as np
 
 from trackerd.config.loader import LoadedRig, load_rig
-from trackerd.errors import ConfigError
+from trackerd.errors import CalibrationPending, ConfigError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import ypr_from_world_from_camera
 from trackerd.geometry.wall import WallFrame
@@ -21,11 +21,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     check = config_sub.add_parser("check", help="validate a rig file and print the resolved rig")
     check.add_argument("file", help="rig TOML file, for example config/datawall.toml")
     check.add_argument("--json", action="store_true", help="print the resolved rig as JSON")
+    check.add_argument(
+        "--ready",
+        action="store_true",
+        help="fail (exit 2) unless the rig is ready to track, as `run` needs it; without it a rig still being"
+        " calibrated passes, saying what is left",
+    )
     check.set_defaults(handler=check_command)
 
 
 def check_command(args: argparse.Namespace) -> int:
-    loaded = load_rig(args.file)
+    try:
+        loaded = load_rig(args.file)
+    except CalibrationPending as pending:
+        # Valid as far as it goes, mid-calibration or for calibration only: say what is left, and pass
+        # (the tracking commands refuse such a rig with the same line, as --ready does).
+        if args.ready:
+            raise
+        if args.json:
+            print(json.dumps({"file": str(args.file), "ready_to_track": False, "not_ready": pending.detail}))
+        else:
+            print(f"{args.file}: OK for calibration; not ready to track yet: {pending.detail}")
+        return 0
     cameras = [CameraModel.from_config(cam) for cam in loaded.config.cameras]
     wall = WallFrame.from_config(loaded.config.wall)
     if loaded.config.interaction.any_enabled:
@@ -46,6 +63,7 @@ def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFr
     rig = loaded.config
     return {
         "file": str(loaded.path),
+        "ready_to_track": True,
         "calibration": str(loaded.calibration_path) if loaded.calibration_path else None,
         "name": rig.name,
         "cameras": [

@@ -50,7 +50,7 @@ def record_command(args: argparse.Namespace) -> int:
     from trackerd.recording.recorder import Recorder
     from trackerd.recording.writer import check_free_space
 
-    loaded = load_rig(args.config, check_wall=False)  # the cameras are what it uses
+    loaded = load_rig(args.config, for_tracking=False)  # the cameras are what it uses
     out = Path(args.out)
     if args.pairs is not None and args.pairs < 1:  # --seconds is checked by its argument type
         raise RecordingError("--pairs and --seconds must be positive")

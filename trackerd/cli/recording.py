@@ -84,7 +84,7 @@ def import_command(args: argparse.Namespace) -> int:
     from trackerd.recording.importer import import_folder
     from trackerd.recording.outputs import check_new_recording
 
-    loaded = load_rig(args.config, check_wall=False)  # the cameras are what it uses
+    loaded = load_rig(args.config, for_tracking=False)  # the cameras are what it uses
     check_new_recording(args.out)
     line, show = _progress("importing")
     writer = import_folder(args.folder, args.out, loaded.config, timestamps=args.timestamps, rate_hz=args.rate,

@@ -25,10 +25,11 @@ import time
 from typing import Any
 
 from trackerd.cli._args import positive_seconds
-from trackerd.config.loader import load_rig, with_endpoints
+from trackerd.config.loader import check_ready_to_track, load_rig, with_endpoints
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
-from trackerd.errors import ConfigError
+from trackerd.errors import CalibrationPending, ConfigError
+from trackerd.recording.format import METADATA_FILE
 from trackerd.recording.reader import Recording
 
 
@@ -77,6 +78,13 @@ def replay_rig(recording: Recording, config: str | None, endpoints: list[str] | 
     notes: list[str] = []
     if config is None:
         rig = recording.rig()
+        try:
+            # A board recorded for calibration may carry a rig that cannot track (no wall yet, Mono8).
+            check_ready_to_track(rig, recording.path / METADATA_FILE)
+        except CalibrationPending as pending:
+            raise ConfigError(
+                f"{recording.path}: the recorded rig cannot track ({pending.detail}); give one that can with --config"
+            ) from None
         notes.append(f"configuration: the recorded rig '{rig.name}'")
     else:
         rig = load_rig(config).config

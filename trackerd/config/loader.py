@@ -28,7 +28,7 @@ from trackerd.config.models import (
     RigConfig,
     ZmqOutput,
 )
-from trackerd.errors import ConfigError
+from trackerd.errors import CalibrationPending, ConfigError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -276,79 +276,113 @@ def load_calibration(path: Path) -> CalibrationFile:
     return parse_calibration(read_toml(path), path)
 
 
-def load_rig(path: str | Path, *, check_wall: bool = True) -> LoadedRig:
-    """Read a rig file, merge its calibration file, and check the result is complete.
+def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
+    """Read a rig file, merge its calibration file, and check the result can track.
 
-    ``check_wall=False`` is for commands that use only the cameras (recording, importing): a rig whose
-    cameras are still in camera 1's frame, before `trackerd calibrate wall`, is fine for them.
+    A rig that is valid but not ready to track (a calibration step still to run, no [wall] or
+    [pointer], Mono8 cameras) raises CalibrationPending naming the first thing left, after everything
+    that can be checked has been. ``for_tracking=False`` returns such a rig as it is, for commands that
+    use only its cameras (``trackerd record``, ``recording import``: a board recorded for calibration).
     """
     rig_path = Path(path)
     rig = parse_rig(read_toml(rig_path), rig_path)
-    for index, cam in enumerate(rig.cameras):
-        if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
-            raise ConfigError(
-                f"{rig_path}: cameras[{index}].pixel_format: {cam.pixel_format} is monochrome and cannot tell"
-                f" the pointer's red end from its blue end; use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
-                f" to track ({cam.pixel_format} is fine for `trackerd calibrate`)"
-            )
     sources = {cam.id: f"inline in {rig_path.name}" for cam in rig.cameras}
     sources["wall"] = f"inline in {rig_path.name}"
     calibration_path: Path | None = None
+    not_ready: list[CalibrationPending] = []
+    frame = None
     if rig.calibration is not None:
         calibration_path = (rig_path.parent / rig.calibration).resolve()
         if not calibration_path.exists():
-            raise ConfigError(
-                f"{rig_path}: calibration: {calibration_path}: no such file"
-                " (the path is relative to the rig file)"
-            )
-        calibration = load_calibration(calibration_path)
-        rig = merge_calibration(rig, calibration, calibration_path)
-        for camera_id, entry in calibration.cameras.items():
-            given = [part for part in ("intrinsics", "extrinsics") if getattr(entry, part)]
-            if len(given) == 2:
-                sources[camera_id] = f"from {calibration_path.name}"
-            elif given:
-                kept = "extrinsics" if given[0] == "intrinsics" else "intrinsics"
-                sources[camera_id] = (
-                    f"{given[0]} from {calibration_path.name}, {kept} inline in {rig_path.name}"
-                )
-        if calibration.wall is not None:
-            sources["wall"] = f"from {calibration_path.name}"
-    for table, given in (("wall", rig.wall), ("pointer", rig.pointer)):
-        if given is None:
-            where = " (here, or in the calibration file from `trackerd calibrate wall`)" if table == "wall" else ""
-            raise ConfigError(
-                f"{rig_path}: {table}: required table is missing{where}; tracking needs it"
-                " (config/datawall.toml has one to copy)"
-            )
+            not_ready.append(CalibrationPending(
+                rig_path,
+                f"calibration: {calibration_path}: no such file yet (the path is relative to the rig file);"
+                f" `trackerd calibrate intrinsics --config {rig_path.name} --camera {rig.cameras[0].id}` writes it",
+            ))
+        else:
+            calibration = load_calibration(calibration_path)
+            rig = merge_calibration(rig, calibration, calibration_path)
+            for camera_id, entry in calibration.cameras.items():
+                given = [part for part in ("intrinsics", "extrinsics") if getattr(entry, part)]
+                if len(given) == 2:
+                    sources[camera_id] = f"from {calibration_path.name}"
+                elif given:
+                    kept = "extrinsics" if given[0] == "intrinsics" else "intrinsics"
+                    sources[camera_id] = (
+                        f"{given[0]} from {calibration_path.name}, {kept} inline in {rig_path.name}"
+                    )
+            if calibration.wall is not None:
+                sources["wall"] = f"from {calibration_path.name}"
+            frame = _unfinished_frame(calibration)
     for index, cam in enumerate(rig.cameras):
         for part in ("intrinsics", "extrinsics"):
             if getattr(cam, part) is None:
                 where = f" or in {calibration_path}" if calibration_path else ""
                 step = f"intrinsics --camera {cam.id}" if part == "intrinsics" else "stereo"
-                raise ConfigError(
-                    f"{rig_path}: cameras[{index}] ('{cam.id}') has no {part}; give them in"
+                not_ready.append(CalibrationPending(
+                    rig_path,
+                    f"cameras[{index}] ('{cam.id}') has no {part}; give them in"
                     f" [cameras.{part}]{where} (a calibration file named by 'calibration'), or run"
-                    f" `trackerd calibrate {step} --config {rig_path.name}`"
-                )
-    frame = _unfinished_frame(calibration) if rig.calibration is not None and check_wall else None
+                    f" `trackerd calibrate {step} --config {rig_path.name}`",
+                ))
     if frame is not None:
         # After `calibrate stereo` on a rig without poses the cameras are in camera 1's frame and the
         # rig's wall, in its own frame, does not match them: not a wrong wall, a step still to come.
-        raise ConfigError(
-            f"{calibration_path}: the cameras are in {frame}'s frame (as `trackerd calibrate stereo` left them)"
-            f" and the wall is not calibrated in it yet; next: `trackerd calibrate wall --config {rig_path.name}`"
-        )
-    if check_wall:
+        not_ready.append(CalibrationPending(
+            calibration_path,
+            f"the cameras are in {frame}'s frame (as `trackerd calibrate stereo` left them)"
+            f" and the wall is not calibrated in it yet; next: `trackerd calibrate wall --config {rig_path.name}`",
+        ))
+    for table, given in (("wall", rig.wall), ("pointer", rig.pointer)):
+        if given is None:
+            where = " (here, or in the calibration file from `trackerd calibrate wall`)" if table == "wall" else ""
+            not_ready.append(CalibrationPending(
+                rig_path,
+                f"{table}: required table is missing{where}; tracking needs it"
+                " (config/datawall.toml has one to copy)",
+            ))
+    for index, cam in enumerate(rig.cameras):
+        if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
+            not_ready.append(CalibrationPending(
+                rig_path,
+                f"cameras[{index}].pixel_format: {cam.pixel_format} is monochrome and cannot tell"
+                f" the pointer's red end from its blue end; use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
+                f" to track ({cam.pixel_format} is fine for `trackerd calibrate`)",
+            ))
+    # What can be checked is checked either way: every lens there is, and the wall against the cameras
+    # once every camera is posed in the wall's frame.
+    posed = all(cam.intrinsics is not None and cam.extrinsics is not None for cam in rig.cameras)
+    if posed and rig.wall is not None and frame is None:
         _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
     rig = _resolve_paths(rig, rig_path)
     for index, cam in enumerate(rig.cameras):
+        if cam.intrinsics is None or cam.extrinsics is None:
+            continue
         from_calibration = sources[cam.id].startswith(("from ", "intrinsics from "))
         if from_calibration:
             _check_lens(cam, f"{calibration_path}: cameras.{cam.id}")
         else:
             _check_lens(cam, f"{rig_path}: cameras[{index}]")
+    if not_ready and for_tracking:
+        raise not_ready[0]
     return LoadedRig(rig, rig_path, calibration_path, sources)
+
+
+def check_ready_to_track(rig: RigConfig, where: object) -> None:
+    """For a rig assembled elsewhere (a recording's): CalibrationPending unless it can track as load_rig
+    would have it (wall, pointer, every camera's lens and pose, colour), then the geometric checks."""
+    for table in ("wall", "pointer"):
+        if getattr(rig, table) is None:
+            raise CalibrationPending(where, f"{table}: required table is missing; tracking needs it")
+    for index, cam in enumerate(rig.cameras):
+        missing = [part for part in ("intrinsics", "extrinsics") if getattr(cam, part) is None]
+        if missing:
+            raise CalibrationPending(where, f"cameras[{index}] ('{cam.id}') has no {' or '.join(missing)}")
+        if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
+            raise CalibrationPending(
+                where, f"cameras[{index}].pixel_format: Mono8 cannot tell the pointer's red end from its blue end"
+            )
+    check_rig_geometry(rig, Path(str(where)))
 
 
 def _unfinished_frame(calibration: CalibrationFile) -> str | None:

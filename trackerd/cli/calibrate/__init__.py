@@ -88,9 +88,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--min-pairs",
         type=int,
         default=MIN_PAIRS,
-        help=f"fewest pairs (default {MIN_PAIRS}; under {MIN_PAIRS_FLOOR} only with --force)",
+        help=f"fewest pairs (default {MIN_PAIRS}; at least {MIN_PAIRS_FLOOR}, which telling a pair out of sync"
+        " needs)",
     )
-    _force(p)
     _report(p)
     p.add_argument(
         "--refine-intrinsics",

@@ -67,7 +67,7 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         rejected = [("live", kind) for kind, count in session.rejections.items() for _ in range(count)]
         collected = Collected(views=list(session.views), frames=session.frames, rejected=rejected)
     else:
-        files, said = image_files(args.images, cam.id)
+        files, said = image_files(args.images, cam.id, [c.id for c in context.rig.cameras])
         image_files_used = files
         for line in said:
             out.say(line)
@@ -150,8 +150,8 @@ def _without_an_unsupported_k3(
     if simpler.rms_px > result.rms_px * (1.0 + K3_GAIN_NEEDED):
         return result
     out.say(
-        f"k3 left out (--distortion 4): with it the lens folds over near pixel ({pixel[0]:.0f}, {pixel[1]:.0f}),"
-        f" where no corner was seen, and it lowers the RMS only from {simpler.rms_px:.3f} to {result.rms_px:.3f} px"
+        f"k3 left out (--distortion 4): with it the lens folds over near pixel ({pixel[0]:.0f}, {pixel[1]:.0f})"
+        f" at the image's edge, and it lowers the RMS only from {simpler.rms_px:.3f} to {result.rms_px:.3f} px"
     )
     return simpler
 

@@ -33,10 +33,10 @@ from trackerd.geometry.camera import CameraModel
 
 def stereo_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
-    if args.min_pairs < MIN_PAIRS_FLOOR and not args.force:
+    if args.min_pairs < MIN_PAIRS_FLOOR:
         raise CalibrationError(
-            f"--min-pairs {args.min_pairs} is under {MIN_PAIRS_FLOOR}: with so few pairs one taken out of sync"
-            " cannot be told from the others; add pairs, or give --force to calibrate from so few anyway"
+            f"--min-pairs {args.min_pairs} is under {MIN_PAIRS_FLOOR}: with fewer pairs one taken out of sync"
+            " cannot be told from the others"
         )
     context = open_rig(args.config, args.output)
     rig = context.merged()
@@ -143,6 +143,22 @@ def stereo_command(args: argparse.Namespace) -> int:
         **stereo_json(result, collected.rejected, frame),
         "warnings": [*quality_warnings(result.rms_px), *warnings],
     }
+    if args.report:
+        if snapshots is not None and snapshots.is_dir():  # a live session's pairs, saved as <name>-<camera>.png
+            moments = {
+                name: {cam.id: snapshots / f"{name}-{cam.id}.png" for cam in (cam1, cam2)}
+                for name in result.pair_names
+                if all((snapshots / f"{name}-{cam.id}.png").exists() for cam in (cam1, cam2))
+            }
+        images = {}
+        for name in result.pair_names:
+            if name in moments:
+                frames = read_pair(moments[name], [cam1, cam2], grey_ok=True)
+                images[name] = (grey_for_calibration(frames[0][1], frames[0][2]),
+                                grey_for_calibration(frames[1][1], frames[1][2]))
+        pictures = stereo_pictures(Path(args.report), (cam1.id, cam2.id), result, collected.pairs, images)
+        index = write_index(Path(args.report), f"stereo {cam1.id} -> {cam2.id}", text.splitlines()[:2], pictures)
+        out.say(f"report: {index} ({len(pictures)} pictures)")
     if result.rms_px > args.max_rms:
         out.result(text, {**report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
@@ -172,22 +188,6 @@ def stereo_command(args: argparse.Namespace) -> int:
     out.result(text, {**report, **written})
     for note in notes:
         out.say(note)
-    if args.report:
-        if snapshots is not None and snapshots.is_dir():  # a live session's pairs, saved as <name>-<camera>.png
-            moments = {
-                name: {cam.id: snapshots / f"{name}-{cam.id}.png" for cam in (cam1, cam2)}
-                for name in result.pair_names
-                if all((snapshots / f"{name}-{cam.id}.png").exists() for cam in (cam1, cam2))
-            }
-        images = {}
-        for name in result.pair_names:
-            if name in moments:
-                frames = read_pair(moments[name], [cam1, cam2], grey_ok=True)
-                images[name] = (grey_for_calibration(frames[0][1], frames[0][2]),
-                                grey_for_calibration(frames[1][1], frames[1][2]))
-        pictures = stereo_pictures(Path(args.report), (cam1.id, cam2.id), result, collected.pairs, images)
-        index = write_index(Path(args.report), f"stereo {cam1.id} -> {cam2.id}", text.splitlines()[:2], pictures)
-        out.say(f"report: {index} ({len(pictures)} pictures)")
     return 0
 
 
