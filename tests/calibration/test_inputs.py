@@ -29,7 +29,7 @@ def test_a_folder_gives_the_images_named_for_the_camera(tmp_path: Path) -> None:
     assert said == [f"{tmp_path / 'both'}: the 2 named for camera left of its 5 image(s)"]
     # A folder of another camera's images only is refused, not taken as this one's.
     _touch(tmp_path / "right-only", "right01.jpg", "right02.jpg")
-    with pytest.raises(CalibrationError, match="no image named for camera left .*named for right"):
+    with pytest.raises(CalibrationError, match=r"no image named for camera left .*named for right"):
         image_files([tmp_path / "right-only"], "left", ["left", "right"])
     # Images named for no camera are all taken, and it is said.
     _touch(tmp_path / "plain", "a.png", "b.png")
