@@ -162,3 +162,48 @@ def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_sou
         assert cv2.imwrite(str(pairs / f"01-{side}.png"), image)
     run = trackerd("calibrate", "check", "--config", "rig.toml", "--pairs", "pairs", cwd=tmp_path)
     one_line_error(run, "camera 'left' is Mono8", "only a colour camera tells apart")
+
+
+def test_a_wrong_board_size_is_answered_with_the_board_in_the_photos_and_config_check_names_each_next_step(
+    tmp_path: Path,
+) -> None:
+    _mono_rig(tmp_path)
+    shutil.copytree(REPO / "tests" / "data" / "opencv-stereo-chessboard", tmp_path / "photos")
+    intrinsics = ("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left")
+    # Inner corners given as squares, one too many each way, or the long side one too long: OpenCV also
+    # finds parts of the board (5 x 8 inside 9 x 6) and grids running onto its margin (9 x 7); the hint
+    # names the board itself, the way round it was given.
+    for given, shown, board in (("9x6", "9 x 6", "10x7"), ("11x8", "9 x 6", "10x7"), ("6x9", "6 x 9", "7x10")):
+        run = trackerd(*intrinsics, "--board", f"chessboard:{given}:25", "photos", "--dry-run", cwd=tmp_path)
+        one_line_error(run, f"shows {shown}: give --board chessboard:{board}:25")
+    # After the first camera's lens, config check names the second's, not the stereo step.
+    assert trackerd(*intrinsics, *BOARD, "photos", cwd=tmp_path).returncode == 0
+    run = trackerd("config", "check", "rig.toml", cwd=tmp_path)
+    assert run.returncode == 0 and "cameras[1] ('right') has no intrinsics" in run.stdout, run.stdout
+    assert "`trackerd calibrate intrinsics --camera right --config rig.toml`" in run.stdout
+
+    # With both lenses, stereo given the wrong board says which board the photos show.
+    run = trackerd(
+        "calibrate", "intrinsics", "--config", "rig.toml", "--camera", "right", *BOARD, "photos", cwd=tmp_path
+    )
+    assert run.returncode == 0, run.stderr
+    run = trackerd(
+        "calibrate",
+        "stereo",
+        "--config",
+        "rig.toml",
+        "--board",
+        "chessboard:9x6:25",
+        "--pairs",
+        "photos",
+        "--dry-run",
+        cwd=tmp_path,
+    )
+    one_line_error(run, "no pair in 13 had the board seen by both cameras", "give --board chessboard:10x7:25")
+    # A report run again replaces its own section and pictures.
+    for photos in (["photos"], [f"photos/left{k:02d}.jpg" for k in (1, 2, 3, 4, 5, 6, 7, 8, 9)]):
+        run = trackerd(*intrinsics, *BOARD, *photos, "--report", "report", "--dry-run", cwd=tmp_path)
+        assert run.returncode == 0, run.stderr
+    index = (tmp_path / "report" / "index.html").read_text()
+    assert index.count("<h2>camera left</h2>") == 1 and "in 9 views" in index
+    assert len(list((tmp_path / "report").glob("left-view-*.png"))) == 9

@@ -412,7 +412,7 @@ def test_the_daemon_refuses_a_rig_not_ready_to_track_in_one_line(
         check=False,
     )
     assert run.returncode == 2 and "Traceback" not in run.stderr
-    assert run.stderr.strip().splitlines()[-1].endswith("(Mono8 is fine for `trackerd calibrate`)")
+    assert run.stderr.strip().splitlines()[-1].endswith("so it needs colour too)")
     assert "cameras[1].pixel_format: Mono8 is monochrome" in run.stderr
 
 

@@ -497,22 +497,35 @@ def _board_likely(image: NDArray[np.uint8], cols: int, rows: int) -> bool:
 
 
 def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
-    """A board of another size that is in the image (one more or one fewer inner corner each way, or
-    the two swapped), as the --board to give; None when none is. For when no image shows the board."""
+    """The board of another size that is in the image (one more or one fewer inner corner each way,
+    either way round), as the --board to give; None when none is. For when no image shows the board.
+
+    OpenCV's detector also finds part of a larger board (5 x 8 inner corners inside a 9 x 6 one), so
+    every neighbouring size is tried and the largest found is named, the way round the user gave.
+    """
     if spec.kind != "chessboard":
         return None
     cols, rows = spec.inner_corners
     if min(grey.shape[:2]) >= 720:
         grey = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    tried = set()
-    for dc, dr in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
-        for c, r in ((cols + dc, rows + dr), (rows + dr, cols + dc)):
-            if (c, r) in tried or (c, r) == (cols, rows) or min(c, r) < 2:
-                continue
-            tried.add((c, r))
-            if _sb(grey, c, r, cv2.CALIB_CB_NORMALIZE_IMAGE) is not None or _sb(grey, c, r, 0) is not None:
-                return f"chessboard:{c + 1}x{r + 1}:{_mm(spec.square_m)}"
-    return None
+    found: list[tuple[int, bool, int, int]] = []
+    tried = {(cols, rows), (rows, cols)}  # the size given, either way round, is what was not found
+    for dc in (-1, 0, 1):
+        for dr in (-1, 0, 1):
+            for swapped, (c, r) in ((False, (cols + dc, rows + dr)), (True, (rows + dr, cols + dc))):
+                if (c, r) in tried or min(c, r) < 2:
+                    continue
+                tried.add((c, r))
+                for flags in (cv2.CALIB_CB_NORMALIZE_IMAGE, 0):
+                    corners = _sb(grey, c, r, flags)
+                    # A grid that runs onto the printed margin is not a board of that size.
+                    if corners is not None and corners_are_junctions(grey, corners.reshape(r, c, 2)):
+                        found.append((c * r, not swapped, c, r))
+                        break
+    if not found:
+        return None
+    _, _, c, r = max(found)
+    return f"chessboard:{c + 1}x{r + 1}:{_mm(spec.square_m)}"
 
 
 def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows: int, finder: str) -> Array | None:

@@ -77,7 +77,9 @@ def image_files(paths: Sequence[str | Path], camera_id: str, camera_ids: Sequenc
             continue
         images = images_in(path)
         if not images:
-            raise CalibrationError(f"{path}: a folder without images ({', '.join(IMAGE_SUFFIXES)})")
+            inner = sorted(p.name for p in path.iterdir() if p.is_dir())
+            within = f"; it holds the folder(s) {', '.join(inner)}: name the camera's own" if inner else ""
+            raise CalibrationError(f"{path}: a folder without images ({', '.join(IMAGE_SUFFIXES)}){within}")
         owner = {image: camera_named_in(image.stem, ids) for image in images}
         mine = [image for image in images if owner[image] == camera_id]
         if any(owner.values()):

@@ -61,6 +61,12 @@ def _write(folder: Path, name: str, image: NDArray[np.uint8]) -> str:
     return name
 
 
+def _remove_old(folder: Path, pattern: str) -> None:
+    """A step run again: its earlier run's single-view pictures go (it may have had other views)."""
+    for old in folder.glob(pattern):
+        old.unlink(missing_ok=True)
+
+
 def _report_folder(folder: Path) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -170,6 +176,7 @@ def intrinsics_pictures(
     """Write a lens's pictures into ``folder``; ``images`` are the grey images by view name (views without
     one get no picture of their own)."""
     _report_folder(folder)
+    _remove_old(folder, f"{camera_id}-view-*.png")
     by_name = {view.name: view for view in views}
     used = [by_name[name] for name in result.view_names if name in by_name]
     pictures = [
@@ -239,7 +246,9 @@ def rectified_picture(
     for y in range(16, both.shape[0], 32):
         cv2.line(both, (0, y), (both.shape[1] - 1, y), (0, 200, 255), 1)
     both, _ = _fit_width(both)
-    _label(both, f"{ids[0]} | {ids[1]} rectified, pair {pair.name}: epipolar RMS {result.epipolar_rms_px:.3f} px")
+    k = result.pair_names.index(pair.name)
+    epipolar = result.per_pair_epipolar_px[k]
+    _label(both, f"{ids[0]} | {ids[1]} rectified, pair {pair.name}: epipolar RMS {epipolar:.3f} px")
     return both
 
 
@@ -252,6 +261,7 @@ def stereo_pictures(
 ) -> list[Picture]:
     """Write the pair's pictures: per-pair RMS bars and each pair (with images) rectified."""
     _report_folder(folder)
+    _remove_old(folder, "stereo-rectified-*.png")
     pictures = [
         Picture(
             _write(
@@ -280,28 +290,32 @@ def stereo_pictures(
 
 
 def write_index(folder: Path, title: str, figures: Sequence[str], pictures: Sequence[Picture]) -> Path:
-    """``index.html``: the figures, then every picture with its caption (added to what is there)."""
+    """``index.html``: for each step, its figures and every picture with its caption. A step run again
+    replaces its own section (its pictures were written over), the other steps' stay."""
     index = folder / "index.html"
-    sections = []
-    if index.exists():
+    sections: list[tuple[str, str]] = []
+    if index.is_file():
         text = index.read_text()
-        start, end = text.find("<!-- sections -->"), text.find("<!-- end -->")
-        if 0 <= start < end:
-            sections.append(text[start + len("<!-- sections -->") : end])
+        for block in text.split("<!-- section ")[1:]:
+            name, _, rest = block.partition(" -->")
+            body, _, _ = rest.partition("<!-- /section -->")
+            if name != html.escape(title):
+                sections.append((name, body))
     body = [f"<h2>{html.escape(title)}</h2>", "<ul>"]
-    body += [f"<li>{html.escape(line)}</li>" for line in figures]
+    body += [f"<li>{html.escape(line.strip())}</li>" for line in figures]
     body.append("</ul>")
     for picture in pictures:
         body.append(
             f'<figure><img src="{html.escape(picture.file)}" alt="{html.escape(picture.caption)}">'
             f"<figcaption>{html.escape(picture.caption)}</figcaption></figure>"
         )
-    sections.append("\n".join(body) + "\n")
+    sections.append((html.escape(title), "\n" + "\n".join(body) + "\n"))
     text = (
         '<!doctype html>\n<html><head><meta charset="utf-8"><title>trackerd calibration report</title>\n'
         "<style>body{font-family:sans-serif;margin:2em} img{max-width:100%;border:1px solid #ccc}"
         " figure{margin:1em 0}</style></head><body>\n<h1>trackerd calibration report</h1>\n"
-        "<!-- sections -->" + "".join(sections) + "<!-- end -->\n</body></html>\n"
+        + "".join(f"<!-- section {name} -->{body}<!-- /section -->\n" for name, body in sections)
+        + "</body></html>\n"
     )
     try:
         index.write_text(text)

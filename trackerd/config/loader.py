@@ -314,8 +314,9 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
             if calibration.wall is not None:
                 sources["wall"] = f"from {calibration_path.name}"
             frame = _unfinished_frame(calibration)
-    for index, cam in enumerate(rig.cameras):
-        for part in ("intrinsics", "extrinsics"):
+    # In the order the steps run: every lens, then the poses, then what only colour cameras can do.
+    for part in ("intrinsics", "extrinsics"):
+        for index, cam in enumerate(rig.cameras):
             if getattr(cam, part) is None:
                 where = f" or in {calibration_path}" if calibration_path else ""
                 step = f"intrinsics --camera {cam.id}" if part == "intrinsics" else "stereo"
@@ -325,13 +326,25 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
                     f" [cameras.{part}]{where} (a calibration file named by 'calibration'), or run"
                     f" `trackerd calibrate {step} --config {rig_path.name}`",
                 ))
+    for index, cam in enumerate(rig.cameras):
+        if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
+            not_ready.append(CalibrationPending(
+                rig_path,
+                f"cameras[{index}].pixel_format: {cam.pixel_format} is monochrome and cannot tell"
+                f" the pointer's red end from its blue end; use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
+                f" to track ({cam.pixel_format} is fine for `trackerd calibrate intrinsics` and `stereo`; `calibrate"
+                " wall` locates the pointer, so it needs colour too)",
+            ))
     if frame is not None:
         # After `calibrate stereo` on a rig without poses the cameras are in camera 1's frame and the
         # rig's wall, in its own frame, does not match them: not a wrong wall, a step still to come.
+        tables = [f"[{t}]" for t, v in (("wall", rig.wall), ("pointer", rig.pointer)) if v is None]
+        first = f" (it needs {' and '.join(tables)} in {rig_path.name} first: the wall's nominal size, the pointer)"
         not_ready.append(CalibrationPending(
             calibration_path,
             f"the cameras are in {frame}'s frame (as `trackerd calibrate stereo` left them)"
-            f" and the wall is not calibrated in it yet; next: `trackerd calibrate wall --config {rig_path.name}`",
+            f" and the wall is not calibrated in it yet; next: `trackerd calibrate wall --config {rig_path.name}`"
+            + (first if tables else ""),
         ))
     for table, given in (("wall", rig.wall), ("pointer", rig.pointer)):
         if given is None:
@@ -340,14 +353,6 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
                 rig_path,
                 f"{table}: required table is missing{where}; tracking needs it"
                 " (config/datawall.toml has one to copy)",
-            ))
-    for index, cam in enumerate(rig.cameras):
-        if cam.pixel_format == CALIBRATION_ONLY_FORMAT:
-            not_ready.append(CalibrationPending(
-                rig_path,
-                f"cameras[{index}].pixel_format: {cam.pixel_format} is monochrome and cannot tell"
-                f" the pointer's red end from its blue end; use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
-                f" to track ({cam.pixel_format} is fine for `trackerd calibrate`)",
             ))
     # What can be checked is checked either way: every lens there is, and the wall against the cameras
     # once every camera is posed in the wall's frame.

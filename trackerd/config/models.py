@@ -192,7 +192,10 @@ class CameraConfig(_Model):
                 f" use one of {', '.join(COLOUR_PIXEL_FORMATS)} ({CALIBRATION_ONLY_FORMAT} for calibration only)"
             )
         if value not in (*COLOUR_PIXEL_FORMATS, CALIBRATION_ONLY_FORMAT):
-            raise ValueError(f"'{value}' is not supported; use one of {', '.join(COLOUR_PIXEL_FORMATS)}")
+            raise ValueError(
+                f"'{value}' is not supported; use one of {', '.join(COLOUR_PIXEL_FORMATS)}"
+                f" ({CALIBRATION_ONLY_FORMAT} for calibration only)"
+            )
         return value
 
     @model_validator(mode="after")

@@ -104,7 +104,9 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         for name, frame, fmt in camera_frames(used, cam):
             images[name] = images[Path(name).stem] = grey_for_calibration(frame, fmt)
         pictures = intrinsics_pictures(Path(args.report), cam.id, result, collected.views, images)
-        index = write_index(Path(args.report), f"camera {cam.id}", text.splitlines()[:3], pictures)
+        lines = text.splitlines()
+        figures = lines[:3] + [line for line in lines if line.strip().startswith(("not covered", "WARNING"))]
+        index = write_index(Path(args.report), f"camera {cam.id}", figures, pictures)
         out.say(f"report: {index} ({len(pictures)} pictures)")
     if result.rms_px > args.max_rms:
         out.result(text, {"camera": cam.id, **report, "written": None})

@@ -22,6 +22,7 @@ from trackerd.cli.calibrate.common import (
     Output,
     check_source,
     lens_of,
+    no_board_hint,
     run_live,
     simulated_boards,
     snapshot_dir,
@@ -85,7 +86,12 @@ def stereo_command(args: argparse.Namespace) -> int:
         for name, reason in collected.rejected:
             out.say(f"  {name}: {reason}")
     if not collected.pairs and collected.frames:
-        raise CalibrationError(f"no pair in {collected.frames} had the board seen by both cameras")
+        hint = ""
+        if moments and all("no whole board found" in reason for _, reason in collected.rejected):
+            first = next(iter(moments.values()))
+            frame = read_pair(first, [cam1, cam2], grey_ok=True)[0]
+            hint = no_board_hint(spec, frame)
+        raise CalibrationError(f"no pair in {collected.frames} had the board seen by both cameras{hint}")
     result = calibrate_stereo(
         collected.pairs,
         lens1,
@@ -157,7 +163,9 @@ def stereo_command(args: argparse.Namespace) -> int:
                 images[name] = (grey_for_calibration(frames[0][1], frames[0][2]),
                                 grey_for_calibration(frames[1][1], frames[1][2]))
         pictures = stereo_pictures(Path(args.report), (cam1.id, cam2.id), result, collected.pairs, images)
-        index = write_index(Path(args.report), f"stereo {cam1.id} -> {cam2.id}", text.splitlines()[:2], pictures)
+        lines = text.splitlines()
+        figures = lines[:2] + [line for line in lines if line.strip().startswith("WARNING")]
+        index = write_index(Path(args.report), f"stereo {cam1.id} -> {cam2.id}", figures, pictures)
         out.say(f"report: {index} ({len(pictures)} pictures)")
     if result.rms_px > args.max_rms:
         out.result(text, {**report, "written": None})
