@@ -305,3 +305,38 @@ def test_a_subscriber_of_hits_only_never_sees_status(tcp_publisher, context):
     while sub.poll(100):
         assert sub.recv_multipart()[0] == b"hit"
     assert zmq.zmq_version_info() >= (4, 2)
+
+
+def test_nothing_a_peer_sends_upstream_is_stored_or_published(context):
+    """A peer that can connect may send anything upstream: a forged status, a one-frame message.
+    Sent on one connection before its own subscription (so that the proxy passes them on in that
+    order), none of it becomes the status the late-joiner answer carries, and the publisher goes on."""
+    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as publisher:
+        publisher.publish_status(status_message(sequence=7))
+        publisher._lvc.wait_for_statuses(1, timeout_s=5.0)
+        listener = subscriber(context, publisher.endpoints[0], b"status")
+        assert listener.poll(5000) and json.loads(listener.recv_multipart()[1])["sequence"] == 7
+        peer = context.socket(zmq.XSUB)
+        peer.setsockopt(zmq.LINGER, 0)
+        peer.connect(publisher.endpoints[0])
+        forged = json.dumps({**json.loads(status_message(sequence=666).model_dump_json()), "state": "FORGED"})
+        peer.send_multipart([b"status", forged.encode()])
+        peer.send(b"status")  # one frame, neither a subscription nor a message
+        peer.send(b"\x01status")
+        assert peer.poll(5000)
+        answer = peer.recv_multipart()
+        assert len(answer) == 2 and json.loads(answer[1])["sequence"] == 7
+        # The subscriber already there got nothing of it (status 7 again at most: the answer to a
+        # joiner reaches every status subscriber, docs/protocol.md), and the next real status reaches both.
+        publisher.publish_status(status_message(sequence=8))
+        for sock in (listener, peer):
+            seen = []
+            while not seen or seen[-1]["sequence"] != 8:
+                assert sock.poll(5000), seen
+                parts = sock.recv_multipart()
+                assert len(parts) == 2
+                seen.append(json.loads(parts[1]))
+            assert {status["sequence"] for status in seen} <= {7, 8} and all(s["state"] != "FORGED" for s in seen)
+        late = subscriber(context, publisher.endpoints[0], b"status")
+        assert late.poll(5000) and json.loads(late.recv_multipart()[1])["sequence"] == 8
+        peer.close()

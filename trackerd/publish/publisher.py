@@ -30,6 +30,7 @@ inside ZeroMQ and touches nobody else.
 
 from __future__ import annotations
 
+import collections
 import itertools
 import logging
 import os
@@ -227,9 +228,15 @@ class Publisher:
         return self._send(*encode(stamped))
 
     def _send(self, topic: bytes, payload: bytes) -> bool:
+        if topic == STATUS_TOPIC:
+            # Told to the last-value thread before it can pass the proxy, so that the thread knows it
+            # from statuses a peer sends upstream (which the proxy's capture shows it too).
+            self._lvc.expect(payload)
         try:
             self._inlet.send_multipart((topic, payload), flags=zmq.NOBLOCK)
         except zmq.Again:
+            if topic == STATUS_TOPIC:
+                self._lvc.forget(payload)
             self._dropped += 1
             return False
         name = topic.decode("ascii")
@@ -322,7 +329,13 @@ def _run_proxy(frontend: zmq.Socket, xpub: zmq.Socket, capture: zmq.Socket, cont
 
 
 class _LastValue:
-    """The last-value thread: keeps the last status and sends it again to each new status subscriber."""
+    """The last-value thread: keeps the last status and sends it again to each new status subscriber.
+
+    The proxy's capture shows it what passes in both directions: the pipeline's statuses on their way
+    out, and whatever peers send upstream. A peer may send anything, a forged ``status`` included, so
+    only a status the publisher itself sent (``expect``) is kept, and only a single-frame subscription
+    is answered: nothing that arrives from a subscriber is ever stored or published.
+    """
 
     def __init__(self, context: zmq.Context) -> None:
         self._sub = context.socket(zmq.SUB)
@@ -331,6 +344,8 @@ class _LastValue:
         self._stop = threading.Event()
         self._seen = threading.Condition()
         self._statuses = 0
+        self._expected: collections.deque[bytes] = collections.deque(maxlen=256)  # a few minutes of statuses
+        self._expected_lock = threading.Lock()
         self._thread = threading.Thread(target=self._run, name="trackerd-zmq-last-value", daemon=True)
 
     def connect(self, capture: str, frontend: str) -> None:
@@ -348,6 +363,27 @@ class _LastValue:
 
     def start(self) -> None:
         self._thread.start()
+
+    def expect(self, payload: bytes) -> None:
+        """A status the publisher is about to send (called in the publishing thread)."""
+        with self._expected_lock:
+            self._expected.append(payload)
+
+    def forget(self, payload: bytes) -> None:
+        """A status that could not be sent after all."""
+        with self._expected_lock:
+            if payload in self._expected:
+                self._expected.remove(payload)
+
+    def _ours(self, payload: bytes) -> bool:
+        """Whether a status seen on the capture is one the publisher sent (each is seen once; its
+        publish time makes each payload unique), dropping those sent before it."""
+        with self._expected_lock:
+            if payload not in self._expected:
+                return False
+            while self._expected.popleft() != payload:
+                pass
+            return True
 
     def wait_for_statuses(self, count: int, timeout_s: float) -> None:
         """Block until ``count`` statuses went through the proxy, or the timeout passes."""
@@ -370,13 +406,19 @@ class _LastValue:
                 if not self._sub.poll(_POLL_MS):
                     continue
                 parts = self._sub.recv_multipart()
-                if parts[0] == STATUS_TOPIC:
-                    if parts != last:  # our own repeat comes back through the capture too
+                if len(parts) == 2 and parts[0] == STATUS_TOPIC:
+                    # Ours on its way out; not a peer's upload, nor our own answer coming back.
+                    if self._ours(parts[1]):
                         last = parts
                         with self._seen:
                             self._statuses += 1
                             self._seen.notify_all()
-                elif STATUS_TOPIC.startswith(parts[0][1:]) and last is not None:
+                elif (
+                    len(parts) == 1
+                    and parts[0][:1] == b"\x01"
+                    and STATUS_TOPIC.startswith(parts[0][1:])
+                    and last is not None
+                ):
                     self._pub.send_multipart(last, flags=zmq.NOBLOCK)
         except zmq.ContextTerminated:
             pass
