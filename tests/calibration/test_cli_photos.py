@@ -12,11 +12,13 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.calibration.test_cli import one_line_error, trackerd
+from tests.calibration.test_cli import INTRINSICS, one_line_error, trackerd
 from tests.calibration.test_real_photos import RMS_MARGIN, _photos, _plain_opencv, _plain_stereo
 
 REPO = Path(__file__).resolve().parents[2]
+PHOTOS = REPO / "tests" / "data" / "opencv-stereo-chessboard"
 BOARD = ("--board", "chessboard:10x7:25")
+STEREO = ("calibrate", "stereo", "--config", "rig.toml")
 
 
 def _mono_rig(workspace: Path) -> None:
@@ -29,6 +31,13 @@ def _mono_rig(workspace: Path) -> None:
     (workspace / "rig.toml").write_text(
         f'version = 1\nname = "photos"\ncalibration = "photos-calibration.toml"\n{cameras}'
     )
+
+
+def photo_workspace(workspace: Path) -> Path:
+    """The rig above and the photos as they come, in ``photos/``; returns the workspace."""
+    _mono_rig(workspace)
+    shutil.copytree(PHOTOS, workspace / "photos")
+    return workspace
 
 
 @pytest.mark.parametrize("variant", ["as photographed", "veiling glare"])
@@ -44,18 +53,7 @@ def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp
 
     # Intrinsics from the folder: the camera's own photos are taken from it, every one kept.
     for side in ("left", "right"):
-        run = trackerd(
-            "calibrate",
-            "intrinsics",
-            "--config",
-            "rig.toml",
-            "--camera",
-            side,
-            *BOARD,
-            "photos",
-            "--json",
-            cwd=tmp_path,
-        )
+        run = trackerd(*INTRINSICS, side, *BOARD, "photos", "--json", cwd=tmp_path)
         assert run.returncode == 0, run.stderr
         assert f"photos: the 13 named for camera {side} of its 26 image(s)" in run.stderr
         report = json.loads(run.stdout)
@@ -69,7 +67,7 @@ def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp
         assert len(report["distortion"]) == (4 if dropped_k3 else 5)
 
     # Stereo from the same folder, paired by the names' camera prefix.
-    run = trackerd("calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "photos", "--json", cwd=tmp_path)
+    run = trackerd(*STEREO, *BOARD, "--pairs", "photos", "--json", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     assert "photos: 13 pair(s), files named <camera><name> (left, right)" in run.stderr
     stereo = json.loads(run.stdout)
@@ -82,70 +80,27 @@ def test_a_folder_of_photos_calibrates_as_well_as_plain_opencv(variant: str, tmp
         (tmp_path / "split" / side).mkdir(parents=True)
         for path in folder.glob(f"{side}*.png"):
             shutil.copy(path, tmp_path / "split" / side / path.name)
-    run = trackerd(
-        "calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "split", "--json", "--dry-run", cwd=tmp_path
-    )
+    run = trackerd(*STEREO, *BOARD, "--pairs", "split", "--json", "--dry-run", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     assert "split: 13 pair(s), subfolders left/, right/ (files paired by name)" in run.stderr
     assert json.loads(run.stdout)["rms_px"] == pytest.approx(stereo["rms_px"], abs=1e-6)
 
 
 def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_source(tmp_path: Path) -> None:
-    _mono_rig(tmp_path)
-    folder = tmp_path / "photos"
-    shutil.copytree(REPO / "tests" / "data" / "opencv-stereo-chessboard", folder)
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "left",
-        *BOARD,
-        "--snapshots",
-        "saved",
-        "photos",
-        cwd=tmp_path,
-    )
+    photo_workspace(tmp_path)
+    run = trackerd(*INTRINSICS, "left", *BOARD, "--snapshots", "saved", "photos", cwd=tmp_path)
     one_line_error(run, "--snapshots is for --live and --recording", "IMAGE... files are on disk already")
     assert not (tmp_path / "saved").exists()
     # Too few views: refused below the floor, and with --force calibrated with the warning in the JSON.
     few = [f"photos/left0{k}.jpg" for k in (1, 2, 3, 4, 5)]
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "left",
-        *BOARD,
-        "--min-views",
-        "4",
-        *few,
-        cwd=tmp_path,
-    )
+    run = trackerd(*INTRINSICS, "left", *BOARD, "--min-views", "4", *few, cwd=tmp_path)
     one_line_error(run, "--min-views 4 is under 6", "give --force")
     run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "left",
-        *BOARD,
-        "--min-views",
-        "4",
-        "--force",
-        "--dry-run",
-        "--json",
-        *few,
-        cwd=tmp_path,
+        *INTRINSICS, "left", *BOARD, "--min-views", "4", "--force", "--dry-run", "--json", *few, cwd=tmp_path
     )
     assert run.returncode == 0, run.stderr
     assert any("calibrated from 5 views, fewer than the 8" in w for w in json.loads(run.stdout)["warnings"])
-    run = trackerd(
-        "calibrate", "stereo", "--config", "rig.toml", *BOARD, "--min-pairs", "2", "--pairs", "photos", cwd=tmp_path
-    )
+    run = trackerd(*STEREO, *BOARD, "--min-pairs", "2", "--pairs", "photos", cwd=tmp_path)
     one_line_error(run, "--min-pairs 2 is under 3", "cannot be told from the others")
     # The new rig passes config check, which names the first step; tracking would refuse it.
     run = trackerd("config", "check", "rig.toml", cwd=tmp_path)
@@ -167,9 +122,8 @@ def test_a_mono8_rig_calibrates_but_does_not_track_and_snapshots_need_a_live_sou
 def test_a_wrong_board_size_is_answered_with_the_board_in_the_photos_and_config_check_names_each_next_step(
     tmp_path: Path,
 ) -> None:
-    _mono_rig(tmp_path)
-    shutil.copytree(REPO / "tests" / "data" / "opencv-stereo-chessboard", tmp_path / "photos")
-    intrinsics = ("calibrate", "intrinsics", "--config", "rig.toml", "--camera", "left")
+    photo_workspace(tmp_path)
+    intrinsics = (*INTRINSICS, "left")
     # Inner corners given as squares, one too many each way, or the long side one too long: OpenCV also
     # finds parts of the board (5 x 8 inside 9 x 6) and grids running onto its margin (9 x 7); the hint
     # names the board itself, the way round it was given.
@@ -183,22 +137,9 @@ def test_a_wrong_board_size_is_answered_with_the_board_in_the_photos_and_config_
     assert "`trackerd calibrate intrinsics --camera right --config rig.toml`" in run.stdout
 
     # With both lenses, stereo given the wrong board says which board the photos show.
-    run = trackerd(
-        "calibrate", "intrinsics", "--config", "rig.toml", "--camera", "right", *BOARD, "photos", cwd=tmp_path
-    )
+    run = trackerd(*INTRINSICS, "right", *BOARD, "photos", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
-    run = trackerd(
-        "calibrate",
-        "stereo",
-        "--config",
-        "rig.toml",
-        "--board",
-        "chessboard:9x6:25",
-        "--pairs",
-        "photos",
-        "--dry-run",
-        cwd=tmp_path,
-    )
+    run = trackerd(*STEREO, "--board", "chessboard:9x6:25", "--pairs", "photos", "--dry-run", cwd=tmp_path)
     one_line_error(run, "no pair in 13 had the board seen by both cameras", "give --board chessboard:10x7:25")
     # A report run again replaces its own section and pictures.
     for photos in (["photos"], [f"photos/left{k:02d}.jpg" for k in (1, 2, 3, 4, 5, 6, 7, 8, 9)]):

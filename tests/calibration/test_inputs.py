@@ -2,18 +2,15 @@
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from tests.calibration.test_cli_photos import photo_workspace
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.inputs import image_files
-
-REPO = Path(__file__).resolve().parents[2]
-PHOTOS = REPO / "tests" / "data" / "opencv-stereo-chessboard"
 
 
 def _touch(folder: Path, *names: str) -> None:
@@ -41,12 +38,7 @@ def test_a_folder_gives_the_images_named_for_the_camera(tmp_path: Path) -> None:
 def test_a_board_recorded_with_a_rig_that_cannot_track_does_not_replay_as_if_it_could(tmp_path: Path) -> None:
     """`recording import` takes a Mono8 rig without wall or pointer (a board for calibration); replaying
     that recording on its own rig is refused in one line, naming what is missing."""
-    cameras = "".join(
-        f'\n[[cameras]]\nid = "{side}"\nwidth_px = 640\nheight_px = 480\npixel_format = "Mono8"\n'
-        for side in ("left", "right")
-    )
-    (tmp_path / "rig.toml").write_text(f'version = 1\nname = "board"\n{cameras}')
-    shutil.copytree(PHOTOS, tmp_path / "photos")
+    photo_workspace(tmp_path)
 
     def trackerd(*args: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(

@@ -4,34 +4,19 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from tests.calibration.test_cli import trackerd
-from tests.calibration.test_cli_photos import BOARD, REPO, _mono_rig
+from tests.calibration.test_cli import INTRINSICS, trackerd
+from tests.calibration.test_cli_photos import BOARD, STEREO, photo_workspace
 from trackerd.calibration.pictures import BAR_BGR, COVERED_BGR, DETECTED_BGR, OUTLIER_BGR, UNCOVERED_BGR
 
 
 def test_report_pictures_show_the_views_coverage_rms_and_the_rectified_pair(tmp_path: Path) -> None:
-    _mono_rig(tmp_path)
-    shutil.copytree(REPO / "tests" / "data" / "opencv-stereo-chessboard", tmp_path / "photos")
-    run = trackerd(
-        "calibrate",
-        "intrinsics",
-        "--config",
-        "rig.toml",
-        "--camera",
-        "left",
-        *BOARD,
-        "photos",
-        "--report",
-        "report",
-        "--json",
-        cwd=tmp_path,
-    )
+    photo_workspace(tmp_path)
+    run = trackerd(*INTRINSICS, "left", *BOARD, "photos", "--report", "report", "--json", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     result = json.loads(run.stdout)
     report = tmp_path / "report"
@@ -62,15 +47,8 @@ def test_report_pictures_show_the_views_coverage_rms_and_the_rectified_pair(tmp_
     assert np.count_nonzero(np.all(first == DETECTED_BGR, axis=2)) > 54 * 10
 
     # Stereo adds the rectified pairs, and the index links every picture, all present.
-    assert (
-        trackerd(
-            "calibrate", "intrinsics", "--config", "rig.toml", "--camera", "right", *BOARD, "photos", cwd=tmp_path
-        ).returncode
-        == 0
-    )
-    run = trackerd(
-        "calibrate", "stereo", "--config", "rig.toml", *BOARD, "--pairs", "photos", "--report", "report", cwd=tmp_path
-    )
+    assert trackerd(*INTRINSICS, "right", *BOARD, "photos", cwd=tmp_path).returncode == 0
+    run = trackerd(*STEREO, *BOARD, "--pairs", "photos", "--report", "report", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     assert len(list(report.glob("stereo-rectified-*.png"))) == 13
     linked = re.findall(r'<img src="([^"]+)"', (report / "index.html").read_text())

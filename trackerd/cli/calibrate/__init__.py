@@ -56,7 +56,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=MIN_VIEWS,
         help=f"fewest views to calibrate from (default {MIN_VIEWS}; under {MIN_VIEWS_FLOOR} only with --force)",
     )
-    _force(p)
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"calibrate from fewer than {MIN_VIEWS_FLOOR} views (the result is written with a warning)",
+    )
     _report(p)
     p.add_argument(
         "--distortion",
@@ -174,14 +178,6 @@ def _board(text: str) -> BoardSpec:
         return BoardSpec.parse(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from err
-
-
-def _force(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="calibrate from fewer views or pairs than the floor (the result is written with a warning)",
-    )
 
 
 def _report(p: argparse.ArgumentParser) -> None:
