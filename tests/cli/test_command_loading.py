@@ -67,3 +67,24 @@ def test_the_global_options_are_not_abbreviated(capsys):
     with pytest.raises(SystemExit) as exit_:
         build_parser(["--he", "keys", "server"]).parse_args(["--he", "keys", "server"])
     assert exit_.value.code == 2 and "unrecognized arguments: --he" in capsys.readouterr().err
+
+
+def _every_parser(parser: argparse.ArgumentParser, path: str = "trackerd"):
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _every_parser(sub, f"{path} {name}")
+
+
+def test_every_commands_help_formats():
+    """`--help` of every command and subcommand, `calibrate intrinsics` included (a bare '%' in a help
+    text made it a traceback)."""
+    broken = []
+    for path, parser in _every_parser(build_parser()):
+        try:
+            parser.format_help()
+        except (ValueError, TypeError, KeyError) as err:
+            broken.append(f"{path}: {err}")
+    assert broken == []
+    assert sum(1 for _ in _every_parser(build_parser())) > len(COMMANDS)

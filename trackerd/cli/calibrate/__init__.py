@@ -68,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         choices=DISTORTION_TERMS,
         default=None,
         help="distortion coefficients: 4 (k1 k2 p1 p2), 5 (and k3), 8 (rational); default 5, or 4 where k3"
-        " would make the lens fold over near the image's edge while lowering the RMS by under 5 %",
+        " would make the lens fold over near the image's edge while lowering the RMS by under 5 %%",
     )
     p.add_argument("--drop-outliers", action="store_true", help="drop views whose error stands out, and recalibrate")
     _quality(p)
