@@ -132,6 +132,13 @@ def with_wall(calibration: CalibrationFile, wall: Any) -> CalibrationFile:
     return validated(data)
 
 
+def with_pointer_colours(calibration: CalibrationFile, colours: Any) -> CalibrationFile:
+    """A copy of ``calibration`` with its [pointer_colours] table replaced."""
+    data = calibration_dict(calibration)
+    data["pointer_colours"] = colours.model_dump(mode="json")
+    return validated(data)
+
+
 def validated(data: dict[str, Any]) -> CalibrationFile:
     """Validate calibration data built in code (a bug if it fails: the inputs were validated)."""
     try:

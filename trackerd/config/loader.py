@@ -25,6 +25,8 @@ from trackerd.config.models import (
     COLOUR_PIXEL_FORMATS,
     CalibrationFile,
     CameraConfig,
+    ColourThreshold,
+    PointerColours,
     RigConfig,
     ZmqOutput,
 )
@@ -258,9 +260,22 @@ def _json_fallback(value: Any) -> str:
 def parse_rig(data: dict[str, Any], path: Path) -> RigConfig:
     """Validate rig data read from ``path``; errors name the file."""
     try:
-        return _strictly(RigConfig, data)
+        rig = _strictly(RigConfig, data)
     except ValidationError as err:
         raise ConfigError(f"{path}: {describe_validation_error(err, RigConfig)}") from err
+    return rig if rig.pointer_colours is None else with_learned_colours(rig, rig.pointer_colours)
+
+
+def with_learned_colours(rig: RigConfig, colours: PointerColours) -> RigConfig:
+    """The rig with the pointer's learned colours, and the detector's threshold for each end taken from
+    them unless the rig file gives ``[detector.red]`` / ``[detector.blue]`` itself (those stay overrides)."""
+    given = rig.detector.model_fields_set
+    learned = {
+        colour: ColourThreshold(min_excess=colours.of(colour).min_excess, min_value=colours.of(colour).min_value)
+        for colour in ("red", "blue")
+        if colour not in given
+    }
+    return rig.model_copy(update={"pointer_colours": colours, "detector": rig.detector.model_copy(update=learned)})
 
 
 def parse_calibration(data: dict[str, Any], path: Path) -> CalibrationFile:
@@ -523,6 +538,13 @@ def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) 
             continue
         update = {k: getattr(entry, k) for k in ("intrinsics", "extrinsics") if getattr(entry, k)}
         cameras.append(cam.model_copy(update=update))
+    if calibration.pointer_colours is not None:
+        if rig.pointer_colours is not None:
+            raise ConfigError(
+                f"{path}: pointer_colours: the rig file gives them too; keep one"
+                " (`trackerd calibrate pointer` writes them into the calibration file)"
+            )
+        rig = with_learned_colours(rig, calibration.pointer_colours)
     update: dict[str, Any] = {"cameras": tuple(cameras)}
     if calibration.wall is not None:
         update["wall"] = calibration.wall

@@ -336,6 +336,49 @@ class DetectorConfig(_Model):
         return self
 
 
+class LearnedColour(_Model):
+    """One end's colour as `trackerd calibrate pointer` measured it in this room (docs/calibration.md).
+
+    Excesses are in grey levels of the detector's test (the colour's channel minus the larger of
+    the other two; trackerd/detect/margin.py)."""
+
+    min_excess: int = Field(ge=1, le=255)
+    """The threshold learned for this end (replaces ``[detector.<colour>] min_excess`` unless the rig
+    file gives that table)."""
+    min_value: int = Field(ge=0, le=255)
+    """The brightness threshold learned for this end."""
+    ball_excess: int = Field(ge=-255, le=255)
+    """What the end's paint reached: the 10th percentile of its core samples, over every camera and frame
+    (the lowest camera's)."""
+    background_excess: int = Field(ge=-255, le=255)
+    """The highest excess anything else in view reached over a block of 2 x 2 samples (the highest
+    camera's, in any frame). The daemon warns when what it sees comes closer to ``ball_excess``."""
+
+    @property
+    def margin(self) -> int:
+        """Ball over background, grey levels: above 0, a threshold between them finds only the ball."""
+        return self.ball_excess - self.background_excess
+
+
+class PointerColours(_Model):
+    """The pointer's colours learned in this room by `trackerd calibrate pointer`.
+
+    Written into the calibration file; the detector's red and blue thresholds come from it unless
+    the rig file sets ``[detector.red]`` or ``[detector.blue]``, which stay overrides."""
+
+    learned: str
+    """When they were learned (ISO 8601 local time)."""
+    frames: int = Field(ge=1)
+    """Frame pairs the figures come from."""
+    red: LearnedColour
+    """The red end."""
+    blue: LearnedColour
+    """The blue end."""
+
+    def of(self, colour: str) -> LearnedColour:
+        return self.red if colour == "red" else self.blue
+
+
 # --------------------------------------------------------------------------- locator
 
 
@@ -534,6 +577,10 @@ class RigConfig(_Model):
     """Trigger mode, frame pairing and camera-loss handling shared by all cameras."""
     detector: DetectorConfig = DetectorConfig()
     """Colour-end detector settings."""
+    pointer_colours: PointerColours | None = None
+    """The pointer's colours in this room, from the calibration file (where `trackerd calibrate pointer`
+    writes them): the detector's thresholds for each end unless ``[detector.red]`` / ``[detector.blue]``
+    is given here, and the figures the daemon's colour watch compares what it sees with."""
     locator: LocatorConfig = LocatorConfig()
     """Line estimation and quality gates."""
     outputs: OutputsConfig = OutputsConfig()
@@ -585,6 +632,8 @@ class CalibrationFile(_Model):
     """Per camera id."""
     wall: WallConfig | None = None
     """The wall, replacing the rig file's."""
+    pointer_colours: PointerColours | None = None
+    """The pointer's colours in this room (`trackerd calibrate pointer`)."""
 
 
 def horizontal_focal_px(intrinsics: FovIntrinsics, width_px: int) -> float:

@@ -8,8 +8,9 @@ Threads (besides each camera's acquisition thread inside the pair source):
   drops its oldest item when full;
 * publishing: owns the ZeroMQ publisher, sends the messages, and sends a status
   about once a second and on every change of state; once a pair's messages are
-  sent, it measures calibration health from the pair's fix (every fourth pair),
-  and it alone reads and writes the health record.
+  sent, it measures calibration health from the pair's fix (every fourth pair)
+  and, every few seconds, the room's colours against the pointer's
+  (trackerd.pipeline.colourwatch); it alone reads and writes those records.
 
 Latency is measured, not guessed: per stage (detect, triangulate, publish) and
 end to end, from the moment the last frame of a pair arrived to the moment its
@@ -34,6 +35,7 @@ from trackerd.acquisition.status import SourceStatus
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator, PointerFix
+from trackerd.pipeline.colourwatch import ColourWatch
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
@@ -42,6 +44,7 @@ from trackerd.publish import Publisher, StatusMessage, messages_from_fix
 from trackerd.publish.messages import (
     CalibrationHealthPart,
     CameraStatusPart,
+    ColourWatchPart,
     LatencyPart,
     Message,
     PairingPart,
@@ -85,6 +88,8 @@ class _Processed:
     """The processing thread's time off the CPU while on this pair (with ``account_threads``)."""
     health: tuple[CalibrationHealth, PointerFix] | None = None
     """A fix to add to the calibration health record it was located under, once the messages are sent."""
+    colours: tuple[ColourWatch, tuple, tuple[str, ...], PointerFix] | None = None
+    """A pair's frames (and pixel formats, and fix) for the colour watch to measure, once the messages are sent."""
 
 
 @dataclass(frozen=True)
@@ -177,6 +182,7 @@ class Pipeline:
         self.locator = Locator(rig)
         self.extensions: list[PipelineExtension] = list(extensions or [])
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
+        self.colour_watch = ColourWatch(rig, self.locator.cameras)
 
     # ------------------------------------------------------------------ control
 
@@ -326,10 +332,14 @@ class Pipeline:
             # for their ray gap, which is what the health record is for (trackerd.calibration.health).
             measure = fix.line is not None and self.pairs_processed % HEALTH_EVERY == 0
             health = (self.health, fix) if measure else None
+            watch = self.colour_watch
+            colours = None
+            if watch.due(fix):
+                colours = (watch, pair.images, tuple(frame.pixel_format for frame in pair.frames), fix)
             self._queue.put(_Processed(messages, received, capture, stage, started_ns=start,
                                        queued_ns=time.monotonic_ns() if clock is not None else 0,
                                        processing_off=processing_off,
-                                       health=health))
+                                       health=health, colours=colours))
             self.processing_cpu.add(time.thread_time_ns() - start_cpu)
             self.pairs_processed += 1
             self._notifier.progress()
@@ -358,6 +368,9 @@ class Pipeline:
         if rig.cameras != old.cameras or rig.wall != old.wall:
             # A new calibration starts a new health record.
             self.health = CalibrationHealth.for_rig(rig, locator.cameras)
+        if (rig.cameras, rig.pointer, rig.detector, rig.pointer_colours) != (
+                old.cameras, old.pointer, old.detector, old.pointer_colours):
+            self.colour_watch = ColourWatch(rig, locator.cameras)
         self.rig = rig
         with self._pending_lock:
             # The publishing thread rebinds for changed outputs; unchanged ones still re-read the
@@ -468,6 +481,9 @@ class Pipeline:
             # The messages are sent: the time to the next pair is idle anyway.
             record, fix = item.health
             record.add_fix(fix)
+        if item.colours is not None:
+            watch, images, formats, fix = item.colours
+            watch.measure(images, formats, fix)
 
     def _apply_pending_outputs(self) -> None:
         """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
@@ -520,6 +536,7 @@ class Pipeline:
                 waiting = [c.camera_id for c in cameras if c.state != "streaming"]
                 self._state, self._detail = "starting", f"waiting for {', '.join(waiting) or 'cameras'}"
         health = self.health  # once: a reload may replace it meanwhile
+        colours = self.colour_watch.to_json()
         latency = self.latency.drain()
         processing = self.processing.drain()
         stages = {name: window.drain() for name, window in self.stages.items()}
@@ -560,6 +577,7 @@ class Pipeline:
             calibration=CalibrationHealthPart.model_validate(health.to_json()) if health.total else None,
             fixes=dict(self._fixes),
             detail=self._detail,
+            colours=ColourWatchPart.model_validate(colours) if colours is not None else None,
             **{name: figures for name, figures in ((e.name, e.status()) for e in self.extensions) if figures},
         )
 

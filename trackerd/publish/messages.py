@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-SCHEMA_VERSION = "1.3"
+SCHEMA_VERSION = "1.4"
 """MAJOR.MINOR of the message set this code writes."""
 
 SCHEMA_MAJOR = int(SCHEMA_VERSION.split(".")[0])
@@ -233,6 +233,38 @@ class CalibrationHealthPart(_Part):
     """Why the figures are suspect, or why they cannot be judged yet."""
 
 
+class ColourFigurePart(_Part):
+    """One end's colour against the room, in grey levels of colour excess (docs/detection.md, "The colour watch")."""
+
+    threshold: int
+    """The detector's ``min_excess`` for this end."""
+    room_excess: int
+    """The highest excess anything but the pointer reaches now, over a block of 2 x 2 samples (every camera)."""
+    camera: str | None = None
+    """The camera that sees it."""
+    at_px: tuple[float, float] | None = None
+    """Where in that camera's image, pixels (x, y)."""
+    ball_excess: int | None = None
+    """What the end's paint reaches, as ``trackerd calibrate pointer`` learned it; null without learned colours."""
+    baseline_excess: int | None = None
+    """The room's excess when the colours were learned, or (without) when the watch first measured it."""
+
+
+class ColourWatchPart(_Part):
+    """(1.4) The room's colours against the pointer's: whether something in view came close to an end's colour."""
+
+    learned: bool
+    """Whether the figures compared with are from ``trackerd calibrate pointer`` (else from the daemon's start)."""
+    age_s: float = Field(ge=0.0)
+    """Seconds since the last measurement (taken every few seconds on a pair where the pointer was located)."""
+    red: ColourFigurePart
+    """The red end."""
+    blue: ColourFigurePart
+    """The blue end."""
+    warning: str | None = None
+    """One line when the margin has shrunk (a new picture on the wall nearly the pointer's colour); else null."""
+
+
 class InteractionStatusPart(_Part):
     """The interaction stage's figures in a status message (docs/interaction.md)."""
 
@@ -332,6 +364,9 @@ class StatusMessage(Message):
     the interaction stage is off."""
     recording: RecordingStatusPart | None = None
     """(1.1) The daemon's recorder (docs/recording.md); null when the rig makes no recording available."""
+    colours: ColourWatchPart | None = None
+    """(1.4) The pointer's colours against the room's (docs/detection.md, "The colour watch"); null until
+    first measured."""
 
 
 class _WallPoint(Message):

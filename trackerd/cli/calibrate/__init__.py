@@ -8,6 +8,7 @@ succeeded, and each printing the figures that say how far to trust it:
   trackerd calibrate stereo     --config RIG --board SPEC (--pairs DIR | --live | --recording R)
   trackerd calibrate wall       --config RIG --points FILE
   trackerd calibrate wall       --config RIG (--touch | --point) (--pairs DIR | --live | --recording R)
+  trackerd calibrate pointer    --config RIG (--pairs DIR | --live | --recording R)
   trackerd calibrate check      --config RIG (--pairs DIR | --live | --recording R)
 
 Boards: chessboard:COLSxROWS:SQUARE_MM or charuco:COLSxROWS:SQUARE_MM:MARKER_MM[:DICT],
@@ -26,6 +27,7 @@ from trackerd.calibration.views import MIN_VIEW_CHANGE
 from trackerd.calibration.wall import DEFAULT_MAX_RMS_MM
 from trackerd.cli.calibrate.check import check_command
 from trackerd.cli.calibrate.intrinsics import intrinsics_command
+from trackerd.cli.calibrate.pointer import pointer_command
 from trackerd.cli.calibrate.stereo import stereo_command
 from trackerd.cli.calibrate.wall import wall_command
 
@@ -161,6 +163,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=wall_command)
 
     p = steps.add_parser(
+        "pointer",
+        help="the pointer's colours in this room, and the detector's thresholds from them",
+        description="Learn the ends' colours, and the margin to everything else the cameras see, from the"
+        " pointer waved in view; the thresholds go into the calibration file ([pointer_colours]), and"
+        " [detector.red] / [detector.blue] in the rig file stay overrides.",
+    )
+    _common(p)
+    p.add_argument("--pairs", metavar="DIR", help="folder of pointer images named <name>-<camera>.<ext>")
+    _sources(p, snapshots=False)
+    p.add_argument("--frames", type=_positive_int, default=60,
+                   help="--live: pairs with the pointer located to learn from (default 60)")
+    p.set_defaults(handler=pointer_command)
+
+    p = steps.add_parser(
         "check",
         help="ray gaps and reprojection errors of the waved pointer",
         description="Check a calibration: wave the pointer around in view of both cameras.",
@@ -171,6 +187,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fixes", type=int, default=300, help="--live: fixes to collect (default 300)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     p.set_defaults(handler=check_command)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
+    return value
 
 
 def _board(text: str) -> BoardSpec:

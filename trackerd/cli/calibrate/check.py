@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.live import CheckSession
 from trackerd.calibration.report import health_text
-from trackerd.calibration.store import RigContext, open_rig
-from trackerd.cli.calibrate.common import Output, check_source, run_live, simulation_truth
+from trackerd.calibration.store import open_rig
+from trackerd.cli.calibrate.common import Output, check_source, run_live, simulated_pointer
 from trackerd.geometry.camera import CameraModel
 from trackerd.locator import Locator
 
@@ -28,7 +26,7 @@ def check_command(args: argparse.Namespace) -> int:
     if mode == "live":
         session = CheckSession(Locator(rig, cameras=cameras), health, args.fixes)
         out.say("wave the pointer around in view of both cameras")
-        run_live(context, rig, args, session, out, lambda: _simulated_pointer(context, args.fixes))
+        run_live(context, rig, args, session, out, lambda: simulated_pointer(context, args.fixes, seed=13))
         frames = session.frames
     else:
         found = pair_files(args.pairs, [c.id for c in rig.cameras])
@@ -51,23 +49,3 @@ def check_command(args: argparse.Namespace) -> int:
             " show the pointer to both cameras"
         )
     return 1 if figures.suspect else 0
-
-
-def _simulated_pointer(context: RigContext, count: int):
-    """The pointer waved in a figure eight over the display (trackerd.sim.motion), rendered."""
-    from trackerd.sim.board import RenderedPairSource
-    from trackerd.sim.motion import make_motion
-    from trackerd.sim.render import SceneRenderer
-
-    truth = simulation_truth(context)
-    scene = SceneRenderer(truth)
-    motion = make_motion("figure8", truth)
-    rng = np.random.default_rng(13)
-    ids = [c.id for c in truth.cameras]
-    frames = count * 2
-
-    def render(k: int):
-        pose = motion(k * motion.period_s / frames)
-        return [scene.render(i, pose, rng).image for i in range(len(ids))]
-
-    return RenderedPairSource(ids, list(scene.pixel_formats), render, frames)

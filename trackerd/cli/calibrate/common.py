@@ -156,6 +156,26 @@ def simulation_truth(context: RigContext) -> RigConfig:
     return rig
 
 
+def simulated_pointer(context: RigContext, count: int, seed: int):
+    """The pointer waved in a figure eight over the display (trackerd.sim.motion), rendered: ``2 count`` pairs."""
+    from trackerd.sim.board import RenderedPairSource
+    from trackerd.sim.motion import make_motion
+    from trackerd.sim.render import SceneRenderer
+
+    truth = simulation_truth(context)
+    scene = SceneRenderer(truth)
+    motion = make_motion("figure8", truth)
+    rng = np.random.default_rng(seed)
+    ids = [c.id for c in truth.cameras]
+    frames = count * 2
+
+    def render(k: int):
+        pose = motion(k * motion.period_s / frames)
+        return [scene.render(i, pose, rng).image for i in range(len(ids))]
+
+    return RenderedPairSource(ids, list(scene.pixel_formats), render, frames)
+
+
 def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], count: int):
     from trackerd.sim.board import BoardRenderer, board_pair_source, poses_for_camera, poses_for_pair
     from trackerd.sim.render import SceneRenderer

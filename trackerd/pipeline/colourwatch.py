@@ -1,0 +1,186 @@
+"""The colour watch: does anything the cameras see come close to the pointer's colours?
+
+A DataWall's display shows pictures, and a new slide can hold the pointer's
+red. The detector still finds the ball (the geometry tells the picture from
+it), but first sightings slow down and a ball in front of that picture is
+harder to measure. The operator should hear of it before the presenter does.
+
+Every :data:`WATCH_EVERY_S` seconds, on a pair where the pointer was located,
+each camera's frame is measured as ``trackerd calibrate pointer`` measures it
+(trackerd.detect.margin, on every :data:`WATCH_STEP`-th cell): the room's
+highest excess of each end's colour, away from both balls. The status carries
+the figures (``colours``); it warns when the room's excess has risen by
+:data:`WARN_RISE` grey levels or more above its baseline and
+
+* with learned colours (the baseline is the room when they were learned), the
+  margin to the ball's learned excess has lost half of what it was, or there
+  was none;
+* without (the baseline is the room when the daemon first measured it), it now
+  passes the detector's threshold.
+
+The measurement runs on the publishing thread, after a pair's messages are
+sent (as the calibration health does), a few milliseconds every few seconds.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.config.models import RigConfig
+from trackerd.detect.colour import SampleGrid, sample_grid
+from trackerd.detect.margin import Disc, colour_samples
+from trackerd.geometry.camera import CameraModel
+
+log = logging.getLogger(__name__)
+
+COLOURS = ("red", "blue")
+WATCH_EVERY_S = 2.0
+"""How often the room's colours are measured."""
+WATCH_STEP = 3
+"""Every this many-th cell is measured (a picture is large; a block of samples this far apart is still small)."""
+WARN_RISE = 10
+"""The room's excess must rise by this many grey levels above its baseline to warn (noise and
+the pointer's own reflections move it by a few)."""
+GOOD_GAP_M = 0.005
+"""Measured only on pairs whose rays meet this well (the balls are where the fix says)."""
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One colour's figures from one measurement."""
+
+    room_excess: int
+    camera: str | None
+    at_px: tuple[float, float] | None
+
+
+class ColourWatch:
+    """Measures the room's colours now and then, and says when they come close to the pointer's."""
+
+    def __init__(self, rig: RigConfig, cameras: Sequence[CameraModel]) -> None:
+        self.rig = rig
+        self.cameras = list(cameras)
+        self.learned = rig.pointer_colours
+        self._grids: dict[tuple[int, str], SampleGrid] = {}
+        self._next_ns = 0
+        self._latest: dict[str, Reading] | None = None
+        self._measured_ns = 0
+        self._baseline: dict[str, int] = {}
+        self._warned: str | None = None
+
+    def due(self, fix, now_ns: int | None = None) -> bool:
+        """Whether this pair's frames should be measured (called on the processing thread)."""
+        now_ns = time.monotonic_ns() if now_ns is None else now_ns
+        line = fix.line
+        if now_ns < self._next_ns or not fix.found or line is None:
+            return False
+        if max(line.front_gap_m, line.back_gap_m) > GOOD_GAP_M:
+            return False
+        self._next_ns = now_ns + int(WATCH_EVERY_S * 1e9)
+        return True
+
+    def measure(self, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str], fix,
+                now_ns: int | None = None) -> None:
+        """Measure one located pair's frames (the publishing thread, after its messages are sent)."""
+        from trackerd.calibration.colours import ball_discs
+
+        pointer = self.rig.pointer
+        radius_m = pointer.end_diameter_m / 2.0
+        best: dict[str, Reading] = {}
+        for index, (camera, image, pixel_format) in enumerate(zip(self.cameras, images, pixel_formats, strict=True)):
+            discs: dict[str, Disc | None] = ball_discs(camera, fix.line.front_m, fix.line.back_m, radius_m,
+                                                       pointer.front_colour)
+            if any(d is None for d in discs.values()):
+                continue
+            grid = self._grid(index, camera, pixel_format)
+            for colour in COLOURS:
+                samples = colour_samples(image, grid, colour, discs, step=WATCH_STEP)
+                seen = best.get(colour)
+                if samples.background_samples and (seen is None or samples.background_excess > seen.room_excess):
+                    best[colour] = Reading(samples.background_excess, camera.camera_id, samples.background_at_px)
+        if len(best) < len(COLOURS):
+            return
+        self._latest = best
+        self._measured_ns = time.monotonic_ns() if now_ns is None else now_ns
+        for colour, reading in best.items():
+            self._baseline.setdefault(colour, reading.room_excess)
+        warning = self.warning()
+        if warning != self._warned:
+            if warning is not None:
+                log.warning("colour watch: %s", warning)
+            elif self._warned is not None:
+                log.info("colour watch: the room's colours are back clear of the pointer's")
+            self._warned = warning
+
+    def _grid(self, index: int, camera: CameraModel, pixel_format: str) -> SampleGrid:
+        key = (index, pixel_format)
+        if key not in self._grids:
+            self._grids[key] = sample_grid(pixel_format, camera.width_px, camera.height_px)
+        return self._grids[key]
+
+    # ------------------------------------------------------------------ judging
+
+    def _reference(self, colour: str) -> tuple[int | None, int | None]:
+        """(the room's baseline excess, the ball's excess) this colour is judged against."""
+        if self.learned is not None:
+            learned = self.learned.of(colour)
+            return learned.background_excess, learned.ball_excess
+        return self._baseline.get(colour), None
+
+    def warning(self) -> str | None:
+        """One line when the room has come close to an end's colour, else None."""
+        if self._latest is None:
+            return None
+        lines = []
+        for colour in COLOURS:
+            reading = self._latest[colour]
+            baseline, ball = self._reference(colour)
+            if baseline is None or reading.room_excess < baseline + WARN_RISE:
+                continue
+            threshold = getattr(self.rig.detector, colour).min_excess
+            if ball is None:
+                if reading.room_excess < threshold:
+                    continue
+            else:
+                then, now = ball - baseline, ball - reading.room_excess
+                if then > 0 and now >= then / 2.0:
+                    continue
+            where = "" if reading.at_px is None else f" near ({reading.at_px[0]:.0f}, {reading.at_px[1]:.0f})"
+            against = (f"the pointer's {ball:.0f}" if ball is not None else f"the threshold {threshold}")
+            since = "when learned" if self.learned is not None else "at start"
+            lines.append(
+                f"{colour}: something in camera {reading.camera}{where} reaches {reading.room_excess} grey levels of"
+                f" {colour} excess ({baseline} {since}), against {against}: a new picture on the wall?"
+            )
+        if not lines:
+            return None
+        return "; ".join(lines) + " First sightings slow down; `trackerd calibrate pointer` again if it stays."
+
+    def to_json(self, now_ns: int | None = None) -> dict[str, object] | None:
+        """The status's ``colours`` part; None before the first measurement."""
+        if self._latest is None:
+            return None
+        now_ns = time.monotonic_ns() if now_ns is None else now_ns
+        part: dict[str, object] = {
+            "learned": self.learned is not None,
+            "age_s": round(max(0.0, (now_ns - self._measured_ns) / 1e9), 1),
+            "warning": self.warning(),
+        }
+        for colour in COLOURS:
+            reading = self._latest[colour]
+            baseline, ball = self._reference(colour)
+            part[colour] = {
+                "threshold": getattr(self.rig.detector, colour).min_excess,
+                "room_excess": reading.room_excess,
+                "camera": reading.camera,
+                "at_px": reading.at_px,
+                "ball_excess": ball,
+                "baseline_excess": baseline,
+            }
+        return part
