@@ -47,6 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=2026, help="seed of the whole run (default 2026)")
     parser.add_argument("--refine", choices=("auto", "always", "never"), default=None,
                         help="override [locator] refine for trackerd (default: the rig's, auto)")
+    parser.add_argument("--learn-colours", type=int, default=0, metavar="PAIRS",
+                        help="learn each installation's pointer colours first (`trackerd calibrate pointer`) from"
+                        " this many pairs of shots of its own (not the measured ones), and locate with them"
+                        " (default 0: the detector's default thresholds)")
     parser.add_argument("--records", metavar="FILE", default=None,
                         help="also write every frame's record (its installation and frame number, factors, status,"
                              " reason, error, sigma) as JSON lines, to look into a miss with the same seed")
@@ -63,7 +67,7 @@ def _positive_int(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     start = time.time()
-    tasks = [(args.seed, index, args.poses, args.refine) for index in range(args.rigs)]
+    tasks = [(args.seed, index, args.poses, args.refine, args.learn_colours) for index in range(args.rigs)]
     records: list[dict[str, Any]] = []
     progress = _Progress(args.rigs)
     if args.workers > 1 and args.rigs > 1:
@@ -82,7 +86,11 @@ def run(args: argparse.Namespace) -> int:
                 out.write(json.dumps(record) + "\n")
     summary = summarise(records)
     summary["seconds"] = round(time.time() - start, 1)
-    summary["arguments"] = {"rigs": args.rigs, "poses": args.poses, "seed": args.seed, "refine": args.refine}
+    summary["arguments"] = {"rigs": args.rigs, "poses": args.poses, "seed": args.seed, "refine": args.refine,
+                            "learn_colours": args.learn_colours}
+    if args.learn_colours:
+        learned = {r["rig"] for r in records if r.get("learned")}
+        summary["colours_learned_in"] = f"{len(learned)} of {args.rigs} installations"
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -116,7 +124,7 @@ class _Progress:
 # --------------------------------------------------------------------------- one installation
 
 
-def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
+def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]:
     """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
     from trackerd.geometry.wall import WallFrame
     from trackerd.locator import Locator
@@ -125,7 +133,7 @@ def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
     from trackerd.sim.render import SceneRenderer
     from trackerd.sim.scene import true_wall_hit
 
-    seed, index, poses, refine = task
+    seed, index, poses, refine, learn_pairs = task
     rng = np.random.default_rng([seed, index])
     drawn = random_rig(rng, name=f"random-{seed}-{index}")
     rig = drawn.rig
@@ -135,6 +143,13 @@ def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
     renderer = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
                              background_step=1 if widest <= 2000 else 2, noise_field=True)
     wall = WallFrame.from_config(drawn.rig.wall)
+    learned = False
+    if learn_pairs:
+        # Shots of their own, from their own generator and renderer (a renderer draws its noise field from the
+        # first generator it is given): the measured frames are exactly those of a run without learning.
+        learning = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
+                                 background_step=1 if widest <= 2000 else 2, noise_field=True)
+        rig, learned = _learn_colours(rig, drawn, learning, wall, np.random.default_rng([seed, index, 1]), learn_pairs)
     locator = Locator(rig, cameras=drawn.cameras)
     records = []
     for frame in range(poses):
@@ -164,6 +179,7 @@ def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
             "sigma_m": fix.uncertainty_m,
             "seconds": seconds,
             "naive_error_m": None,
+            "learned": learned,
         }
         if fix.hit is not None and truth is not None:
             record["error_m"] = float(np.linalg.norm(fix.hit.wall_xy_m - truth))
@@ -173,6 +189,29 @@ def run_rig(task: tuple[int, int, int, str | None]) -> list[dict[str, Any]]:
             record["naive_error_m"] = float(np.linalg.norm(naive - truth))
         records.append(record)
     return records
+
+
+def _learn_colours(rig, drawn, renderer, wall, rng: np.random.Generator, pairs: int):
+    """The rig with its pointer colours learned from ``pairs`` shots, as `trackerd calibrate pointer` learns
+    them; the rig unchanged (and False) where they cannot be learned (the operator would be told why)."""
+    from trackerd.calibration import CalibrationError
+    from trackerd.calibration.colours import ColourLearner
+    from trackerd.config.loader import with_learned_colours
+    from trackerd.sim.appearance import wall_content
+    from trackerd.sim.randomized import random_shot
+
+    learner = ColourLearner(rig, drawn.cameras, wanted=pairs)
+    for _ in range(pairs):
+        shot = random_shot(drawn, rng, wall)
+        content = wall_content(shot.content_kind, rng)
+        views = [renderer.render(i, shot.pose, rng, motion_to=shot.motion_to, motion_steps=shot.motion_steps,
+                                 occluders=shot.occluders, content=content) for i in range(len(drawn.cameras))]
+        learner.feed([(cam.camera_id, v.image, v.pixel_format) for cam, v in zip(drawn.cameras, views, strict=True)])
+    try:
+        colours = learner.result("bench", check_detector=False).colours
+    except CalibrationError:
+        return rig, False
+    return with_learned_colours(rig, colours), True
 
 
 def naive_hit(cameras, wall, images, pixel_formats, front_colour: str) -> np.ndarray | None:
@@ -303,6 +342,9 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines += [f"  {count:>4}  {reason}" for reason, count in summary["misses"].items()]
     lines.append(f"trackerd locate per frame: median {summary['locate_ms']['median']} ms,"
                  f" p95 {summary['locate_ms']['p95']} ms (a first sighting: full search)")
+    if summary.get("colours_learned_in"):
+        lines.append(f"pointer colours learned (--learn-colours {summary['arguments']['learn_colours']}) in"
+                     f" {summary['colours_learned_in']}; the others keep the default thresholds")
     lines.append(f"({summary['seconds']} s; --rigs {summary['arguments']['rigs']} --poses"
                  f" {summary['arguments']['poses']} --seed {summary['arguments']['seed']})")
     return "\n".join(lines)
