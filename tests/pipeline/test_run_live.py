@@ -3,7 +3,8 @@
 The simulated cameras run in their own network namespaces (root), the daemon in
 a subprocess with its own NOTIFY_SOCKET standing in for systemd, and a ZeroMQ
 subscriber in this process checks what it publishes. Signals are sent to the
-daemon's process: SIGHUP with a broken and then a good file, SIGTERM at the end.
+daemon's process: SIGHUP with a broken file, hostile ones (deep nesting, a FIFO) and then a good
+file, SIGTERM at the end.
 """
 
 from __future__ import annotations
@@ -101,6 +102,20 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
             daemon.send_signal(signal.SIGHUP)
             collect(1.5)
             assert daemon.poll() is None
+            # Hostile files on SIGHUP (issue 15): arrays nested 1,200 deep (Python's parser runs out of
+            # recursion), and a FIFO where the file was (reading it would block the main loop until
+            # someone wrote to it, and SIGTERM with it). The daemon reads neither and runs on.
+            rig_file.write_text("version = 1\nname = 'x'\nbad = " + "[" * 1200 + "]" * 1200 + "\n")
+            daemon.send_signal(signal.SIGHUP)
+            collect(1.0)
+            assert daemon.poll() is None
+            rig_file.unlink()
+            os.mkfifo(rig_file)
+            daemon.send_signal(signal.SIGHUP)
+            fifo_at = len(messages)
+            collect(1.5)
+            assert daemon.poll() is None and any(t == "hit" for t, _ in messages[fifo_at:])
+            rig_file.unlink()
             hits_before = sum(t == "hit" for t, _ in messages)
             # A good file: applied between two pairs, tracking goes on.
             rig_file.write_text(dump_rig(virtual.daemon_rig.model_copy(update={"name": "reloaded"})))
@@ -160,6 +175,8 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     assert statuses[-1]["state"] == "stopping"
     assert any(s["rig"] == "reloaded" for s in statuses), "the good SIGHUP reload was not applied"
     assert "keeping the running configuration" in err and "Mono8" in err
+    assert "nested too deeply to be a rig or calibration file" in err
+    assert "not a regular file (a FIFO)" in err
     assert "reload failed, keeping the previous configuration" in err and "exposure_us" in err
 
     # Hits lie on the rendered figure eight (the motion's true wall hits), to within the accuracy budget.

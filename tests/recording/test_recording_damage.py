@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
 from rec_helpers import one_line_error, trackerd
 
 from trackerd.recording.format import INDEX_ENTRY
-from trackerd.recording.reader import Recording
+from trackerd.recording.reader import MAX_METADATA_BYTES, Recording
 from trackerd.recording.replay import ReplayPairSource
 
 
@@ -121,3 +122,23 @@ def test_a_wrong_version_or_a_foreign_folder_is_one_clear_line(bundle, tmp_path)
     (copy / "recording.json").write_text(json.dumps(meta))
     (copy / "pairs.dat").write_bytes(b"GIF89a" + bytes(100))
     one_line_error(trackerd("replay", copy), "replay", "pairs.dat: does not begin with TRKDDATA")
+
+
+def test_hostile_metadata_is_one_clear_line_never_a_traceback_or_a_hang(bundle, tmp_path) -> None:
+    """recording.json nested 1,200 deep (the JSON parser runs out of recursion), nested past what any
+    recording has, a FIFO in its place (reading it would wait for a writer), and one far too large."""
+    copy = _copy(bundle, tmp_path)
+    meta = copy / "recording.json"
+    meta.write_text('{"format": ' + "[" * 1200 + "]" * 1200 + "}")
+    one_line_error(trackerd("recording", "check", copy), "recording", "nested too deeply")
+    one_line_error(trackerd("replay", copy), "replay", "nested too deeply")
+    meta.write_text('{"format": ' + "[" * 40 + "]" * 40 + "}")
+    one_line_error(trackerd("replay", copy), "replay", "nested more than 32 levels deep")
+    meta.unlink()
+    os.mkfifo(meta)
+    # (the timeout is only a guard: the command answers at once, as it does not open the FIFO)
+    one_line_error(trackerd("recording", "check", copy, timeout=60), "recording", "not a regular file (a FIFO)")
+    meta.unlink()
+    with meta.open("wb") as handle:
+        handle.truncate(MAX_METADATA_BYTES + 1)
+    one_line_error(trackerd("replay", copy), "replay", "larger than such a file can be")

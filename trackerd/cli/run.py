@@ -146,5 +146,9 @@ def _reload(pipeline, path: Path | None) -> None:
     except TrackerdError as err:
         log.error("SIGHUP: keeping the running configuration: %s", err)
         return
+    except Exception as err:  # noqa: BLE001 - whatever the new file does, the daemon runs on
+        log.error("SIGHUP: keeping the running configuration: %s: cannot be read (%s: %s)", path,
+                  type(err).__name__, err)
+        return
     pipeline.request_reload(rig)
     log.info("SIGHUP: reloading %s", path)

@@ -28,6 +28,7 @@ from pydantic import ValidationError
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.config.models import RigConfig
 from trackerd.errors import ConfigError, RecordingError
+from trackerd.files import MAX_DEPTH, NotRegularFile, TooLarge, nesting_depth, read_bounded
 from trackerd.recording.format import (
     DATA_FILE,
     DATA_MAGIC,
@@ -49,6 +50,9 @@ from trackerd.recording.format import (
     unpack_index_entry,
     unpack_record_header,
 )
+
+MAX_METADATA_BYTES = 16 * 1024 * 1024
+"""recording.json holds the rig and what the cameras said of themselves: tens of kilobytes."""
 
 UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {}
 """Metadata upgrades: ``UPGRADES[n]`` turns MAJOR n's recording.json into MAJOR n+1's. Empty while
@@ -305,14 +309,20 @@ def read_metadata(folder: Path) -> RecordingMetadata:
     """recording.json, version-checked and upgraded; RecordingError naming what is wrong."""
     path = folder / METADATA_FILE
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_bounded(path, MAX_METADATA_BYTES).decode("utf-8"))
     except FileNotFoundError:
         raise RecordingError(
             f"{folder}: not a recording (no {METADATA_FILE}; a recording is a folder holding"
             f" {METADATA_FILE}, {DATA_FILE} and {INDEX_FILE})"
         ) from None
+    except (NotRegularFile, TooLarge) as err:
+        raise RecordingError(f"{err}: not a recording's metadata") from err
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise RecordingError(f"{path}: not readable JSON ({err})") from err
+    except RecursionError as err:
+        raise RecordingError(f"{path}: nested too deeply to be a recording's metadata") from err
+    if nesting_depth(data) > MAX_DEPTH:
+        raise RecordingError(f"{path}: nested more than {MAX_DEPTH} levels deep; not a recording's metadata")
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
         found = data.get("format") if isinstance(data, dict) else type(data).__name__
         raise RecordingError(f"{path}: format is {found!r}, not {FORMAT_NAME!r}: not a trackerd recording")
