@@ -340,3 +340,38 @@ def test_nothing_a_peer_sends_upstream_is_stored_or_published(context):
         late = subscriber(context, publisher.endpoints[0], b"status")
         assert late.poll(5000) and json.loads(late.recv_multipart()[1])["sequence"] == 8
         peer.close()
+
+
+def test_a_subscription_flood_does_not_flood_the_other_subscribers(context):
+    """A peer sending status subscriptions in a loop: each used to be answered with the last status,
+    which reaches every status subscriber (a PUB cannot address one), so the others received thousands
+    of statuses a second. Answers are at most one per ANSWER_INTERVAL_S; joiners are still answered."""
+    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",))) as publisher:
+        publisher.publish_status(status_message(sequence=3))
+        publisher._lvc.wait_for_statuses(1, timeout_s=5.0)
+        listener = subscriber(context, publisher.endpoints[0], b"status")
+        assert listener.poll(5000) and json.loads(listener.recv_multipart()[1])["sequence"] == 3
+        flood = context.socket(zmq.XSUB)
+        flood.setsockopt(zmq.LINGER, 0)
+        flood.setsockopt(zmq.SNDHWM, 0)
+        flood.connect(publisher.endpoints[0])
+        started = time.monotonic()
+        for _ in range(200):
+            for _ in range(1000):
+                flood.send(b"\x01status")
+            # A new subscriber in the middle of the flood is answered all the same.
+        joiner = subscriber(context, publisher.endpoints[0], b"status")
+        assert joiner.poll(10_000) and json.loads(joiner.recv_multipart()[1])["sequence"] == 3
+        # Until the flood has all arrived (the peer's queue is empty once the proxy has taken it).
+        publisher.publish_status(status_message(sequence=4))
+        seen = []
+        while not seen or seen[-1] != 4:
+            assert listener.poll(10_000), len(seen)
+            seen.append(json.loads(listener.recv_multipart()[1])["sequence"])
+        elapsed = time.monotonic() - started
+        repeats = seen.count(3)
+        # At most one answer per interval while it lasted (a slower machine answers fewer, never more).
+        assert repeats <= elapsed / publisher_module.ANSWER_INTERVAL_S + 2, (repeats, elapsed)
+        flood.close()
+        late = subscriber(context, publisher.endpoints[0], b"status")
+        assert late.poll(5000) and json.loads(late.recv_multipart()[1])["sequence"] == 4

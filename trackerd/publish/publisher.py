@@ -56,6 +56,16 @@ _POLL_MS = 200
 _WIRING_TIMEOUT_MS = 5000
 """How long the constructor waits for the proxy thread to pass its subscription on; it takes well
 under a millisecond unless the machine is starved."""
+ANSWER_INTERVAL_S = 0.25
+"""A new status subscriber is answered at most this often: the answer goes to every status subscriber
+(a PUB socket cannot address one peer), so a peer sending subscriptions in a loop would otherwise make
+every subscriber receive thousands of statuses a second. Subscriptions arriving within the interval
+are answered together at its end: a late joiner waits at most this long for the last status."""
+READ_BATCH = 100
+"""Capture messages the last-value thread reads at a time; a full batch means a flood."""
+READ_PAUSE_S = 0.002
+"""Its pause after a full batch: under a flood it reads at most READ_BATCH / READ_PAUSE_S messages a
+second (a few percent of a core) and libzmq drops the rest, so the pipeline keeps the interpreter."""
 HANDOVER_HWM = 10_000
 """Messages the hand-over pipe holds while the proxy thread waits for a CPU (about 4 MB at most);
 internal, unlike each subscriber's queue (send_hwm_messages)."""
@@ -334,7 +344,9 @@ class _LastValue:
     The proxy's capture shows it what passes in both directions: the pipeline's statuses on their way
     out, and whatever peers send upstream. A peer may send anything, a forged ``status`` included, so
     only a status the publisher itself sent (``expect``) is kept, and only a single-frame subscription
-    is answered: nothing that arrives from a subscriber is ever stored or published.
+    is answered: nothing that arrives from a subscriber is ever stored or published. A peer may also
+    send subscriptions in a loop: answers are at most one per ANSWER_INTERVAL_S, and the thread reads
+    the capture in bounded batches (READ_BATCH, READ_PAUSE_S).
     """
 
     def __init__(self, context: zmq.Context) -> None:
@@ -400,26 +412,38 @@ class _LastValue:
 
     def _run(self) -> None:
         last: list[bytes] | None = None
+        asked = False
+        """A status subscription came in that has not been answered yet."""
+        answered = -ANSWER_INTERVAL_S
         try:
             while not self._stop.is_set():
                 _discard_subscriptions(self._pub)
-                if not self._sub.poll(_POLL_MS):
-                    continue
-                parts = self._sub.recv_multipart()
-                if len(parts) == 2 and parts[0] == STATUS_TOPIC:
-                    # Ours on its way out; not a peer's upload, nor our own answer coming back.
-                    if self._ours(parts[1]):
-                        last = parts
-                        with self._seen:
-                            self._statuses += 1
-                            self._seen.notify_all()
-                elif (
-                    len(parts) == 1
-                    and parts[0][:1] == b"\x01"
-                    and STATUS_TOPIC.startswith(parts[0][1:])
-                    and last is not None
-                ):
+                wait_ms = _POLL_MS
+                if asked:
+                    wait_ms = max(0, min(wait_ms, int((answered + ANSWER_INTERVAL_S - time.monotonic()) * 1000)))
+                if self._sub.poll(wait_ms):
+                    for _ in range(READ_BATCH):
+                        try:
+                            parts = self._sub.recv_multipart(flags=zmq.NOBLOCK)
+                        except zmq.Again:
+                            break
+                        if len(parts) == 2 and parts[0] == STATUS_TOPIC:
+                            # Ours on its way out; not a peer's upload, nor our own answer coming back.
+                            if self._ours(parts[1]):
+                                last = parts
+                                with self._seen:
+                                    self._statuses += 1
+                                    self._seen.notify_all()
+                        elif len(parts) == 1 and parts[0][:1] == b"\x01" and STATUS_TOPIC.startswith(parts[0][1:]):
+                            asked = True
+                    else:
+                        # A whole batch waiting: a flood of subscriptions. Let the pipeline's threads have
+                        # the interpreter; what this thread cannot read, the capture drops in libzmq.
+                        time.sleep(READ_PAUSE_S)
+                now = time.monotonic()
+                if asked and last is not None and now >= answered + ANSWER_INTERVAL_S:
                     self._pub.send_multipart(last, flags=zmq.NOBLOCK)
+                    answered, asked = now, False
         except zmq.ContextTerminated:
             pass
         finally:
