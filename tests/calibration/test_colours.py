@@ -113,15 +113,26 @@ def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_o
     assert loaded.detector.red.min_excess == written["red"]["min_excess"] < 70
     assert loaded.detector.blue.min_excess == written["blue"]["min_excess"] < 60
     assert loaded.pointer_colours is not None and loaded.pointer_colours.frames == 6
-    # ... except where the rig file gives its own, which stays an override; the report says so.
+    # ... except where the rig file gives its own, which stays an override; the report says so, and the
+    # threshold it was run with is the one in force (the learned one), not the default.
     (tmp_path / "rig.toml").write_text(rig_text + "\n[detector.red]\nmin_excess = 90\n")
-    loaded = load_rig(tmp_path / "rig.toml").config
-    assert loaded.detector.red.min_excess == 90
-    assert loaded.detector.blue.min_excess == written["blue"]["min_excess"]
-    run = _trackerd("calibrate", "pointer", "--config", "rig.toml", "--pairs", "waving", "--dry-run", cwd=tmp_path)
+    loaded = load_rig(tmp_path / "rig.toml")
+    assert loaded.config.detector.red.min_excess == 90
+    assert loaded.config.detector.blue.min_excess == written["blue"]["min_excess"]
+    assert loaded.threshold_sources == {"red": "rig file", "blue": "learned"}
+    run = _trackerd("calibrate", "pointer", "--config", "rig.toml", "--pairs", "waving", "--dry-run", "--json",
+                    cwd=tmp_path)
     assert run.returncode == 0, run.stderr
-    assert "the rig file sets [detector.red], which stays in force" in run.stdout
-    assert "dry run: nothing written" in run.stdout
+    again = json.loads(run.stdout)
+    assert any("the rig file sets [detector.red], which stays in force" in note for note in again["notes"])
+    assert "dry run: nothing written" in again["notes"]
+    assert again["thresholds_before"] == {"red": 90, "blue": written["blue"]["min_excess"]}
+    # Written again, the file keeps the access it was given (the daemon's group reads it).
+    (tmp_path / "cal.toml").chmod(0o640)
+    run = _trackerd("calibrate", "pointer", "--config", "rig.toml", "--pairs", "waving", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "cal.toml").stat().st_mode & 0o777 == 0o640
+    assert len(list(tmp_path.glob("cal.toml.bak-*"))) == 1
     # Frames without the pointer: one clear line, exit 1, the calibration file untouched.
     before = (tmp_path / "cal.toml").read_bytes()
     for index, cam in enumerate(renderer.cameras):
@@ -130,3 +141,23 @@ def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_o
     assert run.returncode == 1 and "Traceback" not in run.stderr
     assert "the pointer was not located well in any of 1 pair(s)" in run.stderr
     assert (tmp_path / "cal.toml").read_bytes() == before
+    # Refused before anything is read: options of --live with --pairs, a folder that is not there for
+    # --output (never created), [pointer_colours] in the rig file itself.
+    for args, says in (
+        (("--pairs", "waving", "--frames", "5"), "--frames: only with --live or --recording"),
+        (("--pairs", "waving", "--output", "no/such/cal.toml"), "no such folder; not written"),
+    ):
+        run = _trackerd("calibrate", "pointer", "--config", "rig.toml", *args, cwd=tmp_path)
+        assert run.returncode == 1 and "Traceback" not in run.stderr and says in run.stderr, run.stderr
+    assert not (tmp_path / "no").exists()
+    inline = tmp_path / "inline.toml"
+    colours = (tmp_path / "cal.toml").read_text().split("[pointer_colours]", 1)[1]
+    inline.write_text(rig_text + "\n[pointer_colours]" + colours)
+    run = _trackerd("calibrate", "pointer", "--config", inline, "--live", "--source", "simulated", cwd=tmp_path)
+    assert run.returncode == 1 and "the rig file gives [pointer_colours] itself" in run.stderr, run.stderr
+    # A hand-edited threshold above what the ball reaches is refused where the file is read.
+    edited = (tmp_path / "cal.toml").read_text().replace(
+        f"min_excess = {written['red']['min_excess']}", "min_excess = 250", 1)
+    (tmp_path / "cal.toml").write_text(edited)
+    run = _trackerd("config", "check", "rig.toml", cwd=tmp_path)
+    assert run.returncode == 2 and "would never pass the colour test" in run.stderr, run.stderr

@@ -96,3 +96,8 @@ def test_unhidden_leaves_out_what_covers_part_of_a_ball_and_keeps_its_shading():
     kept = unhidden(np.concatenate([ball, hand]))
     assert kept.size == ball.size and np.array_equal(np.sort(kept), np.sort(ball))
     assert unhidden(np.array([], dtype=np.int16)).size == 0
+    # A quarter of a widely shaded core hidden (the case of a ball half behind the rod seen along it):
+    # the hidden samples go all the same.
+    wide = np.round(rng.uniform(87, 143, 20)).astype(np.int16)
+    hidden = np.round(rng.uniform(-51, 32, 8)).astype(np.int16)
+    assert np.array_equal(np.sort(unhidden(np.concatenate([wide, hidden]))), np.sort(wide))

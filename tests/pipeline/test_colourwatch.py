@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -34,7 +35,7 @@ def _watch(rig, renderer, watch: ColourWatch, content, *, count: int = 2, offset
     return watch.warning()
 
 
-def test_a_red_picture_put_up_after_the_colours_were_learned_is_warned_of_and_the_warning_clears():
+def test_a_red_picture_put_up_after_the_colours_were_learned_is_warned_of_and_the_warning_clears(caplog):
     rig, renderer = room()
     learner = ColourLearner(rig, renderer.cameras, wanted=4)
     for images in _pairs(renderer, BLANK, 4, 0.0, seed=1):
@@ -43,15 +44,19 @@ def test_a_red_picture_put_up_after_the_colours_were_learned_is_warned_of_and_th
     watch = ColourWatch(learned, renderer.cameras)
     assert watch.to_json() is None  # nothing measured yet
     assert _watch(learned, renderer, watch, BLANK) is None
-    warning = _watch(learned, renderer, watch, RED_PICTURE)
+    caplog.set_level(logging.INFO, logger="trackerd.pipeline.colourwatch")
+    warning = _watch(learned, renderer, watch, RED_PICTURE, count=3)
     assert warning is not None and warning.startswith("red: something in camera ")
+    # Logged once, not at every measurement (the figures in it change every time).
+    assert [r.levelno for r in caplog.records] == [logging.WARNING]
     assert "when learned" in warning and "blue:" not in warning
     part = ColourWatchPart.model_validate(watch.to_json())
     assert part.learned and part.warning == warning
     assert part.red.room_excess > part.red.ball_excess > part.red.baseline_excess
     assert part.red.threshold == learned.detector.red.min_excess
-    # The picture taken down: the warning goes.
+    # The picture taken down: the warning goes, and that is logged too.
     assert _watch(learned, renderer, watch, BLANK) is None
+    assert [r.levelno for r in caplog.records] == [logging.WARNING, logging.INFO]
 
 
 def test_without_learned_colours_the_room_at_start_is_the_baseline_and_the_threshold_the_limit():

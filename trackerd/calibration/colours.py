@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.health import ellipse_centre_px
 from trackerd.calibration.live import Event
-from trackerd.config.models import ColourThreshold, DetectorConfig, LearnedColour, PointerColours, RigConfig
+from trackerd.config.models import MIN_LEARNED_EXCESS, ColourThreshold, DetectorConfig, LearnedColour, PointerColours, RigConfig
 from trackerd.detect.colour import sample_grid
 from trackerd.detect.margin import BALL_PERCENTILE, Disc, colour_samples, unhidden
 from trackerd.geometry.camera import CameraModel
@@ -50,7 +50,7 @@ BALL_SHARE = 0.55
 ROOM_SIDE = 0.4
 """With a margin, the threshold sits this share of it above the room's excess: nearer the room than the
 ball, because the ball moves into shade across the room more often than the room turns more colourful."""
-MIN_EXCESS = 10
+MIN_EXCESS = MIN_LEARNED_EXCESS
 """No threshold below this many grey levels: sensor noise reaches it on grey."""
 VALUE_SHARE = 0.6
 """The brightness threshold is this share of the ball's (10th percentile of its own channel), and no
@@ -104,9 +104,10 @@ class LearnedFigures:
     used: int
     """Pairs the pointer was located well enough in to learn from."""
     warnings: tuple[str, ...]
-    detector_check: dict[str, tuple[int, int]] | None = None
+    detector_check: dict | None = None
     """'before' / 'after' -> (images where the detector's own search found both ends where the pointer
-    is, images tried); None when not tried."""
+    is, images tried), and 'pairs': how many pairs those images are from (a sample of
+    :data:`CHECK_FRAMES`); None when not tried."""
 
 
 def ball_discs(camera: CameraModel, front_m: NDArray[np.float64], back_m: NDArray[np.float64],
@@ -294,7 +295,8 @@ class ColourLearner:
             c: ColourThreshold(min_excess=colours.of(c).min_excess, min_value=colours.of(c).min_value)
             for c in COLOURS
         })
-        return {name: self._found_with(cfg, ColourEndDetector) for name, cfg in (("before", before), ("after", after))}
+        found = {name: self._found_with(cfg, ColourEndDetector) for name, cfg in (("before", before), ("after", after))}
+        return {**found, "pairs": len(self._kept)}
 
     def _found_with(self, cfg: DetectorConfig, detector_class) -> tuple[int, int]:
         found = tried = 0

@@ -18,6 +18,7 @@ from __future__ import annotations
 import datetime as _dt
 import os
 import shutil
+import stat
 import tempfile
 import tomllib
 from dataclasses import dataclass
@@ -197,13 +198,16 @@ def write_calibration(
     except ValidationError as err:  # pragma: no cover - merge_calibration wraps these
         raise CalibrationError(f"not written: {describe_validation_error(err, RigConfig)}") from err
     text = render_calibration(calibration, header)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if not path.parent.is_dir():
+        # A typo in --output must not create folders; the rig's own file sits beside the rig.
+        raise CalibrationError(f"{path.parent}: no such folder; not written")
     backup = None
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             handle.write(text)
             handle.flush()
+            _same_access(handle.fileno(), path)
             os.fsync(handle.fileno())
         if path.exists():
             backup = backup_path(path, now)
@@ -216,6 +220,24 @@ def write_calibration(
             os.unlink(tmp_name)
     _fsync_directory(path.parent)
     return backup
+
+
+def _same_access(fd: int, path: Path) -> None:
+    """Give the new file the old one's mode, owner and group (mkstemp makes it 0600, owned by whoever
+    calibrates: the daemon's user, reading a root:trackerd 0640 file, would be locked out of it); a new
+    file gets the mode the umask gives any file."""
+    try:
+        old = path.stat()
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
+        return
+    os.fchmod(fd, stat.S_IMODE(old.st_mode))
+    try:
+        os.fchown(fd, old.st_uid, old.st_gid)
+    except PermissionError:
+        pass  # not root: the file stays the calibrating user's, with the old mode
 
 
 def check_merged(rig: RigConfig, path: Path, check_wall: bool) -> None:

@@ -94,6 +94,7 @@ def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFr
         "pointer": rig.pointer.model_dump(),
         "detector": rig.detector.model_dump(),
         "pointer_colours": rig.pointer_colours.model_dump() if rig.pointer_colours else None,
+        "threshold_sources": dict(loaded.threshold_sources or {}),
     }
 
 
@@ -132,21 +133,23 @@ def describe(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> 
         f"  pointer: {p.front_colour} end in front, {p.length_m * 1000:.0f} mm between end centres"
         f" (+-{p.length_tolerance_m * 1000:.0f} mm), ends {p.end_diameter_m * 1000:.0f} mm"
     )
-    lines.append("  " + _thresholds_line(rig))
+    lines.append("  " + _thresholds_line(rig, loaded.threshold_sources or {}))
     return "\n".join(lines)
 
 
-def _thresholds_line(rig) -> str:
+def _thresholds_line(rig, sources: dict[str, str]) -> str:
     """The detector's thresholds and where they come from (learned colours, the rig file, defaults)."""
     learned = rig.pointer_colours
     parts = []
     for colour in ("red", "blue"):
         threshold = getattr(rig.detector, colour)
-        if learned is not None and learned.of(colour).min_excess == threshold.min_excess:
+        if sources.get(colour) == "rig file":
+            parts.append(f"{colour} {threshold.min_excess} (rig file's [detector.{colour}])")
+        elif learned is not None:
             seen = learned.of(colour)
             parts.append(f"{colour} {threshold.min_excess} (learned: ball {seen.ball_excess}, room {seen.background_excess})")
         else:
-            parts.append(f"{colour} {threshold.min_excess}")
+            parts.append(f"{colour} {threshold.min_excess} (default)")
     when = f"; colours learned {learned.learned}" if learned is not None else (
         "; colours not learned (`trackerd calibrate pointer` learns them in this room)")
     return f"thresholds (colour excess, grey levels): {', '.join(parts)}{when}"

@@ -281,6 +281,9 @@ def _status(d: dict[str, Any]) -> str:
         parts.append(f"v{d['version']}")
     if d.get("detail") and d["detail"] != d.get("state"):  # "stopping (stopping)" says it twice
         parts.append(f"({d['detail']})")
+    warning = (d.get("colours") or {}).get("warning")
+    if warning:
+        parts.append(f"COLOUR WARNING: {warning}")
     return "  ".join(parts)
 
 

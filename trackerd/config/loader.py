@@ -45,6 +45,9 @@ class LoadedRig:
     calibration_path: Path | None
     sources: dict[str, str]
     """camera id (and 'wall') -> a short phrase naming the file its geometry was taken from."""
+    threshold_sources: dict[str, str] | None = None
+    """'red' / 'blue' -> where the detector's threshold for that end comes from: 'rig file'
+    ([detector.<colour>]), 'learned' (pointer_colours) or 'default'."""
 
 
 MAX_TOML_BYTES = 4 * 1024 * 1024
@@ -319,7 +322,9 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
     use only its cameras (``trackerd record``, ``recording import``: a board recorded for calibration).
     """
     rig_path = Path(path)
-    rig = parse_rig(read_toml(rig_path), rig_path)
+    data = read_toml(rig_path)
+    rig = parse_rig(data, rig_path)
+    detector_table = data.get("detector") if isinstance(data.get("detector"), dict) else {}
     sources = {cam.id: f"inline in {rig_path.name}" for cam in rig.cameras}
     sources["wall"] = f"inline in {rig_path.name}"
     calibration_path: Path | None = None
@@ -404,7 +409,11 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
             _check_lens(cam, f"{rig_path}: cameras[{index}]")
     if not_ready and for_tracking:
         raise not_ready[0]
-    return LoadedRig(rig, rig_path, calibration_path, sources)
+    thresholds = {
+        colour: "rig file" if colour in detector_table else "learned" if rig.pointer_colours else "default"
+        for colour in ("red", "blue")
+    }
+    return LoadedRig(rig, rig_path, calibration_path, sources, thresholds)
 
 
 def check_ready_to_track(rig: RigConfig, where: object) -> None:

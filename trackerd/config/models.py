@@ -336,6 +336,10 @@ class DetectorConfig(_Model):
         return self
 
 
+MIN_LEARNED_EXCESS = 10
+"""The lowest threshold `trackerd calibrate pointer` learns (sensor noise reaches it on grey)."""
+
+
 class LearnedColour(_Model):
     """One end's colour as `trackerd calibrate pointer` measured it in this room (docs/calibration.md).
 
@@ -353,6 +357,15 @@ class LearnedColour(_Model):
     background_excess: int = Field(ge=-255, le=255)
     """The highest excess anything else in view reached over a block of 2 x 2 samples (the highest
     camera's, in any frame). The daemon warns when what it sees comes closer to ``ball_excess``."""
+
+    @model_validator(mode="after")
+    def _finds_the_ball(self) -> LearnedColour:
+        if self.min_excess > max(self.ball_excess, MIN_LEARNED_EXCESS):
+            raise ValueError(
+                f"min_excess {self.min_excess} is above the ball's own excess ({self.ball_excess}): this end"
+                " would never pass the colour test"
+            )
+        return self
 
     @property
     def margin(self) -> int:

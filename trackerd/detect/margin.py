@@ -49,6 +49,8 @@ BALL_PERCENTILE = 10.0
 """The ball's excess is this percentile of its core samples' (the shaded side included)."""
 OUTLIER_SPREADS = 4.0
 """Core samples this many robust spreads below the median are of something in front of the ball."""
+HIDDEN_SHARE = 0.5
+"""And so are core samples under this share of the median: the core's shading does not reach it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,15 +179,19 @@ def _blocks(values: NDArray) -> NDArray:
 def unhidden(samples: NDArray[np.int16]) -> NDArray[np.int16]:
     """A ball's core samples without those of something in front of it (a hand, the rod, a sleeve).
 
-    What hides part of a ball is not the ball's colour, so its samples lie far below the rest:
-    those below the median by more than :data:`OUTLIER_SPREADS` robust spreads (1.4826 median
-    absolute deviations, at least 2 grey levels) are left out. The ball's own shading stays in.
+    What hides part of a ball is not the ball's colour, so its samples lie far below the rest. A
+    sample is left out when it is below the median by more than :data:`OUTLIER_SPREADS` robust spreads,
+    or below :data:`HIDDEN_SHARE` of the median (not the ball's colour at all; with a quarter of the core
+    hidden the spread alone grew wide enough to keep them). The spread is taken from the samples above
+    the median only (1.4826 times their median distance from it, at least 2 grey levels), which whatever
+    hides the ball cannot widen. The ball's own shading stays in.
     """
     if samples.size == 0:
         return samples
     median = float(np.median(samples))
-    spread = max(2.0, 1.4826 * float(np.median(np.abs(samples - median))))
-    return samples[samples >= median - OUTLIER_SPREADS * spread]
+    upper = samples[samples >= median]
+    spread = max(2.0, 1.4826 * float(np.median(upper - median)))
+    return samples[samples >= max(median - OUTLIER_SPREADS * spread, HIDDEN_SHARE * median)]
 
 
 def ball_excess(samples: NDArray[np.int16]) -> float | None:

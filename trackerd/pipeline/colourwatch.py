@@ -18,6 +18,13 @@ the figures (``colours``); it warns when the room's excess has risen by
 * without (the baseline is the room when the daemon first measured it), it now
   passes the detector's threshold.
 
+A room already above the ball when the colours were learned (the simulated
+room's red and blue distractor balls) is no news, and is not warned of again:
+``calibrate pointer`` said so then.
+
+It is logged when the set of ends warned of changes (not every time the
+figures in it do), and when it clears.
+
 The measurement runs on the publishing thread, after a pair's messages are
 sent (as the calibration health does), a few milliseconds every few seconds.
 """
@@ -72,7 +79,8 @@ class ColourWatch:
         self._latest: dict[str, Reading] | None = None
         self._measured_ns = 0
         self._baseline: dict[str, int] = {}
-        self._warned: str | None = None
+        self._warned: tuple[str, ...] = ()
+        """The colours warned of at the last measurement (logged when it changes, not every time the figures do)."""
 
     def due(self, fix, now_ns: int | None = None) -> bool:
         """Whether this pair's frames should be measured (called on the processing thread)."""
@@ -110,13 +118,13 @@ class ColourWatch:
         self._measured_ns = time.monotonic_ns() if now_ns is None else now_ns
         for colour, reading in best.items():
             self._baseline.setdefault(colour, reading.room_excess)
-        warning = self.warning()
-        if warning != self._warned:
-            if warning is not None:
-                log.warning("colour watch: %s", warning)
-            elif self._warned is not None:
+        warned = self.warned_colours()
+        if warned != self._warned:
+            if warned:
+                log.warning("colour watch: %s", self.warning())
+            else:
                 log.info("colour watch: the room's colours are back clear of the pointer's")
-            self._warned = warning
+            self._warned = warned
 
     def _grid(self, index: int, camera: CameraModel, pixel_format: str) -> SampleGrid:
         key = (index, pixel_format)
@@ -133,24 +141,29 @@ class ColourWatch:
             return learned.background_excess, learned.ball_excess
         return self._baseline.get(colour), None
 
+    def warned_colours(self) -> tuple[str, ...]:
+        """The ends whose colour the room has come close to at the last measurement."""
+        if self._latest is None:
+            return ()
+        return tuple(colour for colour in COLOURS if self._close(colour))
+
+    def _close(self, colour: str) -> bool:
+        reading = self._latest[colour]
+        baseline, ball = self._reference(colour)
+        if baseline is None or reading.room_excess < baseline + WARN_RISE:
+            return False
+        if ball is None:
+            return reading.room_excess >= getattr(self.rig.detector, colour).min_excess
+        then, now = ball - baseline, ball - reading.room_excess
+        return not (then > 0 and now >= then / 2.0)
+
     def warning(self) -> str | None:
         """One line when the room has come close to an end's colour, else None."""
-        if self._latest is None:
-            return None
         lines = []
-        for colour in COLOURS:
+        for colour in self.warned_colours():
             reading = self._latest[colour]
             baseline, ball = self._reference(colour)
-            if baseline is None or reading.room_excess < baseline + WARN_RISE:
-                continue
             threshold = getattr(self.rig.detector, colour).min_excess
-            if ball is None:
-                if reading.room_excess < threshold:
-                    continue
-            else:
-                then, now = ball - baseline, ball - reading.room_excess
-                if then > 0 and now >= then / 2.0:
-                    continue
             where = "" if reading.at_px is None else f" near ({reading.at_px[0]:.0f}, {reading.at_px[1]:.0f})"
             against = (f"the pointer's {ball:.0f}" if ball is not None else f"the threshold {threshold}")
             since = "when learned" if self.learned is not None else "at start"

@@ -169,10 +169,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         " pointer waved in view; the thresholds go into the calibration file ([pointer_colours]), and"
         " [detector.red] / [detector.blue] in the rig file stay overrides.",
     )
-    _common(p)
+    _common(p, snapshots=False)
     p.add_argument("--pairs", metavar="DIR", help="folder of pointer images named <name>-<camera>.<ext>")
     _sources(p, snapshots=False)
-    p.add_argument("--frames", type=_positive_int, default=60,
+    p.add_argument("--frames", type=_positive_int, default=None,
                    help="--live: pairs with the pointer located to learn from (default 60)")
     p.set_defaults(handler=pointer_command)
 
@@ -187,6 +187,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fixes", type=int, default=300, help="--live: fixes to collect (default 300)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     p.set_defaults(handler=check_command)
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, not {text}")
+    return value
 
 
 def _positive_int(text: str) -> int:
@@ -215,13 +225,14 @@ def _report(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _common(p: argparse.ArgumentParser) -> None:
+def _common(p: argparse.ArgumentParser, snapshots: bool = True) -> None:
     p.add_argument("--config", required=True, help="rig TOML file")
     p.add_argument("--output", metavar="FILE", help="calibration file to update (default: the one the rig names)")
     p.add_argument(
         "--dry-run",
         action="store_true",
-        help="report, but write nothing: no calibration file, and no snapshots unless --snapshots DIR is given",
+        help="report, but write nothing: no calibration file"
+        + (", and no snapshots unless --snapshots DIR is given" if snapshots else ""),
     )
     p.add_argument("--json", action="store_true", help="print the result as one JSON object (progress on stderr)")
 
@@ -239,7 +250,7 @@ def _sources(p: argparse.ArgumentParser, snapshots: bool = True) -> None:
         help="--live: the rig's cameras (default), or frames the simulator renders from the rig's"
         " own (inline) geometry, to try the procedure without cameras",
     )
-    p.add_argument("--duration", type=float, help="--live: stop after this many seconds")
+    p.add_argument("--duration", type=_positive_seconds, help="--live: stop after this many seconds")
     if snapshots:
         p.add_argument(
             "--snapshots",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from trackerd.calibration import CalibrationError
 from trackerd.calibration.colours import COLOURS, ColourLearner, LearnedFigures
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.store import RigContext, open_rig, today, with_pointer_colours
@@ -12,17 +13,34 @@ from trackerd.cli.calibrate.common import Output, check_source, run_live, simula
 from trackerd.geometry.camera import CameraModel
 
 
+DEFAULT_FRAMES = 60
+"""Pairs with the pointer located to learn from, live."""
+
+
 def pointer_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
     context = open_rig(args.config, args.output)
+    if context.rig.pointer_colours is not None:
+        raise CalibrationError(
+            f"{context.rig_path}: the rig file gives [pointer_colours] itself; this step writes them into the"
+            " calibration file: remove them from the rig file first"
+        )
     rig = context.complete()
     mode = check_source(args, "--pairs DIR", args.pairs is not None)
+    if mode == "files":
+        live_only = [name for name, given in (("--frames", args.frames is not None),
+                                              ("--duration", args.duration is not None),
+                                              ("--source", args.source != "cameras")) if given]
+        if live_only:
+            raise CalibrationError(f"{' and '.join(live_only)}: only with --live or --recording; --pairs DIR"
+                                   " learns from every pair in the folder")
     cameras = [CameraModel.from_config(c) for c in rig.cameras]
     if mode == "live":
-        learner = ColourLearner(rig, cameras, wanted=args.frames)
+        learner = ColourLearner(rig, cameras, wanted=args.frames or DEFAULT_FRAMES)
         out.say("wave the pointer slowly through the room, where every camera sees both ends,"
                 " in front of whatever the display shows")
-        run_live(context, rig, args, learner, out, lambda: simulated_pointer(context, args.frames, seed=17))
+        run_live(context, rig, args, learner, out,
+                 lambda: simulated_pointer(context, args.frames or DEFAULT_FRAMES, seed=17))
     else:
         found = pair_files(args.pairs, [c.id for c in rig.cameras])
         out.say(f"{args.pairs}: {len(found.moments)} pair(s), {found.layout}")
@@ -33,21 +51,31 @@ def pointer_command(args: argparse.Namespace) -> int:
             if event is not None:
                 out.say(event.text)
     figures = learner.result(today())
-    notes: list[str] = []
-    written: dict[str, Any] = {"written": None, "backup": None}
+    notes = _overrides(context)
     calibration = with_pointer_colours(context.calibration, figures.colours)
     written = write_result(context, calibration, "trackerd calibrate pointer", args.dry_run, notes)
-    out.result(_text(context, figures, notes), {**_json(figures), **written, "notes": notes})
+    before = {c: getattr(rig.detector, c).min_excess for c in COLOURS}
+    out.result(_text(figures, before, notes),
+               {**_json(figures), "thresholds_before": before, **written, "notes": notes})
     return 0
 
 
-def _text(context: RigContext, figures: LearnedFigures, notes: list[str]) -> str:
-    rig = context.rig
+def _overrides(context: RigContext) -> list[str]:
+    """What the rig file sets that stays in force over the learned thresholds."""
+    given = [c for c in COLOURS if c in context.rig.detector.model_fields_set]
+    if not given:
+        return []
+    tables = "] and [detector.".join(given)
+    return [f"note: the rig file sets [detector.{tables}], which stays in force over the learned threshold"
+            " (remove it to use the learned one)"]
+
+
+def _text(figures: LearnedFigures, before: dict[str, int], notes: list[str]) -> str:
     lines = [f"learned from {figures.used} of {figures.frames} pair(s) where the pointer was located well", ""]
     lines.append("                   ball   room  margin  threshold (was)")
     for colour in COLOURS:
         learned = figures.colours.of(colour)
-        was = getattr(rig.detector, colour).min_excess
+        was = before[colour]
         lines.append(
             f"  {colour:<5} excess  {learned.ball_excess:5.0f}  {learned.background_excess:5.0f}"
             f"  {learned.margin:6.0f}  {learned.min_excess:9d} ({was})"
@@ -60,13 +88,11 @@ def _text(context: RigContext, figures: LearnedFigures, notes: list[str]) -> str
                  " the room's highest block)")
     check = figures.detector_check
     if check:
-        (before, tried), (after, _) = check["before"], check["after"]
-        lines.append(f"the detector's own search found both ends in {before} of {tried} views with the thresholds"
-                     f" it had, {after} of {tried} with the learned ones")
-    given = [c for c in COLOURS if c in rig.detector.model_fields_set]
-    if given:
-        lines.append(f"note: the rig file sets [detector.{'] and [detector.'.join(given)}], which stays in"
-                     " force over the learned threshold (remove it to use the learned one)")
+        (found_before, tried), (found_after, _) = check["before"], check["after"]
+        lines.append(f"the detector's own search, on {tried} views of {check['pairs']} of those pairs, found both"
+                     f" ends in {found_before} with the thresholds it had, {found_after} with the learned ones")
+    lines.append(f"(min_value, the brightness each end's own channel must reach, is learned too:"
+                 f" red {figures.colours.red.min_value}, blue {figures.colours.blue.min_value})")
     lines.extend(f"warning: {w}" for w in figures.warnings)
     lines.extend(notes)
     return "\n".join(lines)
@@ -84,7 +110,7 @@ def _json(figures: LearnedFigures) -> dict[str, Any]:
             for f in figures.per_camera
         ],
         "detector_check": (
-            {k: {"found": v[0], "views": v[1]} for k, v in figures.detector_check.items()}
+            {k: {"found": v[0], "views": v[1]} for k, v in figures.detector_check.items() if k != "pairs"}
             if figures.detector_check else None
         ),
         "warnings": list(figures.warnings),
