@@ -69,8 +69,64 @@ def test_listen_timeout_exits_1_with_one_clear_line():
     out, err = process.communicate(timeout=20)
     assert process.returncode == 1
     assert out == ""
-    assert err.strip() == ("trackerd listen: no message from tcp://127.0.0.1:9 within 0.5 s (is trackerd running"
-                           " there, publishing these topics, with matching CURVE keys?)")
+    assert err.splitlines() == [
+        "trackerd listen: listening to tcp://127.0.0.1:9 for all topics; Ctrl-C to stop",
+        "trackerd listen: no message from tcp://127.0.0.1:9 within 0.5 s (is trackerd running"
+        " there, publishing these topics, with matching CURVE keys?)",
+    ]
+
+
+def _stderr_lines_until(process: subprocess.Popen, wanted: str, guard_s: float = 60.0) -> list[str]:
+    """Lines of the process's stderr up to the first containing ``wanted``. The guard only keeps a
+    broken listener from hanging the test: a reader thread waits on the pipe, not on a clock."""
+    lines: list[str] = []
+    found = threading.Event()
+
+    def read() -> None:
+        for line in process.stderr:
+            lines.append(line.rstrip("\n"))
+            if wanted in line:
+                found.set()
+                return
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    found.wait(guard_s)
+    assert found.is_set(), f"no {wanted!r} on stderr within {guard_s:g} s: {lines}"
+    return lines
+
+
+def test_listen_says_what_it_waits_for_and_what_to_check_when_nothing_comes():
+    # Regression (issue 15): with no daemon, `trackerd listen` waited for ever in silence.
+    endpoint = "tcp://127.0.0.1:9"  # the discard port: nobody binds it
+    process = _listen("--endpoint", endpoint, "--topic", "hit", "--topic", "status")
+    try:
+        lines = _stderr_lines_until(process, "nothing from")
+    finally:
+        process.terminate()
+        out, rest = process.communicate(timeout=10)
+    assert lines[0] == f"trackerd listen: listening to {endpoint} for hit, status; Ctrl-C to stop"
+    hint = lines[1]
+    assert hint.startswith(f"trackerd listen: nothing from {endpoint} in 5 s, though a running trackerd"
+                           " publishes a status every 1 s:"), hint
+    assert f"is {endpoint} the endpoint in the rig's [outputs.zmq]?" in hint
+    assert "systemctl status trackerd" in hint and "--server-key" in hint
+    assert len(lines) == 2 and rest == ""
+    assert out == ""
+
+
+def test_listen_hears_the_heartbeat_of_a_daemon_with_nothing_on_the_topics_asked_for(publisher):
+    # Statuses only, and `--topic hit`: the daemon is there (no hint), nobody points (no line).
+    process = _listen("--endpoint", publisher.endpoints[0], "--topic", "hit", "--timeout", "6")
+    _serve_until_done(publisher, process, [status_message(9)], timeout_s=60)
+    exited_while_served = process.poll() is not None  # statuses every 20 ms must not hide --timeout
+    out, err = process.communicate(timeout=10)
+    assert exited_while_served
+    assert process.returncode == 1 and out == ""
+    lines = err.splitlines()
+    assert lines[0] == f"trackerd listen: listening to {publisher.endpoints[0]} for hit; Ctrl-C to stop"
+    assert lines[1].startswith(f"trackerd listen: no message from {publisher.endpoints[0]} within 6 s")
+    assert len(lines) == 2, err
 
 
 def test_listen_refuses_a_topic_trackerd_never_publishes():

@@ -7,7 +7,8 @@ One line per message, for operators and application developers::
 or, with --json, each payload as one JSON line (pipe it into jq). CURVE keys come
 from --server-key/--client-key or from the rig file given with --config.
 Exit status: 0 after --count messages or on Ctrl-C; 1 when --timeout passes
-without a message.
+without a message. On stderr it says where it listens, and, when nothing at all
+arrives for a few status periods, what to check.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import zmq
 
@@ -26,6 +27,11 @@ from trackerd.publish.curve_keys import load_curve_key_pair, load_curve_public_k
 from trackerd.publish.messages import SCHEMA_MAJOR, TOPICS
 
 DEFAULT_ENDPOINT = "tcp://127.0.0.1:5560"
+DEFAULT_STATUS_INTERVAL_S = 1.0
+"""The daemon's status period when no rig file says otherwise ([outputs.zmq] status_interval_ms)."""
+SILENT_STATUS_PERIODS = 5
+"""Status periods without any message (and at least that many seconds) before the hint: a running
+daemon publishes a status every period, so that much silence means nothing is reaching us."""
 
 
 class ListenTimeout(TrackerdError):
@@ -64,7 +70,7 @@ def listen_command(args: argparse.Namespace) -> int:
         if not any(known.startswith(topic) for known in TOPICS):
             # ZeroMQ matches topics by prefix, so a typo ('hits') would wait for ever in silence.
             raise ConfigError(f"--topic {topic}: trackerd publishes no such topic; topics: {', '.join(TOPICS)}")
-    endpoint, server_key = _target(args)
+    endpoint, server_key, status_interval_s = _target(args)
     context = zmq.Context()
     sub = context.socket(zmq.SUB)
     sub.setsockopt(zmq.LINGER, 0)
@@ -80,11 +86,19 @@ def listen_command(args: argparse.Namespace) -> int:
             raise ConfigError("--client-key needs --server-key (or a --config with curve_secret_key_file)")
         for topic in args.topic or [""]:
             sub.setsockopt(zmq.SUBSCRIBE, topic.encode("ascii"))
+        if args.topic and not any("status".startswith(topic) for topic in args.topic):
+            # Heard, never printed or counted: the daemon's heartbeat tells a quiet daemon (no hit
+            # while nobody points) from no daemon at all, whatever the topics asked for.
+            sub.setsockopt(zmq.SUBSCRIBE, b"status")
         try:
             sub.connect(endpoint)
         except zmq.ZMQError as err:
             raise ConfigError(f"--endpoint {endpoint}: {err.strerror}") from err
-        return _receive(sub, args, endpoint)
+        topics = ", ".join(args.topic) if args.topic else "all topics"
+        curve = " (CURVE)" if server_key is not None else ""
+        print(f"trackerd listen: listening to {endpoint}{curve} for {topics}; Ctrl-C to stop",
+              file=sys.stderr, flush=True)
+        return _receive(sub, args, endpoint, silence_hint(endpoint, server_key is not None, status_interval_s))
     except KeyboardInterrupt:
         return 0
     finally:
@@ -92,13 +106,15 @@ def listen_command(args: argparse.Namespace) -> int:
         context.term()
 
 
-def _target(args: argparse.Namespace) -> tuple[str, bytes | None]:
-    """Endpoint and server public key from the options, falling back on the rig file."""
-    endpoint, server_key = args.endpoint, None
+def _target(args: argparse.Namespace) -> tuple[str, bytes | None, float]:
+    """Endpoint, server public key and the daemon's status period, from the options, falling back
+    on the rig file."""
+    endpoint, server_key, status_interval_s = args.endpoint, None, DEFAULT_STATUS_INTERVAL_S
     if args.config:
         from trackerd.config.loader import load_rig  # the rig's models: only when a rig file is given
 
         zmq_config = load_rig(args.config).config.outputs.zmq
+        status_interval_s = zmq_config.status_interval_ms / 1000.0
         if endpoint is None:
             endpoint = connectable_endpoint(zmq_config.endpoints[0])
         if zmq_config.curve_secret_key_file is not None and not args.server_key:
@@ -107,7 +123,7 @@ def _target(args: argparse.Namespace) -> tuple[str, bytes | None]:
             server_key = load_curve_public_key(public if public.exists() else secret)
     if args.server_key:
         server_key = load_curve_public_key(Path(args.server_key))
-    return endpoint or DEFAULT_ENDPOINT, server_key
+    return endpoint or DEFAULT_ENDPOINT, server_key, status_interval_s
 
 
 def connectable_endpoint(endpoint: str) -> str:
@@ -120,23 +136,52 @@ def connectable_endpoint(endpoint: str) -> str:
     return endpoint
 
 
-def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str) -> int:
+class Hint(NamedTuple):
+    """What to say on stderr when nothing has arrived ``after_s`` seconds after connecting."""
+
+    text: str
+    after_s: float
+
+
+def silence_hint(endpoint: str, curve: bool, status_interval_s: float) -> Hint:
+    """The line to print when nothing at all has arrived for a few status periods: the three usual
+    reasons, each with what to check."""
+    after_s = max(float(SILENT_STATUS_PERIODS), SILENT_STATUS_PERIODS * status_interval_s)
+    keys = ("is --server-key the daemon's public key, and does the daemon accept this client's key?" if curve
+            else "does the daemon use CURVE (then --server-key FILE, or --config with its rig file)?")
+    text = (f"trackerd listen: nothing from {endpoint} in {after_s:g} s, though a running trackerd publishes"
+            f" a status every {status_interval_s:g} s: is the daemon running (systemctl status trackerd)?"
+            f" is {endpoint} the endpoint in the rig's [outputs.zmq]? {keys}")
+    return Hint(text, after_s)
+
+
+def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str, hint: Hint) -> int:
     received = 0
     warned_version = False
-    last_message = time.monotonic()
+    started = last_message = time.monotonic()
+    hint_due = True  # until anything at all arrives (the heartbeat too), or the hint is printed
+    wanted = tuple(args.topic or [""])
     while args.count is None or received < args.count:
         # A short poll keeps Ctrl-C responsive and lets the timeout be checked.
-        if not sub.poll(200):
-            if args.timeout is not None and time.monotonic() - last_message > args.timeout:
+        frames = sub.recv_multipart() if sub.poll(200) else None
+        topic = frames[0].decode("ascii", errors="replace") if frames else ""
+        if frames:
+            hint_due = False
+        if frames is None or not topic.startswith(wanted):
+            # Nothing, or the heartbeat subscribed for the hint's sake (neither printed nor counted,
+            # and checked here too: statuses arriving faster than the poll would hide the timeout).
+            now = time.monotonic()
+            if hint_due and now - started >= hint.after_s:
+                print(hint.text, file=sys.stderr, flush=True)
+                hint_due = False
+            if args.timeout is not None and now - last_message > args.timeout:
                 raise ListenTimeout(
                     f"no message from {endpoint} within {args.timeout:g} s"
                     " (is trackerd running there, publishing these topics, with matching CURVE keys?)"
                 )
             continue
-        frames = sub.recv_multipart()
         last_message = time.monotonic()
         received += 1
-        topic = frames[0].decode("ascii", errors="replace")
         payload = frames[1] if len(frames) > 1 else b""
         if args.json:
             print(payload.decode("utf-8", errors="replace"), flush=True)

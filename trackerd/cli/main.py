@@ -18,6 +18,7 @@ from collections.abc import Sequence
 
 import trackerd
 import trackerd.cli
+from trackerd import logs
 from trackerd.errors import TrackerdError
 
 
@@ -75,14 +76,12 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(argv).parse_args(argv)
-    logging.basicConfig(
-        level=getattr(logging, args.log_level.upper()),
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-    )
+    # Timestamped lines on a terminal; priority-prefixed ones when stderr is journald's (logs.py).
+    logs.configure(getattr(logging, args.log_level.upper()))
     try:
         return int(args.handler(args) or 0)
     except TrackerdError as err:
-        print(f"trackerd {args.command}: {err}", file=sys.stderr)
+        print(f"{logs.error_prefix()}trackerd {args.command}: {err}", file=sys.stderr)
         return err.exit_code
     except KeyboardInterrupt:
         return 130

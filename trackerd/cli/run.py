@@ -20,6 +20,7 @@ import threading
 import time
 from pathlib import Path
 
+from trackerd import logs
 from trackerd.cli._args import positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
@@ -124,7 +125,7 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
             signal.signal(sig, handler)
     code = 0
     if pipeline.failure is not None:
-        print("trackerd: a pipeline thread crashed (traceback above); exiting", file=sys.stderr)
+        print(f"{logs.error_prefix()}trackerd: a pipeline thread crashed (traceback above); exiting", file=sys.stderr)
         code = 1
     if exit_if_stuck and getattr(pipeline.source, "abandoned_threads", None):
         # A camera thread is inside Aravis's discovery (up to a second, not interruptible) and holds
