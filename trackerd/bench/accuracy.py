@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
 from trackerd.geometry.camera import CameraModel
@@ -63,7 +64,8 @@ class Variant:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default="config/simulated.toml", help="rig to start from")
+    parser.add_argument("--config", default=str(example_rig("simulated")),
+                        help="rig to start from (default: the bundled config/simulated.toml)")
     parser.add_argument("--poses", type=int, default=250, help="random poses per group (default 250)")
     parser.add_argument("--seed", type=int, default=2007, help="seed for poses and noise")
     parser.add_argument("--workers", type=int, default=min(2, multiprocessing.cpu_count()),

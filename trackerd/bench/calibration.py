@@ -37,6 +37,7 @@ from trackerd.calibration.store import RigContext, render_calibration
 from trackerd.calibration.update import apply_intrinsics, apply_stereo, apply_wall_fit, relative_pose
 from trackerd.calibration.views import ViewSelector
 from trackerd.calibration.wall import Pointing, Target, WallFit, corner_targets, fit_wall
+from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig, merge_calibration
 from trackerd.config.models import CalibrationFile, RigConfig
 from trackerd.geometry.camera import CameraModel
@@ -52,7 +53,8 @@ and a perfectly box-filtered edge makes gradient corner finders lock to pixel ce
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default="config/simulated.toml", help="the true rig to render")
+    parser.add_argument("--config", default=str(example_rig("simulated")),
+                        help="the true rig to render (default: the bundled config/simulated.toml)")
     parser.add_argument("--board", default="chessboard:10x7:60", help="board for intrinsics")
     parser.add_argument("--stereo-board", default="chessboard:10x7:100", help="board for stereo pairs")
     parser.add_argument("--views", type=int, default=20, help="board views per camera (default 20)")

@@ -35,6 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
 from trackerd.detect import ColourEndDetector, ImageDetections
@@ -52,8 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rig",
         type=Path,
-        default=Path("config/simulated.toml"),
-        help="rig to render (default: config/simulated.toml)",
+        default=example_rig("simulated"),
+        help="rig to render (default: the bundled config/simulated.toml)",
     )
     parser.add_argument(
         "--frames", type=int, default=24, help="distinct trajectory frames per camera (default: 24)"

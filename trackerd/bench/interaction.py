@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.config.examples import example_rig
 from trackerd.config.interaction import InteractionConfig
 from trackerd.config.loader import load_rig
 from trackerd.geometry.wall import WallFrame
@@ -35,7 +36,8 @@ from trackerd.interaction.templates import load_templates
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default="config/simulated.toml", help="rig (default config/simulated.toml)")
+    parser.add_argument("--config", default=str(example_rig("simulated")),
+                        help="rig (default: the bundled config/simulated.toml)")
     parser.add_argument("--rendered-pairs", type=int, default=60,
                         help="rendered pairs for the still and the moving pointer each (default 60; 0: none)")
     parser.add_argument("--sessions", type=int, default=25, help="gesture sessions of six gestures (default 25)")

@@ -51,6 +51,7 @@ import numpy as np
 import zmq
 
 from trackerd import cpu_latency
+from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError
 from trackerd.pipeline.stats import percentiles_ms
@@ -64,7 +65,8 @@ WAKEUP_MODES = ("auto", "alternate", "held", "off")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default="config/simulated.toml", help="rig (default: config/simulated.toml)")
+    parser.add_argument("--config", default=str(example_rig("simulated")),
+                        help="rig (default: the bundled config/simulated.toml)")
     parser.add_argument("--seconds", type=float, default=60.0, help="length of the run (default 60)")
     parser.add_argument("--rate", type=float, default=60.0, help="pairs per second served (memory source)")
     parser.add_argument("--motion", default="figure8", help="rendered motion (default figure8)")

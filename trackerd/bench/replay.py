@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
@@ -45,7 +46,8 @@ REFERENCE_PAIRS = 300
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default="config/simulated.toml", help="rig (default: config/simulated.toml)")
+    parser.add_argument("--config", default=str(example_rig("simulated")),
+                        help="rig (default: the bundled config/simulated.toml)")
     parser.add_argument("--motion", default="figure8", help="rendered motion to record (default figure8)")
     parser.add_argument("--record-seconds", type=float, default=30.0, help="length of the recording (default 30)")
     parser.add_argument("--rate", type=float, default=60.0, help="pairs per second recorded (default 60)")

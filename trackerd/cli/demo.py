@@ -12,18 +12,16 @@ import argparse
 import json
 import sys
 import threading
-from pathlib import Path
 from typing import Any
 
 import zmq
 
 from trackerd.cli._args import positive_seconds
 from trackerd.cli.simrig import add_network_options
+from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig, with_endpoints
 from trackerd.sim import netns
 from trackerd.sim.motion import MOTIONS
-
-DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "simulated.toml"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -31,7 +29,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "demo", help="run the daemon on simulated cameras and print the hits it publishes",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--config", default=str(DEFAULT_CONFIG), help="rig to simulate (default: config/simulated.toml)")
+    parser.add_argument("--config", default=str(example_rig("simulated")),
+                        help="rig to simulate (default: the bundled config/simulated.toml)")
     parser.add_argument("--motion", default="figure8", choices=MOTIONS, help="scripted pointer motion (default: figure8)")
     parser.add_argument("--seconds", type=positive_seconds, help="stop after this long (default: until Ctrl-C)")
     parser.add_argument("--every", type=int, default=6, help="print one hit in this many (default 6: ten a second)")
