@@ -1,5 +1,6 @@
-"""systemd/trackerd.service and trackerd-cpu-latency.service: `systemd-analyze verify` passes, the
-exposure scores stay low, and the settings the daemon relies on are there."""
+"""systemd/trackerd.service and trackerd-cpu-latency.service: `systemd-analyze verify` can fail, the
+exposure scores stay low, and the settings the daemon relies on are there. That verify passes on the
+units as installed is test_install.py's."""
 
 from __future__ import annotations
 
@@ -44,26 +45,9 @@ def _installable_copy(unit: Path, directory: Path) -> Path:
 
 
 @needs_analyze
-def test_systemd_analyze_verify_passes(unit_path: Path, tmp_path: Path):
-    copy = _installable_copy(unit_path, tmp_path)
-    result = subprocess.run(["systemd-analyze", "verify", str(copy)], capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
-    assert result.stderr.strip() == "", result.stderr
-
-
-@needs_analyze
-def test_systemd_analyze_verify_passes_on_the_cpu_latency_unit(unit_path: Path, tmp_path: Path):
-    # Verified beside trackerd.service, which it names (Before=, PartOf=, WantedBy=).
-    _installable_copy(unit_path, tmp_path)
-    copy = _installable_copy(CPU_LATENCY_UNIT, tmp_path)
-    result = subprocess.run(["systemd-analyze", "verify", str(copy)], capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
-    assert result.stderr.strip() == "", result.stderr
-
-
-@needs_analyze
 def test_verify_catches_a_broken_unit(tmp_path: Path, unit_path: Path):
-    """The verification above can fail: a misspelt directive is reported."""
+    """The verification of the installed units (test_install.py) can fail: a misspelt directive is
+    reported. A stand-in executable is enough here, and needs neither root nor an install."""
     broken = tmp_path / "broken"
     broken.mkdir()
     copy = _installable_copy(unit_path, broken)
