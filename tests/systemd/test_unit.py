@@ -90,6 +90,19 @@ def test_service_settings_the_daemon_relies_on(unit_path: Path):
     assert "AF_PACKET" not in settings["RestrictAddressFamilies"][0]
 
 
+def test_the_recording_example_is_writable_under_the_unit(unit_path: Path):
+    """Regression (issue 15): ProtectSystem=strict left no directory to record into, while
+    docs/recording.md's daemon example writes to /var/lib/trackerd/recordings."""
+    settings = _settings(unit_path)
+    writable = [Path("/var/lib", name) for value in settings.get("StateDirectory", []) for name in value.split()]
+    writable += [Path("/run", name) for value in settings.get("RuntimeDirectory", []) for name in value.split()]
+    text = (REPO / "docs" / "recording.md").read_text()
+    match = re.search(r'^directory = "(/[^"]+)"', text, re.MULTILINE)
+    assert match, "docs/recording.md has no daemon example with an absolute directory"
+    example = Path(match.group(1))
+    assert any(example.is_relative_to(place) for place in writable), (example, writable)
+
+
 def test_packet_socket_drop_in_grants_only_cap_net_raw():
     settings = _settings(DROP_IN)
     assert settings["AmbientCapabilities"] == ["CAP_NET_RAW"]
