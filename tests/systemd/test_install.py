@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.wheel import build_wheel
+
 REPO = Path(__file__).resolve().parents[2]
 INSTALL = REPO / "scripts" / "install"
 UNITS = ("trackerd.service", "trackerd-cpu-latency.service")
@@ -36,18 +38,25 @@ def _missing() -> str | None:
     return None
 
 
-def _install(root: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(INSTALL), "--root", str(root), "--no-deps"],
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """trackerd's wheel, built offline (scripts/install builds the checkout with pip's isolated build,
+    which takes setuptools from an index: a test reaches nothing beyond loopback)."""
+    return build_wheel(tmp_path_factory.mktemp("wheel"))
+
+
+def _install(root: Path, wheel: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([str(INSTALL), "--root", str(root), "--no-deps", "--wheel", str(wheel)],
                           capture_output=True, text=True, timeout=600)
 
 
 @pytest.fixture(scope="module")
-def root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def root(tmp_path_factory: pytest.TempPathFactory, wheel: Path) -> Path:
     reason = _missing()
     if reason:
         pytest.skip(reason)
     root = tmp_path_factory.mktemp("root")
-    result = _install(root)
+    result = _install(root, wheel)
     assert result.returncode == 0, result.stdout + result.stderr
     return root
 
@@ -119,7 +128,7 @@ def test_install_puts_everything_where_the_docs_say(root: Path):
             assert (root / url.removeprefix("file:///")).is_file(), url
 
 
-def test_reinstall_keeps_the_operators_files(root: Path):
+def test_reinstall_keeps_the_operators_files(root: Path, wheel: Path):
     rig = root / "etc/trackerd/rig.toml"
     shipped = rig.read_text()
     drop_in = root / "etc/systemd/system/trackerd.service.d/site.conf"
@@ -127,7 +136,7 @@ def test_reinstall_keeps_the_operators_files(root: Path):
         rig.write_text(shipped + "# edited for this room\n")
         drop_in.parent.mkdir()
         drop_in.write_text("[Service]\nEnvironment=SITE=1\n")
-        result = _install(root)
+        result = _install(root, wheel)
         assert result.returncode == 0, result.stdout + result.stderr
         assert rig.read_text().endswith("# edited for this room\n")
         assert drop_in.read_text() == "[Service]\nEnvironment=SITE=1\n"

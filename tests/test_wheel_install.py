@@ -12,7 +12,6 @@ for ``./config/simulated.toml``.
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import sysconfig
@@ -20,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.wheel import build_wheel
 from trackerd.acquisition.arv import aravis_missing_reason
 
 REPO = Path(__file__).resolve().parent.parent
@@ -30,11 +30,6 @@ SUBNET = "10.213.230.0/24"
 ENDPOINT = "tcp://127.0.0.1:5583"
 """Away from the rig's own 5560, which other tests use. Fixed, because the endpoint is part of the rig
 the simulated cameras' rendered loop is cached under: a new one each run would render it again (~20 s)."""
-NOT_SOURCE = shutil.ignore_patterns(
-    ".git", ".venv", ".cache", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".ruff_cache",
-    ".hypothesis", "simrig-out", "tests",
-)
-"""What a build does not need from the checkout: VCS, caches, earlier builds' leftovers, the tests."""
 
 pytestmark = pytest.mark.slow
 
@@ -51,22 +46,16 @@ def _run(*command: str | Path, timeout_s: float, cwd: Path | None = None) -> sub
 def venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A fresh virtual environment with trackerd installed from a freshly built wheel."""
     work = tmp_path_factory.mktemp("install")
-    source = work / "source"
-    # A copy, so the build neither writes build/ into the checkout nor packs a stale build/lib.
-    shutil.copytree(REPO, source, symlinks=True, ignore=NOT_SOURCE)
+    wheel = build_wheel(work)
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
-    # An isolated build, as `pip install .` does: pyproject asks for setuptools>=77 (an SPDX license
-    # string), newer than Debian bookworm's 66 in the venv, so pip takes it from the configured index.
-    built = _run(*pip, "wheel", "--no-deps", "-w", work / "wheels", source, timeout_s=300)
-    assert built.returncode == 0, built.stderr
-    (wheel,) = (work / "wheels").glob("trackerd-*.whl")
     # --system-site-packages for Debian's PyGObject and Aravis, as docs/deployment.md makes it.
     venv = work / "venv"
     made = _run(sys.executable, "-m", "venv", "--without-pip", "--system-site-packages", venv, timeout_s=60)
     assert made.returncode == 0, made.stderr
     (site_packages,) = venv.glob("lib/python*/site-packages")
     (site_packages / "project-dependencies.pth").write_text(sysconfig.get_path("purelib") + "\n")
-    setup = _run(*pip, "--python", venv / "bin" / "python", "install", "--no-deps", wheel, timeout_s=120)
+    setup = _run(*pip, "--python", venv / "bin" / "python", "install", "--no-deps", "--no-index", wheel,
+                 timeout_s=120)
     assert setup.returncode == 0, setup.stderr
     return venv
 
