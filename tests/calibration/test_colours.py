@@ -20,6 +20,7 @@ from trackerd.calibration.live import save_frame
 from trackerd.config.loader import dump_rig, load_rig
 from trackerd.detect.detector import ColourEndDetector
 
+
 def _learn(rig, renderer, *, content=None, count: int = 8):
     rng = np.random.default_rng(5)
     learner = ColourLearner(rig, renderer.cameras, wanted=count)

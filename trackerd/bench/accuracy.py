@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
@@ -81,11 +82,19 @@ def run(args: argparse.Namespace) -> int:
     per_variant = {g: max(1, math.ceil(args.poses / sum(v.group == g for v in variants))) for g in groups}
     tasks = [(v, per_variant[v.group], args.seed + i) for i, v in enumerate(variants)]
     start = time.time()
+    progress = BenchProgress("accuracy", sum(count for _, count, _ in tasks), "poses")
     if args.workers > 1:
         with multiprocessing.get_context("fork").Pool(args.workers) as pool:
-            results = pool.map(_run_variant, tasks)
+            results = []
+            for task, result in zip(tasks, pool.imap(_run_variant, tasks), strict=True):
+                results.append(result)
+                progress.step(task[1])
     else:
-        results = [_run_variant(t) for t in tasks]
+        results = []
+        for task in tasks:
+            results.append(_run_variant(task))
+            progress.step(task[1])
+    progress.done()
     summary = summarise(variants, results)
     summary["seconds"] = round(time.time() - start, 1)
     summary["config"] = args.config

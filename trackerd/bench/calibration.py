@@ -23,12 +23,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from trackerd.bench.progress import BenchProgress
 from trackerd.calibration.board import BoardSpec
 from trackerd.calibration.collect import collect_pairs, collect_views
 from trackerd.calibration.intrinsics import IntrinsicsResult, calibrate_intrinsics, lens_model_difference_px
@@ -70,6 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     start = time.time()
     true_rig = load_rig(args.config).config
+    progress = BenchProgress("calibration")
     study = calibrate_simulated(
         true_rig,
         BoardSpec.parse(args.board),
@@ -78,8 +81,11 @@ def run(args: argparse.Namespace) -> int:
         pairs=args.pairs,
         pointing=args.pointing,
         seed=args.seed,
+        progress=progress.phase,
     )
+    progress.phase(f"wall-hit accuracy, true and recovered calibration ({args.poses} poses)")
     accuracy = compare_accuracy(true_rig, study.recovered_rig, study.scene, args.poses, args.seed + 1)
+    progress.done()
     summary = summarise(study, accuracy)
     summary["seconds"] = round(time.time() - start, 1)
     summary["config"] = args.config
@@ -124,8 +130,10 @@ def calibrate_simulated(
     pointing: int,
     seed: int,
     scene: SceneRenderer | None = None,
+    progress: Callable[[str], None] = lambda step: None,
 ) -> SimulatedCalibration:
-    """Run intrinsics, stereo and wall calibration on rendered images of ``true_rig``."""
+    """Run intrinsics, stereo and wall calibration on rendered images of ``true_rig``; ``progress``
+    hears of each step as it begins."""
     rng = np.random.default_rng(seed)
     scene = scene or SceneRenderer(true_rig)
     blank = blank_rig(true_rig)
@@ -135,6 +143,7 @@ def calibrate_simulated(
     results: dict[str, IntrinsicsResult] = {}
     renderer = BoardRenderer(scene, board)
     for index, cam in enumerate(true_rig.cameras):
+        progress(f"intrinsics of camera {cam.id} ({views} views)")
         poses = poses_for_camera(scene, board, index, views, rng)
         frames = ((f"{cam.id}-{k:02d}", *_render(renderer, index, pose, rng)) for k, pose in enumerate(poses))
         collected = collect_views(frames, board, ViewSelector(cam.width_px, cam.height_px))
@@ -142,6 +151,7 @@ def calibrate_simulated(
         results[cam.id] = calibrate_intrinsics(collected.views)
         calibration = apply_intrinsics(calibration, cam.id, results[cam.id], board, "rendered")
     cam1, cam2 = true_rig.cameras[0], true_rig.cameras[1]
+    progress(f"stereo ({pairs} pairs)")
     stereo_renderer = BoardRenderer(scene, stereo_board)
     pair_poses = poses_for_pair(scene, stereo_board, pairs, rng)
 
@@ -161,6 +171,7 @@ def calibrate_simulated(
         calibration, context.merged(calibration), cam1.id, cam2.id, stereo, stereo_board, "rendered", keep_frame=False
     )
     in_camera_frame = context.merged(calibration)
+    progress("the wall, by pointing")
     fit = wall_by_pointing(scene, in_camera_frame, pointing, rng)
     wall_cfg = true_rig.wall
     display = (wall_cfg.display_width_px, wall_cfg.display_height_px) if wall_cfg.display_width_px else None

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.interaction import InteractionConfig
 from trackerd.config.loader import load_rig
@@ -51,11 +52,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     rig = load_rig(args.config).config
     rng = np.random.default_rng(args.seed)
+    progress = BenchProgress("interaction")
+    progress.phase("smoothing: scripted and rendered tracks")
     figures: dict[str, Any] = {"smoothing": smoothing_figures(rig, args, rng)}
+    progress.phase(f"gestures: {args.sessions} sessions, {args.pointing_minutes:g} min of random pointing")
     figures["gestures"] = gesture_figures(rig, args, rng)
     if args.hands:
+        progress.phase(f"hands: {args.hands} rendered")
         figures["hands"] = hand_figures(rig, args.hands, rng)
+    progress.phase("cost per pair")
     figures["cost"] = cost_figures(rig, rng)
+    progress.done()
     if args.json:
         print(json.dumps(figures, indent=2))
     else:

@@ -27,13 +27,13 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
-import sys
 import time
 from collections import Counter
 from typing import Any
 
 import numpy as np
 
+from trackerd.bench.progress import BenchProgress
 from trackerd.errors import GeometryError
 
 FACTORS = ("placement", "content", "lighting", "blur", "occlusion", "paint", "cameras", "resolution")
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     start = time.time()
     tasks = [(args.seed, index, args.poses, args.refine, args.learn_colours) for index in range(args.rigs)]
     records: list[dict[str, Any]] = []
-    progress = _Progress(args.rigs)
+    progress = BenchProgress("robustness", args.rigs, "installations")
     if args.workers > 1 and args.rigs > 1:
         with multiprocessing.get_context("fork").Pool(args.workers) as pool:
             for result in pool.imap_unordered(run_rig, tasks):
@@ -96,29 +96,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(format_summary(summary))
     return 0
-
-
-class _Progress:
-    """One line on stderr per finished installation (a bar on a terminal)."""
-
-    def __init__(self, total: int) -> None:
-        self.total = total
-        self.finished = 0
-        self.start = time.time()
-        self.tty = sys.stderr.isatty()
-
-    def step(self) -> None:
-        self.finished += 1
-        elapsed = time.time() - self.start
-        text = f"robustness: {self.finished}/{self.total} installations, {elapsed:.0f} s"
-        if self.tty:
-            print(f"\r{text}", end="", file=sys.stderr, flush=True)
-        else:
-            print(text, file=sys.stderr, flush=True)
-
-    def done(self) -> None:
-        if self.tty:
-            print(file=sys.stderr)
 
 
 # --------------------------------------------------------------------------- one installation

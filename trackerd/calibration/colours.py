@@ -38,7 +38,14 @@ from numpy.typing import NDArray
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.health import ellipse_centre_px
 from trackerd.calibration.live import Event
-from trackerd.config.models import MIN_LEARNED_EXCESS, ColourThreshold, DetectorConfig, LearnedColour, PointerColours, RigConfig
+from trackerd.config.models import (
+    MIN_LEARNED_EXCESS,
+    ColourThreshold,
+    DetectorConfig,
+    LearnedColour,
+    PointerColours,
+    RigConfig,
+)
 from trackerd.detect.colour import sample_grid
 from trackerd.detect.margin import BALL_PERCENTILE, Disc, colour_samples, unhidden
 from trackerd.geometry.camera import CameraModel
@@ -122,7 +129,7 @@ def ball_discs(camera: CameraModel, front_m: NDArray[np.float64], back_m: NDArra
             continue
         x, y = ellipse_centre_px(camera, centre, radius_m)
         radius_px = camera.focal_px * radius_m / math.sqrt(distance**2 - radius_m**2)
-        inside = bool(camera.contains(np.array([[x, y]]), margin_px=radius_px)[0]) if np.isfinite([x, y]).all() else False
+        inside = bool(np.isfinite([x, y]).all()) and bool(camera.contains(np.array([[x, y]]), margin_px=radius_px)[0])
         discs[colour] = Disc(float(x), float(y), radius_px) if inside else None
     return discs
 
@@ -263,7 +270,7 @@ class ColourLearner:
                     f" grey levels of {colour} excess): more light, a longer exposure or a stronger paint"
                 )
             values = np.concatenate([v for cam in self._cameras for v in cam.value[colour]])
-            min_value = min(threshold, int(round(VALUE_SHARE * float(np.percentile(values, BALL_PERCENTILE)))))
+            min_value = min(threshold, round(VALUE_SHARE * float(np.percentile(values, BALL_PERCENTILE))))
             learned[colour] = LearnedColour(min_excess=threshold, min_value=min_value,
                                             ball_excess=round(ball), background_excess=room)
             if room >= threshold:

@@ -12,7 +12,6 @@ from trackerd.calibration.store import RigContext, open_rig, today, with_pointer
 from trackerd.cli.calibrate.common import Output, check_source, run_live, simulated_pointer, write_result
 from trackerd.geometry.camera import CameraModel
 
-
 DEFAULT_FRAMES = 60
 """Pairs with the pointer located to learn from, live."""
 
