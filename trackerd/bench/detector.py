@@ -35,6 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
@@ -157,12 +158,16 @@ def run(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     renderer = SceneRenderer(rig)
     n_cams = min(2, len(rig.cameras))
+    progress = BenchProgress("detector")
+    progress.phase(f"rendering {args.frames} frames of a trajectory and {args.poses} single poses per camera")
     t_render = time.perf_counter()
     path = trajectory(rig, rng, args.frames, args.step_mm / 1000.0, renderer.cameras[:n_cams])
     singles = [random_pose(rig, rng, renderer.cameras[:n_cams]) for _ in range(args.poses)]
     sequences = [render_frames(renderer, path, cam, rng) for cam in range(n_cams)]
     independent = [f for cam in range(n_cams) for f in render_frames(renderer, singles, cam, rng)]
     t_render = time.perf_counter() - t_render
+    progress.phase(f"timing trackerd and OpenCV on them ({args.repeats} repeats)")
+    progress.done()
 
     cfg = rig.detector
     if args.min_excess:

@@ -51,6 +51,7 @@ import numpy as np
 import zmq
 
 from trackerd import cpu_latency
+from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError
@@ -104,10 +105,12 @@ def run(args: argparse.Namespace) -> int:
     zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (args.endpoint,)})
     rig = rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
     virtual = None
+    progress = BenchProgress("pipeline")
     if args.source == "memory":
         from trackerd.acquisition.memory import MemoryPairSource
         from trackerd.sim.rig import render_loop
 
+        progress.phase(f"the '{args.motion}' loop (rendered once, then cached) and detection back to back")
         loop = render_loop(rig, args.motion)
         frames = [np.load(path) for path in loop.frame_paths]
         image_sets = [[cam[i] for cam in frames] for i in range(loop.n_frames)]
@@ -122,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
         from trackerd.acquisition.live import AravisPairSource
         from trackerd.sim.rig import VirtualRig
 
+        progress.phase(f"starting the virtual GigE Vision rig ('{args.motion}')")
         virtual = VirtualRig(rig, motion=args.motion)
         virtual.start()
         rig = virtual.daemon_rig
@@ -145,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
         if wakeup == "held":
             wakeup_request.enter_context(cpu_latency.held(0))
         pipeline.start()
+        progress.phase(f"measuring {args.seconds:g} s after 2 s of warm-up")
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
         pairs0 = pipeline.pairs_processed
@@ -210,6 +215,7 @@ def run(args: argparse.Namespace) -> int:
         "messages_received": dict(counts),
         "failure": pipeline.failure,
     }
+    progress.done()
     if args.json:
         print(json.dumps(figures, indent=2))
     else:

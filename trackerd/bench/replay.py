@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
@@ -108,6 +109,7 @@ def _record(rig: RigConfig, args: argparse.Namespace, workdir: Path) -> tuple[Pa
     from trackerd.acquisition.memory import MemoryPairSource
     from trackerd.sim.rig import render_loop
 
+    BenchProgress("replay").phase(f"recording {args.record_seconds:g} s of the '{args.motion}' loop")
     loop = render_loop(rig, args.motion)
     frames = [np.load(p) for p in loop.frame_paths]
     image_sets = [[cam[i] for cam in frames] for i in range(loop.n_frames)]
@@ -251,10 +253,13 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
         ("opencv reference", rig, opencv_reference, True, n_ref),
     ]
     out = {}
+    progress = BenchProgress("replay", len(runs), "replays")
     for name, run_rig, baseline, verify, count in runs:
         if args.cold:
             _drop_page_cache()
         out[name] = _replay_once(recording, run_rig, baseline, verify, count, truth)
+        progress.step()
+    progress.done()
     return out
 
 
