@@ -10,6 +10,11 @@ A file becomes a frame in one of the pixel formats the detector understands:
 
 The image size must match the camera's configured resolution, since the
 calibration is only valid at that size.
+
+A file can hold something else than what the camera delivers and still be read:
+a demosaiced or annotated picture (a `trackerd snap` ``-view.png``) from a Bayer
+camera, or a grey picture saved as one channel. :func:`raw_format_doubt` says why
+such a frame is suspect, for the commands to warn.
 """
 
 from __future__ import annotations
@@ -72,3 +77,52 @@ def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) ->
     if frame.ndim == 3 and frame.shape[2] == 3:
         return np.ascontiguousarray(frame), "BGR8"
     raise ImageError(f"{path}: unsupported image layout {frame.shape}")
+
+
+MOSAIC_SMOOTHNESS_LIMIT = 0.9
+"""Below this :func:`mosaic_smoothness`, a single channel is not a raw Bayer mosaic. Pixel noise alone
+gives 1; trackerd's rendered raw mosaics give 2.1-2.4, the same frames demosaiced and made grey 0.72."""
+
+
+def mosaic_smoothness(frame: NDArray[np.uint8]) -> float | None:
+    """How alike neighbouring pixels are against pixels two apart; None for a flat image.
+
+    The mean absolute difference between neighbours over that between pixels two
+    apart, along rows and columns, for an (H, W) image. In a raw Bayer mosaic,
+    neighbours sit behind different colour filters and pixels two apart behind the
+    same one, so anything coloured makes neighbours differ more (a ratio above 1).
+    A grey or demosaiced picture is interpolated, so neighbours are more alike than
+    pixels two apart (below 1).
+    """
+    image = frame.astype(np.int16)
+    near = np.abs(np.diff(image, axis=1)).mean() + np.abs(np.diff(image, axis=0)).mean()
+    far = np.abs(image[:, 2:] - image[:, :-2]).mean() + np.abs(image[2:] - image[:-2]).mean()
+    return None if far == 0 else float(near / far)
+
+
+def raw_format_doubt(frame: NDArray[np.uint8], pixel_format: str, camera: CameraConfig) -> str | None:
+    """Why ``frame``, read from a file as ``pixel_format`` for ``camera``, is not what a Bayer camera
+    delivers; None when it looks raw (or the camera is not a Bayer camera).
+
+    The detector's centroids, and so the stated uncertainty of a hit, assume the
+    raw mosaic: demosaicing, lossy compression or marks drawn on the picture move
+    the ends it measures, silently.
+    """
+    if not is_bayer(camera.pixel_format):
+        return None
+    raw = "give the raw frame: a single-channel PNG as `trackerd snap` saves it, or .npy"
+    if frame.ndim == 3:
+        return (
+            f"a colour (3-channel) image, but camera '{camera.id}' delivers raw {camera.pixel_format} mosaics:"
+            " a demosaiced, compressed or annotated picture can move the ends by more than the stated"
+            f" uncertainty, which holds only for raw frames; {raw}"
+        )
+    smoothness = mosaic_smoothness(frame) if is_bayer(pixel_format) else None
+    if smoothness is not None and smoothness < MOSAIC_SMOOTHNESS_LIMIT:
+        return (
+            f"a single-channel image without the 2x2 structure of camera '{camera.id}'s raw"
+            f" {camera.pixel_format} mosaic (neighbouring pixels differ {smoothness:.2f} times as much as"
+            f" pixels two apart; a raw mosaic's differ more): a grey or demosaiced picture, whose colours are"
+            f" lost; {raw}"
+        )
+    return None

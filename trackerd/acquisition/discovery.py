@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import ipaddress
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from trackerd.acquisition import gvcp
 from trackerd.acquisition.arv import load_aravis
 from trackerd.errors import CameraError
+
+ADDRESS_PROBE_TRIES = 3
+ADDRESS_PROBE_TIMEOUT_S = 0.5
+"""Per try: a GVCP discovery answer comes back in milliseconds; three tries cover a lost packet."""
 
 TRIGGER_FEATURES = ("TriggerSelector", "TriggerMode", "TriggerSource", "TriggerActivation")
 PTP_FEATURES = ("PtpEnable", "GevIEEE1588")
@@ -82,6 +88,40 @@ def find_device(devices: list[DeviceEntry], wanted: str) -> DeviceEntry | None:
     for device in devices:
         if wanted in (device.device_id, device.serial, device.address, device.physical_id):
             return device
+    return None
+
+
+def is_ipv4_address(text: str) -> bool:
+    """Whether ``text`` is a literal IPv4 address (as a GigE Vision camera is named by address)."""
+    try:
+        ipaddress.IPv4Address(text)
+    except ValueError:
+        return False
+    return True
+
+
+def device_at(address: str) -> DeviceEntry | None:
+    """The GigE Vision camera at ``address``, asked directly; None if nothing answers.
+
+    Aravis's device list comes from broadcast discovery, which reaches only the
+    subnets of this host's interfaces: a camera behind a router, or on a subnet
+    the host is not on but has a route to, is not in it, although Aravis opens it
+    by its address. A GVCP discovery sent to the address itself (unicast) reaches
+    any camera the host can route to, and its answer names the camera. The entry's
+    device id is the address, which is what Aravis (and a rig file) opens it by.
+    """
+    for _ in range(ADDRESS_PROBE_TRIES):
+        found = gvcp.probe(address, ADDRESS_PROBE_TIMEOUT_S)
+        if found is not None:
+            return DeviceEntry(
+                device_id=address,
+                vendor=found.manufacturer,
+                model=found.model,
+                serial=found.serial,
+                address=found.address,
+                protocol="GigEVision",
+                physical_id=found.mac,
+            )
     return None
 
 

@@ -6,7 +6,17 @@ import argparse
 import json
 from dataclasses import asdict
 
-from trackerd.acquisition.discovery import CameraDetails, DeviceEntry, describe_camera, find_device, list_devices
+from trackerd.acquisition.discovery import (
+    ADDRESS_PROBE_TIMEOUT_S,
+    ADDRESS_PROBE_TRIES,
+    CameraDetails,
+    DeviceEntry,
+    describe_camera,
+    device_at,
+    find_device,
+    is_ipv4_address,
+    list_devices,
+)
 from trackerd.errors import CameraError
 
 
@@ -26,6 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cameras_command(args: argparse.Namespace) -> int:
+    if args.camera and is_ipv4_address(args.camera):
+        return _camera_at(args.camera, args.json)
     devices = list_devices(include_fake=args.fake)
     if not devices:
         message = (
@@ -61,12 +73,37 @@ def cameras_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def format_devices(devices: list[DeviceEntry]) -> str:
+def _camera_at(address: str, as_json: bool) -> int:
+    """One camera named by its address: asked directly, not looked for by broadcast discovery.
+
+    Broadcast discovery stops at the host's own subnets, so a routed camera that
+    Aravis opens by its address would otherwise be reported as absent (issue 15).
+    """
+    device = device_at(address)
+    if device is None:
+        waited_s = ADDRESS_PROBE_TRIES * ADDRESS_PROBE_TIMEOUT_S
+        raise CameraError(
+            f"no camera answers at {address}: no GVCP discovery answer from UDP port 3956 in {waited_s:g} s"
+            f" (check the address, that this host has a route to it: ip route get {address},"
+            " and that no firewall drops UDP port 3956 either way; docs/acquisition.md)"
+        )
+    details = describe_camera(device)
+    if as_json:
+        print(json.dumps({"cameras": [asdict(device)], "camera": details.to_dict()}, indent=2))
+    else:
+        print(format_devices([device], where=f"at {address}"))
+        print()
+        print(format_details(details))
+    return 0
+
+
+def format_devices(devices: list[DeviceEntry], where: str = "") -> str:
     header = ("device id", "vendor", "model", "serial", "address", "protocol")
     rows = [header] + [(d.device_id, d.vendor, d.model, d.serial, d.address, d.protocol) for d in devices]
     widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
     lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip() for row in rows]
-    return f"{len(devices)} camera{'s' if len(devices) != 1 else ''} found\n" + "\n".join(lines)
+    found = f"{len(devices)} camera{'s' if len(devices) != 1 else ''} found{' ' + where if where else ''}"
+    return found + "\n" + "\n".join(lines)
 
 
 def _range(bounds: tuple[float, float] | None, unit: str) -> str:

@@ -4,6 +4,12 @@ Reads one image per camera, finds both coloured ends in each, triangulates the
 pointer and prints where on the wall it points. Exit code 0 only when the
 pointer points at the display; 1 when an end is missing, the geometry is
 impossible, or it points elsewhere; 2 for a bad configuration.
+
+An image that does not look like the camera's raw frame is located all the
+same, with a warning on stderr (and in "warnings" with --json): a colour picture
+for a Bayer camera (demosaiced, compressed or annotated, such as the -view.png of
+`trackerd snap`), or a single channel without a raw mosaic's 2x2 structure (a grey
+picture). The hit's stated uncertainty holds only for raw frames.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ import numpy as np
 
 from trackerd.config.loader import load_rig
 from trackerd.errors import ImageError
-from trackerd.images import read_frame
+from trackerd.images import raw_format_doubt, read_frame
 from trackerd.locator import Locator, PointerFix
 
 
@@ -42,15 +48,24 @@ def locate_command(args: argparse.Namespace) -> int:
     if len(args.images) != len(rig.cameras):
         ids = ", ".join(c.id for c in rig.cameras)
         raise ImageError(f"the rig has {len(rig.cameras)} cameras ({ids}); give one image for each, in that order")
-    frames, formats = [], []
+    frames, formats, warnings = [], [], []
     for path, camera in zip(args.images, rig.cameras, strict=True):
         frame, fmt = read_frame(path, camera)
         frames.append(frame)
         formats.append(fmt)
+        # An image that is not the camera's raw frame still gives a hit, with an uncertainty that does not
+        # hold for it (issue 15: an annotated picture, 51 mm off, claimed +-2.1 mm): say so, not silently.
+        doubt = raw_format_doubt(frame, fmt, camera)
+        if doubt is not None:
+            if (raw := _snap_raw_frame(Path(path))) is not None:
+                doubt += f"; here {raw}, which `trackerd snap` saved with this annotated view"
+            warnings.append(f"{path}: {doubt}")
+            print(f"trackerd locate: warning: {path}: {doubt}", file=sys.stderr)
     locator = Locator(rig, pixel_formats=formats)
     fix = locator.locate(frames)
     truth = _read_truth(args.truth) if args.truth else None
     result = fix_to_json(fix, locator, args.images)
+    result["warnings"] = warnings
     if truth is not None:
         result["truth"] = _compare(fix, truth)
     if args.json:
@@ -62,6 +77,14 @@ def locate_command(args: argparse.Namespace) -> int:
             print(f"trackerd locate: {fix.reason}", file=sys.stderr)
         return 1
     return 0
+
+
+def _snap_raw_frame(path: Path) -> Path | None:
+    """The raw ``<name>-<camera>.png`` next to `trackerd snap`'s annotated ``<name>-<camera>-view.png``."""
+    if not path.name.endswith("-view.png"):
+        return None
+    raw = path.with_name(path.name.removesuffix("-view.png") + ".png")
+    return raw if raw.exists() else None
 
 
 def _read_truth(path: str) -> dict[str, Any]:
