@@ -53,6 +53,25 @@ def read_bounded(path: Path, limit_bytes: int) -> bytes:
     return data
 
 
+def open_regular(path: Path) -> int:
+    """A read-only descriptor of the regular file at ``path`` (for a file too large to read whole, to map).
+
+    Raises IsADirectoryError, NotRegularFile (a FIFO, a socket, a device) or the OSError of opening
+    it. O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer, for ever.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise IsADirectoryError(21, "Is a directory", str(path))
+        if not stat.S_ISREG(mode):
+            raise NotRegularFile(f"{path}: not a regular file ({_kind(mode)})")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
 def nesting_depth(value: Any, limit: int = MAX_DEPTH) -> int:
     """How deeply ``value`` (parsed TOML or JSON) nests dicts and lists, counted without recursion;
     counting stops once past ``limit``."""

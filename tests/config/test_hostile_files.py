@@ -78,3 +78,40 @@ def test_nesting_depth_stops_counting_past_its_limit_without_recursion() -> None
     for _ in range(100_000):  # far past Python's recursion limit
         value = [value]
     assert MAX_DEPTH < nesting_depth(value) <= MAX_DEPTH + 1
+
+
+def test_an_integer_too_long_for_python_is_one_line_not_a_traceback(tmp_path: Path) -> None:
+    """Found by tests/test_fuzz.py: tomllib reads integers with int(), which refuses more than 4300
+    digits with a plain ValueError (not a TOMLDecodeError), and that escaped load_rig."""
+    rig = tmp_path / "rig.toml"
+    text = (REPO / "config" / "simulated.toml").read_text()
+    rig.write_text(text.replace("width_px = 1920", "width_px = " + "9" * 5000, 1))
+    _one_line(_trackerd("config", "check", rig), "config", str(rig), "not valid TOML", "4300 digits")
+
+
+def test_keys_and_tags_with_line_breaks_are_quoted_on_one_line(tmp_path: Path) -> None:
+    """Found by tests/test_fuzz.py: a key or a union tag holding a line break, a carriage return or
+    another character a log breaks lines at (U+001E, U+2028) was echoed as it is, so the one-line
+    error became several. They are quoted with escapes, as TOML would spell them."""
+    from trackerd.config.loader import load_calibration, load_rig
+    from trackerd.errors import ConfigError
+
+    rig = tmp_path / "rig.toml"
+    rig.write_text((REPO / "config" / "simulated.toml").read_text().replace(
+        'name = "simulated-datawall"', 'name = "x"\ncalibration = "cal.toml"'))
+    calibration = tmp_path / "cal.toml"
+    cases = [
+        ('"bad\\nkey" = 1', 'unknown key "bad\\nkey"'),
+        ('"\\u001e" = 0', 'unknown key "\\u001e"'),
+        ('[cameras."left\\u2028right"]', 'cameras."left\\u2028right": no camera with this id'),
+        ('[cameras.right]\nextrinsics = { kind = "\\r", position_m = [1.0, 2.0, 3.0] }',
+         'cameras.right.extrinsics: tag "\\r" in key \'kind\''),
+    ]
+    for text, says in cases:
+        calibration.write_text(f"version = 1\n{text}\n")
+        with pytest.raises(ConfigError) as raised:
+            load_rig(rig)
+        assert len(str(raised.value).splitlines()) == 1 and says in str(raised.value), str(raised.value)
+    calibration.write_text('version = 1\n"it\'s" = 1\n')
+    with pytest.raises(ConfigError, match="unknown key \"it's\""):
+        load_calibration(calibration)

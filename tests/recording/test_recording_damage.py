@@ -142,3 +142,42 @@ def test_hostile_metadata_is_one_clear_line_never_a_traceback_or_a_hang(bundle, 
     with meta.open("wb") as handle:
         handle.truncate(MAX_METADATA_BYTES + 1)
     one_line_error(trackerd("replay", copy), "replay", "larger than such a file can be")
+
+
+def test_an_integer_too_long_for_python_in_the_metadata_is_one_line(bundle, tmp_path) -> None:
+    """Found by tests/test_fuzz.py: json reads integers with int(), which refuses more than 4300
+    digits with a plain ValueError (not a JSONDecodeError), and that escaped read_metadata."""
+    copy = _copy(bundle, tmp_path)
+    meta = (copy / "recording.json").read_text()
+    (copy / "recording.json").write_text(meta.replace('"clock_offset_ns": 1795000000000000000',
+                                                      '"clock_offset_ns": ' + "9" * 5000, 1))
+    one_line_error(trackerd("recording", "check", copy), "recording", "not readable JSON", "4300 digits")
+
+
+def test_a_fifo_directory_or_device_in_place_of_the_data_or_index_is_never_read(bundle, tmp_path) -> None:
+    """Found by tests/test_fuzz.py: pairs.dat and pairs.idx were opened as they were, so a FIFO in their
+    place made the reader wait for a writer for ever, /dev/zero as the index was read without end, and
+    a directory as pairs.dat escaped as an IsADirectoryError. (The timeouts are only guards.)"""
+    copy = _copy(bundle, tmp_path)
+    data = copy / "pairs.dat"
+    data.unlink()
+    os.mkfifo(data)
+    one_line_error(trackerd("recording", "check", copy, timeout=60), "recording",
+                   "pairs.dat: not a regular file (a FIFO)")
+    data.unlink()
+    data.mkdir()
+    one_line_error(trackerd("replay", copy, timeout=60), "replay", "pairs.dat: a directory")
+    data.rmdir()
+    shutil.copy(bundle / "pairs.dat", data)
+    index = copy / "pairs.idx"
+    for hostile in ("fifo", "/dev/zero"):
+        index.unlink()
+        if hostile == "fifo":
+            os.mkfifo(index)
+        else:
+            index.symlink_to(hostile)
+        check = trackerd("recording", "check", copy, "--json", timeout=60)
+        assert "Traceback" not in check.stderr, check.stderr
+        report = json.loads(check.stdout)
+        assert (report["pairs"], report["indexed"], report["recovered"]) == (16, 0, 16), report
+        assert "pairs.idx: not a regular file" in report["problems"][0], report["problems"]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime
 import difflib
 import json
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -80,9 +81,30 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: not a text file (UTF-8 expected)") from err
     except RecursionError as err:
         raise ConfigError(f"{path}: nested too deeply to be a rig or calibration file") from err
+    except ValueError as err:
+        # Not a TOMLDecodeError: tomllib reads an integer with int(), which refuses one of more than
+        # sys.get_int_max_str_digits() digits (4300) with a plain ValueError.
+        raise ConfigError(f"{path}: not valid TOML: {str(err).split(';')[0]}") from err
     if nesting_depth(data) > MAX_DEPTH:
         raise ConfigError(f"{path}: nested more than {MAX_DEPTH} levels deep; not a rig or calibration file")
     return data
+
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def key_text(key: object) -> str:
+    """A key as TOML spells it: bare when it can be, quoted with escapes otherwise. A file may hold any
+    key (a line break, a control character, nothing at all), and an error naming it must stay one line."""
+    text = str(key)
+    return text if _BARE_KEY.fullmatch(text) else json.dumps(text)
+
+
+def quoted(text: object) -> str:
+    """``'text'`` as a message quotes a key or a tag the file gave; JSON-escaped in double quotes when it
+    holds anything that is not printable (a line break, a control character, U+2028) or a quote."""
+    text = str(text)
+    return f"'{text}'" if text.isprintable() and "'" not in text else json.dumps(text)
 
 
 def format_location(loc: tuple[int | str, ...]) -> str:
@@ -98,7 +120,7 @@ def format_location(loc: tuple[int | str, ...]) -> str:
         elif part in ("fov", "opencv", "pose") and text.endswith(("intrinsics", "extrinsics")):
             continue
         else:
-            text += f".{part}" if text else str(part)
+            text += f".{key_text(part)}" if text else key_text(part)
     return text or "(top level)"
 
 
@@ -200,7 +222,7 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
         allowed = ", ".join(names) if names else "see docs/configuration.md"
         meant_here = _meant_key(root, loc)
         hint = f" (did you mean '{meant_here[-1]}'?)" if meant_here else ""
-        message = f"unknown key '{loc[-1]}'{hint}; allowed keys here: {allowed}"
+        message = f"unknown key {quoted(loc[-1])}{hint}; allowed keys here: {allowed}"
     elif kind == "missing" and isinstance(loc[-1], int):
         # A fixed-length array (a 3-vector, the four corners) with too few values: pydantic
         # reports each absent item; say once how many values were wanted.
@@ -214,7 +236,10 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
     elif kind == "missing":
         message = "required key is missing"
     elif kind == "union_tag_invalid":
-        message = first["msg"].replace("Input tag", "tag").replace("found using", "in key")
+        # pydantic's message quotes the tag as given, line breaks and all.
+        ctx = first.get("ctx", {})
+        message = (f"tag {quoted(ctx.get('tag', ''))} in key {ctx.get('discriminator', '')} does not match"
+                   f" any of the expected tags: {ctx.get('expected_tags', '')}")
     elif kind == "union_tag_not_found":
         key = str(first.get("ctx", {}).get("discriminator", "")).strip("'")
         tags = _union_tags(root, loc, key)
@@ -555,7 +580,7 @@ def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) 
     unknown = sorted(set(calibration.cameras) - known)
     if unknown:
         raise ConfigError(
-            f"{path}: cameras.{unknown[0]}: no camera with this id in the rig"
+            f"{path}: cameras.{key_text(unknown[0])}: no camera with this id in the rig"
             f" (the rig has {', '.join(sorted(known))})"
         )
     cameras = []

@@ -28,7 +28,7 @@ from pydantic import ValidationError
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.config.models import RigConfig
 from trackerd.errors import ConfigError, RecordingError
-from trackerd.files import MAX_DEPTH, NotRegularFile, TooLarge, nesting_depth, read_bounded
+from trackerd.files import MAX_DEPTH, NotRegularFile, TooLarge, nesting_depth, open_regular, read_bounded
 from trackerd.recording.format import (
     DATA_FILE,
     DATA_MAGIC,
@@ -88,9 +88,13 @@ class Recording:
         metadata = read_metadata(folder)
         data_path = folder / DATA_FILE
         try:
-            data_fd = os.open(data_path, os.O_RDONLY | os.O_CLOEXEC)
+            data_fd = open_regular(data_path)
         except FileNotFoundError:
             raise RecordingError(f"{data_path}: missing; the recording holds no frames") from None
+        except IsADirectoryError:
+            raise RecordingError(f"{data_path}: a directory, not the recording's data file") from None
+        except NotRegularFile as err:
+            raise RecordingError(f"{err}: not the recording's data file") from None
         except OSError as err:
             raise RecordingError(f"{data_path}: cannot read: {err.strerror}") from err
         try:
@@ -128,9 +132,14 @@ class Recording:
     def _read_index(self) -> None:
         index_path = self.path / INDEX_FILE
         try:
-            raw = index_path.read_bytes()
+            # Never more than the data it indexes (48 bytes per pair, whose record is larger): never a
+            # FIFO either, which would wait for a writer, nor a device, which would never end.
+            raw = read_bounded(index_path, FILE_HEADER.size + max(self.data_size, 1 << 20))
         except FileNotFoundError:
             self.problems.append(f"{index_path}: missing; pairs found by scanning {DATA_FILE}")
+            return
+        except (NotRegularFile, TooLarge) as err:
+            self.problems.append(f"{err}; pairs found by scanning {DATA_FILE}")
             return
         except OSError as err:
             self.problems.append(f"{index_path}: cannot read ({err.strerror}); pairs found by scanning {DATA_FILE}")
@@ -319,6 +328,10 @@ def read_metadata(folder: Path) -> RecordingMetadata:
         raise RecordingError(f"{err}: not a recording's metadata") from err
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise RecordingError(f"{path}: not readable JSON ({err})") from err
+    except ValueError as err:
+        # Not a JSONDecodeError: json reads an integer with int(), which refuses one of more than
+        # sys.get_int_max_str_digits() digits (4300) with a plain ValueError.
+        raise RecordingError(f"{path}: not readable JSON ({str(err).split(';')[0]})") from err
     except RecursionError as err:
         raise RecordingError(f"{path}: nested too deeply to be a recording's metadata") from err
     if nesting_depth(data) > MAX_DEPTH:
