@@ -66,6 +66,8 @@ READ_BATCH = 100
 READ_PAUSE_S = 0.002
 """Its pause after a full batch: under a flood it reads at most READ_BATCH / READ_PAUSE_S messages a
 second (a few percent of a core) and libzmq drops the rest, so the pipeline keeps the interpreter."""
+MAX_PEER_MESSAGE_BYTES = 4096
+"""Largest message a subscriber may send upstream (a subscription is one byte and a topic prefix)."""
 HANDOVER_HWM = 10_000
 """Messages the hand-over pipe holds while the proxy thread waits for a CPU (about 4 MB at most);
 internal, unlike each subscriber's queue (send_hwm_messages)."""
@@ -200,6 +202,9 @@ class Publisher:
         # Pass every subscription and unsubscription upstream, so a second status subscriber is
         # seen (and answered) too, and the frontend's per-prefix counts stay balanced.
         xpub.setsockopt(zmq.XPUB_VERBOSER, 1)
+        # Peers send only subscriptions (a byte and a topic prefix): one sending more is cut off at
+        # once, rather than having libzmq hold a message of any size for it.
+        xpub.setsockopt(zmq.MAXMSGSIZE, MAX_PEER_MESSAGE_BYTES)
         # A dead TCP peer would otherwise keep its queue until the kernel gives up (hours).
         xpub.setsockopt(zmq.HEARTBEAT_IVL, 2000)
         xpub.setsockopt(zmq.HEARTBEAT_TIMEOUT, 6000)

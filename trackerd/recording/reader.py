@@ -257,7 +257,8 @@ class Recording:
                 image = np.frombuffer(self._map, np.uint8, cam.frame_bytes, offset).reshape(cam.shape)
             elif frame.encoding == ENCODING_DEFLATE:
                 try:
-                    raw = zlib.decompress(stored)
+                    # At most one byte more than a frame: a crafted frame cannot inflate to gigabytes.
+                    raw = zlib.decompressobj().decompress(stored, cam.frame_bytes + 1)
                 except zlib.error as err:
                     raise RecordingError(f"{where}: compressed frame does not decompress ({err})") from err
                 if len(raw) != cam.frame_bytes:
