@@ -424,7 +424,7 @@ class _LastValue:
             while not self._stop.is_set():
                 _discard_subscriptions(self._pub)
                 wait_ms = _POLL_MS
-                if asked:
+                if asked and last is not None:  # (without a status yet there is nothing to answer with)
                     wait_ms = max(0, min(wait_ms, int((answered + ANSWER_INTERVAL_S - time.monotonic()) * 1000)))
                 if self._sub.poll(wait_ms):
                     for _ in range(READ_BATCH):
