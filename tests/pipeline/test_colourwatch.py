@@ -93,6 +93,9 @@ def test_the_daemons_status_carries_the_colour_watch(simulated_rig, rendered_swe
         deadline = time.monotonic() + 60.0  # a guard only: the loop ends when every pair is published
         while pipeline.pairs_published < count and pipeline.failure is None and time.monotonic() < deadline:
             pipeline.wait(0.02)
+        # The watch measures on a thread of its own: until it has.
+        while pipeline.colour_watch.to_json() is None and pipeline.failure is None and time.monotonic() < deadline:
+            pipeline.wait(0.02)
     finally:
         pipeline.stop()
     assert pipeline.failure is None and pipeline.pairs_published == count

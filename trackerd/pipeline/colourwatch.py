@@ -25,13 +25,17 @@ room's red and blue distractor balls) is no news, and is not warned of again:
 It is logged when the set of ends warned of changes (not every time the
 figures in it do), and when it clears.
 
-The measurement runs on the publishing thread, after a pair's messages are
-sent (as the calibration health does), a few milliseconds every few seconds.
+The measurement runs on a thread of its own (:class:`WatchThread`), handed the
+newest due pair through a one-slot mailbox: a few milliseconds every few
+seconds (the first, tens), which on the publishing thread delayed the messages
+queued behind it, and a replay as fast as possible lost some to its drop-oldest
+queue.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -95,7 +99,7 @@ class ColourWatch:
 
     def measure(self, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str], fix,
                 now_ns: int | None = None) -> None:
-        """Measure one located pair's frames (the publishing thread, after its messages are sent)."""
+        """Measure one located pair's frames (on the watch's own thread)."""
         from trackerd.calibration.colours import ball_discs
 
         pointer = self.rig.pointer
@@ -197,3 +201,44 @@ class ColourWatch:
                 "baseline_excess": baseline,
             }
         return part
+
+
+class WatchThread:
+    """Measures the pairs the processing thread hands it, one at a time, off every path a pair's
+    messages take; a pair handed over while one is measured replaces the one waiting (only the
+    newest matters)."""
+
+    def __init__(self) -> None:
+        self._slot: tuple | None = None
+        self._wake = threading.Condition()
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, name="trackerd-colour-watch", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def offer(self, watch: ColourWatch, images, pixel_formats, fix) -> None:
+        """A due pair for ``watch`` (called on the processing thread; never waits)."""
+        with self._wake:
+            self._slot = (watch, images, pixel_formats, fix)
+            self._wake.notify()
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        with self._wake:
+            self._stopping = True
+            self._wake.notify()
+        if self._thread.ident is not None:
+            self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        while True:
+            with self._wake:
+                self._wake.wait_for(lambda: self._slot is not None or self._stopping)
+                if self._stopping:
+                    return
+                watch, images, pixel_formats, fix = self._slot
+                self._slot = None
+            try:
+                watch.measure(images, pixel_formats, fix)
+            except Exception:
+                log.exception("colour watch: measuring a pair failed")

@@ -9,8 +9,10 @@ Threads (besides each camera's acquisition thread inside the pair source):
 * publishing: owns the ZeroMQ publisher, sends the messages, and sends a status
   about once a second and on every change of state; once a pair's messages are
   sent, it measures calibration health from the pair's fix (every fourth pair)
-  and, every few seconds, the room's colours against the pointer's
-  (trackerd.pipeline.colourwatch); it alone reads and writes those records.
+  it alone reads and writes the health record;
+* colour watch: every few seconds, the room's colours against the pointer's, on
+  the newest located pair the processing thread hands it
+  (trackerd.pipeline.colourwatch).
 
 Latency is measured, not guessed: per stage (detect, triangulate, publish) and
 end to end, from the moment the last frame of a pair arrived to the moment its
@@ -35,7 +37,7 @@ from trackerd.acquisition.status import SourceStatus
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator, PointerFix
-from trackerd.pipeline.colourwatch import ColourWatch
+from trackerd.pipeline.colourwatch import ColourWatch, WatchThread
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
@@ -88,8 +90,6 @@ class _Processed:
     """The processing thread's time off the CPU while on this pair (with ``account_threads``)."""
     health: tuple[CalibrationHealth, PointerFix] | None = None
     """A fix to add to the calibration health record it was located under, once the messages are sent."""
-    colours: tuple[ColourWatch, tuple, tuple[str, ...], PointerFix] | None = None
-    """A pair's frames (and pixel formats, and fix) for the colour watch to measure, once the messages are sent."""
 
 
 @dataclass(frozen=True)
@@ -183,6 +183,7 @@ class Pipeline:
         self.extensions: list[PipelineExtension] = list(extensions or [])
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
         self.colour_watch = ColourWatch(rig, self.locator.cameras)
+        self._watch_thread = WatchThread()
 
     # ------------------------------------------------------------------ control
 
@@ -202,6 +203,7 @@ class Pipeline:
         ]
         for thread in self._threads:
             thread.start()
+        self._watch_thread.start()
 
     def stop(self, timeout_s: float = 1.0) -> None:
         """Stop every thread, release the cameras and close the publisher; idempotent."""
@@ -210,6 +212,7 @@ class Pipeline:
         deadline = time.monotonic() + timeout_s
         for thread in self._threads:
             thread.join(max(0.0, deadline - time.monotonic()))
+        self._watch_thread.stop(max(0.0, deadline - time.monotonic()))
         if self.source is not None:
             self.source.stop()
         if self.publisher is not None:
@@ -333,13 +336,12 @@ class Pipeline:
             measure = fix.line is not None and self.pairs_processed % HEALTH_EVERY == 0
             health = (self.health, fix) if measure else None
             watch = self.colour_watch
-            colours = None
             if watch.due(fix):
-                colours = (watch, pair.images, tuple(frame.pixel_format for frame in pair.frames), fix)
+                self._watch_thread.offer(watch, pair.images, tuple(frame.pixel_format for frame in pair.frames), fix)
             self._queue.put(_Processed(messages, received, capture, stage, started_ns=start,
                                        queued_ns=time.monotonic_ns() if clock is not None else 0,
                                        processing_off=processing_off,
-                                       health=health, colours=colours))
+                                       health=health))
             self.processing_cpu.add(time.thread_time_ns() - start_cpu)
             self.pairs_processed += 1
             self._notifier.progress()
@@ -481,9 +483,6 @@ class Pipeline:
             # The messages are sent: the time to the next pair is idle anyway.
             record, fix = item.health
             record.add_fix(fix)
-        if item.colours is not None:
-            watch, images, formats, fix = item.colours
-            watch.measure(images, formats, fix)
 
     def _apply_pending_outputs(self) -> None:
         """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
