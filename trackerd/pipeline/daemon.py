@@ -8,8 +8,8 @@ Threads (besides each camera's acquisition thread inside the pair source):
   drops its oldest item when full;
 * publishing: owns the ZeroMQ publisher, sends the messages, and sends a status
   about once a second and on every change of state; once a pair's messages are
-  sent, it measures calibration health from the pair's fix (every fourth pair)
-  it alone reads and writes the health record;
+  sent, it measures calibration health from the pair's fix (every fourth pair),
+  and it alone reads and writes the health record;
 * colour watch: every few seconds, the room's colours against the pointer's, on
   the newest located pair the processing thread hands it
   (trackerd.pipeline.colourwatch).
