@@ -25,6 +25,7 @@ from trackerd.calibration.live import SKIP_AFTER_FRAMES
 from trackerd.calibration.stereo import MIN_PAIRS, MIN_PAIRS_FLOOR
 from trackerd.calibration.views import MIN_VIEW_CHANGE
 from trackerd.calibration.wall import DEFAULT_MAX_RMS_MM
+from trackerd.cli._args import positive_int, positive_seconds
 from trackerd.cli.calibrate.check import check_command
 from trackerd.cli.calibrate.intrinsics import intrinsics_command
 from trackerd.cli.calibrate.pointer import pointer_command
@@ -172,7 +173,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _common(p, snapshots=False)
     p.add_argument("--pairs", metavar="DIR", help="folder of pointer images named <name>-<camera>.<ext>")
     _sources(p, snapshots=False)
-    p.add_argument("--frames", type=_positive_int, default=None,
+    p.add_argument("--frames", type=positive_int, default=None,
                    help="--live: pairs with the pointer located to learn from (default 60)")
     p.set_defaults(handler=pointer_command)
 
@@ -187,26 +188,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fixes", type=int, default=300, help="--live: fixes to collect (default 300)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     p.set_defaults(handler=check_command)
-
-
-def _positive_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
-    if not (value > 0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, not {text}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
-    return value
 
 
 def _board(text: str) -> BoardSpec:
@@ -250,7 +231,7 @@ def _sources(p: argparse.ArgumentParser, snapshots: bool = True) -> None:
         help="--live: the rig's cameras (default), or frames the simulator renders from the rig's"
         " own (inline) geometry, to try the procedure without cameras",
     )
-    p.add_argument("--duration", type=_positive_seconds, help="--live: stop after this many seconds")
+    p.add_argument("--duration", type=positive_seconds, help="--live: stop after this many seconds")
     if snapshots:
         p.add_argument(
             "--snapshots",
