@@ -94,7 +94,7 @@ class RefinedPath:
             for colour, end in (("red", red), ("blue", blue)):
                 if end.found:
                     ends[colour] = measure_end(image, self.loc.grids[index], cam, index, colour, end.centroid_px,
-                                               blob_radius_px(end), end.centroid_px, across, sigma_px, end.area_px)
+                                               blob_radius_px(end), end.centroid_px, across, sigma_px)
         fix = self._fix_from_measurements(per_camera, None, detections, start, images)
         if fix.found:
             self._after_refined(fix)

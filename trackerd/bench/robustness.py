@@ -8,6 +8,11 @@ same images:
 
 * trackerd: `Locator.locate`, the rig's defaults, tracking reset for every frame
   (each frame is a first sighting, the hardest case);
+* floor: no images at all: each ball's true centre in every camera that sees it
+  (at least 60 % visible) moved by unbiased noise of 0.1 px (``FLOOR_SIGMA_PX``),
+  then the same pointer fit. What the installation's geometry alone allows at
+  that precision: cameras looking along the pointer magnify any end error on the
+  wall, and no detector can beat this by more than its noise is smaller;
 * naive: the bounding-box midpoint of the largest blob of each end's hue in every
   camera (trackerd/detect/reference.py, `naive_ends`), each end triangulated from
   the cameras that found it, the line through the two points.
@@ -15,7 +20,7 @@ same images:
 Printed per factor (placement, content, lighting, blur, occlusion, paint, number
 of cameras, resolution) and overall: how many frames were *eligible* (each ball at
 least 60 % visible in at least two cameras), the share of those located, the wall
-error's median, 95th percentile and worst, how often the error exceeds 3 and 5
+error's median, 95th percentile and worst, the floor's median and 95th percentile, how often the error exceeds 3 and 5
 times trackerd's own 1-sigma estimate, how often it is within 1 and 2 sigma, and
 the naive method's figures beside them. Frames that are not eligible (an end
 truly hidden) count separately: trackerd should say "not found" there, never give
@@ -39,6 +44,10 @@ from trackerd.errors import GeometryError
 FACTORS = ("placement", "content", "lighting", "blur", "occlusion", "paint", "cameras", "resolution")
 MIN_VISIBLE = 0.6
 """A ball counts as visible in a camera when at least this share of its silhouette is seen."""
+
+FLOOR_SIGMA_PX = 0.1
+"""The geometric floor's measurement noise: every end's true image centre moved by this much (pixels, 1
+sigma per axis, unbiased), about the precision of a ball's outline fit on a clean frame."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -128,6 +137,7 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
                                  background_step=1 if widest <= 2000 else 2, noise_field=True)
         rig, learned = _learn_colours(rig, drawn, learning, wall, np.random.default_rng([seed, index, 1]), learn_pairs)
     locator = Locator(rig, cameras=drawn.cameras)
+    floor_rng = np.random.default_rng([seed, index, 2])  # its own: the scenes are those of a run without it
     records = []
     for frame in range(poses):
         shot = random_shot(drawn, rng, wall)
@@ -156,10 +166,16 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
             "sigma_m": fix.uncertainty_m,
             "seconds": seconds,
             "naive_error_m": None,
+            "floor_error_m": None,
             "learned": learned,
         }
         if fix.hit is not None and truth is not None:
             record["error_m"] = float(np.linalg.norm(fix.hit.wall_xy_m - truth))
+        if truth is not None and seeing >= 2:
+            floor = floor_hit(drawn.cameras, [min(pair) >= MIN_VISIBLE for pair in visible], middle, rig, wall,
+                              floor_rng)
+            if floor is not None:
+                record["floor_error_m"] = float(np.linalg.norm(floor - truth))
         naive = naive_hit(drawn.cameras, wall, [v.image for v in views], [v.pixel_format for v in views],
                           drawn.rig.pointer.front_colour)
         if naive is not None and truth is not None:
@@ -191,11 +207,46 @@ def _learn_colours(rig, drawn, renderer, wall, rng: np.random.Generator, pairs: 
     return with_learned_colours(rig, colours), True
 
 
+def floor_hit(cameras, seeing: list[bool], pose, rig, wall, rng: np.random.Generator) -> np.ndarray | None:
+    """The geometric floor's wall hit (see the module): the true ends as every camera in ``seeing`` images
+    them, moved by FLOOR_SIGMA_PX of noise, fitted as trackerd fits measured ends."""
+    from trackerd.geometry.pointer_fit import fit_pointer_robust
+
+    used = [cam for cam, sees in zip(cameras, seeing, strict=True) if sees]
+    front = pose.centre_of(rig.pointer.front_colour, rig.pointer.front_colour)
+    back = pose.centre_of("blue" if rig.pointer.front_colour == "red" else "red", rig.pointer.front_colour)
+    measured = np.zeros((len(used), 2, 2))
+    covariances = np.zeros((len(used), 2, 2, 2))
+    for k, cam in enumerate(used):
+        sigma = FLOOR_SIGMA_PX / cam.focal_px
+        for e, point in enumerate((front, back)):
+            in_camera = cam.to_camera_frame(point[None])[0]
+            measured[k, e] = in_camera[:2] / in_camera[2] + rng.normal(0.0, sigma, 2)
+            covariances[k, e] = np.eye(2) * sigma * sigma
+    try:
+        fit = fit_pointer_robust(np.stack([c.rotation for c in used]), np.stack([c.translation_m for c in used]),
+                                 measured, covariances, rig.pointer.length_m, rig.locator.length_sigma_m, front, back)
+        hit = intersect_line_plane_m(fit.back_m, fit.front_m, wall)
+    except GeometryError:
+        return None
+    return hit
+
+
+def intersect_line_plane_m(back_m: np.ndarray, front_m: np.ndarray, wall) -> np.ndarray | None:
+    """Where the line from ``back_m`` through ``front_m`` meets the wall, in the wall's frame (None when it
+    points away)."""
+    from trackerd.geometry.wall import intersect_line_plane
+
+    hit = intersect_line_plane(back_m, front_m, wall.plane)
+    if float(hit.u) <= 0:
+        return None
+    return wall.to_wall_m(hit.point_m)
+
+
 def naive_hit(cameras, wall, images, pixel_formats, front_colour: str) -> np.ndarray | None:
     """The naive method's wall hit: largest blob's box midpoints, each end triangulated, eq. 26-28."""
     from trackerd.detect.reference import naive_ends
     from trackerd.geometry.triangulation import triangulate_least_squares
-    from trackerd.geometry.wall import intersect_line_plane
 
     found = [naive_ends(image, fmt) for image, fmt in zip(images, pixel_formats, strict=True)]
     ends = {}
@@ -216,12 +267,9 @@ def naive_hit(cameras, wall, images, pixel_formats, front_colour: str) -> np.nda
     back = ends["blue" if front_colour == "red" else "red"]
     front = ends[front_colour]
     try:
-        hit = intersect_line_plane(back, front, wall.plane)
+        return intersect_line_plane_m(back, front, wall)
     except GeometryError:
         return None
-    if float(hit.u) <= 0:
-        return None
-    return wall.to_wall_m(hit.point_m)
 
 
 # --------------------------------------------------------------------------- figures
@@ -235,6 +283,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     with_sigma = [r for r in located if r["sigma_m"]]
     ratios = np.array([r["error_m"] / r["sigma_m"] for r in with_sigma])
     naive = np.array([r["naive_error_m"] for r in eligible if r["naive_error_m"] is not None]) * 1000.0
+    floor = np.array([r["floor_error_m"] for r in eligible if r.get("floor_error_m") is not None]) * 1000.0
     hidden = [r for r in records if not r["eligible"]]
     hidden_hits = [r for r in hidden if r["error_m"] is not None]
     wrong_hidden = [r for r in hidden_hits if r["sigma_m"] and r["error_m"] > 5.0 * r["sigma_m"]]
@@ -259,6 +308,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "within_1_sigma_percent": share(int(np.sum(ratios <= 1.0)), len(ratios)),
             "within_2_sigma_percent": share(int(np.sum(ratios <= 2.0)), len(ratios)),
         },
+        "floor": {k: v for k, v in stats(floor).items() if k != "worst_mm"},
         "naive": {"found_percent": share(len(naive), len(eligible)), **stats(naive)},
         "hidden": {"frames": len(hidden), "hits": len(hidden_hits), "confidently_wrong": len(wrong_hidden)},
     }
@@ -291,13 +341,13 @@ def _first_clause(reason: str | None) -> str:
 
 def format_summary(summary: dict[str, Any]) -> str:
     head = (f"  {'':<22}{'frames':>7}{'elig.':>6} | {'found':>6}{'median':>8}{'p95':>8}{'worst':>8}"
-            f"{'>3s':>6}{'>5s':>6}{'<=1s':>6}{'<=2s':>6} | {'naive':>6}{'median':>8}{'p95':>8}{'worst':>8}"
-            f" | hidden: hits, wrong")
+            f"{'>3s':>6}{'>5s':>6}{'<=1s':>6}{'<=2s':>6} | {'floor':>6}{'p95':>7}"
+            f" | {'naive':>6}{'median':>8}{'p95':>8}{'worst':>8} | hidden: hits, wrong")
     lines = ["Wall error on randomized installations, trackerd against the naive method (mm; % of eligible frames;"
-             " s: trackerd's own sigma)", head]
+             " s: trackerd's own sigma; floor: the geometry alone at 0.1 px, median and p95)", head]
 
     def row(label: str, f: dict[str, Any]) -> str:
-        t, n, h = f["trackerd"], f["naive"], f["hidden"]
+        t, n, h, g = f["trackerd"], f["naive"], f["hidden"], f["floor"]
 
         def cell(value: Any, width: int, fmt: str = ".1f") -> str:
             return f"{'-':>{width}}" if value is None else f"{value:>{width}{fmt}}"
@@ -306,6 +356,7 @@ def format_summary(summary: dict[str, Any]) -> str:
                 f"{cell(t['median_mm'], 8, '.2f')}{cell(t['p95_mm'], 8, '.2f')}{cell(t['worst_mm'], 8)}"
                 f"{cell(t['over_3_sigma_percent'], 6)}{cell(t['over_5_sigma_percent'], 6)}"
                 f"{cell(t['within_1_sigma_percent'], 6, '.0f')}{cell(t['within_2_sigma_percent'], 6, '.0f')} | "
+                f"{cell(g['median_mm'], 6, '.2f')}{cell(g['p95_mm'], 7, '.2f')} | "
                 f"{cell(n['found_percent'], 6)}{cell(n['median_mm'], 8, '.2f')}{cell(n['p95_mm'], 8, '.2f')}"
                 f"{cell(n['worst_mm'], 8)} | {h['hits']:>4} {h['confidently_wrong']:>3}")
 
