@@ -112,8 +112,7 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
         if tap is not None:
             from trackerd.console.server import ConsoleServer
 
-            console = ConsoleServer(pipeline, tap, camera_info=camera_info)
-            console.start()
+            console = _start_console(ConsoleServer(pipeline, tap, camera_info=camera_info), rig)
         endpoints = ", ".join(pipeline.publisher.endpoints) if pipeline.publisher else "-"
         print(banner or f"trackerd {rig.name}: publishing on {endpoints} (Ctrl-C to stop)", file=sys.stderr,
               flush=True)
@@ -134,9 +133,11 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
         raise
     finally:
         if console is not None:
-            # First: a page still open must not hold up the stop.
-            console.stop()
+            # Its server and the pipeline stop side by side: a page still open must not hold up the stop.
+            console.begin_stop()
         pipeline.stop()
+        if console is not None:
+            console.stop()
         notifier.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -153,6 +154,19 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+def _start_console(console, rig: RigConfig):
+    """Start the console; None when the default address is taken (another daemon, a replay beside
+    it: the daemon runs on without it), TrackerdError when an address given for it is."""
+    try:
+        console.start()
+    except TrackerdError as err:
+        if "listen" in rig.console.model_fields_set:
+            raise
+        log.warning("%s; running without the console", err)
+        return None
+    return console
 
 
 def _reload(pipeline, path: Path | None) -> None:

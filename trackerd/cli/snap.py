@@ -11,6 +11,12 @@ OUT (created if missing):
   <name>.json                timestamps, frame ids, skew, detections and the fix
 
 and prints each camera's detections and the wall hit. <name> is snap-<local time>.
+
+When the daemon is running it holds the cameras (a GigE Vision camera has one
+controller): snap then asks the daemon's console (where the rig's [console] says,
+or --console ADDR) for a snapshot of the pair it is processing, which it saves on
+its host, and downloads the files into OUT (`trackerd ctl snap` does the same).
+The simulated cameras of --virtual are snap's own.
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="seconds of pairs to discard first, while exposure settles (default 0.5)")
     parser.add_argument("--timeout", type=float, default=10.0, metavar="S",
                         help="give up if no pair arrives within this many seconds (default 10)")
+    parser.add_argument("--console", metavar="ADDR",
+                        help="the running daemon's console HOST:PORT (default: the rig's [console] listen)")
     add_virtual_arguments(parser, "snap")
     parser.set_defaults(handler=snap_command)
 
@@ -50,6 +58,18 @@ def snap_command(args: argparse.Namespace) -> int:
     loaded = load_rig(args.config)
     # Before the cameras open: a pair taken and then not saved is lost.
     folder = output_folder(args.out)
+    if not args.virtual:
+        from trackerd.console.client import ConsoleClient
+
+        client = ConsoleClient.for_rig(loaded.config, args.console)
+        info = client.find()
+        if info is not None and client.runs_cameras_of(info, loaded.config):
+            print(f"trackerd snap: the daemon is running and holds the cameras; taking the snapshot from it"
+                  f" ({client.base})", file=sys.stderr)
+            answer = client.snapshot_into(folder, args.name)
+            for entry in answer["files"]:
+                print(f"  saved {folder / entry['name']}")
+            return 0
     name = args.name or f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
     with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd snap", prefix=args.prefix,
                       subnet=args.subnet) as cams:

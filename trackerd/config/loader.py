@@ -644,7 +644,9 @@ def with_console(rig: RigConfig, listen: str | None, option: str = "--console") 
     else:
         update = {"enabled": True, "listen": listen}
     try:
-        console = ConsoleConfig.model_validate({**rig.console.model_dump(), **update})
+        # Only what was set: a listen address not given stays the default (serve() runs on without
+        # the console when the default port is taken, and fails when a chosen one is).
+        console = ConsoleConfig.model_validate({**rig.console.model_dump(exclude_unset=True), **update})
     except ValidationError as err:
         problem = describe_validation_error(err, ConsoleConfig).removeprefix("(top level): ")
         raise ConfigError(f"{option}: {problem}") from err

@@ -35,7 +35,8 @@ class Actions:
         wall = self.pipeline.locator.wall
         return {
             "rig": rig.name,
-            "cameras": [{"id": c.id, "width_px": c.width_px, "height_px": c.height_px} for c in rig.cameras],
+            "cameras": [{"id": c.id, "width_px": c.width_px, "height_px": c.height_px, "address": c.address,
+                         "device_id": c.device_id, "serial": c.serial} for c in rig.cameras],
             "wall": {"width_m": wall.width_m, "height_m": wall.height_m,
                      "display_width_px": wall.display_width_px, "display_height_px": wall.display_height_px},
             "recording_available": self._recording() is not None,
@@ -75,12 +76,14 @@ class Actions:
             self._check_wanted = fixes
             self._check_started = time.monotonic()
             self._check_result = None
-            self.tap.check = CalibrationHealth.for_rig(rig, self.pipeline.locator.cameras, window=fixes)
+            record = CalibrationHealth.for_rig(rig, self.pipeline.locator.cameras, window=fixes)
+            with self.tap.check_lock:
+                self.tap.check = record
         return True, f"checking over the next {fixes} fixes: wave the pointer around in view of both cameras"
 
     def check_progress(self) -> dict[str, Any]:
         """The running check's progress, or the last one's result ({'state': 'none'} before any)."""
-        with self._lock:
+        with self._lock, self.tap.check_lock:
             record = self.tap.check
             if record is None:
                 return self._check_result or {"state": "none"}
@@ -97,7 +100,7 @@ class Actions:
             return progress
 
     def cancel_check(self) -> None:
-        with self._lock:
+        with self._lock, self.tap.check_lock:
             self.tap.check = None
 
     # ------------------------------------------------------------------ health

@@ -63,9 +63,9 @@ def scaled_jpeg(image: Any, pixel_format: str, width_px: int, quality: int) -> t
     return encoded.tobytes(), bgr.shape[1], bgr.shape[0]
 
 
-def snapshot_name(directory: Path) -> str:
-    """A new ``snap-<local time>`` name not yet taken in ``directory``."""
-    stem = f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
+def snapshot_name(directory: Path, stem: str | None = None) -> str:
+    """``stem`` (default ``snap-<local time>``), suffixed -2, -3... if taken in ``directory``."""
+    stem = stem or f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
     name, n = stem, 2
     while (directory / name).exists():
         name, n = f"{stem}-{n}", n + 1
@@ -94,12 +94,15 @@ class FrameThread:
     def start(self) -> None:
         self._thread.start()
 
-    def stop(self, timeout_s: float = 0.5) -> None:
+    def begin_stop(self) -> None:
         with self._wake:
             self._stopping = True
             self._wake.notify_all()
         self.tap.frame_wanted = False
         self.tap.wake()
+
+    def stop(self, timeout_s: float = 0.5) -> None:
+        self.begin_stop()
         if self._thread.ident is not None:
             self._thread.join(timeout_s)
 
@@ -108,12 +111,13 @@ class FrameThread:
             self.viewers = count
             self._wake.notify_all()
 
-    def request_snapshot(self, done: Callable[[list[Path] | BaseException], None]) -> str:
-        """Save the next pair the pipeline processes; returns the snapshot's name."""
+    def request_snapshot(self, done: Callable[[list[Path] | BaseException], None], name: str | None = None) -> str:
+        """Save the next pair the pipeline processes (named ``name``, else snap-<local time>, made
+        unique); returns the snapshot's name."""
         with self._wake:
             self.snapshot_directory.mkdir(parents=True, exist_ok=True)
             taken = {r.name for r in self._snapshots}
-            name = snapshot_name(self.snapshot_directory)
+            name = snapshot_name(self.snapshot_directory, name)
             while name in taken:
                 name += "-b"
             self._snapshots.append(SnapshotRequest(name, done))

@@ -30,6 +30,7 @@ import secrets
 import struct
 import tempfile
 import threading
+import time
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -136,16 +137,25 @@ class ConsoleServer:
         logging.getLogger("trackerd").addHandler(self.logbook)
         self.frames.start()
 
-    def stop(self) -> None:
+    def begin_stop(self) -> None:
+        """Ask the server and the frame thread to stop, without waiting (the daemon stops its
+        pipeline meanwhile; :meth:`stop` then waits)."""
         logging.getLogger("trackerd").removeHandler(self.logbook)
-        self.frames.stop()
+        self.frames.begin_stop()
         loop, event = self._loop, self._stop_event
         if loop is not None and event is not None and not loop.is_closed():
             loop.call_soon_threadsafe(event.set)
+
+    def stop(self) -> None:
+        """Stop and wait (at most about :data:`STOP_TIMEOUT_S`); idempotent."""
+        start = time.monotonic()
+        self.begin_stop()
+        self.frames.stop()
         if self._thread is not None:
-            self._thread.join(STOP_TIMEOUT_S + 0.3)
+            self._thread.join(max(0.0, STOP_TIMEOUT_S + 0.3 - (time.monotonic() - start)))
             if self._thread.is_alive():
                 log.warning("console: the web server did not stop in time; leaving it")
+        log.debug("console: stopped in %.0f ms", (time.monotonic() - start) * 1e3)
 
     # ------------------------------------------------------------------ the server's thread
 
@@ -195,11 +205,12 @@ class ConsoleServer:
         pusher = asyncio.ensure_future(self._push_loop())
         await self._stop_event.wait()
         pusher.cancel()
-        for page in list(self._pages):
-            try:
-                await asyncio.wait_for(page.ws.close(code=1001, message=b"daemon stopping"), 0.1)
-            except (TimeoutError, Exception):  # noqa: BLE001 - a page gone or stuck: not waited for
-                pass
+        began = time.monotonic()
+        # All pages at once, each given a moment to answer the close (a stuck one is not waited for).
+        closing = [asyncio.wait_for(page.ws.close(code=1001, message=b"daemon stopping"), 0.1)
+                   for page in list(self._pages)]
+        await asyncio.gather(*closing, return_exceptions=True)
+        log.debug("console: pages closed in %.0f ms", (time.monotonic() - began) * 1e3)
         try:
             await asyncio.wait_for(runner.cleanup(), STOP_TIMEOUT_S)
         except TimeoutError:
@@ -347,14 +358,19 @@ class ConsoleServer:
 
     # ------------------------------------------------------------------ actions
 
-    async def _snapshot(self, _request: web.Request) -> web.Response:
+    async def _snapshot(self, request: web.Request) -> web.Response:
+        wanted = request.query.get("name")
+        if wanted is not None and not (0 < len(wanted) <= 64 and all(c.isalnum() or c in "-_." for c in wanted)
+                                       and not wanted.startswith(".")):
+            return web.json_response({"error": "name: letters, digits, '-', '_' and '.' only (at most 64)"},
+                                     status=400)
         loop = asyncio.get_running_loop()
         future: asyncio.Future = loop.create_future()
 
         def done(result: Any) -> None:
             loop.call_soon_threadsafe(lambda: future.done() or future.set_result(result))
 
-        name = self.frames.request_snapshot(done)
+        name = self.frames.request_snapshot(done, wanted)
         try:
             result = await asyncio.wait_for(future, SNAPSHOT_TIMEOUT_S)
         except TimeoutError:
@@ -372,7 +388,7 @@ class ConsoleServer:
 
     async def _snapshot_file(self, request: web.Request) -> web.StreamResponse:
         name, file = request.match_info["name"], request.match_info["file"]
-        if not name.startswith("snap-") or any(c in name + file for c in "/\\") or file.startswith("."):
+        if name.startswith(".") or any(c in name + file for c in "/\\") or file.startswith("."):
             raise web.HTTPNotFound()
         path = self.snapshot_directory / name / file
         if not path.is_file():

@@ -66,7 +66,9 @@ class ConsoleTap:
         self._status: Any = None
         self.histograms: dict[str, LatencyHistogram] = {}
         self.check: Any = None
-        """A live calibration check's health record (trackerd.calibration.health), or None."""
+        """A live calibration check's health record (trackerd.calibration.health), or None; read
+        and fed under :attr:`check_lock` (the record is not thread-safe)."""
+        self.check_lock = threading.Lock()
 
     # ------------------------------------------------------------------ processing thread
 
@@ -84,9 +86,10 @@ class ConsoleTap:
 
     def on_fix_measured(self, fix: Any) -> None:
         """A fix the daemon's health record was given: a running check gets it too."""
-        check = self.check
-        if check is not None:
-            check.add_fix(fix)
+        if self.check is not None:
+            with self.check_lock:
+                if self.check is not None:
+                    self.check.add_fix(fix)
 
     def on_status(self, status: Any, drained_ns: Mapping[str, NDArray[np.int64]]) -> None:
         """Each status message, with the latencies (ns) it summarised, by figure name."""

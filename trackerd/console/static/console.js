@@ -174,6 +174,7 @@ function onStatus(msg) {
     const k = msg.check;
     if (k && k.state !== "none") rows += row("calibration check", k.text ? `<pre>${esc(k.text)}</pre>` : `${esc(k.state)}: ${k.fixes} / ${k.wanted} fixes`);
     $("status").innerHTML = rows;
+    document.body.dataset.recording = r ? r.state : "unavailable";
     const recording = r && (r.state === "recording" || r.state === "finishing");
     $("record-start").disabled = !page.info.recording_available || recording;
     $("record-stop").disabled = !page.info.recording_available || !recording;
