@@ -61,7 +61,8 @@ class ConsoleConfig(ConfigModel):
     jpeg_quality: int = Field(default=75, ge=20, le=95)
     """JPEG quality of those images."""
     snapshot_directory: Path | None = None
-    """Where the console's snapshots are saved (one folder per snapshot). Omit for
+    """Where the console's snapshots are saved (one folder per snapshot). Omit for ``snapshots`` in
+    the service's state directory under systemd (/var/lib/trackerd/snapshots), else
     ``trackerd-snapshots`` under the system's temporary directory."""
 
     @field_validator("listen")

@@ -21,7 +21,7 @@ import cv2
 
 from trackerd.console.overlay import camera_overlay, outline_px
 from trackerd.pipeline.tap import ConsoleTap
-from trackerd.pixelformat import to_bgr
+from trackerd.pixelformat import is_bayer, to_rgb
 
 log = logging.getLogger(__name__)
 
@@ -50,13 +50,39 @@ class SnapshotRequest:
     done: Callable[[list[Path] | BaseException], None]
 
 
-def scaled_jpeg(image: Any, pixel_format: str, width_px: int, quality: int) -> tuple[bytes, int, int]:
-    """A raw frame -> (JPEG bytes, width, height) at most ``width_px`` wide, aspect kept."""
-    bgr = to_bgr(image, pixel_format)
-    height, width = bgr.shape[:2]
+def scaled_bgr(image: Any, pixel_format: str, width_px: int) -> Any:
+    """A raw frame -> a BGR image at most ``width_px`` wide, aspect kept.
+
+    Every step is one OpenCV call (which lets go of the GIL), and the colour order is swapped on
+    the small image: ``to_bgr`` on the full frame flips 6 MB with NumPy under the GIL (22 ms of
+    CPU a 1080p frame on the development VM, against about 4 ms for the whole of this).
+    Bilinear scaling of the demosaiced frame: a third of INTER_AREA's cost, and the picture is
+    for aiming, the snapshot has the full frame.
+    """
+    if is_bayer(pixel_format):
+        image, order = to_rgb(image, pixel_format), "rgb"
+    elif pixel_format == "RGB8":
+        order = "rgb"
+    elif pixel_format == "BGR8":
+        order = "bgr"
+    elif pixel_format == "Mono8":
+        order = "gray"
+    else:
+        raise ValueError(f"unsupported pixel format {pixel_format!r}")
+    height, width = image.shape[:2]
     if width > width_px:
         height_px = max(1, round(height * width_px / width))
-        bgr = cv2.resize(bgr, (width_px, height_px), interpolation=cv2.INTER_AREA)
+        image = cv2.resize(image, (width_px, height_px), interpolation=cv2.INTER_LINEAR)
+    if order == "rgb":
+        return cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    if order == "gray":
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    return image
+
+
+def scaled_jpeg(image: Any, pixel_format: str, width_px: int, quality: int) -> tuple[bytes, int, int]:
+    """A raw frame -> (JPEG bytes, width, height) at most ``width_px`` wide, aspect kept."""
+    bgr = scaled_bgr(image, pixel_format, width_px)
     ok, encoded = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
     if not ok:
         raise RuntimeError("cv2.imencode refused the image")

@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import os
 import secrets
 import struct
 import tempfile
@@ -82,6 +83,11 @@ class _Page:
 
 
 def default_snapshot_directory() -> Path:
+    """Under systemd, the unit's state directory (``StateDirectory=trackerd``: /var/lib/trackerd);
+    otherwise ``trackerd-snapshots`` in the system's temporary directory."""
+    state = os.environ.get("STATE_DIRECTORY")
+    if state:
+        return Path(state.split(":")[0]) / "snapshots"
     return Path(tempfile.gettempdir()) / "trackerd-snapshots"
 
 
