@@ -60,6 +60,8 @@ class ConsoleTap:
         self.messages_wanted = False
         """Set by the console while a page is open; the publishing thread then hands over messages."""
         self.messages: deque[Any] = deque(maxlen=MESSAGES_KEPT)
+        self.offered = 0
+        """Pairs handed over so far (for the figures and tests: 0 while nobody has watched)."""
         self._slot: tuple[Any, Any, Any] | None = None
         self._wake = threading.Condition()
         self._lock = threading.Lock()
@@ -75,6 +77,7 @@ class ConsoleTap:
     def offer(self, pair: Any, fix: Any, locator: Any) -> None:
         """The newest pair, its fix and the locator that made it (never waits)."""
         self.frame_wanted = False
+        self.offered += 1
         with self._wake:
             self._slot = (pair, fix, locator)
             self._wake.notify()
