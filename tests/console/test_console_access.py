@@ -84,6 +84,32 @@ def test_every_path_needs_the_token(console) -> None:
     assert "HttpOnly" in headers["Set-Cookie"] and "SameSite=Strict" in headers["Set-Cookie"]
 
 
+def test_what_another_site_could_make_a_browser_send_is_refused(console) -> None:
+    import aiohttp
+
+    _server, _pipeline, base = console
+    bearer = {"Authorization": "Bearer s3cret-token"}
+    request = urllib.request.Request(base + "/api/recording/start", method="POST", data=b"", headers=bearer)
+    with pytest.raises(urllib.error.HTTPError) as refused:
+        urllib.request.urlopen(request, timeout=10)
+    assert refused.value.code == 403 and "X-Trackerd-Console" in json.loads(refused.value.read())["error"]
+    request.add_header("X-Trackerd-Console", "1")
+    with pytest.raises(urllib.error.HTTPError) as unavailable:  # through, and answered: no [recording] here
+        urllib.request.urlopen(request, timeout=10)
+    assert unavailable.value.code == 409 and "[recording] directory" in json.loads(unavailable.value.read())["message"]
+
+    async def connect(origin: str) -> int:
+        async with aiohttp.ClientSession(headers=bearer) as session:
+            try:
+                async with session.ws_connect(base + "/ws", origin=origin):
+                    return 101
+            except aiohttp.WSServerHandshakeError as err:
+                return err.status
+
+    assert asyncio.run(connect("http://evil.example")) == 403
+    assert asyncio.run(connect(base)) == 101
+
+
 def test_nothing_is_handed_over_until_a_page_watches_and_images_then_come(console) -> None:
     import aiohttp
 

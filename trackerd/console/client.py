@@ -58,6 +58,7 @@ class ConsoleClient:
 
     def _request(self, method: str, path: str, timeout_s: float | None = None) -> Any:
         request = urllib.request.Request(self.base + path, method=method, data=b"" if method == "POST" else None)
+        request.add_header("X-Trackerd-Console", "1")
         if self.token is not None:
             request.add_header("Authorization", f"Bearer {self.token}")
         try:

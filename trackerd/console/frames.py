@@ -150,6 +150,11 @@ class FrameThread:
             self._wake.notify_all()
         return name
 
+    def cancel_snapshot(self, name: str) -> None:
+        """Forget a snapshot not taken yet (nobody waits for it any more)."""
+        with self._wake:
+            self._snapshots = [r for r in self._snapshots if r.name != name]
+
     # ------------------------------------------------------------------ the thread
 
     def _run(self) -> None:

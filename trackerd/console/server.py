@@ -56,6 +56,9 @@ TEXT_QUEUE = 64
 SNAPSHOT_TIMEOUT_S = 10.0
 STOP_TIMEOUT_S = 0.6
 COOKIE = "trackerd_console_token"
+ACTION_HEADER = "X-Trackerd-Console"
+"""Every POST must carry it: a page of another site cannot add it without the console's consent."""
+LOCAL_NAMES = ("127.0.0.1", "localhost", "::1")
 
 
 class _Page:
@@ -226,6 +229,9 @@ class ConsoleServer:
 
     @web.middleware
     async def _auth(self, request: web.Request, handler: Any) -> web.StreamResponse:
+        refused = self._cross_site(request)
+        if refused is not None:
+            return web.json_response({"error": refused}, status=403)
         if self.token is None:
             return await handler(request)
         given = request.query.get("token") or request.cookies.get(COOKIE)
@@ -239,6 +245,27 @@ class ConsoleServer:
         if "token" in request.query and not response.prepared:
             response.set_cookie(COOKIE, self.token, httponly=True, samesite="Strict")
         return response
+
+    def _cross_site(self, request: web.Request) -> str | None:
+        """Why a request that another web site could have made the operator's browser send is
+        refused, else None.
+
+        Without a token, being on the loopback address is the console's only protection, and any
+        page open in a browser on this machine can make requests to it: actions must carry a header
+        such a page cannot add without the console's consent (it answers no CORS preflight), the
+        WebSocket must come from the console's own page (Origin), and the Host must be this
+        machine's name for it (a DNS name pointed at 127.0.0.1 by another site does not pass).
+        """
+        if request.method == "POST" and ACTION_HEADER not in request.headers:
+            return f"actions need the header {ACTION_HEADER} (the console's page and `trackerd ctl` send it)"
+        origin = request.headers.get("Origin")
+        # Behind a reverse proxy the page's origin is the proxy's, which it names in X-Forwarded-Host.
+        hosts = {request.host, request.headers.get("X-Forwarded-Host")}
+        if request.path == "/ws" and origin is not None and origin.split("://", 1)[-1] not in hosts:
+            return f"a WebSocket from {origin} is not the console's page"
+        if self.token is None and request.host.rsplit(":", 1)[0].strip("[]") not in LOCAL_NAMES:
+            return f"Host {request.host} is not this machine's (use 127.0.0.1, or give the console a token)"
+        return None
 
     # ------------------------------------------------------------------ the page
 
@@ -351,7 +378,6 @@ class ConsoleServer:
             "recording": self.actions.recording_state(),
             "check": self.actions.check_progress(),
             "warnings": warnings,
-            "dropped_for_page": 0,
         })
 
     def _queue_status(self, page: _Page, since: int) -> None:
@@ -380,6 +406,7 @@ class ConsoleServer:
         try:
             result = await asyncio.wait_for(future, SNAPSHOT_TIMEOUT_S)
         except TimeoutError:
+            self.frames.cancel_snapshot(name)
             return web.json_response(
                 {"error": f"no pair was processed within {SNAPSHOT_TIMEOUT_S:g} s (are the cameras streaming?)"},
                 status=503)

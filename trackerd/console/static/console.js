@@ -195,7 +195,8 @@ function onStatus(msg) {
 // ------------------------------------------------------------------ actions
 
 async function post(path) {
-  const response = await fetch(path, { method: "POST" });
+  // The header tells the console the request comes from its own page (docs/console.md).
+  const response = await fetch(path, { method: "POST", headers: { "X-Trackerd-Console": "1" } });
   let body = {};
   try { body = await response.json(); } catch (e) { body = { error: response.statusText }; }
   return { ok: response.ok, body };
