@@ -334,7 +334,7 @@ def test_metrics_and_healthz_parse(daemon) -> None:
     assert buckets == sorted(buckets) and buckets[-1] == count > 0
 
 
-def test_a_stopped_camera_shows_as_lost(page, daemon) -> None:
+def test_a_stopped_camera_shows_as_lost_and_back(page, daemon) -> None:
     killed = time.monotonic()
     daemon["virtual"].kill_camera(1)
     page.wait_for_selector('.camera[data-camera="right"][data-state="lost"]', timeout=DEADLINE_MS)
@@ -342,6 +342,9 @@ def test_a_stopped_camera_shows_as_lost(page, daemon) -> None:
     assert page.get_attribute('.camera[data-camera="left"]', "data-state") == "streaming"
     code, body = _get(daemon["url"] + "healthz")
     assert code == 503 and json.loads(body)["cameras"]["right"] in ("lost", "reconnecting")
+    # And back: the camera is found again and the page shows it streaming.
+    daemon["virtual"].restart_camera(1)
+    page.wait_for_selector('.camera[data-camera="right"][data-state="streaming"]', timeout=DEADLINE_MS)
 
 
 def test_sigterm_with_the_page_open_stops_the_daemon(page, daemon) -> None:
