@@ -23,6 +23,10 @@ from trackerd.pipeline.tap import LATENCY_BUCKETS_MS, ConsoleTap
 
 CAMERA_STATES = ("connecting", "connected", "streaming", "lost", "reconnecting", "stopped")
 DAEMON_STATES = ("starting", "running", "degraded", "reloading", "stopping")
+EXTRA_HELP = {
+    "console_viewers": "pages of the console open now",
+    "console_dropped_for_slow_pages": "camera images and messages a page had not taken when the next came",
+}
 HISTOGRAM_HELP = {
     "processing": "last frame of a pair received to its messages handed to ZeroMQ",
     "latency": "capture to messages handed to ZeroMQ",
@@ -109,7 +113,7 @@ class StatusCollector:
                 buckets=buckets, sum_value=total_ms / 1000.0,
             )
         for key, value in self.extra().items():
-            yield GaugeMetricFamily(f"trackerd_{key}", key.replace("_", " "), value=value)
+            yield GaugeMetricFamily(f"trackerd_{key}", EXTRA_HELP.get(key, key.replace("_", " ")), value=value)
 
 
 def registry_for(tap: ConsoleTap, extra: Callable[[], dict[str, Any]] | None = None) -> CollectorRegistry:

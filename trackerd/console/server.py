@@ -119,6 +119,7 @@ class ConsoleServer:
         self.snapshot_directory = self.config.snapshot_directory or default_snapshot_directory()
         self.logbook = Logbook()
         self._pages: set[_Page] = set()
+        self._dropped_by_gone_pages = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._runner: web.AppRunner | None = None
         self._thread: threading.Thread | None = None
@@ -309,6 +310,7 @@ class ConsoleServer:
         finally:
             sender.cancel()
             self._pages.discard(page)
+            self._dropped_by_gone_pages += page.dropped
             self._viewers_changed()
         return ws
 
@@ -460,4 +462,5 @@ class ConsoleServer:
         return web.json_response(detail, status=200 if healthy else 503)
 
     def _extra_metrics(self) -> dict[str, Any]:
-        return {"console_viewers": len(self._pages)}
+        dropped = self._dropped_by_gone_pages + sum(page.dropped for page in self._pages)
+        return {"console_viewers": len(self._pages), "console_dropped_for_slow_pages": dropped}
