@@ -97,7 +97,7 @@ def test_a_short_run_reports_every_figure_consistently():
     request_before = cpu_latency.current_us()
     run = subprocess.run(
         [sys.executable, "-m", "trackerd", "bench", "pipeline", "--seconds", "1", "--json",
-         "--endpoint", "tcp://127.0.0.1:5598", "--turn-seconds", "0.4", "--paced-pairs", "20"],
+         "--endpoint", "tcp://127.0.0.1:5598", "--turn-seconds", "0.4", "--paced-pairs", "20", "--console", "viewer"],
         capture_output=True, text=True, timeout=180,
     )
     assert run.returncode == 0, run.stderr
@@ -132,6 +132,10 @@ def test_a_short_run_reports_every_figure_consistently():
     text = _format(figures)
     assert "None" not in text and "{" not in text, text
     assert f"pointer {received['pointer']}" in text and "target p99 <= 4 ms" in text
+    # The console's viewer (a page's WebSocket in a process of its own) took images all along.
+    console = figures["console"]
+    assert console["mode"] == "viewer" and console["images"] >= 2 and console["texts"] >= 1
+    assert f"console: one page connected, {console['images']} camera images" in text
 
 
 def test_a_turn_of_no_length_is_refused_in_one_line():

@@ -33,6 +33,11 @@ awake (a PM QoS request for 0 µs, as the trackerd-cpu-latency service holds it;
 trackerd.cpu_latency) and while they are not, the two alternating every few
 seconds (``--cpu-wakeup``). On the development VM, a CPU that halts between
 frames is what most of the tail is made of.
+
+And what the operator's console costs (``--console``): off (no console), idle
+(served, nobody connected: the pipeline only checks its flags) or viewer (one
+page connected for the whole run, a WebSocket client in a process of its own
+taking every camera image, fix and status, as a browser does).
 """
 
 from __future__ import annotations
@@ -80,6 +85,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--turn-seconds", type=float, default=5.0,
                         help="length of each turn with --cpu-wakeup alternate (default 5)")
+    parser.add_argument("--console", choices=["off", "idle", "viewer"], default="off",
+                        help="the operator's console: off (default), idle (served, nobody connected) or viewer"
+                             " (one page connected for the whole run)")
     parser.add_argument("--paced-pairs", type=int, default=240,
                         help="pairs detected after a pause before the run, half with both cameras together and"
                              " half one at a time, in turns (memory source; default 240)")
@@ -142,13 +150,29 @@ def run(args: argparse.Namespace) -> int:
     results = context.Queue()
     subscriber = context.Process(target=_subscribe, args=(args.endpoint, stop, results), daemon=True)
     subscriber.start()
-    pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq), account_threads=True)
+    tap = console = viewer = None
+    viewer_results = context.Queue()
+    if args.console != "off":
+        from trackerd.pipeline.tap import ConsoleTap
+
+        tap = ConsoleTap()
+        listen = f"127.0.0.1:{_free_port()}"
+        if args.console == "viewer":
+            # Forked before any thread of the pipeline's starts; it connects once the console answers.
+            viewer = context.Process(target=_view, args=(f"http://{listen}/ws", stop, viewer_results), daemon=True)
+            viewer.start()
+    pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq), account_threads=True, tap=tap)
     wakeup_request = contextlib.ExitStack()
     turns: list[tuple[int, bool]] = []
     try:
         if wakeup == "held":
             wakeup_request.enter_context(cpu_latency.held(0))
         pipeline.start()
+        if tap is not None:
+            from trackerd.console.server import ConsoleServer
+
+            console = ConsoleServer(pipeline, tap, listen=listen)
+            console.start()
         progress.phase(f"measuring {args.seconds:g} s after 2 s of warm-up")
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
@@ -181,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
         queue_drops = pipeline._queue.dropped
     finally:
         wakeup_request.close()
+        if console is not None:
+            console.stop()
         pipeline.stop()
         stop.set()
         if virtual is not None:
@@ -190,6 +216,13 @@ def run(args: argparse.Namespace) -> int:
     except queue.Empty:
         counts = {}
     subscriber.join(2.0)
+    viewed: dict[str, Any] = {"mode": args.console}
+    if viewer is not None:
+        try:
+            viewed.update(viewer_results.get(timeout=5.0))
+        except queue.Empty:
+            viewed["error"] = "the viewer reported nothing"
+        viewer.join(2.0)
     cpu_s = (cpu1.user + cpu1.system) - (cpu0.user + cpu0.system)
     elapsed = wall1 - wall0
     figures: dict[str, Any] = {
@@ -214,6 +247,7 @@ def run(args: argparse.Namespace) -> int:
         "dropped_pairs_queue": queue_drops,
         "messages_received": dict(counts),
         "failure": pipeline.failure,
+        "console": viewed,
     }
     progress.done()
     if args.json:
@@ -428,6 +462,49 @@ def _subscribe(endpoint: str, stop: Any, results: Any) -> None:
         results.put(counts)
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _view(url: str, stop: Any, results: Any) -> None:
+    """The viewer process: a page's WebSocket, every message read until ``stop``; puts the counts."""
+    import asyncio
+
+    import aiohttp
+
+    async def view() -> dict[str, Any]:
+        counts = {"images": 0, "image_bytes": 0, "texts": 0}
+        async with aiohttp.ClientSession() as session:
+            while not stop.is_set():
+                try:
+                    ws = await session.ws_connect(url)
+                    break
+                except aiohttp.ClientError:
+                    await asyncio.sleep(0.1)
+            else:
+                return counts
+            async with ws:
+                while not stop.is_set():
+                    try:
+                        message = await ws.receive(timeout=0.2)
+                    except TimeoutError:
+                        continue
+                    if message.type == aiohttp.WSMsgType.BINARY:
+                        counts["images"] += 1
+                        counts["image_bytes"] += len(message.data)
+                    elif message.type == aiohttp.WSMsgType.TEXT:
+                        counts["texts"] += 1
+                    else:
+                        break
+        return counts
+
+    results.put(asyncio.run(view()))
+
+
 def _spread(figures: dict[str, Any]) -> str:
     if figures.get("p50_ms") is None:
         return "none"
@@ -514,6 +591,12 @@ def _format(f: dict[str, Any]) -> str:
     )
     received = ", ".join(f"{topic} {count}" for topic, count in sorted(f["messages_received"].items()))
     lines.append(f"received by a subscriber (the warm-up included): {received or 'nothing'}")
+    console = f.get("console") or {"mode": "off"}
+    if console["mode"] == "viewer":
+        lines.append(f"console: one page connected, {console.get('images', 0)} camera images"
+                     f" ({console.get('image_bytes', 0) / 1e6:.1f} MB) and {console.get('texts', 0)} other messages")
+    else:
+        lines.append(f"console: {console['mode']}")
     if f["failure"]:
         lines.append(f"FAILED: {f['failure']}")
     return "\n".join(lines)

@@ -26,3 +26,12 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
     return value
+
+
+def add_console_option(parser: argparse.ArgumentParser) -> None:
+    """``--console ADDR``: where the operator's console listens (the rig's ``[console]`` otherwise)."""
+    parser.add_argument(
+        "--console", metavar="ADDR",
+        help="serve the operator's console on HOST:PORT instead of the rig's [console] listen"
+             " (default 127.0.0.1:8560), or 'off'",
+    )

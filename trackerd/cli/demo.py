@@ -16,10 +16,10 @@ from typing import Any
 
 import zmq
 
-from trackerd.cli._args import positive_seconds
+from trackerd.cli._args import add_console_option, positive_seconds
 from trackerd.cli.simrig import add_network_options
 from trackerd.config.examples import example_rig
-from trackerd.config.loader import load_rig, with_endpoints
+from trackerd.config.loader import load_rig, with_console, with_endpoints
 from trackerd.sim import netns
 from trackerd.sim.motion import MOTIONS
 
@@ -36,6 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--every", type=int, default=6, help="print one hit in this many (default 6: ten a second)")
     parser.add_argument("--endpoint", help="publish here instead of the rig's endpoint, for example to run"
                         " beside a daemon that has it: tcp://127.0.0.1:5561")
+    add_console_option(parser)
     add_network_options(parser)
     parser.set_defaults(handler=demo_command)
 
@@ -50,6 +51,7 @@ def demo_command(args: argparse.Namespace) -> int:
     rig = load_rig(args.config).config
     if args.endpoint is not None:
         rig = with_endpoints(rig, [args.endpoint])
+    rig = with_console(rig, args.console)
     network = "netns" if netns.netns_missing_reason() is None else "loopback"
     if network == "loopback" and rig.acquisition.trigger == "software":
         rig = rig.model_copy(update={"acquisition": rig.acquisition.model_copy(update={"trigger": "free_running"})})

@@ -24,8 +24,8 @@ import sys
 import time
 from typing import Any
 
-from trackerd.cli._args import positive_seconds
-from trackerd.config.loader import check_ready_to_track, load_rig, with_endpoints
+from trackerd.cli._args import add_console_option, positive_seconds
+from trackerd.config.loader import check_ready_to_track, load_rig, with_console, with_endpoints
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
 from trackerd.errors import CalibrationPending, ConfigError
@@ -53,6 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-verify", action="store_true",
                         help="skip the frame checksums (faster at --speed max; record headers are still checked)")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    add_console_option(parser)
     parser.set_defaults(handler=replay_command)
 
 
@@ -125,6 +126,7 @@ def replay_command(args: argparse.Namespace) -> int:
     for problem in recording.problems:
         print(f"trackerd replay: warning: {problem}", file=sys.stderr)
     rig, notes = replay_rig(recording, args.config, args.endpoint)
+    rig = with_console(rig, args.console)
     source = ReplayPairSource(
         recording, speed=args.speed, loop=args.loop, verify=not args.no_verify, start_delay_s=args.delay,
         first=args.first, count=args.count,

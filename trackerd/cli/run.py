@@ -21,8 +21,8 @@ import time
 from pathlib import Path
 
 from trackerd import logs
-from trackerd.cli._args import positive_seconds
-from trackerd.config.loader import load_rig
+from trackerd.cli._args import add_console_option, positive_seconds
+from trackerd.config.loader import load_rig, with_console
 from trackerd.config.models import RigConfig
 from trackerd.errors import TrackerdError
 from trackerd.sdnotify import SdNotify
@@ -39,6 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--seconds", type=positive_seconds, help="stop after this many seconds (default: run until stopped)"
     )
+    add_console_option(parser)
     parser.set_defaults(handler=run_command)
 
 
@@ -60,7 +61,7 @@ def run_command(args: argparse.Namespace) -> int:
     from trackerd.recording.cameras import CameraInfo
 
     path = Path(args.config)
-    rig = load_rig(path).config
+    rig = with_console(load_rig(path).config, args.console)
     # What each camera says about itself, noted as it opens, for recordings made on demand.
     info = CameraInfo()
     return serve(rig, path, lambda r: aravis_source(r, on_open=info.on_open), seconds=args.seconds,
@@ -84,8 +85,14 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
 
     notifier = SdNotify()
     context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info)
+    tap = None
+    if rig.console.enabled:
+        from trackerd.pipeline.tap import ConsoleTap
+
+        tap = ConsoleTap()
     pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig, context),
-                        clock_offset_ns=clock_offset_ns)
+                        clock_offset_ns=clock_offset_ns, tap=tap)
+    console = None
     stop = threading.Event()
     reload_requested = threading.Event()
 
@@ -102,9 +109,15 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     }
     try:
         pipeline.start()
+        if tap is not None:
+            from trackerd.console.server import ConsoleServer
+
+            console = _start_console(ConsoleServer(pipeline, tap, camera_info=camera_info), rig)
         endpoints = ", ".join(pipeline.publisher.endpoints) if pipeline.publisher else "-"
         print(banner or f"trackerd {rig.name}: publishing on {endpoints} (Ctrl-C to stop)", file=sys.stderr,
               flush=True)
+        if console is not None:
+            print(f"trackerd {rig.name}: console at {console.url}", file=sys.stderr, flush=True)
         deadline = None if seconds is None else time.monotonic() + seconds
         while not stop.is_set():
             if pipeline.wait(0.1):
@@ -119,7 +132,12 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     except TrackerdError:
         raise
     finally:
+        if console is not None:
+            # Its server and the pipeline stop side by side: a page still open must not hold up the stop.
+            console.begin_stop()
         pipeline.stop()
+        if console is not None:
+            console.stop()
         notifier.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -136,6 +154,19 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+def _start_console(console, rig: RigConfig):
+    """Start the console; None when the default address is taken (another daemon, a replay beside
+    it: the daemon runs on without it), TrackerdError when an address given for it is."""
+    try:
+        console.start()
+    except TrackerdError as err:
+        if "listen" in rig.console.model_fields_set:
+            raise
+        log.warning("%s; running without the console", err)
+        return None
+    return console
 
 
 def _reload(pipeline, path: Path | None) -> None:

@@ -11,23 +11,25 @@ OUT (created if missing):
   <name>.json                timestamps, frame ids, skew, detections and the fix
 
 and prints each camera's detections and the wall hit. <name> is snap-<local time>.
+
+When the daemon is running it holds the cameras (a GigE Vision camera has one
+controller): snap then asks the daemon's console (where the rig's [console] says,
+or --console ADDR) for a snapshot of the pair it is processing, which it saves on
+its host, and downloads the files into OUT (`trackerd ctl snap` does the same).
+The simulated cameras of --virtual are snap's own.
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-import cv2
-import numpy as np
-
 from trackerd.config.loader import load_rig
-from trackerd.errors import CameraError, ImageError
+from trackerd.errors import CameraError
 from trackerd.recording.cameras import add_virtual_arguments
 
 
@@ -43,6 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="seconds of pairs to discard first, while exposure settles (default 0.5)")
     parser.add_argument("--timeout", type=float, default=10.0, metavar="S",
                         help="give up if no pair arrives within this many seconds (default 10)")
+    parser.add_argument("--console", metavar="ADDR",
+                        help="the running daemon's console HOST:PORT (default: the rig's [console] listen)")
     add_virtual_arguments(parser, "snap")
     parser.set_defaults(handler=snap_command)
 
@@ -54,6 +58,18 @@ def snap_command(args: argparse.Namespace) -> int:
     loaded = load_rig(args.config)
     # Before the cameras open: a pair taken and then not saved is lost.
     folder = output_folder(args.out)
+    if not args.virtual:
+        from trackerd.console.client import ConsoleClient
+
+        client = ConsoleClient.for_rig(loaded.config, args.console)
+        info = client.find()
+        if info is not None and client.runs_cameras_of(info, loaded.config):
+            print(f"trackerd snap: the daemon is running and holds the cameras; taking the snapshot from it"
+                  f" ({client.base})", file=sys.stderr)
+            answer = client.snapshot_into(folder, args.name)
+            for entry in answer["files"]:
+                print(f"  saved {folder / entry['name']}")
+            return 0
     name = args.name or f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
     with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd snap", prefix=args.prefix,
                       subnet=args.subnet) as cams:
@@ -75,58 +91,15 @@ def _take(source, settle_s: float, timeout_s: float):
 
 
 def save_snap(pair, rig, folder: Path, name: str, camera_info: dict[str, Any] | None = None) -> int:
-    """Locate the pointer in ``pair``, write the files, print what was found."""
+    """Locate the pointer in ``pair``, write the files (trackerd.recording.snapshot), print what was found."""
     from trackerd.locator import Locator
-    from trackerd.recording.annotate import annotate, end_summary, fix_summary
     from trackerd.recording.outputs import output_folder
+    from trackerd.recording.snapshot import write_snapshot
 
     formats = [frame.pixel_format for frame in pair.frames]
     locator = Locator(rig, pixel_formats=formats)
     fix = locator.locate(pair.images)
     output_folder(folder)
-    summary = fix_summary(fix)
-    record: dict[str, Any] = {
-        "name": name, "taken_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"), "rig": rig.name,
-        "timestamp_ns": pair.timestamp_ns, "skew_ns": pair.skew_ns, "sequence": pair.sequence,
-        "status": fix.status, "reason": fix.reason, "cameras": [],
-    }
-    if fix.hit is not None:
-        record["wall_xy_m"] = [float(v) for v in fix.hit.wall_xy_m[:2]]
-        record["display_px"] = None if fix.hit.display_px is None else [float(v) for v in fix.hit.display_px[:2]]
-        record["on_wall"] = bool(fix.hit.on_wall)
-        record["distance_m"] = fix.hit.distance_m
-    if fix.line is not None:
-        record["ray_gap_mm"] = max(fix.line.front_gap_m, fix.line.back_gap_m) * 1000.0
-    print(f"snap {name}: {summary}")
-    for k, frame in enumerate(pair.frames):
-        detections = fix.detections[k] if fix.detections else None
-        raw_path = folder / f"{name}-{frame.camera_id}.png"
-        view_path = folder / f"{name}-{frame.camera_id}-view.png"
-        raw = frame.image if frame.image.ndim == 2 or frame.pixel_format == "BGR8" else frame.image[..., ::-1]
-        lines = [f"{name}  {frame.camera_id}  frame {frame.frame_id}", summary]
-        ends = end_summary(detections) if detections is not None else "no detections"
-        lines.append(ends)
-        for path, image in ((raw_path, np.ascontiguousarray(raw)),
-                            (view_path, annotate(frame.image, frame.pixel_format, detections, lines))):
-            if not cv2.imwrite(str(path), image):
-                raise ImageError(f"{path}: cannot write the image")
-        print(f"  {frame.camera_id}: {ends}")
-        print(f"    saved {raw_path} (raw {frame.pixel_format}) and {view_path}")
-        ends_json = {}
-        if detections is not None:
-            for colour in ("red", "blue"):
-                end = detections.end(colour)
-                ends_json[colour] = {
-                    "found": end.found,
-                    "centroid_px": None if end.centroid_px is None else [float(v) for v in end.centroid_px],
-                    "area_px": end.area_px, "bbox_px": end.bbox_px, "reason": end.reason,
-                }
-        record["cameras"].append({
-            "id": frame.camera_id, "frame_id": frame.frame_id, "pixel_format": frame.pixel_format,
-            "device_timestamp_ns": frame.device_timestamp_ns, "host_timestamp_ns": frame.host_timestamp_ns,
-            "raw": raw_path.name, "view": view_path.name, "ends": ends_json,
-            **({"camera": camera_info[frame.camera_id]} if camera_info and frame.camera_id in camera_info else {}),
-        })
-    (folder / f"{name}.json").write_text(json.dumps(record, indent=2) + "\n")
-    print(f"  details: {folder / (name + '.json')}", file=sys.stderr)
+    written = write_snapshot(pair, fix, locator, rig, folder, name, camera_info, say=print)
+    print(f"  details: {written[-1]}", file=sys.stderr)
     return 0

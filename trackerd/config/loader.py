@@ -630,3 +630,24 @@ def dump_rig(rig: RigConfig, header: str = "") -> str:
     from trackerd.config.tomlwrite import dumps
 
     return dumps(rig.model_dump(mode="json", exclude_none=True, exclude_defaults=True), header=header)
+
+
+def with_console(rig: RigConfig, listen: str | None, option: str = "--console") -> RigConfig:
+    """The rig with its console moved to ``listen`` (HOST:PORT), or switched off ('off'), checked
+    as the rig file's ``[console]`` is; None leaves it as it is. ConfigError naming ``option``."""
+    from trackerd.config.console import ConsoleConfig
+
+    if listen is None:
+        return rig
+    if listen.strip().lower() == "off":
+        update: dict[str, Any] = {"enabled": False}
+    else:
+        update = {"enabled": True, "listen": listen}
+    try:
+        # Only what was set: a listen address not given stays the default (serve() runs on without
+        # the console when the default port is taken, and fails when a chosen one is).
+        console = ConsoleConfig.model_validate({**rig.console.model_dump(exclude_unset=True), **update})
+    except ValidationError as err:
+        problem = describe_validation_error(err, ConsoleConfig).removeprefix("(top level): ")
+        raise ConfigError(f"{option}: {problem}") from err
+    return rig.model_copy(update={"console": console})

@@ -27,6 +27,7 @@ from pydantic import Field, field_validator, model_validator
 from trackerd.config.acquisition import CameraAcquisition, RigAcquisition
 from trackerd.config.base import ConfigModel
 from trackerd.config.interaction import InteractionConfig
+from trackerd.config.console import ConsoleConfig
 from trackerd.config.recording import RecordingConfig
 
 Vec3 = tuple[float, float, float]
@@ -602,6 +603,8 @@ class RigConfig(_Model):
     """Recording from the running daemon (docs/recording.md)."""
     interaction: InteractionConfig = InteractionConfig()
     """Smoothing, pointing events, gestures and TUIO output (docs/protocol.md)."""
+    console: ConsoleConfig = ConsoleConfig()
+    """The operator's console: live camera views, wall map, status, metrics (docs/console.md)."""
     simulation: SimulationConfig = SimulationConfig()
     """Scene simulator settings (only used when rendering)."""
 

@@ -41,6 +41,7 @@ from trackerd.pipeline.colourwatch import ColourWatch, WatchThread
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.stats import Window, percentiles_ms
+from trackerd.pipeline.tap import ConsoleTap
 from trackerd.pipeline.threadtime import OffCpu, ThreadClock, off_cpu
 from trackerd.publish import Publisher, StatusMessage, messages_from_fix
 from trackerd.publish.messages import (
@@ -130,8 +131,11 @@ class Pipeline:
         clock_offset_ns: int | None = None,
         extensions: Sequence[PipelineExtension] | None = None,
         account_threads: bool = False,
+        tap: ConsoleTap | None = None,
     ) -> None:
         self.rig = rig
+        self.tap = tap
+        """The operator's console's view of the pipeline (trackerd.pipeline.tap), or None."""
         self._account_threads = account_threads
         self._trace: list[PairTrace] | None = None
         self._source_factory = source_factory
@@ -156,6 +160,8 @@ class Pipeline:
         self._state = "starting"
         self._detail: str | None = None
         self._status_sequence = 0
+        self._drained: dict = {}
+        """The latencies (ns) the last status summarised, by figure (for the console's histograms)."""
         self._fixes: dict[str, int] = {}
         self.latency = Window()
         """Capture to publish (ns), drained into each status."""
@@ -338,6 +344,9 @@ class Pipeline:
             watch = self.colour_watch
             if watch.due(fix):
                 self._watch_thread.offer(watch, pair.images, tuple(frame.pixel_format for frame in pair.frames), fix)
+            tap = self.tap
+            if tap is not None and tap.frame_wanted:
+                tap.offer(pair, fix, self.locator)
             self._queue.put(_Processed(messages, received, capture, stage, started_ns=start,
                                        queued_ns=time.monotonic_ns() if clock is not None else 0,
                                        processing_off=processing_off,
@@ -479,10 +488,15 @@ class Pipeline:
                 waiting_ns=item.started_ns - item.received_ns, processing=item.processing_off,
                 handoff_ns=start - item.queued_ns, publishing=off_cpu(before, clock.now()),
             ))
+        tap = self.tap
+        if tap is not None and tap.messages_wanted:
+            tap.on_messages(item.messages)
         if item.health is not None:
             # The messages are sent: the time to the next pair is idle anyway.
             record, fix = item.health
             record.add_fix(fix)
+            if tap is not None:
+                tap.on_fix_measured(fix)
 
     def _apply_pending_outputs(self) -> None:
         """Rebind the publisher for changed outputs; on failure go back to the old endpoints."""
@@ -513,6 +527,8 @@ class Pipeline:
         assert self.publisher is not None
         message = self.build_status(source_status)
         self.publisher.publish_status(message)
+        if self.tap is not None:
+            self.tap.on_status(message, self._drained)
         line = f"{message.state}: " + ", ".join(f"{c.id} {c.state} {c.frame_rate_hz:.0f} fps" for c in message.cameras)
         self._notifier.status(line if message.detail is None else f"{line} ({message.detail})")
         if message.state == "running" and not self._ready_sent:
@@ -539,6 +555,7 @@ class Pipeline:
         latency = self.latency.drain()
         processing = self.processing.drain()
         stages = {name: window.drain() for name, window in self.stages.items()}
+        self._drained = {"latency": latency, "processing": processing, **stages}
         self._status_sequence += 1
         now = time.monotonic_ns()
         pairing = PairingPart(pair_rate_hz=0.0)

@@ -108,6 +108,32 @@ class RecordingExtension:
             self._rig = rig
             self._armed = rig.recording.enabled and rig.recording.directory is not None
 
+    # ------------------------------------------------------------------ the console (any thread)
+
+    @property
+    def available(self) -> bool:
+        return self._rig.recording.directory is not None
+
+    def start_now(self) -> str:
+        """Start a recording with the next pair (as a reload with ``enabled`` does); what happens, in words."""
+        with self._lock:
+            if self._recorder is not None:
+                return f"already recording into {self._recorder.path}"
+            self._armed = True
+        return "a recording starts with the next pair"
+
+    def stop_now(self) -> str:
+        """Finish the current recording (without waiting for the disk); what happens, in words."""
+        with self._lock:
+            self._armed = False
+            recorder, self._recorder = self._recorder, None
+            if recorder is None:
+                return "not recording"
+            recorder.finish()
+            self._finishing.append(recorder)
+        log.info("recording: finishing %s (asked from the console)", recorder.path)
+        return f"finishing {recorder.path}"
+
     def _start(self) -> Recorder | None:
         cfg = self._rig.recording
         assert cfg.directory is not None

@@ -86,7 +86,8 @@ class RenderedLoop:
 def loop_key(rig: RigConfig, motion: str, period_s: float, content_fps: float) -> str:
     """A hash of everything a rendered loop depends on, renderer source included."""
     digest = hashlib.sha256()
-    digest.update(rig.model_dump_json().encode())
+    # The console serves what is rendered and changes nothing in it (and keys made before it existed stay valid).
+    digest.update(rig.model_dump_json(exclude={"console"}).encode())
     digest.update(f"{motion}|{period_s!r}|{content_fps!r}|{LOOP_VERSION}".encode())
     sim_dir = Path(__file__).parent
     for name in ("render.py", "scene.py", "motion.py"):

@@ -1,0 +1,157 @@
+"""The console in process, on a pipeline fed from memory: the token, the cost rule (nothing
+handed over while nobody watches), a viewer's images, and the one-line errors of --console."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import struct
+import time
+import urllib.error
+import urllib.request
+
+import numpy as np
+import pytest
+
+from trackerd.acquisition.memory import MemoryPairSource
+from trackerd.config.console import ConsoleConfig
+from trackerd.config.loader import with_console
+from trackerd.console.server import ConsoleServer
+from trackerd.errors import ConfigError
+from trackerd.pipeline.daemon import Pipeline
+from trackerd.pipeline.tap import ConsoleTap
+from trackerd.publish import Publisher
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def console(simulated_rig, tmp_path):
+    """A pipeline on dark frames (nothing to find: fast) with its console, token required."""
+    (tmp_path / "token").write_text("s3cret-token\n")
+    listen = f"127.0.0.1:{_free_port()}"
+    zmq_cfg = simulated_rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})
+    rig = simulated_rig.model_copy(update={
+        "outputs": simulated_rig.outputs.model_copy(update={"zmq": zmq_cfg}),
+        "console": ConsoleConfig(listen=listen, token_file=tmp_path / "token", snapshot_directory=tmp_path / "snaps"),
+    })
+    frames = [[np.full((c.height_px, c.width_px), 20, np.uint8) for c in rig.cameras]]
+    tap = ConsoleTap()
+    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, frames, rate_hz=30.0), lambda r: Publisher(r.outputs.zmq),
+                        tap=tap)
+    pipeline.start()
+    server = ConsoleServer(pipeline, tap)
+    server.start()
+    try:
+        yield server, pipeline, f"http://{listen}"
+    finally:
+        server.stop()
+        pipeline.stop()
+
+
+def _get(url: str, headers: dict[str, str] | None = None) -> tuple[int, bytes, dict[str, str]]:
+    request = urllib.request.Request(url, headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, response.read(), dict(response.headers)
+    except urllib.error.HTTPError as err:
+        return err.code, err.read(), dict(err.headers)
+
+
+def _wait(condition, timeout_s: float = 30.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return condition()
+
+
+def test_every_path_needs_the_token(console) -> None:
+    _server, _pipeline, base = console
+    for path in ("/", "/metrics", "/healthz", "/api/info"):
+        code, body, _ = _get(base + path)
+        assert code == 401 and "token" in json.loads(body)["error"], path
+    code, _, _ = _get(base + "/api/info", {"Authorization": "Bearer wrong"})
+    assert code == 401
+    code, body, _ = _get(base + "/api/info", {"Authorization": "Bearer s3cret-token"})
+    assert code == 200 and json.loads(body)["cameras"][0]["id"] == "left"
+    code, _, headers = _get(base + "/?token=s3cret-token")
+    assert code == 200 and "trackerd_console_token=s3cret-token" in headers["Set-Cookie"]
+    assert "HttpOnly" in headers["Set-Cookie"] and "SameSite=Strict" in headers["Set-Cookie"]
+
+
+def test_what_another_site_could_make_a_browser_send_is_refused(console) -> None:
+    import aiohttp
+
+    _server, _pipeline, base = console
+    bearer = {"Authorization": "Bearer s3cret-token"}
+    request = urllib.request.Request(base + "/api/recording/start", method="POST", data=b"", headers=bearer)
+    with pytest.raises(urllib.error.HTTPError) as refused:
+        urllib.request.urlopen(request, timeout=10)
+    assert refused.value.code == 403 and "X-Trackerd-Console" in json.loads(refused.value.read())["error"]
+    request.add_header("X-Trackerd-Console", "1")
+    with pytest.raises(urllib.error.HTTPError) as unavailable:  # through, and answered: no [recording] here
+        urllib.request.urlopen(request, timeout=10)
+    assert unavailable.value.code == 409 and "[recording] directory" in json.loads(unavailable.value.read())["message"]
+
+    async def connect(origin: str) -> int:
+        async with aiohttp.ClientSession(headers=bearer) as session:
+            try:
+                async with session.ws_connect(base + "/ws", origin=origin):
+                    return 101
+            except aiohttp.WSServerHandshakeError as err:
+                return err.status
+
+    assert asyncio.run(connect("http://evil.example")) == 403
+    assert asyncio.run(connect(base)) == 101
+
+
+def test_nothing_is_handed_over_until_a_page_watches_and_images_then_come(console) -> None:
+    import aiohttp
+
+    server, pipeline, base = console
+    assert _wait(lambda: pipeline.pairs_processed >= 30)
+    assert server.tap.offered == 0 and not server.tap.frame_wanted and not server.tap.messages_wanted
+
+    async def watch() -> list[dict]:
+        headers = {"Authorization": "Bearer s3cret-token"}
+        headers_seen = []
+        async with aiohttp.ClientSession(headers=headers) as session, session.ws_connect(base + "/ws") as ws:
+            while len(headers_seen) < 4:
+                message = await ws.receive(timeout=30)
+                if message.type == aiohttp.WSMsgType.BINARY:
+                    (length,) = struct.unpack(">I", message.data[:4])
+                    header = json.loads(message.data[4:4 + length])
+                    assert message.data[4 + length:4 + length + 2] == b"\xff\xd8"  # a JPEG
+                    headers_seen.append(header)
+        return headers_seen
+
+    seen = asyncio.run(watch())
+    assert {h["camera"] for h in seen} == {"left", "right"}
+    assert all(h["image_width_px"] == 640 and h["ends"]["red"]["found"] is False for h in seen)
+    assert all(h["ends"]["red"]["reason"] for h in seen)  # why the end was not found
+    assert len(seen[0]["outline_px"][0]) > 4 and len(seen[0]["corners_px"]) == 4
+    # The page is gone: the pipeline stops handing anything over.
+    assert _wait(lambda: not server.tap.messages_wanted)
+    assert _wait(lambda: server.frames.viewers == 0)
+    count = server.tap.offered
+    processed = pipeline.pairs_processed
+    assert _wait(lambda: pipeline.pairs_processed >= processed + 30)
+    assert server.tap.offered <= count + 1  # at most the one asked for as the page left
+
+
+def test_console_addresses_are_checked_in_one_line(simulated_rig) -> None:
+    with pytest.raises(ConfigError, match=r"^--console: .*0\.0\.0\.0:8560.*token_file"):
+        with_console(simulated_rig, "0.0.0.0:8560")
+    with pytest.raises(ConfigError, match=r"^--console: .*not HOST:PORT"):
+        with_console(simulated_rig, "8560")
+    with pytest.raises(ConfigError, match=r"^--console: .*port must be a number from 1 to 65535"):
+        with_console(simulated_rig, "127.0.0.1:70000")
+    assert with_console(simulated_rig, "off").console.enabled is False
+    moved = with_console(simulated_rig, "127.0.0.1:9000").console
+    assert moved.listen == "127.0.0.1:9000" and "listen" in moved.model_fields_set
+    assert "listen" not in simulated_rig.console.model_fields_set
