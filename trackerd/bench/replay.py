@@ -59,6 +59,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pairs", type=int, help="pairs replayed by trackerd's detector (default: all)")
     parser.add_argument("--reference-pairs", type=int, default=REFERENCE_PAIRS,
                         help=f"pairs replayed by the baselines (default {REFERENCE_PAIRS})")
+    parser.add_argument("--modes", action="store_true",
+                        help="instead of the baselines: the recording rewritten compressed and windowed, each"
+                             " mode's size, writer CPU and replay rate side by side (trackerd/bench/_modes.py)")
+    parser.add_argument("--keyframe-interval", type=float, default=1.0, metavar="S",
+                        help="with --modes: keyframe interval of the compressed and windowed modes (default 1)")
     parser.add_argument("--cold", action="store_true",
                         help="drop the page cache before each replay (root): read from the disk, not memory")
 
@@ -78,6 +83,22 @@ def run(args: argparse.Namespace) -> int:
                 Path(args.dir).mkdir(parents=True, exist_ok=True)
             workdir = Path(tempfile.mkdtemp(prefix="trackerd-bench-replay-", dir=args.dir))
             path, figures["record"], truth = _record(rig, args, workdir)
+        if args.modes:
+            from trackerd.bench._modes import format_modes, replay_modes, write_modes
+
+            mode_dir = Path(tempfile.mkdtemp(prefix="trackerd-bench-modes-", dir=args.dir))
+            try:
+                figures["modes"] = write_modes(path, mode_dir, args.keyframe_interval)
+                figures["mode_replays"] = replay_modes(figures["modes"], args.config if not args.recording else None,
+                                                       truth)
+            finally:
+                if not args.keep:
+                    shutil.rmtree(mode_dir, ignore_errors=True)
+            for f in figures["modes"].values():
+                f["path"] = str(f["path"])
+            print(json.dumps(figures, indent=2, default=str) if args.json
+                  else format_modes(figures["modes"], figures["mode_replays"]))
+            return 0
         with Recording.open(path) as recording:
             figures["recording"] = {
                 "path": str(path), "pairs": len(recording), "mb": round(recording.data_size / 1e6, 1),
@@ -264,7 +285,7 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
 
 
 def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
-                 truth: list[dict] | None) -> dict[str, Any]:
+                 truth: list[dict] | None, *, keep_hits: bool = False) -> dict[str, Any]:
     """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import for_rig
@@ -301,6 +322,8 @@ def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, co
     }
     status = pipeline.build_status(source.status())
     figures["fixes"] = dict(status.fixes)
+    if keep_hits:
+        figures["hit_messages"] = hits
     figures["dropped_pairs"] = status.pairing.dropped_pairs
     if truth:
         frame_ids = {e.sequence: recording.header(i).frames[0].frame_id for i, e in enumerate(recording.entries)}

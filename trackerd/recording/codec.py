@@ -16,6 +16,7 @@ on differences for five times the CPU.
 from __future__ import annotations
 
 import struct
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,13 +132,51 @@ def unpack_windows(data: bytes, shape: tuple[int, ...], where: str) -> tuple[int
     return base_pair, out
 
 
-def paste_windows(base: NDArray[np.uint8], windows: list[tuple[Window, memoryview]]) -> NDArray[np.uint8]:
-    """A new frame: ``base`` with each window's pixels put in place (``base`` is not changed)."""
-    frame = base.copy()
-    for window, pixels in windows:
-        block = np.frombuffer(pixels, np.uint8).reshape((window.height_px, window.width_px) + base.shape[2:])
-        frame[window.y_px:window.y_px + window.height_px, window.x_px:window.x_px + window.width_px] = block
-    return frame
+class Canvases:
+    """Frames rebuilt from one camera's keyframe and windows, without copying the whole frame each time.
+
+    A frame handed out is a read-only view of one of a few canvases. A canvas is used again only when
+    nothing but this object refers to it any more (its reference count says so: the pipeline, a
+    colour-watch thread or a caller keeping the frame keeps it out of use); then only the windows it
+    held are put back from the keyframe before the new ones go in. Otherwise a new canvas is made, as
+    a copy of the keyframe: what a caller holds never changes under it.
+    """
+
+    MAX_CANVASES = 16
+
+    def __init__(self) -> None:
+        self._key_index = -1
+        self._key: NDArray[np.uint8] | None = None
+        self._canvases: list[tuple[NDArray[np.uint8], list[Window]]] = []
+
+    def frame(self, key_index: int, key: NDArray[np.uint8], windows: list[tuple[Window, memoryview]]
+              ) -> NDArray[np.uint8]:
+        """``key`` (the frame of record ``key_index``) with ``windows`` in place, read-only."""
+        if key_index != self._key_index or self._key is not key:
+            self._key_index, self._key, self._canvases = key_index, key, []
+        slot = None
+        for k, (canvas, _) in enumerate(self._canvases):
+            # Referred to by the list's tuple, this loop's name and getrefcount's argument only.
+            if sys.getrefcount(canvas) <= 3:
+                slot = k
+                break
+        if slot is None:
+            canvas, held = key.copy(), []
+            if len(self._canvases) < self.MAX_CANVASES:
+                self._canvases.append((canvas, held))
+        else:
+            canvas, held = self._canvases[slot]
+            for w in held:
+                canvas[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px] = \
+                    key[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px]
+            held.clear()
+        for window, pixels in windows:
+            block = np.frombuffer(pixels, np.uint8).reshape((window.height_px, window.width_px) + key.shape[2:])
+            canvas[window.y_px:window.y_px + window.height_px, window.x_px:window.x_px + window.width_px] = block
+            held.append(window)
+        view = canvas.view()
+        view.flags.writeable = False
+        return view
 
 
 def clip_window(x0_px: float, y0_px: float, x1_px: float, y1_px: float, shape: tuple[int, ...]) -> Window | None:

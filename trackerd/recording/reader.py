@@ -88,6 +88,8 @@ class Recording:
     _map: mmap.mmap | None = None
     _decoded: dict[int, tuple[int, NDArray[np.uint8]]] = field(default_factory=dict)
     """Per camera, the last frame decoded from a difference or a keyframe (the next one builds on it)."""
+    _canvases: dict[int, Any] = field(default_factory=dict)
+    """Per camera, the canvases windowed frames are rebuilt in (trackerd.recording.codec.Canvases)."""
     _coder: Any = None
     _decode_lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -312,7 +314,7 @@ class Recording:
 
     def _rebuilt(self, index: int, k: int, header: RecordHeader, verify: bool) -> NDArray[np.uint8]:
         """Camera ``k``'s frame of pair ``index`` for the compressed and windowed modes (under the lock)."""
-        from trackerd.recording.codec import max_windows_bytes, paste_windows, undelta, unpack_windows
+        from trackerd.recording.codec import max_windows_bytes, undelta, unpack_windows
 
         cached = self._decoded.get(k)
         if cached is not None and cached[0] == index:
@@ -336,7 +338,13 @@ class Recording:
             base_frame = self.header(base_pair).frames[k]
             if base_frame.encoding not in FULL_ENCODINGS:
                 raise RecordingError(f"{where}: its windows lie over pair {base_pair}, whose frame is not whole")
-            return paste_windows(self._base(base_pair, k, verify, where), windows)
+            base = self._base(base_pair, k, verify, where)
+            canvases = self._canvases.get(k)
+            if canvases is None:
+                from trackerd.recording.codec import Canvases
+
+                canvases = self._canvases[k] = Canvases()
+            return canvases.frame(base_pair, base, windows)
         else:
             raise RecordingError(f"{where}: unknown frame encoding {frame.encoding} (a newer trackerd's?)")
         image.flags.writeable = False

@@ -197,7 +197,7 @@ def _merge(windows: list[Window]) -> list[Window]:
 
 
 def _rebuild(key: NDArray[np.uint8], image: NDArray[np.uint8], windows: list[Window]) -> NDArray[np.uint8]:
-    """What a replay reads: the keyframe with this frame's windows put in (codec.paste_windows does the same
+    """What a replay reads: the keyframe with this frame's windows put in (codec.Canvases does the same
     from the stored bytes)."""
     frame = key.copy()
     for w in windows:
