@@ -18,7 +18,6 @@ import numpy as np
 
 
 def codecs() -> dict:
-    import lz4.frame
     import zstandard
 
     out = {
@@ -29,7 +28,12 @@ def codecs() -> dict:
         d = zstandard.ZstdDecompressor()
         out[f"zstd-{level}"] = (c.compress, d.decompress)
     out["zstd--1 (fast)"] = (zstandard.ZstdCompressor(level=-1).compress, zstandard.ZstdDecompressor().decompress)
-    out["lz4"] = (lambda b: lz4.frame.compress(b, compression_level=0), lz4.frame.decompress)
+    try:
+        import lz4.frame  # not a dependency of trackerd: measured when installed (pip install lz4)
+    except ImportError:
+        print("(lz4 not installed: pip install lz4 to measure it too)")
+    else:
+        out["lz4"] = (lambda b: lz4.frame.compress(b, compression_level=0), lz4.frame.decompress)
     return out
 
 

@@ -75,9 +75,10 @@ class ZstdCoder:
         return out
 
 
-def delta(frame: NDArray[np.uint8], previous: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """``frame - previous`` byte by byte, modulo 256 (same shapes)."""
-    return np.subtract(frame, previous, dtype=np.uint8)
+def delta(frame: NDArray[np.uint8], previous: NDArray[np.uint8], out: NDArray[np.uint8] | None = None
+          ) -> NDArray[np.uint8]:
+    """``frame - previous`` byte by byte, modulo 256 (same shapes), into ``out`` if given."""
+    return np.subtract(frame, previous, out=out, dtype=np.uint8)
 
 
 def undelta(difference: NDArray[np.uint8], previous: NDArray[np.uint8]) -> NDArray[np.uint8]:

@@ -12,6 +12,7 @@ replay costs only the pixels the detector actually looks at.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import mmap
 import os
@@ -239,6 +240,11 @@ class Recording:
             return 0.0
         return (self.entries[-1].timestamp_ns - self.entries[0].timestamp_ns) / 1e9
 
+    @functools.cached_property
+    def _data_name(self) -> str:
+        """pairs.dat's path as text, for messages (made once: replay names it for every pair it reads)."""
+        return str(self.path / DATA_FILE)
+
     def _view(self, offset: int, length: int) -> memoryview:
         if self._map is None:
             raise RecordingError(f"{self.path}: the recording is closed")
@@ -247,7 +253,7 @@ class Recording:
     def header(self, index: int) -> RecordHeader:
         """Pair ``index``'s record header, checked against the index; RecordingError naming the damage."""
         entry = self.entries[index]
-        where = f"{self.path / DATA_FILE}: pair {index} at byte {entry.offset}"
+        where = f"{self._data_name}: pair {index} at byte {entry.offset}"
         # The whole record as a view (no copy): a newer MINOR's header may be longer than this version's.
         header = unpack_record_header(self._view(entry.offset, entry.record_bytes), where)
         if (header.pair_index, header.record_bytes) != (entry.pair_index, entry.record_bytes):
@@ -268,7 +274,7 @@ class Recording:
         """Camera ``k``'s payload in pair ``index`` (checked), where it is, and its offset."""
         offset = self.entries[index].offset + header.header_bytes + sum(f.stored_bytes for f in header.frames[:k])
         frame = header.frames[k]
-        where = f"{self.path / DATA_FILE}: pair {index}, camera '{self.cameras[k].id}' (byte {offset})"
+        where = f"{self._data_name}: pair {index}, camera '{self.cameras[k].id}' (byte {offset})"
         stored = self._view(offset, frame.stored_bytes)
         if verify and zlib.crc32(stored) != frame.payload_crc32:
             raise RecordingError(f"{where}: frame checksum mismatch (the pixels are damaged)")

@@ -216,6 +216,7 @@ class RecordingWriter:
         self._last_key_ns: int | None = None
         self._last_key_pair = 0
         self._previous: list[np.ndarray] | None = None
+        self._difference: list[np.ndarray] = []
         self._zstd = ZstdCoder() if mode != "raw" else None
         self._planner = planner
         if mode == "windowed" and planner is None:
@@ -281,7 +282,7 @@ class RecordingWriter:
             for frame, payload, encoding in zip(pair.frames, payloads, encodings, strict=True)
         )
         header = RecordHeader(self.pairs, pair.sequence, pair.timestamp_ns, pair.skew_ns, dropped_before, entries,
-                              FLAG_KEYFRAME if keyframe else 0)
+                              FLAG_KEYFRAME if keyframe and self.mode != "raw" else 0)
         record_bytes = header.record_bytes
         if self._min_free:
             free = free_space_bytes(self.path)
@@ -332,16 +333,20 @@ class RecordingWriter:
         images = [np.ascontiguousarray(frame.image, dtype=np.uint8) for frame in pair.frames]
         if self.mode == "compressed":
             keyframe = self._keyframe_due(pair) or self._previous is None
+            if self._previous is None:
+                self._previous = [np.empty_like(image) for image in images]
+                self._difference = [np.empty_like(image) for image in images]
             if keyframe:
                 payloads = [self._zstd.compress(raw) for raw in raws]
                 encodings = [ENCODING_ZSTD] * n
             else:
-                assert self._previous is not None
-                payloads = [self._zstd.compress(delta(image, prev)) for image, prev in zip(images, self._previous,
-                                                                                            strict=True)]
+                payloads = []
+                for image, previous, difference in zip(images, self._previous, self._difference, strict=True):
+                    payloads.append(self._zstd.compress(delta(image, previous, out=difference)))
                 encodings = [ENCODING_ZSTD_DELTA] * n
-            # A copy: the camera may reuse the buffer once the pair is written.
-            self._previous = [image.copy() for image in images]
+            for image, previous in zip(images, self._previous, strict=True):
+                # A copy (into the same buffer each time): the camera may reuse its buffer once the pair is written.
+                np.copyto(previous, image)
             return payloads, encodings, keyframe
         plan = self._planner.plan(pair, self._keyframe_due(pair), self.pairs)
         if plan.keyframe:
