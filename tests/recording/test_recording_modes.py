@@ -22,7 +22,7 @@ from rec_helpers import one_line_error, replay_and_listen, trackerd, without_pub
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.errors import RecordingError
 from trackerd.recording import reader as reader_module
-from trackerd.recording.codec import WINDOW, WINDOWS_HEADER
+from trackerd.recording.codec import WINDOW, WINDOWS_HEADER, Canvases, Window
 from trackerd.recording.convert import convert_recording
 from trackerd.recording.format import (
     ENCODING_WINDOWS,
@@ -243,3 +243,25 @@ def test_a_reader_refuses_a_mode_it_does_not_know_in_one_line(bundle, tmp_path, 
     (compressed / "recording.json").write_text(json.dumps({**meta, "mode": "holographic"}))
     one_line_error(trackerd("replay", compressed, "--speed", "max"), "replay", "recording mode 'holographic'",
                    "newer than this trackerd reads (raw, compressed, windowed)")
+
+
+def test_a_rebuilt_frame_never_changes_while_someone_holds_it() -> None:
+    """codec.Canvases reuses a canvas only when nothing else refers to it (replay hands frames to the
+    pipeline and its colour-watch thread, which may keep them past the next pair)."""
+    key = np.arange(64, dtype=np.uint8).reshape(8, 8)
+    canvases = Canvases()
+
+    def window(x: int, value: int) -> tuple[Window, memoryview]:
+        return Window(x, 0, 2, 2), memoryview(bytes([value] * 4))
+
+    held = canvases.frame(5, key, [window(0, 200)])
+    assert held[0, 0] == 200 and not held.flags.writeable
+    for value in range(10, 30):
+        frame = canvases.frame(5, key, [window(4, value)])
+        # The held frame keeps its window; every other pixel is the keyframe's, old windows put back.
+        assert held[0, 0] == 200 and frame[0, 0] == key[0, 0] and frame[0, 4] == value
+        expected = key.copy()
+        expected[0:2, 4:6] = value
+        assert np.array_equal(frame, expected)
+        del frame
+    assert len(canvases._canvases) == 2  # the held one and one reused 20 times
