@@ -8,7 +8,8 @@ gives the recorder's CPU share at the recorded rate. The raw row writes the
 same pairs as `trackerd record` would (``writev`` and checksums). Then each
 recording is replayed at max speed through the pipeline exactly as
 `trackerd replay --speed max` runs it (today's raw replay with checksums, as
-the baseline, and without), and the hits of every replay are compared with the
+the baseline, and without), each also as before batching (pairs handed over
+one at a time) beside the batched hand-over, and the hits of every replay are compared with the
 raw replay's, field for field.
 """
 
@@ -74,15 +75,18 @@ def replay_modes(written: dict[str, dict[str, Any]], rig_path: str | None, truth
     from trackerd.cli.replay import replay_rig
     from trackerd.recording.reader import Recording
 
-    runs = [("raw, checksums (today's replay)", "raw", True), ("raw, --no-verify", "raw", False),
-            ("compressed", "compressed", True), ("windowed", "windowed", True)]
+    # "before": pairs handed from the reader thread one at a time, as before batching (old vs new, one run).
+    runs = [("raw, before", "raw", True, False), ("raw", "raw", True, True),
+            ("raw --no-verify, before", "raw", False, False), ("raw --no-verify", "raw", False, True),
+            ("compressed", "compressed", True, True),
+            ("windowed, before", "windowed", True, False), ("windowed", "windowed", True, True)]
     out: dict[str, dict[str, Any]] = {}
     reference: list[dict] | None = None
     progress = BenchProgress("replay", len(runs), "replays")
-    for name, mode, verify in runs:
+    for name, mode, verify, batch in runs:
         with Recording.open(written[mode]["path"]) as recording:
             rig, _ = replay_rig(recording, rig_path, ["tcp://127.0.0.1:*"])
-            figures = _replay_once(recording, rig, None, verify, len(recording), truth, keep_hits=True)
+            figures = _replay_once(recording, rig, None, verify, len(recording), truth, keep_hits=True, batch=batch)
         hits = [{k: v for k, v in h.items() if k != "publish_ns"} for h in figures.pop("hit_messages")]
         if reference is None:
             reference = hits

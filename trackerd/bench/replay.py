@@ -285,13 +285,13 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
 
 
 def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
-                 truth: list[dict] | None, *, keep_hits: bool = False) -> dict[str, Any]:
+                 truth: list[dict] | None, *, keep_hits: bool = False, batch: bool = True) -> dict[str, Any]:
     """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import for_rig
     from trackerd.recording.replay import ReplayPairSource
 
-    source = ReplayPairSource(recording, speed=None, verify=verify, count=count)
+    source = ReplayPairSource(recording, speed=None, verify=verify, count=count, batch=batch)
     publishers: list[_KeepingPublisher] = []
 
     def publisher_factory(r: RigConfig) -> _KeepingPublisher:

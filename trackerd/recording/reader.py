@@ -91,6 +91,8 @@ class Recording:
     """Per camera, the last frame decoded from a difference or a keyframe (the next one builds on it)."""
     _canvases: dict[int, Any] = field(default_factory=dict)
     """Per camera, the canvases windowed frames are rebuilt in (trackerd.recording.codec.Canvases)."""
+    _whole: dict[int, int] = field(default_factory=dict)
+    """Per camera, the last pair whose frame was checked to be whole (windows lie over it)."""
     _coder: Any = None
     _decode_lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -341,9 +343,10 @@ class Recording:
             base_pair, windows = unpack_windows(data, cam.shape, where)
             if base_pair >= index:
                 raise RecordingError(f"{where}: its windows lie over pair {base_pair}, not an earlier pair")
-            base_frame = self.header(base_pair).frames[k]
-            if base_frame.encoding not in FULL_ENCODINGS:
-                raise RecordingError(f"{where}: its windows lie over pair {base_pair}, whose frame is not whole")
+            if self._whole.get(k) != base_pair:
+                if self.header(base_pair).frames[k].encoding not in FULL_ENCODINGS:
+                    raise RecordingError(f"{where}: its windows lie over pair {base_pair}, whose frame is not whole")
+                self._whole[k] = base_pair  # checked once, not for each of the pairs over it
             base = self._base(base_pair, k, verify, where)
             canvases = self._canvases.get(k)
             if canvases is None:
