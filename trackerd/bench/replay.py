@@ -322,6 +322,8 @@ def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, co
     }
     status = pipeline.build_status(source.status())
     figures["fixes"] = dict(status.fixes)
+    # Processed but never handed to the publisher: its drop-oldest queue dropped them (a loaded machine).
+    figures["dropped_before_publishing"] = pipeline.pairs_processed - pipeline.pairs_published
     if keep_hits:
         figures["hit_messages"] = hits
     figures["dropped_pairs"] = status.pairing.dropped_pairs

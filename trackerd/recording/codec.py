@@ -143,12 +143,14 @@ class Canvases:
     a copy of the keyframe: what a caller holds never changes under it.
     """
 
-    MAX_CANVASES = 16
+    MAX_CANVASES = 32
 
     def __init__(self) -> None:
         self._key_index = -1
         self._key: NDArray[np.uint8] | None = None
         self._canvases: list[tuple[NDArray[np.uint8], list[Window]]] = []
+        self.copies = 0
+        """Frames made by copying the whole keyframe (a new keyframe, or every canvas held)."""
 
     def frame(self, key_index: int, key: NDArray[np.uint8], windows: list[tuple[Window, memoryview]]
               ) -> NDArray[np.uint8]:
@@ -163,6 +165,7 @@ class Canvases:
                 break
         if slot is None:
             canvas, held = key.copy(), []
+            self.copies += 1
             if len(self._canvases) < self.MAX_CANVASES:
                 self._canvases.append((canvas, held))
         else:
