@@ -265,3 +265,30 @@ def test_a_rebuilt_frame_never_changes_while_someone_holds_it() -> None:
         assert np.array_equal(frame, expected)
         del frame
     assert len(canvases._canvases) == 2  # the held one and one reused 20 times
+
+
+def test_windows_too_small_for_the_tracker_become_keyframes_and_the_hits_stay_the_same(noisy, tmp_path) -> None:
+    """The planner's check, not its guess of the windows, is what guarantees the hits: with windows
+    cut far smaller than the tracker reads, pairs fail the check and are stored whole ('mismatch'),
+    and the recording still gives exactly the raw recording's hits."""
+    from trackerd.cli.replay import replay_rig
+    from trackerd.recording.export import export_recording
+    from trackerd.recording.windowed import WindowPlanner
+
+    small = tmp_path / "small-windows.trec"
+    with Recording.open(noisy) as source:
+        planner = WindowPlanner.for_metadata(source.metadata, margin_px=-12)
+        writer = RecordingWriter(small, source.metadata.model_copy(update={"end": None}), mode="windowed",
+                                 planner=planner)
+        for index in range(len(source)):
+            writer.write(source.pair(index))
+        writer.close("test")
+    assert planner.keyframes.get("mismatch", 0) >= 1, planner.keyframes
+    assert writer.keyframes < writer.pairs, planner.keyframes  # and some pairs still pass as windows
+    csvs = []
+    for path in (noisy, small):
+        with Recording.open(path) as recording:
+            rig, _ = replay_rig(recording, None, None)
+            export_recording(recording, tmp_path / path.stem, rig, images=False)
+        csvs.append((tmp_path / path.stem / "hits.csv").read_text())
+    assert csvs[1] == csvs[0] and csvs[0].count("\n") == 17

@@ -225,4 +225,7 @@ def _outcome(fix: PointerFix, locator: Locator) -> tuple:
     # The tracking state each detector carries to the next frame (read only; see the module's docstring).
     state = tuple((repr(getattr(d, "_track", None)), tuple(sorted(getattr(d, "_crowded", ()))))
                   for d in locator.detectors)
-    return (fix.status, fix.reason, messages, detections, centroids, locator.centroids_trusted, state)
+    # And the refined path's (when its slow search last ran), every attribute but its locator.
+    refined = getattr(locator, "_refined", None)
+    refined_state = None if refined is None else repr(sorted((k, v) for k, v in vars(refined).items() if k != "loc"))
+    return (fix.status, fix.reason, messages, detections, centroids, locator.centroids_trusted, state, refined_state)
