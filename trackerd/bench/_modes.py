@@ -114,5 +114,6 @@ def format_modes(written: dict[str, dict[str, Any]], replays: dict[str, dict[str
         same = "identical to raw's" if f["hits_identical_to_raw"] else "DIFFER from raw's"
         dropped = f["dropped_before_publishing"]
         note = f"; {dropped} pairs dropped before publishing (load)" if dropped else ""
-        lines.append(f"  {name:<34} {f['pair_rate_hz']:>7} pairs/s over {f['pairs']} pairs, {f['hits']} hits ({same}{note})")
+        lines.append(f"  {name:<26} {f['pair_rate_hz']:>7} pairs/s, {f['cpu_ms_per_pair']:>5} ms CPU/pair over"
+                     f" {f['pairs']} pairs, {f['hits']} hits ({same}{note})")
     return "\n".join(lines)

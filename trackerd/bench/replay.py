@@ -303,6 +303,7 @@ def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, co
     if baseline is not None:
         pipeline.locator = _BaselineLocator(rig, baseline)
     done = threading.Event()
+    cpu_start = time.process_time()
     pipeline.start()
     try:
         while not done.is_set() and pipeline.failure is None:
@@ -313,12 +314,16 @@ def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, co
         pipeline.stop()
     if pipeline.failure is not None:
         raise RuntimeError(f"the pipeline crashed during a replay:\n{pipeline.failure}")
+    cpu_s = time.process_time() - cpu_start
     elapsed = (source.last_delivery_ns - source.first_delivery_ns) / 1e9
     hits = [h for p in publishers for h in p.hits]
     figures: dict[str, Any] = {
         "pairs": source.delivered,
         "pair_rate_hz": round((source.delivered - 1) / elapsed, 1) if elapsed > 0 else None,
         "hits": len(hits),
+        # CPU of the whole process (every thread) per pair: what a replay costs, whatever else the
+        # machine runs (pairs/s above depends on that).
+        "cpu_ms_per_pair": round(1e3 * cpu_s / max(source.delivered, 1), 2),
     }
     status = pipeline.build_status(source.status())
     figures["fixes"] = dict(status.fixes)
