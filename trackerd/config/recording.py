@@ -41,7 +41,7 @@ class RecordingConfig(ConfigModel):
     """windowed: pixels added on every side of the windows kept around the ends."""
     compression: Literal["none", "deflate"] = "none"
     """mode raw: how frames are stored, both lossless: none keeps the raw pixels as the camera sent them
-    (the only choice that keeps up with two 1080p cameras at 60 fps); deflate (zlib) costs about
+    (of these two, the only one that keeps up with two 1080p cameras at 60 fps); deflate (zlib) costs about
     40 ms of CPU per 1080p frame and saves little on noisy sensor images (1.6x on the simulator's),
     much more on clean ones (imported or rendered images)."""
     compression_level: int = Field(default=1, ge=1, le=9)

@@ -175,7 +175,7 @@ class Canvases:
                     key[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px]
             held.clear()
         for window, pixels in windows:
-            block = np.frombuffer(pixels, np.uint8).reshape((window.height_px, window.width_px) + key.shape[2:])
+            block = np.frombuffer(pixels, np.uint8).reshape((window.height_px, window.width_px, *key.shape[2:]))
             canvas[window.y_px:window.y_px + window.height_px, window.x_px:window.x_px + window.width_px] = block
             held.append(window)
         view = canvas.view()

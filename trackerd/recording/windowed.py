@@ -214,10 +214,8 @@ def _outcome(fix: PointerFix, locator: Locator) -> tuple:
     messages = tuple(m.model_dump_json() if hasattr(m, "model_dump_json") else repr(m)
                      for m in messages_from_fix(fix, locator, sequence=0, capture_ns=0))
     detections = tuple(
-        (d.search,) + tuple(
-            (e.found, None if e.centroid_px is None else tuple(e.centroid_px.tolist()), e.area_px, e.bbox_px,
-             e.score, e.reason)
-            for e in (d.red, d.blue))
+        (d.search, *((e.found, None if e.centroid_px is None else tuple(e.centroid_px.tolist()), e.area_px,
+                      e.bbox_px, e.score, e.reason) for e in (d.red, d.blue)))
         for d in fix.detections
     )
     centroids = tuple(tuple((c, None if v is None else tuple(np.asarray(v).tolist())) for c, v in cam.items())
