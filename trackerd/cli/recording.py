@@ -49,6 +49,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                           " reset_after_ms, so each is smoothed on its own)")
     imp.add_argument("--compression", choices=("none", "deflate"), default="none",
                      help="store frames raw (default) or deflated (lossless, smaller, slower to write)")
+    imp.add_argument("--mode", choices=("raw", "compressed", "windowed"), default="raw",
+                     help="raw (default), compressed (lossless zstd) or windowed (docs/recording.md, Modes)")
     imp.set_defaults(handler=import_command)
 
     conv = sub.add_parser("convert", help="rewrite a recording in another mode (compressed, windowed, raw)")
@@ -103,7 +105,7 @@ def import_command(args: argparse.Namespace) -> int:
     check_new_recording(args.out)
     line, show = _progress("importing")
     writer = import_folder(args.folder, args.out, loaded.config, timestamps=args.timestamps, rate_hz=args.rate,
-                           compression=args.compression, rig_file=loaded.path, progress=show)
+                           compression=args.compression, rig_file=loaded.path, progress=show, mode=args.mode)
     line.done()
     formats = ", ".join(f"{c.id} {c.pixel_format} {c.width_px}x{c.height_px}" for c in writer.metadata.cameras)
     print(f"{writer.path}: {writer.pairs} pairs imported from {args.folder} ({formats}),"
