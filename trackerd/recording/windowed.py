@@ -89,9 +89,19 @@ class WindowPlanner:
     @classmethod
     def for_metadata(cls, metadata: Any, margin_px: int = DEFAULT_MARGIN_PX) -> WindowPlanner:
         """A planner for the rig recorded in ``metadata`` (what a replay runs by default)."""
-        from trackerd.config.models import RigConfig
+        from pydantic import ValidationError
 
-        rig = RigConfig.model_validate(metadata.rig)
+        from trackerd.config.loader import describe_validation_error
+        from trackerd.config.models import RigConfig
+        from trackerd.errors import RecordingError
+
+        try:
+            rig = RigConfig.model_validate(metadata.rig)
+        except ValidationError as err:
+            raise RecordingError(
+                "the recorded rig does not validate with this trackerd"
+                f" ({describe_validation_error(err, RigConfig)}): a windowed recording needs it to track the pointer"
+            ) from err
         return cls.for_rig(rig, [cam.pixel_format for cam in metadata.cameras], margin_px)
 
     def plan(self, pair: FramePair, keyframe_due: bool, pair_index: int) -> Plan:
