@@ -108,7 +108,9 @@ def test_a_windowed_recording_replays_to_exactly_the_hits_of_the_full_frames(noi
     assert os.path.getsize(windowed / "pairs.dat") < os.path.getsize(noisy / "pairs.dat") / 3
     outcomes = []
     for k, path in enumerate((noisy, windowed)):
-        replay, messages = replay_and_listen(path, "--speed", "max", "--json", endpoint=f"ipc://{tmp_path}/r{k}.sock")
+        # At the recorded pace (16 pairs, about a second): as fast as possible on a loaded machine, the
+        # pipeline's drop-oldest queue before the publisher may drop a pair, which is not what is tested.
+        replay, messages = replay_and_listen(path, "--json", endpoint=f"ipc://{tmp_path}/r{k}.sock")
         assert replay.returncode == 0, replay.stderr
         outcomes.append(without_publish_time(messages))
     hits = [m for m in outcomes[0] if m.startswith("hit ")]
