@@ -664,6 +664,38 @@ def test_mutated_recordings_open_or_are_refused_in_one_line_and_replay_to_the_en
     assert tally["opened"] and tally["refused at open"] and tally["pairs read"] and tally["pairs refused"], line
 
 
+@pytest.mark.parametrize("mode", ["compressed", "windowed"])
+def test_mutated_compressed_and_windowed_recordings_are_refused_in_one_line(tmp_path: Path, mode: str) -> None:
+    """The same edits on the bundle's first pairs rewritten compressed (a keyframe, then differences) or
+    windowed (a keyframe, then windows): a crafted header may make a difference read as windows or point
+    a payload at the wrong bytes; every read is a valid frame or one line, and the replay ends."""
+    from trackerd.recording.convert import convert_recording
+
+    small = tmp_path / f"small-{mode}.trec"
+    with Recording.open(_small_recording(tmp_path)) as source:
+        convert_recording(source, small, mode)
+    with Recording.open(small) as recording:
+        assert {recording.header(i).frames[0].encoding for i in range(len(recording))} == \
+            ({2, 3} if mode == "compressed" else {2, 4}), "the pairs after the first are not keyframes"
+    tally: Counter[str] = Counter()
+
+    @_fuzz(60)
+    @given(data=st.data())
+    def case(data: st.DataObject) -> None:
+        edits = [data.draw(recording_mutation(small)) for _ in range(data.draw(st.integers(1, 2), label="edits"))]
+        folder = tmp_path / "case.trec"
+        shutil.rmtree(folder, ignore_errors=True)
+        shutil.copytree(small, folder)
+        for edit in edits:
+            edit(folder)
+        _read_recording(folder, tally)
+        tally["cases"] += 1
+
+    case()
+    line = _summary(f"{mode} recordings", tally)
+    assert tally["opened"] and tally["pairs read"] and tally["pairs refused"], line
+
+
 # =========================================================================== the publisher
 
 TOPICS = [b"", b"s", b"status", b"statu", b"statusX", b"hit", b"pointer", b"\x00", b"\x01"]

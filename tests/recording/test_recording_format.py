@@ -127,9 +127,9 @@ def test_a_newer_major_version_is_refused_by_name(bundle, tmp_path) -> None:
     for name in ("pairs.dat", "pairs.idx"):
         (copy / name).write_bytes((bundle / name).read_bytes())
     meta = json.loads((bundle / "recording.json").read_text())
-    meta["format_version"] = "2.0"
+    meta["format_version"] = "3.0"
     (copy / "recording.json").write_text(json.dumps(meta))
-    with pytest.raises(RecordingError, match=r"format 2\.x is newer than this trackerd reads \(1\.0\)"):
+    with pytest.raises(RecordingError, match=r"format 3\.x is newer than this trackerd reads \(2\.0\)"):
         Recording.open(copy)
     # A newer MINOR only adds things: it still reads, unknown keys ignored.
     meta.update(format_version="1.7", colour_calibration={"left": [1, 2, 3]})

@@ -87,12 +87,15 @@ def _interaction(messages: list[tuple[str, dict[str, Any]]], sequences: set[int]
     return sorted(interaction_events([(t, m) for t, m in messages if m.get("sequence") in sequences]))
 
 
-def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path) -> None:
+@pytest.mark.parametrize("mode", ["raw", "windowed"])
+def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path,
+                                                                                       mode) -> None:
+    """Raw, and windowed (only the tracker's windows over keyframes): the replay publishes the live hits."""
     directory = tmp_path / "recordings"
     endpoint = f"ipc://{tmp_path}/live.sock"
     # A long queue: this machine's disk sometimes stalls for over half a second (32 pairs), and
     # the comparison with the live run below needs every pair recorded.
-    queue = {"directory": directory, "queue_pairs": 160}
+    queue = {"directory": directory, "queue_pairs": 160, "mode": mode}
     rig_file = _rig_file(virtual, tmp_path / "rig.toml", endpoint, RecordingConfig(**queue))
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)
@@ -141,7 +144,9 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
     check = trackerd("recording", "check", path, "--json")
     report = json.loads(check.stdout)
     assert check.returncode == 0 and report["intact"] and report["dropped_by_recorder"] == 0, check.stdout
-    assert report["pairs"] > 40
+    assert report["pairs"] > 40 and report["mode"] == mode
+    if mode == "windowed":  # windows for most pairs: keyframes at the first pair and once a second
+        assert report["keyframes"] < report["pairs"] / 3, report
     with Recording.open(path) as recording:
         # What the daemon knew of its cameras and its rig file (they were null in recordings on demand).
         assert all(c.serial == f"SIM-{c.id.upper()}" and c.vendor and c.model for c in recording.cameras)

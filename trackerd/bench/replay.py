@@ -59,6 +59,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pairs", type=int, help="pairs replayed by trackerd's detector (default: all)")
     parser.add_argument("--reference-pairs", type=int, default=REFERENCE_PAIRS,
                         help=f"pairs replayed by the baselines (default {REFERENCE_PAIRS})")
+    parser.add_argument("--modes", action="store_true",
+                        help="instead of the baselines: the recording rewritten compressed and windowed, each"
+                             " mode's size, writer CPU and replay rate side by side (trackerd/bench/_modes.py)")
+    parser.add_argument("--keyframe-interval", type=float, default=1.0, metavar="S",
+                        help="with --modes: keyframe interval of the compressed and windowed modes (default 1)")
     parser.add_argument("--cold", action="store_true",
                         help="drop the page cache before each replay (root): read from the disk, not memory")
 
@@ -78,6 +83,22 @@ def run(args: argparse.Namespace) -> int:
                 Path(args.dir).mkdir(parents=True, exist_ok=True)
             workdir = Path(tempfile.mkdtemp(prefix="trackerd-bench-replay-", dir=args.dir))
             path, figures["record"], truth = _record(rig, args, workdir)
+        if args.modes:
+            from trackerd.bench._modes import format_modes, replay_modes, write_modes
+
+            mode_dir = Path(tempfile.mkdtemp(prefix="trackerd-bench-modes-", dir=args.dir))
+            try:
+                figures["modes"] = write_modes(path, mode_dir, args.keyframe_interval)
+                figures["mode_replays"] = replay_modes(figures["modes"], args.config if not args.recording else None,
+                                                       truth)
+            finally:
+                if not args.keep:
+                    shutil.rmtree(mode_dir, ignore_errors=True)
+            for f in figures["modes"].values():
+                f["path"] = str(f["path"])
+            print(json.dumps(figures, indent=2, default=str) if args.json
+                  else format_modes(figures["modes"], figures["mode_replays"]))
+            return 0
         with Recording.open(path) as recording:
             figures["recording"] = {
                 "path": str(path), "pairs": len(recording), "mb": round(recording.data_size / 1e6, 1),
@@ -264,13 +285,13 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
 
 
 def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
-                 truth: list[dict] | None) -> dict[str, Any]:
+                 truth: list[dict] | None, *, keep_hits: bool = False, batch: bool = True) -> dict[str, Any]:
     """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import for_rig
     from trackerd.recording.replay import ReplayPairSource
 
-    source = ReplayPairSource(recording, speed=None, verify=verify, count=count)
+    source = ReplayPairSource(recording, speed=None, verify=verify, count=count, batch=batch)
     publishers: list[_KeepingPublisher] = []
 
     def publisher_factory(r: RigConfig) -> _KeepingPublisher:
@@ -282,6 +303,7 @@ def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, co
     if baseline is not None:
         pipeline.locator = _BaselineLocator(rig, baseline)
     done = threading.Event()
+    cpu_start = time.process_time()
     pipeline.start()
     try:
         while not done.is_set() and pipeline.failure is None:
@@ -292,15 +314,23 @@ def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, co
         pipeline.stop()
     if pipeline.failure is not None:
         raise RuntimeError(f"the pipeline crashed during a replay:\n{pipeline.failure}")
+    cpu_s = time.process_time() - cpu_start
     elapsed = (source.last_delivery_ns - source.first_delivery_ns) / 1e9
     hits = [h for p in publishers for h in p.hits]
     figures: dict[str, Any] = {
         "pairs": source.delivered,
         "pair_rate_hz": round((source.delivered - 1) / elapsed, 1) if elapsed > 0 else None,
         "hits": len(hits),
+        # CPU of the whole process (every thread) per pair: what a replay costs, whatever else the
+        # machine runs (pairs/s above depends on that).
+        "cpu_ms_per_pair": round(1e3 * cpu_s / max(source.delivered, 1), 2),
     }
     status = pipeline.build_status(source.status())
     figures["fixes"] = dict(status.fixes)
+    # Processed but never handed to the publisher: its drop-oldest queue dropped them (a loaded machine).
+    figures["dropped_before_publishing"] = pipeline.pairs_processed - pipeline.pairs_published
+    if keep_hits:
+        figures["hit_messages"] = hits
     figures["dropped_pairs"] = status.pairing.dropped_pairs
     if truth:
         frame_ids = {e.sequence: recording.header(i).frames[0].frame_id for i, e in enumerate(recording.entries)}

@@ -39,6 +39,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     limit.add_argument("--pairs", type=int, help="stop after this many pairs")
     parser.add_argument("--compression", choices=("none", "deflate"),
                         help="frame storage (default: the rig's [recording] compression, normally none)")
+    parser.add_argument("--mode", choices=("raw", "compressed", "windowed"),
+                        help="raw, compressed (lossless zstd) or windowed (the tracker's windows over keyframes);"
+                             " default: the rig's [recording] mode, normally raw")
+    parser.add_argument("--keyframe-interval", type=positive_seconds, metavar="S",
+                        help="compressed and windowed: a pair stored whole at least every S seconds (default 1)")
     add_virtual_arguments(parser, "record")
     parser.set_defaults(handler=record_command)
 
@@ -57,6 +62,10 @@ def record_command(args: argparse.Namespace) -> int:
     update: dict[str, object] = {"max_pairs": args.pairs, "max_duration_s": args.seconds}
     if args.compression:
         update["compression"] = args.compression
+    if args.mode:
+        update["mode"] = args.mode
+    if args.keyframe_interval:
+        update["keyframe_interval_s"] = args.keyframe_interval
     config = loaded.config.recording.model_copy(update=update)
     # Before the cameras open: where the recording goes, and room for it.
     check_new_recording(out)

@@ -4,6 +4,8 @@ check PATH          how much of a recording is intact: pairs readable, recovered
                     index after a crash, damaged frames, each problem with its file and byte
 import FOLDER OUT   a recording from a folder of image pairs (<name>-<camera>.png ...), with
                     timestamps from an optional CSV, so images from other tools can be replayed
+convert REC OUT     the recording rewritten in another mode: compressed (lossless, zstd) or
+                    windowed (the tracker's windows over keyframes; replays to the same hits)
 export REC OUT      frames as viewable PNGs with the detections drawn, and hits.csv with one
                     row per pair: the hits `trackerd replay` publishes for the same recording
 """
@@ -14,7 +16,9 @@ import argparse
 import json
 import sys
 
+from trackerd.cli._args import positive_seconds
 from trackerd.config.loader import load_rig
+from trackerd.errors import RecordingError
 from trackerd.recording.reader import Recording
 
 
@@ -45,7 +49,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                           " reset_after_ms, so each is smoothed on its own)")
     imp.add_argument("--compression", choices=("none", "deflate"), default="none",
                      help="store frames raw (default) or deflated (lossless, smaller, slower to write)")
+    imp.add_argument("--mode", choices=("raw", "compressed", "windowed"), default="raw",
+                     help="raw (default), compressed (lossless zstd) or windowed (docs/recording.md, Modes)")
     imp.set_defaults(handler=import_command)
+
+    conv = sub.add_parser("convert", help="rewrite a recording in another mode (compressed, windowed, raw)")
+    conv.add_argument("recording", metavar="REC", help="a recording folder (*.trec)")
+    conv.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
+    conv.add_argument("--mode", required=True, choices=("raw", "compressed", "windowed"), help="the new mode")
+    conv.add_argument("--keyframe-interval", type=positive_seconds, default=1.0, metavar="S",
+                      help="compressed and windowed: a pair stored whole at least every S seconds (default 1)")
+    conv.add_argument("--margin", type=int, default=8, metavar="PX",
+                      help="windowed: pixels added around each window (default 8)")
+    conv.add_argument("--no-verify", action="store_true", help="skip the source's frame checksums")
+    conv.set_defaults(handler=convert_command)
 
     exp = sub.add_parser("export", help="write viewable PNGs with detections drawn, and hits.csv")
     exp.add_argument("recording", metavar="REC", help="a recording folder (*.trec)")
@@ -88,12 +105,38 @@ def import_command(args: argparse.Namespace) -> int:
     check_new_recording(args.out)
     line, show = _progress("importing")
     writer = import_folder(args.folder, args.out, loaded.config, timestamps=args.timestamps, rate_hz=args.rate,
-                           compression=args.compression, rig_file=loaded.path, progress=show)
+                           compression=args.compression, rig_file=loaded.path, progress=show, mode=args.mode)
     line.done()
     formats = ", ".join(f"{c.id} {c.pixel_format} {c.width_px}x{c.height_px}" for c in writer.metadata.cameras)
     print(f"{writer.path}: {writer.pairs} pairs imported from {args.folder} ({formats}),"
           f" {writer.data_bytes / 1e6:.1f} MB")
     return 0
+
+
+def convert_command(args: argparse.Namespace) -> int:
+    from trackerd.recording.convert import convert_recording
+    from trackerd.recording.outputs import check_new_recording
+
+    if not 0 <= args.margin <= 256:
+        raise RecordingError(f"--margin {args.margin}: must be 0 to 256 pixels")
+    with Recording.open(args.recording) as recording:
+        check_new_recording(args.out)
+        for problem in recording.problems:
+            print(f"trackerd recording convert: warning: {problem}", file=sys.stderr)
+        line, show = _progress("converting")
+        summary = convert_recording(recording, args.out, args.mode, keyframe_interval_s=args.keyframe_interval,
+                                    window_margin_px=args.margin, verify=not args.no_verify, progress=show)
+        line.done()
+    for problem in summary.skipped:
+        print(f"trackerd recording convert: error: {problem}", file=sys.stderr)
+    writer = summary.writer
+    keys = ""
+    if writer.mode != "raw":
+        reasons = f" ({', '.join(f'{k} {v}' for k, v in summary.keyframes.items())})" if summary.keyframes else ""
+        keys = f", {writer.keyframes} keyframes{reasons}"
+    print(f"{writer.path}: {writer.pairs} pairs, {writer.mode}{keys}, {writer.data_bytes / 1e6:.1f} MB"
+          f" ({summary.source_bytes / max(writer.data_bytes, 1):.1f}x smaller than {args.recording})")
+    return 1 if summary.skipped else 0
 
 
 def export_command(args: argparse.Namespace) -> int:

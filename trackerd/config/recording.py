@@ -27,9 +27,21 @@ class RecordingConfig(ConfigModel):
     daemon's working directory; give an absolute path for a service."""
     enabled: bool = False
     """Record while true. Change it and send SIGHUP to start or stop a recording on demand."""
+    mode: Literal["raw", "compressed", "windowed"] = "raw"
+    """How frames are stored (docs/recording.md, "Modes"). raw: as the cameras sent them (about 4.1 MB a
+    pair of two 1080p Bayer frames). compressed: lossless, zstd on each frame's difference to the
+    camera's previous one (about 2x smaller on noisy sensor images; about 6 ms of CPU a pair).
+    windowed: only the windows the tracker reads around both ends, over a full keyframe every
+    keyframe_interval_s and whenever tracking is lost; replays to exactly the live hits, about 50 to
+    70x smaller than raw, and costs a second locate per pair on the recording thread."""
+    keyframe_interval_s: float = Field(default=1.0, gt=0.0)
+    """compressed and windowed: the longest recorded time between two pairs stored whole (where a
+    reader can start, and where damage stops spreading)."""
+    window_margin_px: int = Field(default=8, ge=0, le=256)
+    """windowed: pixels added on every side of the windows kept around the ends."""
     compression: Literal["none", "deflate"] = "none"
-    """How frames are stored, both lossless: none keeps the raw pixels as the camera sent them
-    (the only choice that keeps up with two 1080p cameras at 60 fps); deflate (zlib) costs about
+    """mode raw: how frames are stored, both lossless: none keeps the raw pixels as the camera sent them
+    (of these two, the only one that keeps up with two 1080p cameras at 60 fps); deflate (zlib) costs about
     40 ms of CPU per 1080p frame and saves little on noisy sensor images (1.6x on the simulator's),
     much more on clean ones (imported or rendered images)."""
     compression_level: int = Field(default=1, ge=1, le=9)

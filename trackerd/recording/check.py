@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from trackerd.errors import RecordingError
+from trackerd.recording.format import FLAG_KEYFRAME
 from trackerd.recording.reader import Recording
 
 
@@ -16,6 +17,10 @@ class CheckReport:
 
     path: str
     format_version: str
+    mode: str
+    """raw, compressed or windowed."""
+    keyframes: int
+    """Pairs stored whole (every pair of a raw recording)."""
     producer: str
     created_utc: str
     cameras: list[dict[str, Any]]
@@ -57,12 +62,14 @@ def check_recording(
     damaged: list[int] = []
     previous_sequence: int | None = None
     gaps = 0
+    keyframes = 0
     for index in range(len(recording)):
         try:
             header = recording.header(index)
             if verify:
                 recording.images(index, header, verify=True)
             sequence = header.sequence
+            keyframes += bool(header.flags & FLAG_KEYFRAME) or meta.mode == "raw"
         except RecordingError as err:
             damaged.append(index)
             problems.append(str(err))
@@ -78,6 +85,8 @@ def check_recording(
     return CheckReport(
         path=str(recording.path),
         format_version=meta.format_version,
+        mode=meta.mode,
+        keyframes=keyframes,
         producer=meta.producer,
         created_utc=meta.created_utc,
         cameras=[cam.model_dump() for cam in meta.cameras],
@@ -98,8 +107,9 @@ def check_recording(
 
 def format_report(report: CheckReport) -> str:
     """The report for a terminal: a few lines, problems last."""
-    lines = [f"{report.path}: trackerd recording format {report.format_version}, written by {report.producer}"
-             f" at {report.created_utc}"]
+    keys = "" if report.mode == "raw" else f" ({report.keyframes} keyframes)"
+    lines = [f"{report.path}: trackerd recording format {report.format_version}, {report.mode}{keys}, written by"
+             f" {report.producer} at {report.created_utc}"]
     for cam in report.cameras:
         made = " ".join(filter(None, [cam.get("vendor"), cam.get("model")]))
         ident = ", ".join(filter(None, [f"serial {cam['serial']}" if cam.get("serial") else None, made or None]))

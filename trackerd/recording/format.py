@@ -35,11 +35,24 @@ from pydantic import BaseModel, ConfigDict, Field
 from trackerd.errors import RecordingError
 
 FORMAT_NAME = "trackerd-recording"
-FORMAT_MAJOR = 1
+FORMAT_MAJOR = 2
 FORMAT_MINOR = 0
 FORMAT_VERSION = f"{FORMAT_MAJOR}.{FORMAT_MINOR}"
-"""MAJOR.MINOR. A reader accepts every MINOR of the MAJORs it knows: a newer MINOR only adds
-metadata keys (ignored) or bytes that the lengths stored in the file let a reader skip."""
+"""MAJOR.MINOR, the newest this trackerd reads. A reader accepts every MINOR of the MAJORs it knows:
+a newer MINOR only adds metadata keys (ignored) or bytes that the lengths stored in the file let a
+reader skip."""
+
+Mode = Literal["raw", "compressed", "windowed"]
+MODES: tuple[str, ...] = ("raw", "compressed", "windowed")
+"""How a recording stores its frames (recording.json ``mode``): every frame as the camera sent it
+(raw, optionally deflated frame by frame); every frame losslessly compressed (zstd, most of them as
+the difference to the camera's previous frame); or only the windows the tracker reads, over full
+keyframes (windowed)."""
+
+MODE_VERSIONS: dict[str, tuple[int, int]] = {"raw": (1, 1), "compressed": (2, 0), "windowed": (2, 0)}
+"""The version each mode is written as. A raw recording stays MAJOR 1, which every trackerd reads
+(1.1 only adds ``mode``); the compressed and windowed modes are MAJOR 2, so a trackerd that knows
+only MAJOR 1 refuses them in one line rather than failing on every frame."""
 
 METADATA_FILE = "recording.json"
 DATA_FILE = "pairs.dat"
@@ -67,8 +80,19 @@ bytes before it): 48 bytes."""
 
 ENCODING_RAW = 0
 ENCODING_DEFLATE = 1
-ENCODINGS = {ENCODING_RAW: "none", ENCODING_DEFLATE: "deflate"}
-"""Payload encodings: the raw frame bytes, or a zlib stream (RFC 1950) of them."""
+ENCODING_ZSTD = 2
+ENCODING_ZSTD_DELTA = 3
+ENCODING_WINDOWS = 4
+ENCODINGS = {ENCODING_RAW: "none", ENCODING_DEFLATE: "deflate", ENCODING_ZSTD: "zstd",
+             ENCODING_ZSTD_DELTA: "zstd-delta", ENCODING_WINDOWS: "windows"}
+"""Payload encodings: the raw frame bytes; a zlib stream (RFC 1950) of them; a zstd frame (RFC 8878)
+of them; a zstd frame of their difference (byte by byte, modulo 256) to the same camera's frame in
+the previous record; a zstd frame of windows of the frame over a full frame of an earlier record
+(trackerd/recording/codec.py). The first three are full frames."""
+FULL_ENCODINGS = (ENCODING_RAW, ENCODING_DEFLATE, ENCODING_ZSTD)
+
+FLAG_KEYFRAME = 1
+"""Record header flag: every frame of the record is full (a decoder can start here)."""
 
 Compression = Literal["none", "deflate"]
 
@@ -141,6 +165,13 @@ class RecordingMetadata(_Meta):
     """The rig file it was read from, for reference."""
     calibration_file: str | None = None
     notes: str | None = None
+    mode: str = "raw"
+    """How the frames are stored (MODES); absent in a 1.0 recording, which is raw. A reader refuses
+    a mode it does not know, in one line."""
+    keyframe_interval_s: float | None = None
+    """compressed and windowed: the longest time between two records whose frames are all full."""
+    window_margin_px: int | None = None
+    """windowed: pixels added around each window the tracker was found to read."""
     end: EndMeta | None = None
 
 
@@ -182,6 +213,8 @@ class RecordHeader:
     dropped_before: int
     """Pairs the recorder had to drop between the previous record and this one."""
     frames: tuple[FrameEntry, ...]
+    flags: int = 0
+    """FLAG_KEYFRAME when every frame of the record is full."""
     stored_header_bytes: int | None = field(default=None, compare=False)
     """``header_bytes`` as the file says, for a header read from a file: a newer MINOR's frame
     entries may be longer than this version's, so the header is; None for a header to be written."""
@@ -203,8 +236,8 @@ def header_size(n_frames: int) -> int:
     return RECORD_FIXED.size + n_frames * FRAME_ENTRY.size + RECORD_TRAILER.size
 
 
-def pack_file_header(magic: bytes, extra: int) -> bytes:
-    return FILE_HEADER.pack(magic, FORMAT_MAJOR, FORMAT_MINOR, extra)
+def pack_file_header(magic: bytes, extra: int, version: tuple[int, int] = (FORMAT_MAJOR, FORMAT_MINOR)) -> bytes:
+    return FILE_HEADER.pack(magic, version[0], version[1], extra)
 
 
 def unpack_file_header(data: bytes, magic: bytes, where: str) -> tuple[int, int, int]:
@@ -221,7 +254,7 @@ def unpack_file_header(data: bytes, magic: bytes, where: str) -> tuple[int, int,
 
 def pack_record_header(header: RecordHeader) -> bytes:
     fixed = RECORD_FIXED.pack(
-        RECORD_MAGIC, header.header_bytes, len(header.frames), FRAME_ENTRY.size, 0,
+        RECORD_MAGIC, header.header_bytes, len(header.frames), FRAME_ENTRY.size, header.flags,
         header.pair_index, header.sequence, header.timestamp_ns, header.skew_ns, header.dropped_before, 0,
     )
     body = fixed + b"".join(
@@ -243,7 +276,7 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
     """
     if len(data) < RECORD_FIXED.size:
         raise RecordingError(f"{where}: record header cut short ({len(data)} of {RECORD_FIXED.size} bytes)")
-    (magic, header_bytes, n_frames, entry_bytes, _flags, pair_index, sequence, timestamp_ns, skew_ns,
+    (magic, header_bytes, n_frames, entry_bytes, flags, pair_index, sequence, timestamp_ns, skew_ns,
      dropped_before, _reserved) = RECORD_FIXED.unpack_from(data)
     if magic != RECORD_MAGIC:
         raise RecordingError(f"{where}: no record here (expected {RECORD_MAGIC.decode()}, found {bytes(magic)!r})")
@@ -262,7 +295,8 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
     for k in range(n_frames):
         values = FRAME_ENTRY.unpack_from(data, RECORD_FIXED.size + k * entry_bytes)
         frames.append(FrameEntry(*values))
-    return RecordHeader(pair_index, sequence, timestamp_ns, skew_ns, dropped_before, tuple(frames), header_bytes)
+    return RecordHeader(pair_index, sequence, timestamp_ns, skew_ns, dropped_before, tuple(frames), flags,
+                        header_bytes)
 
 
 @dataclass(frozen=True, slots=True)

@@ -33,7 +33,7 @@ from trackerd.config.models import RigConfig
 from trackerd.errors import ImageError, RecordingError
 from trackerd.image_pairs import Moment, pair_images
 from trackerd.images import read_frame
-from trackerd.recording.format import Compression
+from trackerd.recording.format import Compression, Mode
 from trackerd.recording.writer import RecordingWriter, build_metadata
 
 _UNITS_NS = {"timestamp_ns": 1, "timestamp_us": 1_000, "timestamp_ms": 1_000_000, "timestamp_s": 1_000_000_000}
@@ -111,6 +111,7 @@ def import_folder(
     compression_level: int = 6,
     rig_file: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
+    mode: Mode = "raw",
 ) -> RecordingWriter:
     """Write the folder's image pairs as a recording at ``out``; returns the (closed) writer."""
     folder = Path(folder)
@@ -143,7 +144,8 @@ def import_folder(
             if writer is None:
                 metadata = build_metadata(rig, pair, producer="trackerd recording import", clock_offset_ns=clock_offset,
                                           rig_file=rig_file, notes=f"imported from {folder.resolve()}")
-                writer = RecordingWriter(out, metadata, compression=compression, compression_level=compression_level)
+                writer = RecordingWriter(out, metadata, compression=compression, compression_level=compression_level,
+                                         mode=mode)
             writer.write(pair)
             if progress is not None:
                 progress(k + 1, len(moments))

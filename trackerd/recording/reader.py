@@ -12,9 +12,11 @@ replay costs only the pixels the detector actually looks at.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import mmap
 import os
+import threading
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -34,14 +36,21 @@ from trackerd.recording.format import (
     DATA_MAGIC,
     ENCODING_DEFLATE,
     ENCODING_RAW,
+    ENCODING_WINDOWS,
+    ENCODING_ZSTD,
+    ENCODING_ZSTD_DELTA,
     FILE_HEADER,
     FORMAT_MAJOR,
     FORMAT_NAME,
     FORMAT_VERSION,
+    FULL_ENCODINGS,
     INDEX_ENTRY,
     INDEX_FILE,
     INDEX_MAGIC,
     METADATA_FILE,
+    MODES,
+    CameraMeta,
+    FrameEntry,
     IndexEntry,
     RecordHeader,
     RecordingMetadata,
@@ -54,9 +63,14 @@ from trackerd.recording.format import (
 MAX_METADATA_BYTES = 16 * 1024 * 1024
 """recording.json holds the rig and what the cameras said of themselves: tens of kilobytes."""
 
-UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {}
-"""Metadata upgrades: ``UPGRADES[n]`` turns MAJOR n's recording.json into MAJOR n+1's. Empty while
-1 is the only MAJOR; a reader reads an older MAJOR by applying them in turn."""
+def _upgrade_1(data: dict[str, Any]) -> dict[str, Any]:
+    """1.x -> 2.x: a 1.0 recording has no ``mode`` and is raw (1.1 says so already)."""
+    return {**data, "mode": data.get("mode", "raw")}
+
+
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _upgrade_1}
+"""Metadata upgrades: ``UPGRADES[n]`` turns MAJOR n's recording.json into MAJOR n+1's; a reader reads an
+older MAJOR by applying them in turn."""
 
 
 @dataclass
@@ -73,6 +87,14 @@ class Recording:
     problems: list[str] = field(default_factory=list)
     """What is damaged or missing, one line each (empty for a recording closed cleanly and intact)."""
     _map: mmap.mmap | None = None
+    _decoded: dict[int, tuple[int, NDArray[np.uint8]]] = field(default_factory=dict)
+    """Per camera, the last frame decoded from a difference or a keyframe (the next one builds on it)."""
+    _canvases: dict[int, Any] = field(default_factory=dict)
+    """Per camera, the canvases windowed frames are rebuilt in (trackerd.recording.codec.Canvases)."""
+    _whole: dict[int, int] = field(default_factory=dict)
+    """Per camera, the last pair whose frame was checked to be whole (windows lie over it)."""
+    _coder: Any = None
+    _decode_lock: threading.Lock = field(default_factory=threading.Lock)
 
     # ------------------------------------------------------------------ opening
 
@@ -220,6 +242,11 @@ class Recording:
             return 0.0
         return (self.entries[-1].timestamp_ns - self.entries[0].timestamp_ns) / 1e9
 
+    @functools.cached_property
+    def _data_name(self) -> str:
+        """pairs.dat's path as text, for messages (made once: replay names it for every pair it reads)."""
+        return str(self.path / DATA_FILE)
+
     def _view(self, offset: int, length: int) -> memoryview:
         if self._map is None:
             raise RecordingError(f"{self.path}: the recording is closed")
@@ -228,7 +255,7 @@ class Recording:
     def header(self, index: int) -> RecordHeader:
         """Pair ``index``'s record header, checked against the index; RecordingError naming the damage."""
         entry = self.entries[index]
-        where = f"{self.path / DATA_FILE}: pair {index} at byte {entry.offset}"
+        where = f"{self._data_name}: pair {index} at byte {entry.offset}"
         # The whole record as a view (no copy): a newer MINOR's header may be longer than this version's.
         header = unpack_record_header(self._view(entry.offset, entry.record_bytes), where)
         if (header.pair_index, header.record_bytes) != (entry.pair_index, entry.record_bytes):
@@ -240,35 +267,117 @@ class Recording:
 
     def images(self, index: int, header: RecordHeader | None = None, *, verify: bool = True) -> list[NDArray[np.uint8]]:
         """Pair ``index``'s frames in camera order, read-only; with ``verify``, checksums are checked
-        (RecordingError naming the camera and byte offset of a damaged frame)."""
+        (RecordingError naming the camera and byte offset of a damaged frame). A frame stored as a
+        difference or as windows is rebuilt from the frames it builds on, which are checked too."""
         header = header or self.header(index)
-        entry = self.entries[index]
-        offset = entry.offset + header.header_bytes
-        out = []
-        for cam, frame in zip(self.cameras, header.frames, strict=True):
-            where = f"{self.path / DATA_FILE}: pair {index}, camera '{cam.id}' (byte {offset})"
-            stored = self._view(offset, frame.stored_bytes)
-            if verify and zlib.crc32(stored) != frame.payload_crc32:
-                raise RecordingError(f"{where}: frame checksum mismatch (the pixels are damaged)")
-            if frame.encoding == ENCODING_RAW:
-                if frame.stored_bytes != cam.frame_bytes:
-                    raise RecordingError(f"{where}: {frame.stored_bytes} bytes, a {cam.pixel_format}"
-                                         f" {cam.width_px}x{cam.height_px} frame has {cam.frame_bytes}")
-                image = np.frombuffer(self._map, np.uint8, cam.frame_bytes, offset).reshape(cam.shape)
-            elif frame.encoding == ENCODING_DEFLATE:
-                try:
-                    # At most one byte more than a frame: a crafted frame cannot inflate to gigabytes.
-                    raw = zlib.decompressobj().decompress(stored, cam.frame_bytes + 1)
-                except zlib.error as err:
-                    raise RecordingError(f"{where}: compressed frame does not decompress ({err})") from err
-                if len(raw) != cam.frame_bytes:
-                    raise RecordingError(f"{where}: decompresses to {len(raw)} bytes, expected {cam.frame_bytes}")
-                image = np.frombuffer(raw, np.uint8).reshape(cam.shape)
-            else:
-                raise RecordingError(f"{where}: unknown frame encoding {frame.encoding} (a newer trackerd's?)")
-            out.append(image)
-            offset += frame.stored_bytes
-        return out
+        return [self._frame(index, k, header, verify) for k in range(len(self.cameras))]
+
+    def _stored(self, index: int, k: int, header: RecordHeader, verify: bool) -> tuple[memoryview, str, int]:
+        """Camera ``k``'s payload in pair ``index`` (checked), where it is, and its offset."""
+        offset = self.entries[index].offset + header.header_bytes + sum(f.stored_bytes for f in header.frames[:k])
+        frame = header.frames[k]
+        where = f"{self._data_name}: pair {index}, camera '{self.cameras[k].id}' (byte {offset})"
+        stored = self._view(offset, frame.stored_bytes)
+        if verify and zlib.crc32(stored) != frame.payload_crc32:
+            raise RecordingError(f"{where}: frame checksum mismatch (the pixels are damaged)")
+        return stored, where, offset
+
+    def _frame(self, index: int, k: int, header: RecordHeader, verify: bool) -> NDArray[np.uint8]:
+        frame = header.frames[k]
+        cam = self.cameras[k]
+        if frame.encoding in (ENCODING_RAW, ENCODING_DEFLATE):
+            stored, where, offset = self._stored(index, k, header, verify)
+            return self._full(stored, frame, cam, where, offset)
+        with self._decode_lock:
+            return self._rebuilt(index, k, header, verify)
+
+    def _full(self, stored: memoryview, frame: FrameEntry, cam: CameraMeta, where: str, offset: int
+              ) -> NDArray[np.uint8]:
+        """A frame stored whole (raw, deflate, zstd)."""
+        if frame.encoding == ENCODING_RAW:
+            if frame.stored_bytes != cam.frame_bytes:
+                raise RecordingError(f"{where}: {frame.stored_bytes} bytes, a {cam.pixel_format}"
+                                     f" {cam.width_px}x{cam.height_px} frame has {cam.frame_bytes}")
+            return np.frombuffer(self._map, np.uint8, cam.frame_bytes, offset).reshape(cam.shape)
+        if frame.encoding == ENCODING_DEFLATE:
+            try:
+                # At most one byte more than a frame: a crafted frame cannot inflate to gigabytes.
+                raw = zlib.decompressobj().decompress(stored, cam.frame_bytes + 1)
+            except zlib.error as err:
+                raise RecordingError(f"{where}: compressed frame does not decompress ({err})") from err
+            if len(raw) != cam.frame_bytes:
+                raise RecordingError(f"{where}: decompresses to {len(raw)} bytes, expected {cam.frame_bytes}")
+            return np.frombuffer(raw, np.uint8).reshape(cam.shape)
+        if frame.encoding == ENCODING_ZSTD:
+            raw = self._zstd().decompress(stored, cam.frame_bytes, where)
+            return np.frombuffer(raw, np.uint8).reshape(cam.shape)
+        raise RecordingError(f"{where}: unknown frame encoding {frame.encoding} (a newer trackerd's?)")
+
+    def _zstd(self) -> Any:
+        if self._coder is None:
+            from trackerd.recording.codec import ZstdCoder
+
+            self._coder = ZstdCoder()
+        return self._coder
+
+    def _rebuilt(self, index: int, k: int, header: RecordHeader, verify: bool) -> NDArray[np.uint8]:
+        """Camera ``k``'s frame of pair ``index`` for the compressed and windowed modes (under the lock)."""
+        from trackerd.recording.codec import max_windows_bytes, undelta, unpack_windows
+
+        cached = self._decoded.get(k)
+        if cached is not None and cached[0] == index:
+            return cached[1]
+        cam = self.cameras[k]
+        frame = header.frames[k]
+        stored, where, offset = self._stored(index, k, header, verify)
+        if frame.encoding in FULL_ENCODINGS:
+            image = self._full(stored, frame, cam, where, offset)
+        elif frame.encoding == ENCODING_ZSTD_DELTA:
+            if index == 0:
+                raise RecordingError(f"{where}: the first pair is stored as a difference to a pair before it")
+            previous = self._base(index - 1, k, verify, where)
+            difference = np.frombuffer(self._zstd().decompress(stored, cam.frame_bytes, where), np.uint8)
+            image = undelta(difference.reshape(cam.shape), previous)
+        elif frame.encoding == ENCODING_WINDOWS:
+            data = self._zstd().decompress(stored, max_windows_bytes(cam.frame_bytes), where, at_most=True)
+            base_pair, windows = unpack_windows(data, cam.shape, where)
+            if base_pair >= index:
+                raise RecordingError(f"{where}: its windows lie over pair {base_pair}, not an earlier pair")
+            if self._whole.get(k) != base_pair:
+                if self.header(base_pair).frames[k].encoding not in FULL_ENCODINGS:
+                    raise RecordingError(f"{where}: its windows lie over pair {base_pair}, whose frame is not whole")
+                self._whole[k] = base_pair  # checked once, not for each of the pairs over it
+            base = self._base(base_pair, k, verify, where)
+            canvases = self._canvases.get(k)
+            if canvases is None:
+                from trackerd.recording.codec import Canvases
+
+                canvases = self._canvases[k] = Canvases()
+            return canvases.frame(base_pair, base, windows)
+        else:
+            raise RecordingError(f"{where}: unknown frame encoding {frame.encoding} (a newer trackerd's?)")
+        image.flags.writeable = False
+        self._decoded[k] = (index, image)
+        return image
+
+    def _base(self, index: int, k: int, verify: bool, where: str) -> NDArray[np.uint8]:
+        """The frame another builds on; RecordingError naming both when it cannot be read."""
+        cached = self._decoded.get(k)
+        if cached is not None and cached[0] == index:
+            return cached[1]
+        # Walk back to the nearest frame that is not a difference, then forward (in order, one at a time).
+        first = index
+        while first > 0 and self.header(first).frames[k].encoding == ENCODING_ZSTD_DELTA:
+            cached = self._decoded.get(k)
+            if cached is not None and cached[0] == first - 1:
+                break
+            first -= 1
+        try:
+            for j in range(first, index + 1):
+                image = self._rebuilt(j, k, self.header(j), verify)
+        except RecordingError as err:
+            raise RecordingError(f"{where}: the frame it builds on cannot be read: {err}") from err
+        return image
 
     def pair(self, index: int, *, verify: bool = True) -> FramePair:
         """Pair ``index`` exactly as recorded (timestamps on the recording host's monotonic clock)."""
@@ -349,11 +458,17 @@ def read_metadata(folder: Path) -> RecordingMetadata:
         data = upgrade(data)
         major += 1
     try:
-        return RecordingMetadata.model_validate(data)
+        metadata = RecordingMetadata.model_validate(data)
     except ValidationError as err:
         first = err.errors()[0]
         key = ".".join(str(p) for p in first["loc"])
         raise RecordingError(f"{path}: {key}: {first['msg']}") from err
+    if metadata.mode not in MODES:
+        raise RecordingError(
+            f"{path}: recording mode {metadata.mode!r} is newer than this trackerd reads ({', '.join(MODES)});"
+            " upgrade trackerd to read it"
+        )
+    return metadata
 
 
 def _check_major(major: int, where: str) -> None:

@@ -202,6 +202,8 @@ class Recorder:
         return RecordingWriter(
             self.path, metadata, compression=self.config.compression,
             compression_level=self.config.compression_level, min_free_space_mb=self.config.min_free_space_mb,
+            mode=self.config.mode, keyframe_interval_s=self.config.keyframe_interval_s,
+            window_margin_px=self.config.window_margin_px,
         )
 
     def _limit_reached(self, pair: FramePair) -> str | None:

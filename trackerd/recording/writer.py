@@ -29,21 +29,29 @@ import trackerd
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
+from trackerd.recording.codec import ZstdCoder, delta, pack_windows
 from trackerd.recording.format import (
     DATA_FILE,
     DATA_MAGIC,
     ENCODING_DEFLATE,
     ENCODING_RAW,
+    ENCODING_WINDOWS,
+    ENCODING_ZSTD,
+    ENCODING_ZSTD_DELTA,
     FILE_HEADER,
+    FLAG_KEYFRAME,
     INDEX_ENTRY,
     INDEX_FILE,
     INDEX_MAGIC,
     METADATA_FILE,
+    MODE_VERSIONS,
+    MODES,
     CameraMeta,
     Compression,
     EndMeta,
     FrameEntry,
     IndexEntry,
+    Mode,
     RecordHeader,
     RecordingMetadata,
     pack_file_header,
@@ -182,7 +190,41 @@ class RecordingWriter:
         compression: Compression = "none",
         compression_level: int = 1,
         min_free_space_mb: float = 0.0,
+        mode: Mode = "raw",
+        keyframe_interval_s: float = 1.0,
+        window_margin_px: int = 8,
+        planner: Any = None,
     ) -> None:
+        """``compression`` applies to the raw mode (frame by frame deflate). The compressed and windowed
+        modes write a keyframe (every frame full) at least every ``keyframe_interval_s`` of recorded
+        time; the windowed mode takes its windows from ``planner`` (a
+        trackerd.recording.windowed.WindowPlanner; by default one for the recorded rig)."""
+        if mode not in MODES:
+            raise RecordingError(f"{path}: unknown recording mode {mode!r} (one of {', '.join(MODES)})")
+        if mode != "raw":
+            compression = "none"
+            update: dict[str, Any] = {"keyframe_interval_s": keyframe_interval_s}
+            if mode == "windowed":
+                update["window_margin_px"] = window_margin_px
+        else:
+            update = {}
+        major, minor = MODE_VERSIONS[mode]
+        metadata = metadata.model_copy(update={"mode": mode, "format_version": f"{major}.{minor}", **update})
+        self.mode = mode
+        self._version = (major, minor)
+        self._keyframe_ns = int(keyframe_interval_s * 1e9)
+        self._last_key_ns: int | None = None
+        self._last_key_pair = 0
+        self._previous: list[np.ndarray] | None = None
+        self._difference: list[np.ndarray] = []
+        self._zstd = ZstdCoder() if mode != "raw" else None
+        self._planner = planner
+        if mode == "windowed" and planner is None:
+            from trackerd.recording.windowed import WindowPlanner
+
+            self._planner = WindowPlanner.for_metadata(metadata, margin_px=window_margin_px)
+        self.keyframes = 0
+        """Records written with every frame full (compressed and windowed modes)."""
         self.path = Path(path)
         self.metadata = metadata
         self._encoding = ENCODING_DEFLATE if compression == "deflate" else ENCODING_RAW
@@ -208,8 +250,8 @@ class RecordingWriter:
             fds.append(os.open(self.path / DATA_FILE, flags, 0o644))
             fds.append(os.open(self.path / INDEX_FILE, flags, 0o644))
             self._data, self._index = fds
-            _write_all(self._data, [pack_file_header(DATA_MAGIC, 0)])
-            _write_all(self._index, [pack_file_header(INDEX_MAGIC, INDEX_ENTRY.size)])
+            _write_all(self._data, [pack_file_header(DATA_MAGIC, 0, self._version)])
+            _write_all(self._index, [pack_file_header(INDEX_MAGIC, INDEX_ENTRY.size, self._version)])
         except OSError as err:
             # Nothing of a recording that could not be begun stays behind: a half-made folder would
             # read as "not a trackerd recording" and make a second attempt say "already exists".
@@ -223,7 +265,9 @@ class RecordingWriter:
         self._index_bytes = FILE_HEADER.size
 
     @property
-    def compression(self) -> Compression:
+    def compression(self) -> str:
+        if self.mode != "raw":
+            return "zstd"
         return "deflate" if self._encoding == ENCODING_DEFLATE else "none"
 
     def write(self, pair: FramePair, dropped_before: int = 0) -> int:
@@ -231,13 +275,14 @@ class RecordingWriter:
         recording then ends at the previous pair), RecordingError for a frame that does not fit."""
         if self.closed:
             raise RecordingError(f"{self.path}: the recording is closed")
-        payloads = self._payloads(pair)
+        payloads, encodings, keyframe = self._payloads(pair)
         entries = tuple(
             FrameEntry(frame.frame_id, frame.device_timestamp_ns, frame.host_timestamp_ns, len(payload),
-                       zlib.crc32(payload), self._encoding)
-            for frame, payload in zip(pair.frames, payloads, strict=True)
+                       zlib.crc32(payload), encoding)
+            for frame, payload, encoding in zip(pair.frames, payloads, encodings, strict=True)
         )
-        header = RecordHeader(self.pairs, pair.sequence, pair.timestamp_ns, pair.skew_ns, dropped_before, entries)
+        header = RecordHeader(self.pairs, pair.sequence, pair.timestamp_ns, pair.skew_ns, dropped_before, entries,
+                              FLAG_KEYFRAME if keyframe and self.mode != "raw" else 0)
         record_bytes = header.record_bytes
         if self._min_free:
             free = free_space_bytes(self.path)
@@ -267,10 +312,50 @@ class RecordingWriter:
             # the writer for most of a second (47 pairs queued at 60 pairs/s, measured) to catch up.
             _START_WRITEBACK(self._data, start, record_bytes, SYNC_FILE_RANGE_WRITE)
         self.payload_bytes += record_bytes - header.header_bytes
+        if keyframe and self.mode != "raw":
+            self.keyframes += 1
+            self._last_key_ns, self._last_key_pair = pair.timestamp_ns, self.pairs
         self.pairs += 1
         return record_bytes
 
-    def _payloads(self, pair: FramePair) -> list[memoryview | bytes]:
+    def _keyframe_due(self, pair: FramePair) -> bool:
+        return self._last_key_ns is None or pair.timestamp_ns - self._last_key_ns >= self._keyframe_ns
+
+    def _payloads(self, pair: FramePair) -> tuple[list[memoryview | bytes], list[int], bool]:
+        """Each frame's payload and encoding, and whether the record is a keyframe."""
+        raws = self._raw_frames(pair)
+        n = len(raws)
+        if self.mode == "raw":
+            if self._encoding == ENCODING_DEFLATE:
+                return [zlib.compress(raw, self._level) for raw in raws], [ENCODING_DEFLATE] * n, True
+            return list(raws), [ENCODING_RAW] * n, True
+        assert self._zstd is not None
+        images = [np.ascontiguousarray(frame.image, dtype=np.uint8) for frame in pair.frames]
+        if self.mode == "compressed":
+            keyframe = self._keyframe_due(pair) or self._previous is None
+            if self._previous is None:
+                self._previous = [np.empty_like(image) for image in images]
+                self._difference = [np.empty_like(image) for image in images]
+            if keyframe:
+                payloads = [self._zstd.compress(raw) for raw in raws]
+                encodings = [ENCODING_ZSTD] * n
+            else:
+                payloads = []
+                for image, previous, difference in zip(images, self._previous, self._difference, strict=True):
+                    payloads.append(self._zstd.compress(delta(image, previous, out=difference)))
+                encodings = [ENCODING_ZSTD_DELTA] * n
+            for image, previous in zip(images, self._previous, strict=True):
+                # A copy (into the same buffer each time): the camera may reuse its buffer once the pair is written.
+                np.copyto(previous, image)
+            return payloads, encodings, keyframe
+        plan = self._planner.plan(pair, self._keyframe_due(pair), self.pairs)
+        if plan.keyframe:
+            return [self._zstd.compress(raw) for raw in raws], [ENCODING_ZSTD] * n, True
+        payloads = [self._zstd.compress(pack_windows(image, self._last_key_pair, windows))
+                    for image, windows in zip(images, plan.windows, strict=True)]
+        return payloads, [ENCODING_WINDOWS] * n, False
+
+    def _raw_frames(self, pair: FramePair) -> list[memoryview]:
         if len(pair.frames) != len(self._cameras):
             raise RecordingError(
                 f"{self.path}: a pair of {len(pair.frames)} frames; this recording holds {len(self._cameras)} cameras"
@@ -285,8 +370,7 @@ class RecordingWriter:
                     f" this recording holds {cam.pixel_format} {cam.width_px}x{cam.height_px} frames from"
                     f" '{cam.id}' (a reconfigured camera needs a new recording)"
                 )
-            raw = memoryview(np.ascontiguousarray(image, dtype=np.uint8)).cast("B")
-            out.append(zlib.compress(raw, self._level) if self._encoding == ENCODING_DEFLATE else raw)
+            out.append(memoryview(np.ascontiguousarray(image, dtype=np.uint8)).cast("B"))
         return out
 
     def close(self, reason: str = "stopped", dropped_pairs: int = 0) -> None:
