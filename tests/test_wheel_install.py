@@ -74,6 +74,16 @@ def test_the_installed_package_is_the_one_that_runs(venv: Path, elsewhere: Path)
     assert Path(where.stdout.strip()).is_relative_to(venv / "lib"), where.stderr
 
 
+def test_the_console_page_is_installed(venv: Path, elsewhere: Path) -> None:
+    # The console serves its page from package data: a wheel without it answers every browser with 404.
+    code = ("from importlib import resources; s = resources.files('trackerd.console') / 'static';"
+            " print(sorted(p.name for p in s.iterdir()))")
+    listed = _run(venv / "bin" / "python", "-c", code, cwd=elsewhere, timeout_s=30)
+    assert listed.returncode == 0, listed.stderr
+    for name in ("index.html", "console.js", "console.css"):
+        assert name in listed.stdout, listed.stdout
+
+
 def test_bench_accuracy_runs_from_another_directory(venv: Path, elsewhere: Path) -> None:
     # One group of the three keeps it short; the default --config is the same for all.
     run = _run(venv / "bin" / "trackerd", "bench", "accuracy", "--poses", "5", "--groups", "placements",
