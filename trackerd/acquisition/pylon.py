@@ -404,3 +404,66 @@ def _configure_trigger(session: PylonSession, cam: CameraConfig, rig: RigAcquisi
         else:
             session.notes.append("no TriggerActivation feature; the camera's default edge applies")
 
+
+
+def describe_pylon_camera(device: Any) -> Any:
+    """What a camera pylon lists offers (a :class:`~trackerd.acquisition.discovery.CameraDetails`)."""
+    from trackerd.acquisition.discovery import CameraDetails
+
+    pylon, genicam = load_pylon()
+    factory = pylon.TlFactory.GetInstance()
+    info = next((i for i in factory.EnumerateDevices() if i.GetFullName() == device.device_id), None)
+    if info is None:
+        raise CameraError(f"pylon no longer sees {device.device_id}")
+    try:
+        camera = pylon.InstantCamera(factory.CreateDevice(info))
+        camera.Open()
+    except genicam.GenericException as err:
+        raise CameraError(f"cannot open {device.device_id}: {_message(err)}") from err
+    try:
+
+        def value(name: str, default: Any = None) -> Any:
+            node = _node(camera, name)
+            return node.GetValue() if node is not None and genicam.IsReadable(node) else default
+
+        def span(name: str, *more: str) -> tuple[float, float] | None:
+            found = _first(camera, name, *more)
+            if found is None:
+                return None
+            node = _node(camera, found)
+            return float(node.GetMin()), float(node.GetMax())
+
+        def entries(name: str) -> tuple[str, ...]:
+            node = _node(camera, name)
+            return tuple(node.Symbolics) if node is not None else ()
+
+        def size(name: str) -> tuple[int, int, int]:
+            node = _node(camera, name)
+            return (int(node.GetMin()), int(node.GetMax()), int(node.GetInc())) if node is not None else (0, 0, 1)
+
+        sources = entries("TriggerSource")
+        return CameraDetails(
+            device_id=device.device_id,
+            vendor=device.vendor,
+            model=device.model,
+            serial=device.serial,
+            protocol=device.protocol,
+            sensor_px=(int(value("SensorWidth", 0)), int(value("SensorHeight", 0))),
+            width_px=size("Width"),
+            height_px=size("Height"),
+            pixel_format=str(value("PixelFormat", "")),
+            pixel_formats=entries("PixelFormat"),
+            frame_rate_hz=span("AcquisitionFrameRate", "AcquisitionFrameRateAbs"),
+            exposure_us=span("ExposureTime", "ExposureTimeAbs"),
+            gain=span("Gain", "GainRaw"),
+            triggers=entries("TriggerSelector"),
+            trigger_sources=sources,
+            trigger_activations=entries("TriggerActivation"),
+            software_trigger="Software" in sources,
+            ptp=_first(camera, "PtpEnable", "GevIEEE1588"),
+            packet_size_bytes=value("GevSCPSPacketSize"),
+            packet_delay=_node(camera, "GevSCPD") is not None,
+        )
+    finally:
+        camera.Close()
+        camera.DestroyDevice()
