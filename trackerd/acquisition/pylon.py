@@ -63,6 +63,9 @@ STREAM_COUNTERS = {
 LEGACY_FORMAT_NAMES = {"RGB8": "RGB8Packed", "BGR8": "BGR8Packed"}
 """Older Basler cameras (and pylon's emulation) name the PFNC formats RGB8 and BGR8 this way."""
 
+TRIGGER_READY_TIMEOUT_MS = 500
+"""How long a software trigger waits for the camera to be ready for it before the camera counts as lost."""
+
 _NO_BLOCK_ID = 1 << 63
 """pylon reports a block id of all ones when the transport has none."""
 
@@ -196,12 +199,23 @@ class PylonSession:
         )
 
     def fire(self) -> None:
-        """Execute TriggerSoftware; CameraError if the camera does not take it."""
-        _, genicam = load_pylon()
+        """Execute TriggerSoftware once the camera waits for a frame trigger; CameraError if it does not.
+
+        A camera ignores a trigger that comes while it is still busy with the previous frame (outside
+        its FrameTriggerWait state), and a trigger lost that way would leave trackerd waiting for a frame
+        that never comes. pylon's WaitForFrameTriggerReady reads the camera's acquisition status
+        (pylon's emulated cameras, on a loaded machine, come back to it a few milliseconds after their
+        frame is delivered).
+        """
+        pylon, genicam = load_pylon()
         try:
+            if not self.camera.WaitForFrameTriggerReady(TRIGGER_READY_TIMEOUT_MS, pylon.TimeoutHandling_Return):
+                raise CameraError(
+                    f"camera '{self.camera_id}': not ready for a software trigger within {TRIGGER_READY_TIMEOUT_MS} ms"
+                )
             self.camera.ExecuteSoftwareTrigger()
         except genicam.GenericException as err:
-            raise CameraError(f"camera '{self.camera_id}': software trigger failed: {err}") from err
+            raise CameraError(f"camera '{self.camera_id}': software trigger failed: {_message(err)}") from err
 
     def counters(self) -> dict[str, int]:
         """pylon's stream grabber statistics that this transport keeps."""
@@ -290,13 +304,14 @@ def _node(camera: Any, name: str) -> Any | None:
 
 def _allowed(node: Any, unit: str = "") -> str | None:
     """What a feature allows, as text (its range, or its entries)."""
+    _, genicam = load_pylon()
     try:
         if hasattr(node, "Symbolics"):
             return "one of " + ", ".join(node.Symbolics)
         if hasattr(node, "GetMin"):
             return f"{node.GetMin():g} to {node.GetMax():g}{' ' + unit if unit else ''}"
-    except Exception:
-        return None
+    except genicam.GenericException:
+        return None  # the camera does not say; the error's own text still does
     return None
 
 

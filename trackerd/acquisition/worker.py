@@ -137,6 +137,8 @@ class CameraWorker:
         self._rate = RateMeter()
         self.last_pool: list[Any] = []
         """The buffer pool of the last connection closed gracefully (for checking none is held)."""
+        self.last_session: Session | None = None
+        """The last connection closed gracefully (``buffers_released()`` says whether every buffer came back)."""
         self._unwrap = FrameIdUnwrapper()
         self._ticks: TickMap | None = None
         self._last_frame_ns = 0
@@ -500,6 +502,7 @@ class CameraWorker:
                     self._stream_current = {}
                 session.close()
                 self.last_pool = session.buffers
+                self.last_session = session
             else:
                 self.sink.abandon(session)
         with self._lock:

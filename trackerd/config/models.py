@@ -176,7 +176,7 @@ class CameraConfig(_Model):
     ``pylon`` (Basler pylon through pypylon, the ``trackerd[gentl]`` extra: pylon's camera emulation,
     Basler GigE and USB cameras, and CoaXPress frame grabbers whose GenTL producer pylon loads;
     docs/acquisition.md). A rig may mix them."""
-    features: dict[str, FeatureValue] = {}
+    features: dict[str, FeatureValue] = Field(default_factory=dict)
     """GenICam features written to the camera, in the order given, when it is opened (before the
     rig's own settings), for what the rig file has no key for: a frame grabber's link or tap
     configuration, or pylon's emulated camera's ``ImageFilename``. ``pylon`` backend only."""
