@@ -1,6 +1,6 @@
 """Camera acquisition: frames from two (or more) cameras, paired into synchronized sets.
 
-The pipeline sees only :class:`PairSource`; :class:`~trackerd.acquisition.live.AravisPairSource`
+The pipeline sees only :class:`PairSource`; :class:`~trackerd.acquisition.live.LivePairSource`
 (live GigE Vision cameras through Aravis) is imported from its module so that this
 package does not need PyGObject.
 """

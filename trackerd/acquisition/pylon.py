@@ -183,8 +183,16 @@ class PylonSession:
     def read(self, buffer: tuple[Any, int]) -> Grab:
         result, host_ns = buffer
         if not result.GrabSucceeded():
-            return Grab(f"error-0x{result.GetErrorCode() & 0xFFFFFFFF:08x}", _block_id(result), "", 0, 0, 0, host_ns,
-                        lambda _nbytes: b"")
+            return Grab(
+                f"error-0x{result.GetErrorCode() & 0xFFFFFFFF:08x}",
+                _block_id(result),
+                "",
+                0,
+                0,
+                0,
+                host_ns,
+                lambda _nbytes: b"",
+            )
         code = int(result.GetPixelType())
         # pylon's pixel types are PFNC codes.
         return Grab(
@@ -328,8 +336,12 @@ def _write(cam: CameraConfig, setting: str, camera: Any, feature: str, value: ob
             node.FromString(value)
         else:
             node.SetValue(value)
-    except (genicam.OutOfRangeException, genicam.InvalidArgumentException, genicam.AccessException,
-            genicam.LogicalErrorException) as err:
+    except (
+        genicam.OutOfRangeException,
+        genicam.InvalidArgumentException,
+        genicam.AccessException,
+        genicam.LogicalErrorException,
+    ) as err:
         limits = _allowed(node, unit)
         which = f", which allows {limits}" if limits else ""
         raise CameraConfigError(
@@ -418,7 +430,6 @@ def _configure_trigger(session: PylonSession, cam: CameraConfig, rig: RigAcquisi
             _write(cam, "hardware_trigger_activation", camera, "TriggerActivation", rig.hardware_trigger_activation)
         else:
             session.notes.append("no TriggerActivation feature; the camera's default edge applies")
-
 
 
 def describe_pylon_camera(device: Any) -> Any:

@@ -171,15 +171,6 @@ class CameraConfig(_Model):
     device_id: str | None = None
     """Device id as `trackerd cameras` lists it (Aravis's device id, or pylon's full name with
     ``backend = "pylon"``), an alternative to serial and address."""
-    backend: CameraBackend = "aravis"
-    """How the camera is reached: ``aravis`` (GigE Vision and USB3 Vision through Aravis) or
-    ``pylon`` (Basler pylon through pypylon, the ``trackerd[gentl]`` extra: pylon's camera emulation,
-    Basler GigE and USB cameras, and CoaXPress frame grabbers whose GenTL producer pylon loads;
-    docs/acquisition.md). A rig may mix them."""
-    features: dict[str, FeatureValue] = Field(default_factory=dict)
-    """GenICam features written to the camera, in the order given, when it is opened (before the
-    rig's own settings), for what the rig file has no key for: a frame grabber's link or tap
-    configuration, or pylon's emulated camera's ``ImageFilename``. ``pylon`` backend only."""
     width_px: int = Field(gt=0)
     """Image width delivered by the camera."""
     height_px: int = Field(gt=0)
@@ -193,6 +184,15 @@ class CameraConfig(_Model):
     """Camera pose; may instead come from the calibration file."""
     acquisition: CameraAcquisition = CameraAcquisition()
     """How this camera is driven: exposure, gain, region, GigE transport (docs/acquisition.md)."""
+    backend: CameraBackend = "aravis"
+    """How the camera is reached: ``aravis`` (GigE Vision and USB3 Vision through Aravis) or
+    ``pylon`` (Basler pylon through pypylon, the ``trackerd[gentl]`` extra: pylon's camera emulation,
+    Basler GigE and USB cameras, and CoaXPress frame grabbers whose GenTL producer pylon loads;
+    docs/acquisition.md). A rig may mix them."""
+    features: dict[str, FeatureValue] = Field(default_factory=dict)
+    """GenICam features written to the camera, in the order given, when it is opened (before the
+    rig's own settings), for what the rig file has no key for: a frame grabber's link or tap
+    configuration, or pylon's emulated camera's ``ImageFilename``. ``pylon`` backend only."""
 
     @field_validator("pixel_format")
     @classmethod
