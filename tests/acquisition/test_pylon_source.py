@@ -104,6 +104,8 @@ def test_software_trigger_pairs_frames_of_the_same_trigger(simulated_rig: RigCon
     steps = zip(values, values[1:], ids, ids[1:], strict=False)
     assert all((b - a) % N_IMAGES == (j - i) % N_IMAGES for a, b, i, j in steps)
     assert [p.timestamp_ns for p in pairs] == sorted(p.timestamp_ns for p in pairs)
+    # Without a camera clock, a frame's capture time is when its trigger was sent, before it arrived.
+    assert all(p.timestamp_ns < min(f.host_timestamp_ns for f in p.frames) for p in pairs)
     assert status.pairing == "trigger count"
     assert [c.state for c in status.cameras] == ["streaming", "streaming"]
     assert [c.device for c in status.cameras] == ["Emulation (0815-0000)", "Emulation (0815-0001)"]

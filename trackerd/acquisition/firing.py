@@ -19,6 +19,8 @@ from trackerd.acquisition.trigger import TickMap, TickSchedule, TriggerGate
 from trackerd.errors import CameraError
 
 POLL_S = 0.1
+SENT_KEPT = 64
+"""How many recent ticks' send times a connection keeps (frames answer within a few ticks)."""
 
 
 class TriggerThread:
@@ -45,6 +47,13 @@ class TriggerThread:
         """Why a trigger failed (the thread then stops firing)."""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"trigger-{name}", daemon=True)
+        self._sent: dict[int, int] = {}
+        self._sent_lock = threading.Lock()
+
+    def sent_ns(self, tick: int) -> int | None:
+        """When tick ``tick`` was sent to the camera (host monotonic clock), if it was (recently)."""
+        with self._sent_lock:
+            return self._sent.get(tick)
 
     def start(self) -> None:
         self._thread.start()
@@ -85,6 +94,10 @@ class TriggerThread:
                 continue
             # Recorded before firing: the frame may be handled before fire() even returns.
             self.ticks.fired(last)
+            with self._sent_lock:
+                self._sent[last] = time.monotonic_ns()
+                if len(self._sent) > SENT_KEPT:
+                    del self._sent[min(self._sent)]
             try:
                 self._fire()
             except CameraError as err:

@@ -302,6 +302,10 @@ class CameraWorker:
         host_ns = grab.host_timestamp_ns
         frame = Frame(self.cam.id, int(frame_id or 0), device_ns, host_ns, pixel_format, image)
         capture_ns = self.sink.observe_clock(self.index, device_ns, host_ns)
+        if device_ns == 0 and tick is not None and self._trigger is not None:
+            # No camera clock (pylon's emulated cameras): the trigger's send time is a better capture
+            # time than the arrival, which adds each camera's own delivery delay and jitter.
+            capture_ns = self._trigger.sent_ns(tick) or capture_ns
         now = time.monotonic_ns()
         self._last_frame_ns = now
         self._grace_ns = 0

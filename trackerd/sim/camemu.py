@@ -33,6 +33,11 @@ EMULATED_SERIALS = ("0815-0000", "0815-0001")
 """Serial numbers of the first two cameras pylon's emulation offers (``PYLON_CAMEMU=2``)."""
 
 
+EMULATED_EXPOSURE_US = 1000.0
+"""Exposure given to an emulated camera whose rig sets none: the emulation spends the exposure time on
+every frame, and its default (10 ms) plus reading an image file would hold it below 60 fps."""
+
+
 def emulated_camera_features(image_path: Path | str) -> dict[str, str]:
     """The features that make an emulated camera serve ``image_path`` (a file, or a directory of files)."""
     return {"TestImageSelector": "Off", "ImageFileMode": "On", "ImageFilename": str(image_path)}
@@ -53,6 +58,9 @@ def emulated_rig(rig: RigConfig, image_dirs: list[Path] | None = None, **acquisi
                 "address": None,
                 "device_id": None,
                 "features": emulated_camera_features(image_dirs[i]) if image_dirs else {},
+                "acquisition": cam.acquisition.model_copy(
+                    update={"exposure_us": cam.acquisition.exposure_us or EMULATED_EXPOSURE_US}
+                ),
             }
         )
         for i, cam in enumerate(rig.cameras)
