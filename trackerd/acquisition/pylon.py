@@ -63,9 +63,6 @@ STREAM_COUNTERS = {
 LEGACY_FORMAT_NAMES = {"RGB8": "RGB8Packed", "BGR8": "BGR8Packed"}
 """Older Basler cameras (and pylon's emulation) name the PFNC formats RGB8 and BGR8 this way."""
 
-TRIGGER_READY_TIMEOUT_MS = 500
-"""How long a software trigger waits for the camera to be ready for it before the camera counts as lost."""
-
 _NO_BLOCK_ID = 1 << 63
 """pylon reports a block id of all ones when the transport has none."""
 
@@ -156,6 +153,9 @@ class PylonSession:
     """Always empty: pylon owns its buffers (``outstanding`` counts the ones trackerd holds)."""
     outstanding: int = 0
     """Grab results popped and not yet pushed back."""
+    ready_timeout_ms: int = 1000
+    """How long a software trigger waits for the camera to be ready for it (the rig's loss_timeout_ms):
+    a camera that cannot take a trigger that long is lost, as one that sends no frame."""
 
     def pop(self, timeout_us: int) -> tuple[Any, int] | None:
         """The next grab result with its host arrival time, or None after ``timeout_us``."""
@@ -217,9 +217,9 @@ class PylonSession:
         """
         pylon, genicam = load_pylon()
         try:
-            if not self.camera.WaitForFrameTriggerReady(TRIGGER_READY_TIMEOUT_MS, pylon.TimeoutHandling_Return):
+            if not self.camera.WaitForFrameTriggerReady(self.ready_timeout_ms, pylon.TimeoutHandling_Return):
                 raise CameraError(
-                    f"camera '{self.camera_id}': not ready for a software trigger within {TRIGGER_READY_TIMEOUT_MS} ms"
+                    f"camera '{self.camera_id}': not ready for a software trigger within {self.ready_timeout_ms} ms"
                 )
             self.camera.ExecuteSoftwareTrigger()
         except genicam.GenericException as err:
@@ -285,7 +285,7 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Pylo
         camera.Open()
     except genicam.GenericException as err:
         raise CameraError(f"{where}: cannot open: {_message(err)}") from err
-    session = PylonSession(cam.id, camera, rig.trigger == "software")
+    session = PylonSession(cam.id, camera, rig.trigger == "software", ready_timeout_ms=round(rig.loss_timeout_ms))
     try:
         _configure(session, cam, rig)
         camera.MaxNumBuffer.Value = cam.acquisition.buffer_count
