@@ -24,7 +24,10 @@ SENT_KEPT = 64
 
 
 class TriggerThread:
-    """Fires ``fire()`` at every tick the gate allows, until stopped or a trigger fails."""
+    """Fires ``fire()`` at every tick the gate allows, until stopped or a trigger fails.
+
+    ``fire()`` may return when it sent the trigger (host monotonic ns), if it first waited for the
+    camera; otherwise the tick's send time is taken just before it is called."""
 
     def __init__(
         self,
@@ -32,7 +35,7 @@ class TriggerThread:
         name: str,
         schedule: TickSchedule,
         gate: TriggerGate,
-        fire: Callable[[], None],
+        fire: Callable[[], int | None],
         max_outstanding: int,
         settle_ns: int = 0,
     ) -> None:
@@ -99,7 +102,10 @@ class TriggerThread:
                 if len(self._sent) > SENT_KEPT:
                     del self._sent[min(self._sent)]
             try:
-                self._fire()
+                sent = self._fire()
+                if sent is not None:  # the backend knows when the trigger itself went out
+                    with self._sent_lock:
+                        self._sent[last] = sent
             except CameraError as err:
                 if not self._stop.is_set():
                     self.failure = str(err)

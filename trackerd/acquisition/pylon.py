@@ -206,8 +206,9 @@ class PylonSession:
             pixels=lambda _nbytes: result.GetBuffer(),
         )
 
-    def fire(self) -> None:
+    def fire(self) -> int:
         """Execute TriggerSoftware once the camera waits for a frame trigger; CameraError if it does not.
+        Returns when the trigger was sent (host monotonic ns), after the wait.
 
         A camera ignores a trigger that comes while it is still busy with the previous frame (outside
         its FrameTriggerWait state), and a trigger lost that way would leave trackerd waiting for a frame
@@ -221,9 +222,11 @@ class PylonSession:
                 raise CameraError(
                     f"camera '{self.camera_id}': not ready for a software trigger within {self.ready_timeout_ms} ms"
                 )
+            sent_ns = time.monotonic_ns()
             self.camera.ExecuteSoftwareTrigger()
         except genicam.GenericException as err:
             raise CameraError(f"camera '{self.camera_id}': software trigger failed: {_message(err)}") from err
+        return sent_ns
 
     def counters(self) -> dict[str, int]:
         """pylon's stream grabber statistics that this transport keeps."""
