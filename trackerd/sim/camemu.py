@@ -65,7 +65,11 @@ def emulated_rig(rig: RigConfig, image_dirs: list[Path] | None = None, **acquisi
         )
         for i, cam in enumerate(rig.cameras)
     )
-    return rig.model_copy(update={"cameras": cameras, "acquisition": rig.acquisition.model_copy(update=acquisition)})
+    # Lock-step triggers, as the virtual GigE rig has: an emulated camera is busy reading its next image file
+    # for milliseconds after a frame, so a second trigger outstanding waits for it, and the two cameras'
+    # triggers go out as each becomes ready, apart by more than the pairing tolerance on a loaded machine.
+    settings: dict[str, object] = {"max_outstanding_triggers": 1, **acquisition}
+    return rig.model_copy(update={"cameras": cameras, "acquisition": rig.acquisition.model_copy(update=settings)})
 
 
 def write_scene_files(
