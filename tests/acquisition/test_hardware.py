@@ -3,7 +3,9 @@
     TRACKERD_HARDWARE=1 TRACKERD_RIG=/etc/trackerd/rig.toml .venv/bin/python -m pytest -m hardware -s
 
 The rig file names the real cameras (by serial, address or device id) and the
-acquisition settings to test (trigger mode, PTP).
+acquisition settings to test (trigger mode, PTP). Cameras reached through pylon
+(``backend = "pylon"``: Basler cameras, a CoaXPress grabber's GenTL producer) are
+tested the same way; they need the trackerd[gentl] extra.
 """
 
 from __future__ import annotations
@@ -45,10 +47,10 @@ def test_the_rigs_cameras_are_listed(rig) -> None:
 
 
 def test_real_cameras_deliver_pairs(rig) -> None:
-    from trackerd.acquisition.live import AravisPairSource
+    from trackerd.acquisition.live import LivePairSource
 
     pairs = []
-    with AravisPairSource(rig) as source:
+    with LivePairSource(rig) as source:
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline:
             pair = source.next_pair(0.5)

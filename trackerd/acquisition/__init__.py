@@ -1,8 +1,8 @@
 """Camera acquisition: frames from two (or more) cameras, paired into synchronized sets.
 
-The pipeline sees only :class:`PairSource`; :class:`~trackerd.acquisition.live.AravisPairSource`
-(live GigE Vision cameras through Aravis) is imported from its module so that this
-package does not need PyGObject.
+The pipeline sees only :class:`PairSource`; :class:`~trackerd.acquisition.live.LivePairSource`
+(live cameras through Aravis or pylon) is imported from its module so that this
+package needs neither PyGObject nor pypylon.
 """
 
 from trackerd.acquisition.frame import Frame, FramePair

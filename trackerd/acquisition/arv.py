@@ -25,13 +25,17 @@ import ctypes.util
 import functools
 import logging
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from trackerd.acquisition.clock import realtime_to_monotonic_ns
+from trackerd.acquisition.session import Grab
 from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
 from trackerd.errors import CameraError, ConfigError
+from trackerd.pixelformat import PFNC_NAMES
 
 log = logging.getLogger(__name__)
 
@@ -127,6 +131,12 @@ def aravis_missing_reason() -> str | None:
 
 def describe_lookup(cam: CameraConfig) -> str:
     """How the rig file says to find a camera, for messages: ``address 10.0.0.2``."""
+    if cam.backend != "aravis":
+        return f"{cam.backend} {_lookup(cam)}"
+    return _lookup(cam)
+
+
+def _lookup(cam: CameraConfig) -> str:
     if cam.device_id:
         return f"device id {cam.device_id}"
     if cam.address:
@@ -184,6 +194,28 @@ class CameraSession:
     def push(self, buffer: Any) -> None:
         """Give a buffer back to the stream to be filled again."""
         self.stream.push_buffer(buffer)
+
+    def read(self, buffer: Any) -> Grab:
+        """What a popped buffer holds (its image is copied only when asked for)."""
+        aravis, _ = load_aravis()
+        status = buffer.get_status()
+        raw_id = buffer.get_frame_id()
+        failure = None if status == aravis.BufferStatus.SUCCESS else str(status.value_nick)
+        code = buffer.get_image_pixel_format() if failure is None else 0
+        system_ns = int(buffer.get_system_timestamp()) if failure is None else 0
+        # Aravis's completion time, taken on its stream thread (a busy interpreter does not delay it).
+        host_ns = realtime_to_monotonic_ns(system_ns) if system_ns else time.monotonic_ns()
+        payload = self.payload_bytes
+        return Grab(
+            failure=failure,
+            frame_id=int(raw_id) if raw_id else None,
+            pixel_format=PFNC_NAMES.get(code, f"0x{code:08x}"),
+            width_px=buffer.get_image_width() if failure is None else 0,
+            height_px=buffer.get_image_height() if failure is None else 0,
+            device_timestamp_ns=int(buffer.get_timestamp()) if failure is None else 0,
+            host_timestamp_ns=host_ns,
+            pixels=lambda nbytes: image_bytes(buffer, nbytes, payload),
+        )
 
     def fire(self) -> None:
         """Execute TriggerSoftware (one GVCP command); CameraError if the camera does not answer."""

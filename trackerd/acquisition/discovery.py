@@ -1,4 +1,4 @@
-"""What Aravis can see: the cameras on the network (or USB), and what one camera offers."""
+"""What the backends can see: the cameras Aravis (GigE Vision, USB3 Vision) and pylon find, and what one offers."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from trackerd.acquisition import gvcp
-from trackerd.acquisition.arv import load_aravis
+from trackerd.acquisition.arv import aravis_missing_reason, load_aravis
 from trackerd.errors import CameraError
 
 ADDRESS_PROBE_TRIES = 3
@@ -20,7 +20,7 @@ PTP_FEATURES = ("PtpEnable", "GevIEEE1588")
 
 @dataclass(frozen=True)
 class DeviceEntry:
-    """One camera in Aravis's device list."""
+    """One camera that a backend lists."""
 
     device_id: str
     vendor: str
@@ -29,6 +29,8 @@ class DeviceEntry:
     address: str
     protocol: str
     physical_id: str
+    backend: str = "aravis"
+    """The rig file's ``backend`` that reaches the camera this way."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,43 @@ class CameraDetails:
 
 
 def list_devices(include_fake: bool = False) -> list[DeviceEntry]:
+    """Every camera Aravis discovers, then every camera pylon finds when pypylon is installed.
+
+    Aravis's GigE Vision discovery takes about a second. A Basler camera that both
+    reach is listed once for each backend. CameraError if neither library is there.
+    """
+    from trackerd.acquisition.pylon import pylon_missing_reason
+
+    aravis_missing = aravis_missing_reason()
+    pylon_missing = pylon_missing_reason()
+    if aravis_missing is not None and pylon_missing is not None:
+        raise CameraError(aravis_missing)
+    devices = [] if aravis_missing is not None else list_aravis_devices(include_fake)
+    if pylon_missing is None:
+        devices.extend(list_pylon_entries())
+    return devices
+
+
+def list_pylon_entries() -> list[DeviceEntry]:
+    """The cameras pylon finds, as entries of the listing (``backend = "pylon"``)."""
+    from trackerd.acquisition.pylon import list_pylon_devices
+
+    return [
+        DeviceEntry(
+            device_id=d.full_name,
+            vendor=d.vendor,
+            model=d.model,
+            serial=d.serial,
+            address=d.address or "",
+            protocol=d.device_class,
+            physical_id="",
+            backend="pylon",
+        )
+        for d in list_pylon_devices()
+    ]
+
+
+def list_aravis_devices(include_fake: bool = False) -> list[DeviceEntry]:
     """Every camera Aravis discovers (takes about a second for GigE Vision discovery)."""
     aravis, _ = load_aravis()
     if include_fake:
@@ -86,7 +125,7 @@ def list_devices(include_fake: bool = False) -> list[DeviceEntry]:
 def find_device(devices: list[DeviceEntry], wanted: str) -> DeviceEntry | None:
     """The device whose id, serial or address is ``wanted``."""
     for device in devices:
-        if wanted in (device.device_id, device.serial, device.address, device.physical_id):
+        if wanted in (device.device_id, device.serial, device.address, device.physical_id) and wanted:
             return device
     return None
 
@@ -127,6 +166,10 @@ def device_at(address: str) -> DeviceEntry | None:
 
 def describe_camera(device: DeviceEntry) -> CameraDetails:
     """Open the camera and read what it offers; CameraError if it cannot be opened."""
+    if device.backend == "pylon":
+        from trackerd.acquisition.pylon import describe_pylon_camera
+
+        return describe_pylon_camera(device)
     aravis, glib = load_aravis()
     try:
         camera = aravis.Camera.new(device.device_id)

@@ -19,10 +19,15 @@ from trackerd.acquisition.trigger import TickMap, TickSchedule, TriggerGate
 from trackerd.errors import CameraError
 
 POLL_S = 0.1
+SENT_KEPT = 64
+"""How many recent ticks' send times a connection keeps (frames answer within a few ticks)."""
 
 
 class TriggerThread:
-    """Fires ``fire()`` at every tick the gate allows, until stopped or a trigger fails."""
+    """Fires ``fire()`` at every tick the gate allows, until stopped or a trigger fails.
+
+    ``fire()`` may return when it sent the trigger (host monotonic ns), if it first waited for the
+    camera; otherwise the tick's send time is taken just before it is called."""
 
     def __init__(
         self,
@@ -30,7 +35,7 @@ class TriggerThread:
         name: str,
         schedule: TickSchedule,
         gate: TriggerGate,
-        fire: Callable[[], None],
+        fire: Callable[[], int | None],
         max_outstanding: int,
         settle_ns: int = 0,
     ) -> None:
@@ -45,6 +50,13 @@ class TriggerThread:
         """Why a trigger failed (the thread then stops firing)."""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"trigger-{name}", daemon=True)
+        self._sent: dict[int, int] = {}
+        self._sent_lock = threading.Lock()
+
+    def sent_ns(self, tick: int) -> int | None:
+        """When tick ``tick`` was sent to the camera (host monotonic clock), if it was (recently)."""
+        with self._sent_lock:
+            return self._sent.get(tick)
 
     def start(self) -> None:
         self._thread.start()
@@ -85,8 +97,15 @@ class TriggerThread:
                 continue
             # Recorded before firing: the frame may be handled before fire() even returns.
             self.ticks.fired(last)
+            with self._sent_lock:
+                self._sent[last] = time.monotonic_ns()
+                if len(self._sent) > SENT_KEPT:
+                    del self._sent[min(self._sent)]
             try:
-                self._fire()
+                sent = self._fire()
+                if sent is not None:  # the backend knows when the trigger itself went out
+                    with self._sent_lock:
+                        self._sent[last] = sent
             except CameraError as err:
                 if not self._stop.is_set():
                     self.failure = str(err)

@@ -1,4 +1,4 @@
-"""Live cameras through Aravis, as a :class:`~trackerd.acquisition.source.PairSource`.
+"""Live cameras through Aravis or pylon, as a :class:`~trackerd.acquisition.source.PairSource`.
 
 Threads: one acquisition thread per camera (:mod:`trackerd.acquisition.worker`),
 which also pairs its frames with the others' under one lock (the pairing work is
@@ -6,7 +6,7 @@ a few deque operations per frame); in software-trigger mode one trigger thread
 per camera connection (:mod:`trackerd.acquisition.firing`); and a short-lived
 thread per lost connection (:class:`Releaser`), because Aravis can block for
 several seconds giving up on a camera that no longer answers. The consumer's
-thread only waits in :meth:`AravisPairSource.next_pair`.
+thread only waits in :meth:`LivePairSource.next_pair`.
 
 Clocks: each camera's device timestamps are mapped to the host's monotonic
 clock by a :class:`~trackerd.acquisition.clock.DeviceClock`. Without PTP every
@@ -23,11 +23,12 @@ import threading
 import time
 from collections import deque
 
-from trackerd.acquisition.arv import PTP_LOCKED_STATES, CameraSession, load_aravis
+from trackerd.acquisition.arv import PTP_LOCKED_STATES
 from trackerd.acquisition.clock import DeviceClock, NonDecreasing
 from trackerd.acquisition.frame import FramePair
 from trackerd.acquisition.meters import RateMeter, SkewWindow
 from trackerd.acquisition.pairing import Arrival, Pairer, spread_ns
+from trackerd.acquisition.session import Session, load_backends
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import SourceStatus
 from trackerd.acquisition.trigger import TickSchedule, TriggerGate
@@ -73,7 +74,7 @@ class Releaser:
             self._threads = [t for t in self._threads if t.is_alive()]
             return len(self._threads)
 
-    def put(self, session: CameraSession) -> threading.Thread:
+    def put(self, session: Session) -> threading.Thread:
         """Release ``session`` on a new thread; returns the thread (alive until released)."""
         thread = threading.Thread(target=_release, args=(session,), name=f"camera-release-{session.camera_id}")
         with self._lock:
@@ -91,18 +92,20 @@ class Releaser:
         return self.pending == 0
 
 
-def _release(session: CameraSession) -> None:
+def _release(session: Session) -> None:
     try:
         session.abandon()
     except Exception:  # one failed release must not take the process down
         log.exception("releasing camera %s failed", session.camera_id)
 
 
-class AravisPairSource(PairSource):
-    """Synchronized frame pairs from the rig's cameras, acquired through Aravis."""
+class LivePairSource(PairSource):
+    """Synchronized frame pairs from the rig's live cameras, each acquired through its backend
+    (Aravis or pylon, the camera's ``backend``); one rig may mix them."""
 
     def __init__(self, rig: RigConfig, *, on_open: OpenHook | None = None, wait_for_cameras: bool = False) -> None:
-        """``on_open(camera_id, aravis_camera)`` runs after each (re)connection is configured.
+        """``on_open(camera_id, camera)`` runs after each (re)connection is configured (``camera`` is the
+        backend's object: an ``ArvCamera``, a pylon ``InstantCamera``).
 
         With ``wait_for_cameras`` (the daemon), a camera that is not there at start (not found,
         not answering, not opening) does not fail :meth:`start`: it stays ``connecting`` and its
@@ -146,7 +149,8 @@ class AravisPairSource(PairSource):
         """
         if self._running:
             return
-        load_aravis()
+        # A library that is not installed is not waited for: it raises here, naming what to install.
+        load_backends(self.rig.cameras)
         schedule = None
         if self._acq.trigger == "software":
             # Tick 0 is due once every camera has had time to open (the first ticks find
@@ -210,7 +214,7 @@ class AravisPairSource(PairSource):
                 log.info("camera %s: not waiting for the search for it to end (nothing is open)", worker.cam.id)
         self.abandoned_threads = [worker.cam.id for worker in self._workers if worker.alive]
         if not self._releaser.join(deadline - time.monotonic()):
-            log.warning("%d lost camera connection(s) still being released by Aravis", self._releaser.pending)
+            log.warning("%d lost camera connection(s) still being released", self._releaser.pending)
         with self._ready:
             self._running = False
             self._ready.notify_all()
@@ -288,7 +292,7 @@ class AravisPairSource(PairSource):
     def _crashed(self) -> str | None:
         return next((w.crash for w in self._workers if w.crash is not None), None)
 
-    def abandon(self, session: CameraSession) -> threading.Thread:
+    def abandon(self, session: Session) -> threading.Thread:
         return self._releaser.put(session)
 
     def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
@@ -342,3 +346,7 @@ class AravisPairSource(PairSource):
             self._pairs.popleft()
             self._dropped_pairs += 1
         self._pairs.append(pair)
+
+
+AravisPairSource = LivePairSource
+"""The name the live source had while Aravis was its only backend."""

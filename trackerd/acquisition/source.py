@@ -1,10 +1,10 @@
 """The one interface the pipeline consumes: a source of synchronized frame pairs.
 
-Live Aravis cameras (:class:`trackerd.acquisition.live.AravisPairSource`) are one
+Live cameras through Aravis or pylon (:class:`trackerd.acquisition.live.LivePairSource`) are one
 implementation; recording replay is another. The pipeline cannot tell which
 one it is fed::
 
-    with AravisPairSource(rig) as source:
+    with LivePairSource(rig) as source:
         while running:
             pair = source.next_pair(timeout_s=0.5)
             if pair is not None:

@@ -35,26 +35,20 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from trackerd.acquisition.arv import (
-    CameraConfigError,
-    CameraSession,
-    describe_lookup,
-    image_bytes,
-    load_aravis,
-    open_session,
-)
-from trackerd.acquisition.clock import FrameIdUnwrapper, realtime_to_monotonic_ns
+from trackerd.acquisition.arv import CameraConfigError, describe_lookup
+from trackerd.acquisition.clock import FrameIdUnwrapper
 from trackerd.acquisition.firing import TriggerThread
 from trackerd.acquisition.frame import Frame
 from trackerd.acquisition.gvcp import probe
 from trackerd.acquisition.meters import RateMeter
 from trackerd.acquisition.pairing import Arrival
+from trackerd.acquisition.session import Session, open_session, resolve_device_id
 from trackerd.acquisition.status import CameraState, CameraStatus
 from trackerd.acquisition.trigger import TickMap, TickSchedule, TriggerGate
 from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
 from trackerd.errors import CameraError
-from trackerd.pixelformat import PFNC_NAMES, frame_shape
+from trackerd.pixelformat import frame_shape
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +68,7 @@ class FrameSink(Protocol):
     def deliver(self, arrival: Arrival) -> None: ...
     def camera_lost(self, camera_index: int) -> None: ...
     def camera_back(self, camera_index: int) -> None: ...
-    def abandon(self, session: CameraSession) -> threading.Thread:
+    def abandon(self, session: Session) -> threading.Thread:
         """Release a connection on another thread; the thread ends when it is released."""
         ...
 
@@ -117,7 +111,7 @@ class CameraWorker:
         """Set when the acquisition thread died of an unexpected exception (a bug)."""
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
-        self._session: CameraSession | None = None
+        self._session: Session | None = None
         self._device_id: str | None = None
         self._address: str | None = None
         self._epoch = -1
@@ -143,6 +137,8 @@ class CameraWorker:
         self._rate = RateMeter()
         self.last_pool: list[Any] = []
         """The buffer pool of the last connection closed gracefully (for checking none is held)."""
+        self.last_session: Session | None = None
+        """The last connection closed gracefully (``buffers_released()`` says whether every buffer came back)."""
         self._unwrap = FrameIdUnwrapper()
         self._ticks: TickMap | None = None
         self._last_frame_ns = 0
@@ -258,7 +254,7 @@ class CameraWorker:
                 continue
             self._turn(self._session)
 
-    def _turn(self, session: CameraSession) -> None:
+    def _turn(self, session: Session) -> None:
         """One pass: wait for a buffer, handle it, check the camera's health."""
         buffer = session.pop(int(POLL_S * 1e6))
         if buffer is not None:
@@ -276,39 +272,40 @@ class CameraWorker:
         elif now >= self._next_housekeeping_ns:
             self._housekeeping(session, now)
 
-    def _handle(self, session: CameraSession, buffer: Any) -> None:
-        aravis, _ = load_aravis()
-        status = buffer.get_status()
-        raw_id = buffer.get_frame_id()
-        frame_id = self._unwrap(raw_id) if raw_id else None
+    def _handle(self, session: Session, buffer: Any) -> None:
+        grab = session.read(buffer)
+        frame_id = self._unwrap(grab.frame_id) if grab.frame_id is not None else None
         tick = self._ticks.frame(frame_id) if (self._ticks is not None and frame_id is not None) else None
-        if status != aravis.BufferStatus.SUCCESS:
-            self._count_failure(status.value_nick)
+        if grab.failure is not None:
+            self._count_failure(grab.failure)
             return
-        code = buffer.get_image_pixel_format()
-        pixel_format = PFNC_NAMES.get(code, f"0x{code:08x}")
+        pixel_format = grab.pixel_format
         if pixel_format != self.cam.pixel_format:
             self._count_failure("wrong-format")
             return
-        width, height = buffer.get_image_width(), buffer.get_image_height()
+        width, height = grab.width_px, grab.height_px
         shape = frame_shape(pixel_format, width, height)
         nbytes = int(np.prod(shape))
         if (width, height) != (self.cam.width_px, self.cam.height_px):
             self._count_failure("wrong-size")
             return
-        data = image_bytes(buffer, nbytes, session.payload_bytes)  # the one copy per frame
-        if len(data) < nbytes:
+        data = grab.pixels(nbytes)  # the one copy per frame
+        if memoryview(data).nbytes < nbytes:
             self._count_failure("wrong-size")
             return
         if self._ticks is not None and tick is None:
             self._count_failure("no-trigger")
             return
         image = np.frombuffer(data, dtype=np.uint8, count=nbytes).reshape(shape)
-        device_ns = int(buffer.get_timestamp())
-        system_ns = int(buffer.get_system_timestamp())
-        host_ns = realtime_to_monotonic_ns(system_ns) if system_ns else time.monotonic_ns()
+        image.flags.writeable = False
+        device_ns = grab.device_timestamp_ns
+        host_ns = grab.host_timestamp_ns
         frame = Frame(self.cam.id, int(frame_id or 0), device_ns, host_ns, pixel_format, image)
         capture_ns = self.sink.observe_clock(self.index, device_ns, host_ns)
+        if device_ns == 0 and tick is not None and self._trigger is not None:
+            # No camera clock (pylon's emulated cameras): the trigger's send time is a better capture
+            # time than the arrival, which adds each camera's own delivery delay and jitter.
+            capture_ns = self._trigger.sent_ns(tick) or capture_ns
         now = time.monotonic_ns()
         self._last_frame_ns = now
         self._grace_ns = 0
@@ -339,7 +336,7 @@ class CameraWorker:
         self._attempts = 0
         self._logged_reason = None
 
-    def _housekeeping(self, session: CameraSession, now: int) -> None:
+    def _housekeeping(self, session: Session, now: int) -> None:
         self._next_housekeeping_ns = now + COUNTER_PERIOD_NS
         counters = session.counters()
         ptp = None
@@ -359,7 +356,7 @@ class CameraWorker:
             self.on_open(self.cam.id, session.camera)
         self._adopt(session)
 
-    def _adopt(self, session: CameraSession) -> None:
+    def _adopt(self, session: Session) -> None:
         now = time.monotonic_ns()
         self._session = session
         self._epoch += 1
@@ -509,6 +506,7 @@ class CameraWorker:
                     self._stream_current = {}
                 session.close()
                 self.last_pool = session.buffers
+                self.last_session = session
             else:
                 self.sink.abandon(session)
         with self._lock:
@@ -528,6 +526,4 @@ class CameraWorker:
 
 
 def _resolve(cam: CameraConfig) -> str:
-    from trackerd.acquisition.arv import resolve_device_id
-
     return resolve_device_id(cam)

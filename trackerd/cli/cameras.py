@@ -1,4 +1,4 @@
-"""`trackerd cameras [CAMERA] [--json]`: the cameras Aravis sees, and what one of them offers."""
+"""`trackerd cameras [CAMERA] [--json]`: the cameras Aravis and pylon see, and what one of them offers."""
 
 from __future__ import annotations
 
@@ -17,14 +17,16 @@ from trackerd.acquisition.discovery import (
     is_ipv4_address,
     list_devices,
 )
+from trackerd.acquisition.pylon import pylon_missing_reason
 from trackerd.errors import CameraError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "cameras",
-        help="list the cameras Aravis sees (GigE Vision, USB3 Vision)",
-        description="List every camera Aravis discovers; with CAMERA, also what it offers "
+        help="list the cameras Aravis (GigE Vision, USB3 Vision) and pylon see",
+        description="List every camera Aravis discovers, and those pylon finds when the trackerd[gentl] extra is"
+        " installed (with the rig file's backend that reaches each); with CAMERA, also what it offers "
         "(pixel formats, resolution range, frame rate, exposure, gain, trigger and PTP support).",
     )
     parser.add_argument("camera", nargs="?", help="device id, serial number or IP address of one camera")
@@ -45,6 +47,8 @@ def cameras_command(args: argparse.Namespace) -> int:
             " (check cabling, the NIC's address and subnet, and the firewall for UDP port 3956;"
             " docs/acquisition.md)"
         )
+        if pylon_missing_reason() is None:
+            message += "; pylon finds no camera either"
         if args.camera and not args.json:
             # Asked about one camera: an error about that camera, like any other not found.
             raise CameraError(f"no camera '{args.camera}': {message.removeprefix('no camera found: ')}")
@@ -98,8 +102,8 @@ def _camera_at(address: str, as_json: bool) -> int:
 
 
 def format_devices(devices: list[DeviceEntry], where: str = "") -> str:
-    header = ("device id", "vendor", "model", "serial", "address", "protocol")
-    rows = [header] + [(d.device_id, d.vendor, d.model, d.serial, d.address, d.protocol) for d in devices]
+    header = ("device id", "vendor", "model", "serial", "address", "protocol", "backend")
+    rows = [header] + [(d.device_id, d.vendor, d.model, d.serial, d.address, d.protocol, d.backend) for d in devices]
     widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
     lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip() for row in rows]
     found = f"{len(devices)} camera{'s' if len(devices) != 1 else ''} found{' ' + where if where else ''}"

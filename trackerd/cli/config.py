@@ -107,6 +107,8 @@ def describe(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> 
         yaw, pitch, roll = ypr_from_world_from_camera(cam.world_from_camera)
         k = cam.matrix
         where = cfg.serial or cfg.address or cfg.device_id or "(first camera found)"
+        if cfg.backend != "aravis":
+            where = f"{where} through {cfg.backend}"
         lines.append(
             f"  camera {cam.camera_id}: {cam.width_px}x{cam.height_px} {cfg.pixel_format}, device {where},"
             f" geometry {loaded.sources[cam.camera_id]}"

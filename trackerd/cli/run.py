@@ -45,10 +45,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def aravis_source(rig: RigConfig, on_open=None):
     """The daemon's cameras; ``on_open(camera_id, camera)`` runs after each (re)connection."""
-    from trackerd.acquisition.live import AravisPairSource
+    from trackerd.acquisition.live import LivePairSource
 
     # Cameras switched on after the host: keep waiting for them.
-    return AravisPairSource(rig, wait_for_cameras=True, on_open=on_open)
+    return LivePairSource(rig, wait_for_cameras=True, on_open=on_open)
 
 
 def zmq_publisher(rig: RigConfig):

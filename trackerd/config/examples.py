@@ -11,8 +11,9 @@ from __future__ import annotations
 from importlib.resources import files
 from pathlib import Path
 
-EXAMPLE_RIGS = ("datawall", "simulated")
-"""``datawall``: the report's geometry, to copy for a new wall; ``simulated``: the rig the simulator renders."""
+EXAMPLE_RIGS = ("datawall", "simulated", "gentl-emulated")
+"""``datawall``: the report's geometry, to copy for a new wall; ``simulated``: the rig the simulator renders;
+``gentl-emulated``: two of pylon's emulated cameras (PYLON_CAMEMU=2) through the pylon backend."""
 
 
 def example_rig(name: str) -> Path:

@@ -36,6 +36,9 @@ COLOUR_PIXEL_FORMATS = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", 
 MONO_PIXEL_FORMATS = ("Mono8", "Mono10", "Mono12", "Mono16")
 CALIBRATION_ONLY_FORMAT = "Mono8"
 """A monochrome format a camera may have in a rig used only to calibrate: tracking needs colour."""
+CameraBackend = Literal["aravis", "pylon"]
+"""The acquisition backends a camera can be reached through (docs/acquisition.md)."""
+FeatureValue = bool | int | float | str
 PixelFormat = Literal["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8"]
 
 # OpenCV accepts these distortion vector lengths (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
@@ -167,7 +170,8 @@ class CameraConfig(_Model):
     address: str | None = None
     """IP address of the camera, an alternative to the serial number."""
     device_id: str | None = None
-    """Aravis device id (as `trackerd cameras` lists it), an alternative to serial and address."""
+    """Device id as `trackerd cameras` lists it (Aravis's device id, or pylon's full name with
+    ``backend = "pylon"``), an alternative to serial and address."""
     width_px: int = Field(gt=0)
     """Image width delivered by the camera."""
     height_px: int = Field(gt=0)
@@ -181,6 +185,15 @@ class CameraConfig(_Model):
     """Camera pose; may instead come from the calibration file."""
     acquisition: CameraAcquisition = CameraAcquisition()
     """How this camera is driven: exposure, gain, region, GigE transport (docs/acquisition.md)."""
+    backend: CameraBackend = "aravis"
+    """How the camera is reached: ``aravis`` (GigE Vision and USB3 Vision through Aravis) or
+    ``pylon`` (Basler pylon through pypylon, the ``trackerd[gentl]`` extra: pylon's camera emulation,
+    Basler GigE and USB cameras, and CoaXPress frame grabbers whose GenTL producer pylon loads;
+    docs/acquisition.md). A rig may mix them."""
+    features: dict[str, FeatureValue] = Field(default_factory=dict)
+    """GenICam features written to the camera, in the order given, when it is opened (before the
+    rig's own settings), for what the rig file has no key for: a frame grabber's link or tap
+    configuration, or pylon's emulated camera's ``ImageFilename``. ``pylon`` backend only."""
 
     @field_validator("pixel_format")
     @classmethod
@@ -198,6 +211,17 @@ class CameraConfig(_Model):
                 f" ({CALIBRATION_ONLY_FORMAT} for calibration only)"
             )
         return value
+
+    @model_validator(mode="after")
+    def _backend_lookup(self) -> CameraConfig:
+        if self.backend == "pylon" and self.address is not None:
+            raise ValueError(
+                "address is for GigE Vision cameras reached through Aravis; a camera with backend = 'pylon'"
+                " is found by serial or device_id (as `trackerd cameras` lists it)"
+            )
+        if self.backend == "aravis" and self.features:
+            raise ValueError("features are written by the pylon backend only (backend = 'pylon')")
+        return self
 
     @model_validator(mode="after")
     def _principal_point_inside(self) -> CameraConfig:

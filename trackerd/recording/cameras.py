@@ -1,6 +1,6 @@
 """The cameras `trackerd record` and `trackerd snap` read: the rig's, or the virtual rig's for trying things out.
 
-Both open an :class:`~trackerd.acquisition.live.AravisPairSource` directly (no
+Both open an :class:`~trackerd.acquisition.live.LivePairSource` directly (no
 pipeline), and note each camera's vendor, model and serial as it opens, for the
 recording's metadata.
 """
@@ -23,7 +23,7 @@ log = logging.getLogger(__name__)
 
 class CameraInfo(dict[str, dict[str, str | None]]):
     """What each camera says about itself (vendor, model, serial, device), by camera id, noted as
-    it opens: give :meth:`on_open` to ``AravisPairSource(on_open=...)`` and the mapping itself to
+    it opens: give :meth:`on_open` to ``LivePairSource(on_open=...)`` and the mapping itself to
     ``Recorder(camera_info=...)``, which reads it when the first pair arrives (every camera of a
     pair has opened by then). ``before`` is another open hook, called first (the virtual rig's)."""
 
@@ -86,7 +86,7 @@ def open_cameras(
 ) -> Iterator[CameraSource]:
     """Start the rig's cameras (or, with ``virtual_motion``, simulated cameras serving that motion,
     networked under ``prefix`` and ``subnet``, by default the virtual rig's)."""
-    from trackerd.acquisition.live import AravisPairSource
+    from trackerd.acquisition.live import LivePairSource
 
     with ExitStack() as stack:
         virtual = None
@@ -112,5 +112,5 @@ def open_cameras(
             rig = virtual.daemon_rig
         info = CameraInfo(before=None if virtual is None else virtual.on_open)
         opened = CameraSource(None, rig, info, virtual)
-        opened.source = stack.enter_context(AravisPairSource(rig, on_open=info.on_open))
+        opened.source = stack.enter_context(LivePairSource(rig, on_open=info.on_open))
         yield opened

@@ -129,9 +129,9 @@ def run_live(
         source = simulated()
         newest = False
     else:
-        from trackerd.acquisition.live import AravisPairSource
+        from trackerd.acquisition.live import LivePairSource
 
-        source = AravisPairSource(rig_for_source)
+        source = LivePairSource(rig_for_source)
         newest = True
     ids = [c.id for c in rig_for_source.cameras]
     stop = threading.Event()
