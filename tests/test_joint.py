@@ -92,6 +92,30 @@ def test_a_ball_merged_in_one_of_two_cameras_is_looked_for_where_the_length_puts
     assert np.linalg.norm(choice.red_m - RED) < 1e-6
 
 
+def test_a_ball_is_looked_for_even_where_a_side_on_cameras_ray_misses_the_length_sphere() -> None:
+    """The left camera sees the pointer side-on: its ray through the red ball is at right angles to the
+    pointer, so it only grazes the sphere of the pointer's length around the blue point, and a blue point
+    a few millimetres off (as noise puts it) leaves it outside. The ball is looked for where the ray comes
+    closest, allowed along the ray as far as the length's tolerance reaches."""
+    cameras = CAMERAS[:2]
+    sight = RED - cameras[0].centre_m
+    across = np.cross(sight, [0.0, 1.0, 0.0]) + np.cross(sight, [1.0, 0.0, 0.0]) * 0.3
+    across /= np.linalg.norm(across)
+    blue = RED + across * LENGTH
+    blue_seen = blue + across * 0.004  # the triangulated blue point, 4 mm further out
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, blue_seen, "blue")]} for cam in cameras]
+    candidates[1]["red"] = []
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
+        truth = _ball(cameras[camera], RED, "red")
+        return truth if colour == "red" and np.hypot(*(truth.fit.centre_px - [x, y])) < 20.0 else None
+
+    choice = _choose(candidates, cameras, look)
+    assert isinstance(choice, JointChoice), choice
+    assert choice.chosen[1]["red"] is not None
+    assert np.linalg.norm(choice.red_m - RED) < 0.01
+
+
 def test_no_pointer_is_a_reason() -> None:
     candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + np.array([1.0, 0.0, 0.0]), "blue")]}
                   for cam in CAMERAS]

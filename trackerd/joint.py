@@ -105,7 +105,7 @@ def choose_jointly(
     for colour, other in (("red", "blue"), ("blue", "red")):
         if points[other]:
             points[colour] = points[colour] + _guided(cameras, candidates, colour, points[other][:GUIDED_POINTS],
-                                                      ball_radius_m, length_m, room_side, look)
+                                                      ball_radius_m, length_m, length_tolerance_m, room_side, look)
     return _pair(points, candidates, length_m, length_tolerance_m)
 
 
@@ -163,11 +163,15 @@ def _rays(cam: CameraModel, per_camera: dict[str, list[Candidate]]) -> dict[str,
 
 
 def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidate]]], colour: str,
-            partners: list[_Point], ball_radius_m: float, length_m: float, room_side: tuple[Array, float] | None,
-            look: Look) -> list[_Point]:
+            partners: list[_Point], ball_radius_m: float, length_m: float, length_tolerance_m: float,
+            room_side: tuple[Array, float] | None, look: Look) -> list[_Point]:
     """Points of ``colour`` found by looking where the pointer's length puts them: for each candidate ray
     of ``colour`` in one camera, where it meets the sphere of the pointer's length around a partner
-    point, the other cameras are looked into (``look``)."""
+    point, the other cameras are looked into (``look``).
+
+    A camera that sees the pointer side-on has its ray through one ball nearly tangent to that sphere,
+    and the partner's small error can make it miss the sphere altogether: a ray passing outside it by
+    no more than the length's tolerance is taken at its closest point to the partner."""
     found: list[_Point] = []
     for partner in partners:
         for a, cam in enumerate(cameras):
@@ -178,9 +182,18 @@ def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidat
                 offset = cam.centre_m - partner.point_m
                 b = float(d @ offset)
                 disc = b * b - (float(offset @ offset) - length_m**2)
+                # Each root with how far along the ray the length's tolerance lets the ball be either way
+                # (none for a clean crossing of the sphere: the cameras' agreement is checked below).
                 if disc < 0:
-                    continue
-                for s in (-b - math.sqrt(disc), -b + math.sqrt(disc)):
+                    closest = math.sqrt(max(float(offset @ offset) - b * b, 0.0))
+                    if closest > length_m + length_tolerance_m:
+                        continue
+                    reach = math.sqrt(max(b * b - (float(offset @ offset) - (length_m + length_tolerance_m) ** 2),
+                                          0.0))
+                    roots: tuple[tuple[float, float], ...] = ((-b, reach),)
+                else:
+                    roots = ((-b - math.sqrt(disc), 0.0), (-b + math.sqrt(disc), 0.0))
+                for s, reach in roots:
                     point = cam.centre_m + s * d
                     if s <= 0.2 or (room_side is not None and float(point @ room_side[0] + room_side[1]) <= 0):
                         continue
@@ -206,7 +219,9 @@ def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidat
                                     axis if np.all(np.isfinite(partner_px)) else None)
                         if seen is None:
                             continue
-                        miss = float(np.hypot(*(seen.fit.centre_px - px)))
+                        miss = _miss_px(seen.fit.centre_px, px, other, cam.centre_m + (s - reach) * d,
+                                        cam.centre_m + (s + reach) * d) if reach > 0 else float(
+                            np.hypot(*(seen.fit.centre_px - px)))
                         size = seen.fit.radius_px / expected
                         if miss < max(3.0, 0.5 * expected) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
                             candidates[c][colour].append(seen)
@@ -217,6 +232,18 @@ def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidat
                         found.append(_Point(point, members, score - EXTRA_CAMERA_BONUS * (len(members) - 2)))
     found.sort(key=lambda p: p.score)
     return found[:MAX_HYPOTHESES]
+
+
+def _miss_px(found_px: Array, looked_px: Array, camera: CameraModel, first_m: Array, last_m: Array) -> float:
+    """How far ``found_px`` is from the image of the segment first_m-last_m in ``camera`` (where the
+    geometry allows the ball), measured from ``looked_px`` where an end of it does not project."""
+    ends = camera.project(np.stack([first_m, last_m]))
+    if not np.all(np.isfinite(ends)):
+        return float(np.hypot(*(found_px - looked_px)))
+    along = ends[1] - ends[0]
+    span = float(along @ along)
+    t = 0.0 if span <= 1e-12 else min(max(float((found_px - ends[0]) @ along) / span, 0.0), 1.0)
+    return float(np.hypot(*(found_px - (ends[0] + t * along))))
 
 
 def _same(per_camera: dict[str, list[Candidate]], red_index: int, blue_index: int) -> bool:

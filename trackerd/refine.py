@@ -145,7 +145,7 @@ class RefinedPath:
                  axis: tuple[float, float] | None) -> Candidate | None:
             # The geometry knows the ball's size to a few percent and where the rod meets it.
             fit = fit_ball(images[camera], self.loc.grids[camera], colour, x_px, y_px, radius_px, axis=axis,
-                           radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE))
+                           radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE), rising_rims=True)
             if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
                 return None
             return Candidate(colour, fit, (x_px, y_px), radius_px)

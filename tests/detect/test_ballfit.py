@@ -96,6 +96,25 @@ def test_a_size_range_finds_the_ball_beside_a_larger_disc_of_its_colour(detect_r
     assert np.hypot(*(fit.centre_px - [x, y])) < 0.3 and abs(fit.radius_px - 10.0) < 0.8
 
 
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_dark_ball_before_a_brighter_surface_of_its_hue_is_found_where_the_geometry_says(fmt, detect_rng) -> None:
+    """A shaded ball half in front of a bright block of its own paint's hue (a slide's red letter): its
+    colour excess rises into the block at its rim. Told where and how large the ball is (the joint
+    search's look), the rising rims give the outline on that side too; without them there is too little
+    rim to fit, as there was for such balls in `bench robustness` (found on no ray into the block)."""
+    x, y, r = 99.6, 74.3, 11.0
+    dark = tuple(0.45 * c for c in RED)
+    block = Shape(x - 30.0, y, (0.95, 0.05, 0.05), radius=31.0)  # covers the ball's left half and beyond
+    frame, _ = Scene(shapes=[block, Shape(x, y, dark, radius=r)]).render(fmt, detect_rng)
+    guided = dict(radius_range_px=(r / 1.15, r * 1.15))
+    plain = _fit(frame, fmt, x + 1.0, y - 1.0, r, **guided)
+    rising = _fit(frame, fmt, x + 1.0, y - 1.0, r, rising_rims=True, **guided)
+    assert rising.found, rising.reason
+    assert np.hypot(*(rising.centre_px - [x, y])) < 0.35 and abs(rising.radius_px - r) < 0.6
+    assert rising.rim_fraction > 0.8
+    assert not plain.found or plain.rim_fraction < 0.6  # only the half against the wall
+
+
 def test_robust_circle_ignores_a_quarter_of_wild_points() -> None:
     rng = np.random.default_rng(3)
     angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
