@@ -266,7 +266,6 @@ class GentlSession:
         except _genicam_errors():
             # The producer has no timestamps (viky.cti): stop asking; capture time is the host time.
             self.tick_ns = -1.0
-            self.notes.append("the producer gives no buffer timestamps; capture time is the host arrival time")
             return 0
 
     def fire(self) -> int:
