@@ -37,8 +37,12 @@ def test_the_daemon_pairs_frames_of_two_viky_devices(simulated_rig: RigConfig, t
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"status")
     sub.connect(ENDPOINT)
-    daemon = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    daemon = subprocess.Popen(
+        [sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     statuses: list[dict] = []
     try:
         deadline = time.monotonic() + 60.0
@@ -72,10 +76,18 @@ def test_the_daemon_pairs_frames_of_two_viky_devices(simulated_rig: RigConfig, t
 @needs_viky
 def test_cameras_lists_what_a_producer_offers_with_its_backend() -> None:
     cti = str(viky_cti())
-    listing = subprocess.run([sys.executable, "-m", "trackerd", "cameras", "--json", "--producer", cti],
-                             capture_output=True, text=True, timeout=60)
-    detail = subprocess.run([sys.executable, "-m", "trackerd", "cameras", "--producer", cti, "VikyTL_DEV_green"],
-                            capture_output=True, text=True, timeout=60)
+    listing = subprocess.run(
+        [sys.executable, "-m", "trackerd", "cameras", "--json", "--producer", cti],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    detail = subprocess.run(
+        [sys.executable, "-m", "trackerd", "cameras", "--producer", cti, "VikyTL_DEV_green"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert listing.returncode == 0, listing.stderr
     gentl = [c for c in json.loads(listing.stdout)["cameras"] if c["backend"] == "gentl"]
     assert [c["device_id"] for c in gentl] == ["VikyTL_DEV_red", "VikyTL_DEV_green", "VikyTL_DEV_blue"]
@@ -87,8 +99,12 @@ def test_cameras_lists_what_a_producer_offers_with_its_backend() -> None:
 
 def test_cameras_names_a_missing_producer_file(tmp_path: Path) -> None:
     missing = tmp_path / "grabber.cti"
-    result = subprocess.run([sys.executable, "-m", "trackerd", "cameras", "--producer", str(missing)],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "trackerd", "cameras", "--producer", str(missing)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode != 0
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
@@ -103,8 +119,9 @@ def test_without_harvesters_the_gentl_backend_names_the_extra_to_install(simulat
     rig_file = tmp_path / "rig.toml"
     rig_file.write_text(dump_rig(RigConfig.model_validate(data)))
     without = "import sys; sys.modules['harvesters'] = None; from trackerd.cli.main import main; sys.exit(main())"
-    result = subprocess.run([sys.executable, "-c", without, "run", "--config", str(rig_file)], capture_output=True,
-                            text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-c", without, "run", "--config", str(rig_file)], capture_output=True, text=True, timeout=60
+    )
     assert result.returncode != 0
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from acq_helpers import quick_rig, wait_until
 from viky_helpers import HEIGHT, VIKY_DEVICES, WIDTH, needs_viky, viky_rig
 
 from trackerd.acquisition.arv import CameraConfigError
@@ -92,8 +93,11 @@ def test_a_pixel_format_the_device_lacks_is_named_with_what_it_offers(simulated_
     rig = viky_rig(simulated_rig)
     cameras = [rig.cameras[0], rig.cameras[1].model_copy(update={"pixel_format": "BayerRG8"})]
     rig = rig.model_copy(update={"cameras": tuple(cameras)})
-    with pytest.raises(CameraConfigError, match=r"camera 'right'.*pixel_format = 'BayerRG8' is not offered by the"
-                       r" camera, which offers RGBa8, Mono8"):
+    with pytest.raises(
+        CameraConfigError,
+        match=r"camera 'right'.*pixel_format = 'BayerRG8' is not offered by the"
+        r" camera, which offers RGBa8, Mono8",
+    ):
         LivePairSource(rig).start()
 
 
@@ -110,3 +114,33 @@ def test_a_missing_producer_file_is_named(simulated_rig: RigConfig, tmp_path: Pa
     message = str(info.value)
     assert "\n" not in message and "camera 'left'" in message
     assert f"producer = '{missing}': no such file" in message
+
+
+def test_a_device_that_stops_sending_is_lost_reopened_and_pairs_again(simulated_rig: RigConfig) -> None:
+    """The right device's acquisition is stopped behind trackerd's back (AcquisitionStop): no frame comes,
+    the camera is lost after loss_timeout_ms and reopened on the same loaded producer."""
+    from trackerd.acquisition.live import LivePairSource
+
+    rig = quick_rig(viky_rig(simulated_rig, frame_rate_hz=30.0))
+    opened: dict[str, list[Any]] = {}
+    with LivePairSource(
+        rig, on_open=lambda camera_id, camera: opened.setdefault(camera_id, []).append(camera)
+    ) as source:
+        collect(source, 3)
+        opened["right"][-1].remote_device.node_map.AcquisitionStop.execute()
+
+        def back() -> bool:
+            source.next_pair(0.1)
+            right = source.status().cameras[1]
+            return right.reconnects >= 1 and right.state == "streaming"
+
+        assert wait_until(back, 30.0), source.status().to_json()
+        pairs = collect(source, 5)
+        status = source.status()
+    assert status.cameras[1].losses == 1 and status.cameras[1].last_error == "no frame for 300 ms"
+    assert status.cameras[0].losses == 0
+    assert len(opened["right"]) == 2 and len(opened["left"]) == 1
+    # Frames after the reconnection start a new epoch: the right device counts from 1 again.
+    assert pairs[-1].frames[1].frame_id < pairs[-1].frames[0].frame_id
+    for worker in source.workers:
+        assert worker.last_session is not None and worker.last_session.buffers_released()

@@ -45,9 +45,19 @@ def viky_rig(rig: RigConfig, **acquisition: object) -> RigConfig:
     data = rig.model_dump()
     data["acquisition"].update({"trigger": "free_running", "frame_rate_hz": 30.0, **acquisition})
     for cam, device in zip(data["cameras"], VIKY_DEVICES, strict=True):
-        cam.update(backend="gentl", producer=str(viky_cti()), device_id=device, serial=None, address=None,
-                   width_px=WIDTH, height_px=HEIGHT, pixel_format="RGB8", intrinsics=None, extrinsics=None,
-                   features={})
+        cam.update(
+            backend="gentl",
+            producer=str(viky_cti()),
+            device_id=device,
+            serial=None,
+            address=None,
+            width_px=WIDTH,
+            height_px=HEIGHT,
+            pixel_format="RGB8",
+            intrinsics=None,
+            extrinsics=None,
+            features={},
+        )
         cam["acquisition"].update(exposure_us=None, gain_db=None)
     return RigConfig.model_validate(data)
 
@@ -59,10 +69,19 @@ def viky_daemon_rig(rig: RigConfig, endpoint: str) -> RigConfig:
     cameras = []
     for cam, full in zip(small.cameras, rig.cameras, strict=True):
         k = full.intrinsics
-        intrinsics = k.model_copy(update={"fx_px": k.fx_px / 3, "fy_px": k.fy_px / 3, "cx_px": k.cx_px / 3,
-                                          "cy_px": k.cy_px / 3})
-        cameras.append(cam.model_copy(update={"width_px": full.width_px // 3, "height_px": full.height_px // 3,
-                                              "intrinsics": intrinsics, "extrinsics": full.extrinsics}))
+        intrinsics = k.model_copy(
+            update={"fx_px": k.fx_px / 3, "fy_px": k.fy_px / 3, "cx_px": k.cx_px / 3, "cy_px": k.cy_px / 3}
+        )
+        cameras.append(
+            cam.model_copy(
+                update={
+                    "width_px": full.width_px // 3,
+                    "height_px": full.height_px // 3,
+                    "intrinsics": intrinsics,
+                    "extrinsics": full.extrinsics,
+                }
+            )
+        )
     zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 250.0})
     data = small.model_dump()
     data["cameras"] = [c.model_dump() for c in cameras]

@@ -38,8 +38,10 @@ def test_a_rig_may_mix_gentl_and_aravis(tmp_path: Path) -> None:
     ("camera_lines", "message"),
     [
         ('backend = "gentl"\nserial = "1"', "backend = 'gentl' needs producer"),
-        ('backend = "gentl"\nproducer = "/opt/x.cti"\naddress = "10.0.0.2"',
-         "a camera with backend = 'gentl' is found by serial or device_id"),
+        (
+            'backend = "gentl"\nproducer = "/opt/x.cti"\naddress = "10.0.0.2"',
+            "a camera with backend = 'gentl' is found by serial or device_id",
+        ),
         ('backend = "pylon"\nserial = "1"\nproducer = "/opt/x.cti"', "producer is for backend = 'gentl'"),
         ('serial = "1"\nproducer = "/opt/x.cti"', "producer is for backend = 'gentl'"),
         ('backend = "gentl"\nproducer = 3\nserial = "1"', "producer"),
