@@ -16,6 +16,7 @@ from acq_helpers import quick_rig, wait_until
 from viky_helpers import HEIGHT, VIKY_DEVICES, WIDTH, needs_viky, viky_rig
 
 from trackerd.acquisition.arv import CameraConfigError
+from trackerd.acquisition.gentl import producer
 from trackerd.config.models import RigConfig
 
 pytestmark = [pytest.mark.gentl, needs_viky]
@@ -99,6 +100,8 @@ def test_a_pixel_format_the_device_lacks_is_named_with_what_it_offers(simulated_
         r" camera, which offers RGBa8, Mono8",
     ):
         LivePairSource(rig).start()
+    # The left device, opened before the right one refused, was closed again: nothing of the producer is open.
+    assert producer(Path(rig.cameras[0].producer)).open_count == 0
 
 
 def test_a_missing_producer_file_is_named(simulated_rig: RigConfig, tmp_path: Path) -> None:

@@ -158,6 +158,7 @@ _producers_lock = threading.Lock()
 
 def producer(path: Path) -> _Producer:
     """The loaded producer at ``path`` (loaded on first use; CameraError if it cannot be)."""
+    path = path.resolve()  # one producer per file, however the rig spells its path
     with _producers_lock:
         if path not in _producers:
             _producers[path] = _Producer(path)
