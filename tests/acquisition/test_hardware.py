@@ -4,8 +4,9 @@
 
 The rig file names the real cameras (by serial, address or device id) and the
 acquisition settings to test (trigger mode, PTP). Cameras reached through pylon
-(``backend = "pylon"``: Basler cameras, a CoaXPress grabber's GenTL producer) are
-tested the same way; they need the trackerd[gentl] extra.
+(``backend = "pylon"``: Basler cameras, a CoaXPress grabber's GenTL producer) or any
+vendor's GenTL producer (``backend = "gentl"`` with ``producer``: a CameraLink or
+CoaXPress grabber) are tested the same way; they need the trackerd[gentl] extra.
 """
 
 from __future__ import annotations
@@ -36,8 +37,10 @@ def rig():
 
 
 def test_the_rigs_cameras_are_listed(rig) -> None:
+    producers = sorted({cam.producer for cam in rig.cameras if cam.producer})
+    asked = [arg for producer in producers for arg in ("--producer", producer)]
     result = subprocess.run(
-        [sys.executable, "-m", "trackerd", "cameras", "--json"], capture_output=True, text=True, timeout=60
+        [sys.executable, "-m", "trackerd", "cameras", "--json", *asked], capture_output=True, text=True, timeout=60
     )
     assert result.returncode == 0, result.stdout
     seen = json.loads(result.stdout)["cameras"]

@@ -51,5 +51,5 @@ def test_what_a_backend_cannot_take_is_refused(tmp_path: Path, camera_lines: str
 def test_features_are_for_the_pylon_backend_only(tmp_path: Path) -> None:
     path = tmp_path / "rig.toml"
     path.write_text(rig_text('serial = "SIM-RIGHT"'))  # the right camera keeps its [cameras.features]
-    with pytest.raises(ConfigError, match="features are written by the pylon backend only"):
+    with pytest.raises(ConfigError, match="features are written by the pylon and gentl backends only"):
         load_rig(path)

@@ -1,9 +1,11 @@
-"""What the backends can see: the cameras Aravis (GigE Vision, USB3 Vision) and pylon find, and what one offers."""
+"""What the backends can see: the cameras Aravis (GigE Vision, USB3 Vision), pylon and GenTL producers offer,
+and what one offers."""
 
 from __future__ import annotations
 
 import ipaddress
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 from trackerd.acquisition import gvcp
@@ -31,6 +33,8 @@ class DeviceEntry:
     physical_id: str
     backend: str = "aravis"
     """The rig file's ``backend`` that reaches the camera this way."""
+    producer: str = ""
+    """The GenTL producer (``.cti``) that offers the camera, for ``backend = "gentl"``; empty otherwise."""
 
 
 @dataclass(frozen=True)
@@ -65,22 +69,49 @@ class CameraDetails:
         return asdict(self)
 
 
-def list_devices(include_fake: bool = False) -> list[DeviceEntry]:
-    """Every camera Aravis discovers, then every camera pylon finds when pypylon is installed.
+def list_devices(include_fake: bool = False, producers: list[str] | None = None) -> list[DeviceEntry]:
+    """Every camera Aravis discovers, then every camera pylon finds when pypylon is installed, then the
+    devices of each GenTL producer in ``producers`` (``.cti`` paths; harvesters needed).
 
     Aravis's GigE Vision discovery takes about a second. A Basler camera that both
-    reach is listed once for each backend. CameraError if neither library is there.
+    reach is listed once for each backend. CameraError if no library is there.
     """
     from trackerd.acquisition.pylon import pylon_missing_reason
 
     aravis_missing = aravis_missing_reason()
     pylon_missing = pylon_missing_reason()
-    if aravis_missing is not None and pylon_missing is not None:
+    if aravis_missing is not None and pylon_missing is not None and not producers:
         raise CameraError(aravis_missing)
     devices = [] if aravis_missing is not None else list_aravis_devices(include_fake)
     if pylon_missing is None:
         devices.extend(list_pylon_entries())
+    if producers:
+        devices.extend(list_gentl_entries(producers))
     return devices
+
+
+def list_gentl_entries(producers: list[str]) -> list[DeviceEntry]:
+    """The devices each GenTL producer offers, as entries of the listing (``backend = "gentl"``)."""
+    from trackerd.acquisition.gentl import list_gentl_devices
+
+    entries = []
+    for path in producers:
+        resolved = str(Path(path).expanduser().resolve())
+        entries.extend(
+            DeviceEntry(
+                device_id=d.device_id,
+                vendor=d.vendor,
+                model=d.model,
+                serial=d.serial,
+                address="",
+                protocol=d.tl_type,
+                physical_id="",
+                backend="gentl",
+                producer=resolved,
+            )
+            for d in list_gentl_devices(path)
+        )
+    return entries
 
 
 def list_pylon_entries() -> list[DeviceEntry]:
@@ -170,6 +201,10 @@ def describe_camera(device: DeviceEntry) -> CameraDetails:
         from trackerd.acquisition.pylon import describe_pylon_camera
 
         return describe_pylon_camera(device)
+    if device.backend == "gentl":
+        from trackerd.acquisition.gentl import describe_gentl_camera
+
+        return describe_gentl_camera(device)
     aravis, glib = load_aravis()
     try:
         camera = aravis.Camera.new(device.device_id)

@@ -1,7 +1,8 @@
 """What a camera worker needs of one open connection, whichever library made it.
 
 An acquisition backend (Aravis in :mod:`trackerd.acquisition.arv`, pylon in
-:mod:`trackerd.acquisition.pylon`) opens a camera into a :class:`Session`: a
+:mod:`trackerd.acquisition.pylon`, any vendor's GenTL producer in :mod:`trackerd.acquisition.gentl`)
+opens a camera into a :class:`Session`: a
 configured, acquiring connection whose finished buffers the worker pops, reads
 into a :class:`Grab` and pushes back, always in that order. Everything above the
 session (loss, reconnection, triggers, clocks, pairing, status) is shared, so the
@@ -71,6 +72,10 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Sess
         from trackerd.acquisition import pylon
 
         return pylon.open_session(cam, rig, device_id)
+    if cam.backend == "gentl":
+        from trackerd.acquisition import gentl
+
+        return gentl.open_session(cam, rig, device_id)
     from trackerd.acquisition import arv
 
     return arv.open_session(cam, rig, device_id)
@@ -82,6 +87,10 @@ def resolve_device_id(cam: CameraConfig) -> str:
         from trackerd.acquisition import pylon
 
         return pylon.resolve_device_id(cam)
+    if cam.backend == "gentl":
+        from trackerd.acquisition import gentl
+
+        return gentl.resolve_device_id(cam)
     from trackerd.acquisition import arv
 
     return arv.resolve_device_id(cam)
@@ -98,3 +107,11 @@ def load_backends(rig_cameras: tuple[CameraConfig, ...] | list[CameraConfig]) ->
         from trackerd.acquisition.pylon import load_pylon
 
         load_pylon()
+    if "gentl" in backends:
+        from trackerd.acquisition.gentl import load_harvesters, producer_path
+
+        load_harvesters()
+        # A producer file that is not there will not appear by waiting: a configuration error now.
+        for cam in rig_cameras:
+            if cam.backend == "gentl":
+                producer_path(cam)

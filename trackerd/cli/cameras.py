@@ -1,4 +1,5 @@
-"""`trackerd cameras [CAMERA] [--json]`: the cameras Aravis and pylon see, and what one of them offers."""
+"""`trackerd cameras [CAMERA] [--json] [--producer CTI]`: the cameras Aravis, pylon and GenTL producers offer,
+and what one of them offers."""
 
 from __future__ import annotations
 
@@ -34,13 +35,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--fake", action="store_true", help="include Aravis's built-in Fake camera (for trying the command)"
     )
+    parser.add_argument(
+        "--producer",
+        action="append",
+        default=[],
+        metavar="CTI",
+        help="also list the devices this GenTL producer (a frame grabber's .cti file) offers, for backend ="
+        " 'gentl' (the trackerd[gentl] extra); may be given more than once",
+    )
     parser.set_defaults(handler=cameras_command)
 
 
 def cameras_command(args: argparse.Namespace) -> int:
     if args.camera and is_ipv4_address(args.camera):
         return _camera_at(args.camera, args.json)
-    devices = list_devices(include_fake=args.fake)
+    devices = list_devices(include_fake=args.fake, producers=args.producer)
     if not devices:
         message = (
             "no camera found: Aravis sees no GigE Vision or USB3 Vision device"
@@ -49,6 +58,8 @@ def cameras_command(args: argparse.Namespace) -> int:
         )
         if pylon_missing_reason() is None:
             message += "; pylon finds no camera either"
+        if args.producer:
+            message += f"; {', '.join(args.producer)} offer{'s' if len(args.producer) == 1 else ''} no device either"
         if args.camera and not args.json:
             # Asked about one camera: an error about that camera, like any other not found.
             raise CameraError(f"no camera '{args.camera}': {message.removeprefix('no camera found: ')}")
@@ -104,10 +115,12 @@ def _camera_at(address: str, as_json: bool) -> int:
 def format_devices(devices: list[DeviceEntry], where: str = "") -> str:
     header = ("device id", "vendor", "model", "serial", "address", "protocol", "backend")
     rows = [header] + [(d.device_id, d.vendor, d.model, d.serial, d.address, d.protocol, d.backend) for d in devices]
+    producers = sorted({d.producer for d in devices if d.producer})
     widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
     lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip() for row in rows]
     found = f"{len(devices)} camera{'s' if len(devices) != 1 else ''} found{' ' + where if where else ''}"
-    return found + "\n" + "\n".join(lines)
+    notes = [f"backend gentl: producer = {p!r}" for p in producers]
+    return found + "\n" + "\n".join(lines + notes)
 
 
 def _range(bounds: tuple[float, float] | None, unit: str) -> str:

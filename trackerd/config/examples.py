@@ -11,9 +11,10 @@ from __future__ import annotations
 from importlib.resources import files
 from pathlib import Path
 
-EXAMPLE_RIGS = ("datawall", "simulated", "gentl-emulated")
+EXAMPLE_RIGS = ("datawall", "simulated", "gentl-emulated", "gentl-viky")
 """``datawall``: the report's geometry, to copy for a new wall; ``simulated``: the rig the simulator renders;
-``gentl-emulated``: two of pylon's emulated cameras (PYLON_CAMEMU=2) through the pylon backend."""
+``gentl-emulated``: two of pylon's emulated cameras (PYLON_CAMEMU=2) through the pylon backend;
+``gentl-viky``: two virtual devices of genicam's test producer viky.cti through the gentl backend."""
 
 
 def example_rig(name: str) -> Path:

@@ -36,7 +36,7 @@ COLOUR_PIXEL_FORMATS = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", 
 MONO_PIXEL_FORMATS = ("Mono8", "Mono10", "Mono12", "Mono16")
 CALIBRATION_ONLY_FORMAT = "Mono8"
 """A monochrome format a camera may have in a rig used only to calibrate: tracking needs colour."""
-CameraBackend = Literal["aravis", "pylon"]
+CameraBackend = Literal["aravis", "pylon", "gentl"]
 """The acquisition backends a camera can be reached through (docs/acquisition.md)."""
 FeatureValue = bool | int | float | str
 PixelFormat = Literal["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8"]
@@ -171,7 +171,8 @@ class CameraConfig(_Model):
     """IP address of the camera, an alternative to the serial number."""
     device_id: str | None = None
     """Device id as `trackerd cameras` lists it (Aravis's device id, or pylon's full name with
-    ``backend = "pylon"``), an alternative to serial and address."""
+    ``backend = "pylon"``, the producer's device id with ``backend = "gentl"``), an alternative to
+    serial and address."""
     width_px: int = Field(gt=0)
     """Image width delivered by the camera."""
     height_px: int = Field(gt=0)
@@ -188,12 +189,17 @@ class CameraConfig(_Model):
     backend: CameraBackend = "aravis"
     """How the camera is reached: ``aravis`` (GigE Vision and USB3 Vision through Aravis) or
     ``pylon`` (Basler pylon through pypylon, the ``trackerd[gentl]`` extra: pylon's camera emulation,
-    Basler GigE and USB cameras, and CoaXPress frame grabbers whose GenTL producer pylon loads;
-    docs/acquisition.md). A rig may mix them."""
+    Basler GigE and USB cameras, and CoaXPress frame grabbers whose GenTL producer pylon loads) or
+    ``gentl`` (any vendor's GenTL producer, named by ``producer``, through harvesters, the same extra:
+    CameraLink and CoaXPress frame grabbers; docs/acquisition.md). A rig may mix them."""
+    producer: str | None = None
+    """Path of the GenTL producer (the frame grabber vendor's ``.cti`` file) that reaches the camera;
+    ``gentl`` backend only, and required there. Absolute, or relative to the working directory; ``~``
+    is expanded. Cameras naming the same file share one loaded producer."""
     features: dict[str, FeatureValue] = Field(default_factory=dict)
     """GenICam features written to the camera, in the order given, when it is opened (before the
     rig's own settings), for what the rig file has no key for: a frame grabber's link or tap
-    configuration, or pylon's emulated camera's ``ImageFilename``. ``pylon`` backend only."""
+    configuration, or pylon's emulated camera's ``ImageFilename``. ``pylon`` and ``gentl`` backends only."""
 
     @field_validator("pixel_format")
     @classmethod
@@ -214,13 +220,20 @@ class CameraConfig(_Model):
 
     @model_validator(mode="after")
     def _backend_lookup(self) -> CameraConfig:
-        if self.backend == "pylon" and self.address is not None:
+        if self.backend != "aravis" and self.address is not None:
             raise ValueError(
-                "address is for GigE Vision cameras reached through Aravis; a camera with backend = 'pylon'"
-                " is found by serial or device_id (as `trackerd cameras` lists it)"
+                f"address is for GigE Vision cameras reached through Aravis; a camera with backend ="
+                f" '{self.backend}' is found by serial or device_id (as `trackerd cameras` lists it)"
             )
         if self.backend == "aravis" and self.features:
-            raise ValueError("features are written by the pylon backend only (backend = 'pylon')")
+            raise ValueError("features are written by the pylon and gentl backends only (backend = 'pylon' or 'gentl')")
+        if self.backend == "gentl" and not self.producer:
+            raise ValueError(
+                "backend = 'gentl' needs producer = the path of the GenTL producer (.cti file) that reaches"
+                " the camera"
+            )
+        if self.backend != "gentl" and self.producer is not None:
+            raise ValueError(f"producer is for backend = 'gentl' (this camera's backend is '{self.backend}')")
         return self
 
     @model_validator(mode="after")
