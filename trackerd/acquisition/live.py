@@ -201,11 +201,14 @@ class LivePairSource(PairSource):
         if not self._workers:
             return
         deadline = time.monotonic() + STOP_BUDGET_S
+        # One short wait for all the cameras still being searched for, not one each: with every camera
+        # missing, stopping took SEARCH_JOIN_S per camera, one after the other.
+        search_deadline = time.monotonic() + SEARCH_JOIN_S
         for worker in self._workers:
             worker.request_stop()
         for worker in self._workers:
             holds = worker.holds_camera
-            budget = deadline - time.monotonic() if holds else min(SEARCH_JOIN_S, deadline - time.monotonic())
+            budget = deadline - time.monotonic() if holds else min(search_deadline, deadline) - time.monotonic()
             if worker.join(budget):
                 continue
             if holds:
