@@ -237,14 +237,7 @@ def _rims(profile: Array, rho: Array, radius: float, lattice_px: float, rising_r
     first = np.argmax(below, axis=1)
     # The levels either side of the fall, then the fall through their midpoint near it.
     half = max(1, round(1.5 * lattice_px / step))
-    inside_at = np.clip(np.maximum(first - 1 - half, peak_at), 0, count - 1)
-    outside_at = np.clip(first + half, 0, count - 1)
-    with np.errstate(all="ignore"):
-        local = 0.5 * (profile[row, inside_at] + profile[row, outside_at])
-        local = np.where(np.isfinite(local), local, threshold)
-    offsets = np.arange(-half - 1, half + 1)
-    span = np.clip(first[:, None] + offsets[None, :], 0, count - 1)
-    values = profile[row[:, None], span]
+    local, span, values = _levels_around(profile, first, np.maximum(first - 1 - half, peak_at), half, threshold)
     falls = (values[:, :-1] >= local[:, None]) & (values[:, 1:] < local[:, None])
     found_local = falls.any(axis=1)
     # The fall nearest the first one (the last such fall before it, else the first after it).
@@ -290,14 +283,8 @@ def _rising_rims(profile: Array, rho: Array, radius: float, background: Array, f
     found = candidates & above.any(axis=1) & (first > 0)
     # As for a fall: the midpoint of the levels just either side of the rise, since a shaded ball is darker
     # at its limb than over its inner part, and the inner level alone puts the rim outside the ball.
-    inside_at = np.clip(first - 1 - half, 0, count - 1)
-    outside_at = np.clip(first + half, 0, count - 1)
+    local, span, values = _levels_around(profile, first, first - 1 - half, half, level)
     with np.errstate(all="ignore"):
-        local = 0.5 * (profile[row, inside_at] + profile[row, outside_at])
-        local = np.where(np.isfinite(local), local, level)
-        offsets = np.arange(-half - 1, half + 1)
-        span = np.clip(first[:, None] + offsets[None, :], 0, count - 1)
-        values = profile[row[:, None], span]
         rises = (values[:, :-1] < local[:, None]) & (values[:, 1:] >= local[:, None])
     has_local = rises.any(axis=1)
     k = np.where(has_local, span[row, np.argmax(rises, axis=1)], np.clip(first - 1, 0, count - 1))
@@ -309,6 +296,23 @@ def _rising_rims(profile: Array, rho: Array, radius: float, background: Array, f
     rim = rho[k] + frac * (rho[1] - rho[0])
     found &= np.isfinite(rim) & (a < used)
     return found, np.where(found, rim, np.nan), contrast
+
+
+def _levels_around(profile: Array, first: NDArray[np.intp], inside_at: NDArray[np.intp], half: int,
+                   fallback: Array) -> tuple[Array, NDArray[np.intp], Array]:
+    """Per ray, the midpoint of the levels at ``inside_at`` and ``half`` samples beyond ``first`` (where a
+    rim was first seen; ``fallback`` where either is missing), and the samples around ``first`` to look
+    for the rim's crossing of it: (midpoints, their indices (R, 2 half + 2), their values)."""
+    rows, count = profile.shape
+    row = np.arange(rows)
+    inside = np.clip(inside_at, 0, count - 1)
+    outside = np.clip(first + half, 0, count - 1)
+    with np.errstate(all="ignore"):
+        local = 0.5 * (profile[row, inside] + profile[row, outside])
+        local = np.where(np.isfinite(local), local, fallback)
+    offsets = np.arange(-half - 1, half + 1)
+    span = np.clip(first[:, None] + offsets[None, :], 0, count - 1)
+    return local, span, profile[row[:, None], span]
 
 
 def _row_medians(values: Array) -> Array:
