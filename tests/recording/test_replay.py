@@ -149,8 +149,7 @@ def test_paced_replay_keeps_the_recorded_intervals_and_loops_on(bundle) -> None:
 def test_each_pass_of_a_looped_replay_publishes_what_the_first_did(bundle, first_replay, tmp_path) -> None:
     """The jump from the last pair back to the first is no motion: every stage starts afresh at a
     wrap, so it makes no gesture (it made a circle_cw at each wrap) and each pass repeats the first."""
-    run, messages = replay_and_listen(bundle, "--speed", "max", "--loop", "--seconds", "3",
-                                      endpoint=f"ipc://{tmp_path}/loop.sock")
+    run, messages = replay_and_listen(bundle, "--speed", "max", "--passes", "5", endpoint=f"ipc://{tmp_path}/loop.sock")
     assert run.returncode == 0, run.stderr
     with Recording.open(bundle) as recording:
         per_pass = max(e.sequence for e in recording.entries) + 1
@@ -161,8 +160,8 @@ def test_each_pass_of_a_looped_replay_publishes_what_the_first_did(bundle, first
     for topic, m in messages:
         if topic != "status":
             passes.setdefault(m["sequence"] // per_pass, []).append((topic, m))
-    complete = sorted(passes)[1:-1]  # the last pass was cut short; its leave may come from the stop
-    assert len(complete) >= 3, sorted(passes)
+    assert sorted(passes) == [0, 1, 2, 3, 4]
+    complete = sorted(passes)[1:-1]  # the last pass's final leave comes from the stop, as the first run's
     for k in complete:
         # The first pass's final leave (the replay stopped) comes here from the next pass's reset.
         assert interaction_events(passes[k], k * per_pass) == first_events, k

@@ -24,7 +24,7 @@ import sys
 import time
 from typing import Any
 
-from trackerd.cli._args import add_console_option, positive_seconds
+from trackerd.cli._args import add_console_option, positive_int, positive_seconds
 from trackerd.config.loader import check_ready_to_track, load_rig, with_console, with_endpoints
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
@@ -43,6 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--speed", type=parse_speed, default=1.0, metavar="S",
                         help="1.0: recorded pace (default); 2.0: twice as fast; max: as fast as possible")
     parser.add_argument("--loop", action="store_true", help="start again from the first pair at the end")
+    parser.add_argument("--passes", type=positive_int, metavar="N",
+                        help="loop, and stop after N passes over the recording (--loop alone: until stopped)")
     parser.add_argument("--seconds", type=positive_seconds, help="stop after this many seconds (default: at the end)")
     parser.add_argument("--endpoint", action="append", metavar="E",
                         help="publish on this ZeroMQ endpoint instead of the rig's (repeatable)")
@@ -128,14 +130,15 @@ def replay_command(args: argparse.Namespace) -> int:
     rig, notes = replay_rig(recording, args.config, args.endpoint)
     rig = with_console(rig, args.console)
     source = ReplayPairSource(
-        recording, speed=args.speed, loop=args.loop, verify=not args.no_verify, start_delay_s=args.delay,
-        first=args.first, count=args.count,
+        recording, speed=args.speed, loop=args.loop or args.passes is not None, verify=not args.no_verify,
+        start_delay_s=args.delay,
+        first=args.first, count=args.count, passes=args.passes,
     )
     pace = "max speed" if args.speed is None else f"{args.speed:g}x the recorded pace"
     meta = recording.metadata
     print(f"trackerd replay {recording.path}: pairs {source.first}-{source.stop_at - 1} of {len(recording)}"
           f" ({recording.duration_s:.1f} s recorded {meta.created_utc} by {meta.producer}), {pace}"
-          + (", looping" if args.loop else ""), file=sys.stderr)
+          + (f", {args.passes} passes" if args.passes else ", looping" if args.loop else ""), file=sys.stderr)
     for note in notes:
         print(f"  {note}", file=sys.stderr)
     publishers: list[Any] = []

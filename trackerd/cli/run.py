@@ -84,7 +84,10 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     from trackerd.pipeline.extensions import ExtensionContext, for_rig
 
     notifier = SdNotify()
-    context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info)
+    if clock_offset_ns is None:
+        clock_offset_ns = time.time_ns() - time.monotonic_ns()
+    context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info,
+                               clock_offset_ns=clock_offset_ns)
     tap = None
     if rig.console.enabled:
         from trackerd.pipeline.tap import ConsoleTap

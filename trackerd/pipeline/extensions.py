@@ -66,6 +66,9 @@ class ExtensionContext:
     camera_info: Mapping[str, Mapping[str, str | None]] | None = None
     """By camera id, what each camera says about itself (vendor, model, serial, device), filled
     as the cameras open (trackerd.recording.cameras.CameraInfo)."""
+    clock_offset_ns: int | None = None
+    """The pipeline's monotonic-to-epoch offset (None: not fixed); recordings made on demand store
+    it, so their replays publish the capture times the daemon published live, to the nanosecond."""
 
 
 # Each entry: a module defining ``create(rig, context) -> PipelineExtension | None`` (None: not

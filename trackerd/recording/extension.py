@@ -150,6 +150,7 @@ class RecordingExtension:
             config=cfg,
             camera_info=self._context.camera_info,
             rig_file=self._context.rig_file,
+            clock_offset_ns=self._context.clock_offset_ns,
         ).start()
         log.info("recording: started %s", path)
         with self._lock:

@@ -72,14 +72,18 @@ class ReplayPairSource(PairSource):
         start_delay_s: float = 0.0,
         first: int = 0,
         count: int | None = None,
+        passes: int | None = None,
         shift_ns: int | None = None,
         batch: bool = True,
     ) -> None:
         """``speed`` None replays as fast as the consumer takes pairs. ``shift_ns`` moves recorded
         timestamps (default: so that the first pair is due at construction plus ``start_delay_s``).
-        ``batch`` False hands pairs over one by one at max speed too (as before batching; benchmarks)."""
+        ``batch`` False hands pairs over one by one at max speed too (as before batching; benchmarks).
+        ``passes``, when looping, ends the replay after that many passes (None: until stopped)."""
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive (None: as fast as possible)")
+        if passes is not None and passes < 1:
+            raise ValueError("passes must be at least 1 (None: until stopped)")
         self.recording = recording if isinstance(recording, Recording) else Recording.open(recording)
         n = len(self.recording)
         self.first = min(max(first, 0), n)
@@ -89,6 +93,7 @@ class ReplayPairSource(PairSource):
                                  + (f" from pair {first}" if first else ""))
         self.speed = speed
         self.loop = loop
+        self.passes = passes if loop else 1
         self.verify = verify
         self.start_delay_s = start_delay_s
         self._batch = BATCH_PAIRS if batch and speed is None else 1
@@ -132,7 +137,7 @@ class ReplayPairSource(PairSource):
 
     @property
     def finished(self) -> bool:
-        """True once every pair was delivered (never when looping)."""
+        """True once every pair was delivered (when looping, of the last pass; never without ``passes``)."""
         return self._finished
 
     # ------------------------------------------------------------------ PairSource
@@ -193,7 +198,7 @@ class ReplayPairSource(PairSource):
                     return None
                 time.sleep((due - now) / 1e9)
             self._pending = None
-            last = item.index == self.stop_at - 1 and not self.loop
+            last = item.index == self.stop_at - 1 and self._last_pass(item.loop_pass)
             pair = self._deliver(item)
             if last:
                 with self._lock:
@@ -256,9 +261,12 @@ class ReplayPairSource(PairSource):
                 batch = []
                 if halt.is_set():
                     return
-            if not self.loop:
+            if self._last_pass(loop_pass):
                 return
             loop_pass += 1
+
+    def _last_pass(self, loop_pass: int) -> bool:
+        return self.passes is not None and loop_pass >= self.passes - 1
 
     def status(self) -> SourceStatus:
         now = time.monotonic_ns()
