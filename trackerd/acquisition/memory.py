@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.acquisition.pacing import wait_until_due
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import CameraStatus, SourceStatus
 from trackerd.config.models import RigConfig
@@ -101,14 +102,10 @@ class MemoryPairSource(PairSource):
                 return None
             due = self._start_ns + index * (self._period_ns or 0)
             self._next_index = index + 1
-        wait_ns = due - time.monotonic_ns()
-        if wait_ns > 0:
-            if due > deadline:
-                with self._lock:
-                    self._next_index = index  # not delivered: serve it on the next call
-                time.sleep(max(0.0, (deadline - time.monotonic_ns()) / 1e9))
-                return None
-            time.sleep(wait_ns / 1e9)
+        if not wait_until_due(due, deadline, clock_ns=time.monotonic_ns, sleep=time.sleep):
+            with self._lock:
+                self._next_index = index  # not delivered: serve it on the next call
+            return None
         images = self._sets[index % len(self._sets)]
         # Paced, a pair arrives when it is due, as a camera's frame does, however late the consumer
         # takes it: the time it waited (the consumer's wake-up included) is part of its latency.

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.acquisition.frame import FramePair
+from trackerd.acquisition.pacing import wait_until_due
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import CameraStatus, SourceStatus
 from trackerd.errors import RecordingError
@@ -190,13 +191,8 @@ class ReplayPairSource(PairSource):
                         return None
                 item = self._local.popleft()
                 self._pending = item
-            due = self._due_ns(item.index, item.loop_pass)
-            now = time.monotonic_ns()
-            if due > now:
-                if due > deadline:
-                    time.sleep(max(0.0, (deadline - now) / 1e9))
-                    return None
-                time.sleep((due - now) / 1e9)
+            if not wait_until_due(self._due_ns(item.index, item.loop_pass), deadline):
+                return None
             self._pending = None
             last = item.index == self.stop_at - 1 and self._last_pass(item.loop_pass)
             pair = self._deliver(item)
