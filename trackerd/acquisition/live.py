@@ -275,7 +275,7 @@ class LivePairSource(PairSource):
         with self._ready:
             groups = self._pairer.add(arrival)
             for group in groups:
-                self._publish(group)
+                self._queue_pair(group)
             if groups:
                 self._ready.notify_all()
 
@@ -332,8 +332,9 @@ class LivePairSource(PairSource):
             return "trigger count"
         return "device time (PTP)" if self._ptp_locked() else "host time"
 
-    def _publish(self, group: tuple[Arrival, ...]) -> None:
-        """Called with the lock held."""
+    def _queue_pair(self, group: tuple[Arrival, ...]) -> None:
+        """Make a pair of ``group`` and queue it for the consumer, dropping the oldest if the queue is full.
+        Called with the lock held."""
         times = [a.capture_ns for a in group]
         skew = spread_ns(group)
         self._sequence += 1

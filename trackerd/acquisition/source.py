@@ -42,10 +42,6 @@ class PairSource(ABC):
     def status(self) -> SourceStatus:
         """A snapshot of counters and per-camera state; cheap enough to call once a second."""
 
-    def stats(self) -> SourceStatus:
-        """Alias of :meth:`status`."""
-        return self.status()
-
     def __enter__(self) -> PairSource:
         self.start()
         return self
