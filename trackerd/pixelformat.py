@@ -82,17 +82,25 @@ def frame_shape(pixel_format: str, width_px: int, height_px: int) -> tuple[int, 
     return (height_px, width_px, 3)
 
 
-def frame_from_bytes(data: bytes | memoryview | NDArray[np.uint8], pixel_format: str,
-                     width_px: int, height_px: int) -> Image:
-    """View a raw payload as a frame array (no copy when the buffer allows it)."""
-    shape = frame_shape(pixel_format, width_px, height_px)
-    expected = int(np.prod(shape))
-    arr = np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.reshape(-1)
-    if arr.size < expected:
-        raise ValueError(
-            f"{pixel_format} {width_px}x{height_px} needs {expected} bytes, got {arr.size}"
-        )
-    return arr[:expected].reshape(shape)
+def frame_nbytes(pixel_format: str, width_px: int, height_px: int) -> int:
+    """Bytes of one frame's pixels (rows not padded)."""
+    return width_px * height_px * bytes_per_pixel(pixel_format)
+
+
+def image_from_payload(payload: bytes | memoryview | NDArray[np.uint8], pixel_format: str,
+                       width_px: int, height_px: int) -> Image | None:
+    """A buffer's payload as the frame's image: a read-only view, no copy (None if the payload is short).
+
+    The payload is the image's rows top to bottom, each row's pixels left to right, one byte per
+    pixel (Bayer, Mono8) or three (RGB8: R, G, B; BGR8: B, G, R), rows not padded. The image is
+    (H, W) or (H, W, 3) uint8 (:func:`frame_shape`); bytes past the image are ignored.
+    """
+    nbytes = frame_nbytes(pixel_format, width_px, height_px)
+    if memoryview(payload).nbytes < nbytes:
+        return None
+    image = np.frombuffer(payload, dtype=np.uint8, count=nbytes).reshape(frame_shape(pixel_format, width_px, height_px))
+    image.flags.writeable = False
+    return image
 
 
 def to_rgb(frame: Image, pixel_format: str) -> Image:
