@@ -25,7 +25,7 @@ def _messages(caplog, text: str) -> list[logging.LogRecord]:
 
 
 def test_the_daemons_source_waits_for_a_camera_switched_on_after_it(simulated_rig, out_dir, caplog) -> None:
-    from trackerd.acquisition.worker import REMINDER_S
+    from trackerd.acquisition.connection import REMINDER_S
     from trackerd.cli.run import aravis_source
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.sim.gvcamera import read_tag

@@ -312,7 +312,7 @@ class LivePairSource(PairSource):
         return (
             self._shared_clock is not None
             and bool(self._workers)
-            and all(w.ptp_state in PTP_LOCKED_STATES for w in self._workers)
+            and all(w.figures.ptp_state in PTP_LOCKED_STATES for w in self._workers)
         )
 
     def _clock_settling(self, arrival: Arrival) -> bool:
