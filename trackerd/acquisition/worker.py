@@ -17,7 +17,8 @@ object is opened and configured; the frames it delivers start a new epoch.
 A camera that is not there at start (with the source's ``wait_for_cameras``)
 is tried on the same backoff as after a loss. The states, the back-off and
 which of these events are logged are :class:`~trackerd.acquisition.connection.ConnectionTracker`'s;
-turning a buffer into an image is :func:`~trackerd.acquisition.decode.decode_grab`'s.
+turning a buffer into an image is :func:`~trackerd.acquisition.decode.decode_grab`'s;
+the counters the status shows are :class:`~trackerd.acquisition.figures.CameraFigures`'.
 This module wires them to the camera's session, its trigger thread and the sink.
 """
 
@@ -26,18 +27,17 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import Counter
 from collections.abc import Callable
 from typing import Any, Protocol
 
 from trackerd.acquisition.arv import CameraConfigError, describe_lookup
 from trackerd.acquisition.clock import FrameIdUnwrapper
-from trackerd.acquisition.connection import ConnectionFigures, ConnectionTracker, Notice
+from trackerd.acquisition.connection import ConnectionTracker, Notice
 from trackerd.acquisition.decode import decode_grab
+from trackerd.acquisition.figures import CameraFigures
 from trackerd.acquisition.firing import TriggerThread
 from trackerd.acquisition.frame import Frame
 from trackerd.acquisition.gvcp import probe
-from trackerd.acquisition.meters import RateMeter
 from trackerd.acquisition.pairing import Arrival
 from trackerd.acquisition.session import Session, open_session, resolve_device_id
 from trackerd.acquisition.status import CameraStatus
@@ -50,7 +50,6 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.1
 """Longest single wait inside the loop (buffer pop, stop check, probe)."""
-COUNTER_PERIOD_NS = 1_000_000_000
 
 
 class FrameSink(Protocol):
@@ -72,84 +71,6 @@ class FrameSink(Protocol):
 
 OpenHook = Callable[[str, Any], None]
 """Called as ``hook(camera_id, aravis_camera)`` after a camera is opened and configured."""
-
-
-class CameraFigures:
-    """What a camera delivered and what its connections report, across connections (any thread reads)."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._frames = 0
-        self._rate = RateMeter()
-        self._failed: Counter[str] = Counter()
-        self._stream_totals: Counter[str] = Counter()
-        """Stream counters of the connections that ended."""
-        self._stream_current: dict[str, int] = {}
-        """The open connection's stream counters, as last read."""
-        self._ptp_state: str | None = None
-        self._address: str | None = None
-        self._notes: tuple[str, ...] = ()
-
-    @property
-    def ptp_state(self) -> str | None:
-        return self._ptp_state
-
-    @property
-    def address(self) -> str | None:
-        """The camera's address as its last connection gave it (None before one did)."""
-        return self._address
-
-    def frame(self, now_ns: int) -> None:
-        with self._lock:
-            self._frames += 1
-            self._rate.tick(now_ns)
-
-    def failure(self, cause: str) -> None:
-        """A buffer that did not become a frame, counted by ``cause``."""
-        with self._lock:
-            self._failed[cause] += 1
-
-    def opened(self, session: Session) -> None:
-        with self._lock:
-            self._address = session.address or self._address
-            self._notes = tuple(session.notes)
-
-    def read(self, stream: dict[str, int], ptp_state: str | None) -> None:
-        """The open connection's stream counters and (when read) PTP state."""
-        with self._lock:
-            self._stream_current = stream
-            if ptp_state is not None:
-                self._ptp_state = ptp_state
-
-    def closed(self, final: dict[str, int] | None = None) -> None:
-        """The connection ended: its counters (``final``, or as last read) join the totals."""
-        with self._lock:
-            self._stream_totals.update(self._stream_current if final is None else final)
-            self._stream_current = {}
-
-    def status(self, camera_id: str, lookup: str, connection: ConnectionFigures,
-               clock_offset_ns: int | None) -> CameraStatus:
-        """The camera's status; ``lookup`` names the camera until a connection gives its address."""
-        now = time.monotonic_ns()
-        with self._lock:
-            stream = Counter(self._stream_totals)
-            stream.update(self._stream_current)
-            return CameraStatus(
-                camera_id=camera_id,
-                state=connection.state,
-                device=self._address or lookup,
-                frames=self._frames,
-                frame_rate_hz=round(self._rate.rate_hz(now), 3),
-                failed_buffers=dict(self._failed),
-                stream=dict(stream),
-                losses=connection.losses,
-                reconnects=connection.reconnects,
-                lost_since_ns=connection.lost_since_ns,
-                last_error=connection.last_error,
-                ptp_state=self._ptp_state,
-                clock_offset_ns=clock_offset_ns,
-                notes=self._notes,
-            )
 
 
 class EarlierConnections:
@@ -219,7 +140,7 @@ class CameraWorker:
             max_backoff_ms=rig.reconnect_max_backoff_ms,
             clock_ns=time.monotonic_ns,
         )
-        self.figures = CameraFigures()
+        self.figures = CameraFigures(rig.ptp_poll_interval_ms)
         self._earlier = EarlierConnections()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -228,8 +149,6 @@ class CameraWorker:
         self._device_id: str | None = None
         self._epoch = -1
         self._unwrap = FrameIdUnwrapper()
-        self._next_housekeeping_ns = 0
-        self._next_ptp_ns = 0
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -322,9 +241,7 @@ class CameraWorker:
         elif self.connection.overdue():
             self._lose(f"no frame for {self.rig.loss_timeout_ms:g} ms")
         else:
-            now = time.monotonic_ns()
-            if now >= self._next_housekeeping_ns:
-                self._housekeeping(session, now)
+            self.figures.poll(session, time.monotonic_ns())
 
     def _handle(self, session: Session, buffer: Any) -> None:
         grab = session.read(buffer)
@@ -350,15 +267,6 @@ class CameraWorker:
         self.figures.frame(time.monotonic_ns())
         self.sink.deliver(Arrival(self.index, frame, capture_ns, self._epoch, tick))
 
-    def _housekeeping(self, session: Session, now: int) -> None:
-        self._next_housekeeping_ns = now + COUNTER_PERIOD_NS
-        counters = session.counters()
-        ptp = None
-        if session.ptp_feature is not None and now >= self._next_ptp_ns:
-            self._next_ptp_ns = now + int(self.rig.ptp_poll_interval_ms * 1e6)
-            ptp = session.ptp_state()
-        self.figures.read(counters, ptp)
-
     # ------------------------------------------------------------------ connection changes
 
     def _connect(self, device_id: str) -> None:
@@ -379,9 +287,7 @@ class CameraWorker:
                                           self.rig.max_outstanding_triggers, settle_ns)
             if self._thread is not None:  # reconnecting; at start-up, start() starts it
                 self._trigger.start()
-        self._next_housekeeping_ns = now
-        self._next_ptp_ns = now
-        self.figures.opened(session)
+        self.figures.opened(session, now)
         self.connection.connected()
         self.sink.camera_back(self.index)
 
@@ -389,7 +295,8 @@ class CameraWorker:
         session = self._session
         self._session = None
         trigger = self._trigger
-        self._retire_trigger()
+        self._earlier.retire(trigger)
+        self._trigger = None
         detail = f" (triggers unanswered: {trigger.ticks.outstanding})" if trigger is not None else ""
         self._tell(self.connection.lost(reason, detail))
         self.figures.closed()
@@ -438,7 +345,8 @@ class CameraWorker:
     def _shutdown(self) -> None:
         session = self._session
         self._session = None
-        self._retire_trigger()
+        self._earlier.retire(self._trigger)
+        self._trigger = None
         if session is not None:
             recent = self.connection.ns_since_frame() < 3 * 1e9 / self.rig.frame_rate_hz + 1e8
             address = session.address.split(":")[0] if session.address else None
@@ -450,10 +358,6 @@ class CameraWorker:
             else:
                 self.sink.abandon(session)
         self.connection.stopped()
-
-    def _retire_trigger(self) -> None:
-        self._earlier.retire(self._trigger)
-        self._trigger = None
 
     @staticmethod
     def _tell(notice: Notice | None) -> None:
