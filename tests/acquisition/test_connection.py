@@ -37,8 +37,9 @@ def clock() -> FakeClock:
 
 @pytest.fixture
 def tracker(clock: FakeClock) -> ConnectionTracker:
-    return ConnectionTracker("right", loss_timeout_ms=LOSS_TIMEOUT_MS, min_backoff_ms=100.0, max_backoff_ms=1000.0,
-                             clock_ns=clock)
+    return ConnectionTracker(
+        "right", loss_timeout_ms=LOSS_TIMEOUT_MS, min_backoff_ms=100.0, max_backoff_ms=1000.0, clock_ns=clock
+    )
 
 
 def streaming(tracker: ConnectionTracker, clock: FakeClock) -> None:
@@ -106,7 +107,11 @@ def test_a_loss_and_a_return_tell_the_story_in_three_lines(tracker, clock) -> No
     assert loss == Notice(logging.WARNING, "camera right lost: no frame for 1000 ms (triggers unanswered: 3)")
     figures = tracker.figures()
     assert (figures.state, figures.losses, figures.lost_since_ns, figures.last_error) == (
-        "lost", 1, lost_at_ns, "no frame for 1000 ms")
+        "lost",
+        1,
+        lost_at_ns,
+        "no frame for 1000 ms",
+    )
 
     # Silence after a loss is the loss going on: last_error keeps its reason (record=False).
     retry = tracker.unavailable(NO_ANSWER, record=False)
@@ -142,8 +147,9 @@ def test_a_connection_that_never_delivers_continues_its_outage_and_is_not_logged
     # Not logged again for the same reason until REMINDER_S (30 s) after the first loss: the 15th cycle,
     # 31.5 s on; and then as the loss of a connection that never delivered.
     reminded = [(cycle, n) for cycle, n in enumerate(lines, start=1) if n is not None]
-    assert reminded == [(15, Notice(
-        logging.WARNING, "camera right lost: no frame for 1000 ms (no frame since it was opened)"))]
+    assert reminded == [
+        (15, Notice(logging.WARNING, "camera right lost: no frame for 1000 ms (no frame since it was opened)"))
+    ]
     figures = tracker.figures()
     assert (figures.state, figures.losses, figures.reconnects) == ("lost", 21, 20)
     assert figures.lost_since_ns == lost_since  # the outage started with the first loss

@@ -26,10 +26,19 @@ class Payload:
         return bytes(self.data[:nbytes])
 
 
-def grab(payload: Payload, pixel_format: str = "BayerRG8", width_px: int = 4, height_px: int = 2,
-         failure: str | None = None) -> Grab:
-    return Grab(failure=failure, frame_id=7, pixel_format=pixel_format, width_px=width_px, height_px=height_px,
-                device_timestamp_ns=0, host_timestamp_ns=0, pixels=payload)
+def grab(
+    payload: Payload, pixel_format: str = "BayerRG8", width_px: int = 4, height_px: int = 2, failure: str | None = None
+) -> Grab:
+    return Grab(
+        failure=failure,
+        frame_id=7,
+        pixel_format=pixel_format,
+        width_px=width_px,
+        height_px=height_px,
+        device_timestamp_ns=0,
+        host_timestamp_ns=0,
+        pixels=payload,
+    )
 
 
 def test_a_bayer_payload_is_rows_of_one_byte_per_pixel() -> None:

@@ -56,7 +56,9 @@ def test_stream_counters_add_up_across_connections_and_polls_follow_their_period
 
     figures.closed({"n_missing_packets": 2})  # stopped: the final counters, read as it closes
     assert figures.status("right", "serial SIM-RIGHT", STREAMING, None).stream == {
-        "n_missing_packets": 5, "n_resend_requests": 5}
+        "n_missing_packets": 5,
+        "n_resend_requests": 5,
+    }
 
 
 def test_before_any_connection_the_camera_is_named_by_how_it_is_looked_up() -> None:

@@ -29,8 +29,9 @@ def clock() -> Clock:
 
 def wait(clock: Clock, due_in_ms: float, timeout_ms: float) -> bool:
     start = clock.now_ns
-    return wait_until_due(start + round(due_in_ms * 1e6), start + round(timeout_ms * 1e6),
-                          clock_ns=clock.monotonic_ns, sleep=clock.sleep)
+    return wait_until_due(
+        start + round(due_in_ms * 1e6), start + round(timeout_ms * 1e6), clock_ns=clock.monotonic_ns, sleep=clock.sleep
+    )
 
 
 def test_a_pair_due_within_the_timeout_is_waited_for_until_it_is_due(clock) -> None:

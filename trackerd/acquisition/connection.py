@@ -107,8 +107,7 @@ class ConnectionTracker:
 
     def figures(self) -> ConnectionFigures:
         with self._lock:
-            return ConnectionFigures(self._state, self._losses, self._reconnects, self._lost_since_ns,
-                                     self._last_error)
+            return ConnectionFigures(self._state, self._losses, self._reconnects, self._lost_since_ns, self._last_error)
 
     def overdue(self) -> bool:
         """No frame within the loss timeout (and the first-frame grace, before a connection's first frame)."""
@@ -155,8 +154,9 @@ class ConnectionTracker:
         what = "not available yet" if self.never_connected else "still lost"
         if self.never_connected:
             level = max(level, logging.WARNING)
-        return Notice(level, f"camera {self.camera_id} {what} (attempt {self._attempts}, {waited_s:.0f} s): "
-                             f"{reason}; retrying")
+        return Notice(
+            level, f"camera {self.camera_id} {what} (attempt {self._attempts}, {waited_s:.0f} s): {reason}; retrying"
+        )
 
     def connected(self) -> None:
         """A connection opened and is configured: not streaming until its first complete frame (a
@@ -191,12 +191,17 @@ class ConnectionTracker:
             self._lost_since_ns = None
             reconnects = self._reconnects
         if reconnects:
-            notice = Notice(logging.WARNING,
-                            f"camera {self.camera_id} streaming again after {away_s:.1f} s (reconnect {reconnects})")
+            notice = Notice(
+                logging.WARNING,
+                f"camera {self.camera_id} streaming again after {away_s:.1f} s (reconnect {reconnects})",
+            )
         elif self._attempts:
             # At warning, as the wait was: the operator who saw one sees the other.
-            notice = Notice(logging.WARNING, f"camera {self.camera_id} streaming, after waiting {away_s:.1f} s "
-                                             f"for it ({self._attempts + 1} attempts)")
+            notice = Notice(
+                logging.WARNING,
+                f"camera {self.camera_id} streaming, after waiting {away_s:.1f} s "
+                f"for it ({self._attempts + 1} attempts)",
+            )
         else:
             notice = Notice(logging.INFO, f"camera {self.camera_id} streaming")
         self._outage_ns = None

@@ -24,6 +24,7 @@ def decode_grab(grab: Grab, pixel_format: str, width_px: int, height_px: int) ->
         return "wrong-format"
     if (grab.width_px, grab.height_px) != (width_px, height_px):
         return "wrong-size"
-    image = image_from_payload(grab.pixels(frame_nbytes(pixel_format, width_px, height_px)),
-                               pixel_format, width_px, height_px)
+    image = image_from_payload(
+        grab.pixels(frame_nbytes(pixel_format, width_px, height_px)), pixel_format, width_px, height_px
+    )
     return "wrong-size" if image is None else image

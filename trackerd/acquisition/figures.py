@@ -91,8 +91,9 @@ class CameraFigures:
             self._stream_totals.update(self._stream_current if final is None else final)
             self._stream_current = {}
 
-    def status(self, camera_id: str, lookup: str, connection: ConnectionFigures,
-               clock_offset_ns: int | None) -> CameraStatus:
+    def status(
+        self, camera_id: str, lookup: str, connection: ConnectionFigures, clock_offset_ns: int | None
+    ) -> CameraStatus:
         """The camera's status; ``lookup`` names the camera until a connection gives its address."""
         now = time.monotonic_ns()
         with self._lock:

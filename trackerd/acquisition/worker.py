@@ -283,8 +283,15 @@ class CameraWorker:
         if self.schedule is not None and self.gate is not None:
             # The first trigger waits five periods (at least 0.1 s) after acquisition starts.
             settle_ns = max(5 * self.schedule.period_ns, 100_000_000)
-            self._trigger = TriggerThread(self.index, self.cam.id, self.schedule, self.gate, session.fire,
-                                          self.rig.max_outstanding_triggers, settle_ns)
+            self._trigger = TriggerThread(
+                self.index,
+                self.cam.id,
+                self.schedule,
+                self.gate,
+                session.fire,
+                self.rig.max_outstanding_triggers,
+                settle_ns,
+            )
             if self._thread is not None:  # reconnecting; at start-up, start() starts it
                 self._trigger.start()
         self.figures.opened(session, now)
