@@ -95,7 +95,7 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     unexplained = set(range(count)) - sequences
     assert len(unexplained) == pairing.dropped_pairs, sorted(unexplained)
     # Drops come from stalls of the machine, not from a pipeline too slow for 20 pairs a second.
-    assert np.median(pipeline.processing_cpu.snapshot()) < 25e6
+    assert np.median(pipeline.figures.processing_cpu.snapshot()) < 25e6
     assert pairing.dropped_pairs < count // 2, pairing
     assert statuses and statuses[-1]["cameras"][0]["state"] in ("streaming", "stopped")
     last_running = [s for s in statuses if s["state"] == "running"][-1]
@@ -123,7 +123,7 @@ def test_an_observed_pipeline_takes_each_pairs_latency_apart(simulated_rig, rend
     try:
         pipeline.start()
         observer.start()
-        pipeline.processing.record()
+        pipeline.figures.processing.record()
         sources[0].open()
         _wait_published(pipeline, count)
     finally:
@@ -132,7 +132,7 @@ def test_an_observed_pipeline_takes_each_pairs_latency_apart(simulated_rig, rend
     trace = observer.trace()
     # One trace per pair published, whose latency is the one the figures report.
     assert len(trace) == count
-    assert [t.latency_ns for t in trace] == pipeline.processing.recorded().tolist()
+    assert [t.latency_ns for t in trace] == pipeline.figures.processing.recorded().tolist()
     assert [t.received_ns for t in trace] == sorted(t.received_ns for t in trace)
     for t in trace:
         assert t.waiting_ns >= 0 and t.handoff_ns >= 0

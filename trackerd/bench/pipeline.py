@@ -174,7 +174,8 @@ def run(args: argparse.Namespace) -> int:
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
         pairs0 = pipeline.pairs_processed
         status0 = pipeline.source.status()
-        windows = {"processing": pipeline.processing, **pipeline.stages, "processing_cpu": pipeline.processing_cpu}
+        kept = pipeline.figures
+        windows = {"processing": kept.processing, **kept.stages, "processing_cpu": kept.processing_cpu}
         for window in windows.values():
             window.record()
         observer.start()

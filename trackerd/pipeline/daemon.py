@@ -50,7 +50,6 @@ from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.reload import ReloadRequests
 from trackerd.pipeline.sourceslot import SourceSlot
 from trackerd.pipeline.state import DaemonStateMachine
-from trackerd.pipeline.stats import Window
 from trackerd.pipeline.status import StatusFigures, status_message
 from trackerd.pipeline.tap import ConsoleTap
 from trackerd.publish import Publisher, StatusMessage
@@ -93,6 +92,7 @@ class Pipeline:
         )
         self.extensions: list[PipelineExtension] = list(extensions or [])
         self.figures = PipelineFigures()
+        """Counts and latency windows (trackerd.pipeline.figures): the status drains the latencies."""
         self._queue: DropOldestQueue[Processed] = DropOldestQueue(queue_length)
         self._reload = ReloadRequests()
         self._state = DaemonStateMachine()
@@ -228,25 +228,6 @@ class Pipeline:
 
         A finite source (a replay) is done once it has delivered its last pair and this is 0."""
         return self.pairs_processed - self.pairs_published - self._queue.dropped
-
-    @property
-    def latency(self) -> Window:
-        """Capture to publish (ns), drained into each status."""
-        return self.figures.latency
-
-    @property
-    def processing(self) -> Window:
-        """Last frame of the pair received to messages published (ns)."""
-        return self.figures.processing
-
-    @property
-    def stages(self) -> dict[str, Window]:
-        return self.figures.stages
-
-    @property
-    def processing_cpu(self) -> Window:
-        """CPU time the processing thread spent on each pair (ns; benchmarks, not in the status)."""
-        return self.figures.processing_cpu
 
     # ------------------------------------------------------------------ status
 
