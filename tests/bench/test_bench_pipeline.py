@@ -12,8 +12,8 @@ import subprocess
 import sys
 
 from trackerd import cpu_latency
-from trackerd.bench.pipeline import HELD_UP_NS, _format, latency_by_steal, latency_by_wakeup, off_cpu_figures
-from trackerd.pipeline.daemon import PairTrace
+from trackerd.bench.pairtrace import HELD_UP_NS, PairTrace, latency_by_steal, latency_by_wakeup, off_cpu_figures
+from trackerd.bench.pipeline import _format
 from trackerd.pipeline.threadtime import OffCpu
 
 MS = 1_000_000

@@ -10,12 +10,13 @@ import threading
 import time
 
 import numpy as np
-import pytest
 import zmq
 
 from tests.gated import GatedPairSource, wait_for_status
 from trackerd.acquisition.memory import MemoryPairSource
-from trackerd.pipeline.daemon import HEALTH_EVERY, Pipeline
+from trackerd.bench.pairtrace import TraceObserver
+from trackerd.pipeline.daemon import Pipeline
+from trackerd.pipeline.processing import HEALTH_EVERY
 from trackerd.publish import Publisher
 from trackerd.sdnotify import SdNotify
 
@@ -94,7 +95,7 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     unexplained = set(range(count)) - sequences
     assert len(unexplained) == pairing.dropped_pairs, sorted(unexplained)
     # Drops come from stalls of the machine, not from a pipeline too slow for 20 pairs a second.
-    assert np.median(pipeline.processing_cpu.snapshot()) < 25e6
+    assert np.median(pipeline.figures.processing_cpu.snapshot()) < 25e6
     assert pairing.dropped_pairs < count // 2, pairing
     assert statuses and statuses[-1]["cameras"][0]["state"] in ("streaming", "stopped")
     last_running = [s for s in statuses if s["state"] == "running"][-1]
@@ -107,7 +108,7 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     assert captures == sorted(captures)  # published timestamps never go backwards
 
 
-def test_a_traced_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendered_sweep, tmp_path):
+def test_an_observed_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendered_sweep, tmp_path):
     image_sets, _ = rendered_sweep
     rig = _rig_on(simulated_rig, f"ipc://{tmp_path}/pub.sock")
     count = 2 * len(image_sets)
@@ -117,20 +118,21 @@ def test_a_traced_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendere
         sources.append(GatedPairSource(r, image_sets, rate_hz=30.0, count=count, drop_late=False))
         return sources[-1]
 
-    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq), account_threads=True)
+    observer = TraceObserver()
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq), observer=observer)
     try:
         pipeline.start()
-        pipeline.start_trace()
-        pipeline.processing.record()
+        observer.start()
+        pipeline.figures.processing.record()
         sources[0].open()
         _wait_published(pipeline, count)
     finally:
         pipeline.stop()
     assert pipeline.failure is None and pipeline.pairs_published == count
-    trace = pipeline.trace()
+    trace = observer.trace()
     # One trace per pair published, whose latency is the one the figures report.
     assert len(trace) == count
-    assert [t.latency_ns for t in trace] == pipeline.processing.recorded().tolist()
+    assert [t.latency_ns for t in trace] == pipeline.figures.processing.recorded().tolist()
     assert [t.received_ns for t in trace] == sorted(t.received_ns for t in trace)
     for t in trace:
         assert t.waiting_ns >= 0 and t.handoff_ns >= 0
@@ -168,14 +170,6 @@ def test_a_bumped_camera_shows_in_the_status_calibration_health(simulated_rig, r
     assert status.calibration.total_fixes >= status.fixes["rejected"] // HEALTH_EVERY - 1
     assert status.calibration.ray_gap_mm.p50 > 1000 * rig.locator.max_ray_gap_m
     assert status.calibration.suspect
-
-
-def test_a_trace_needs_thread_accounting(simulated_rig, rendered_sweep):
-    image_sets, _ = rendered_sweep
-    pipeline = Pipeline(simulated_rig, lambda r: MemoryPairSource(r, image_sets), lambda r: Publisher(r.outputs.zmq))
-    with pytest.raises(ValueError, match="account_threads"):
-        pipeline.start_trace()
-    assert pipeline.trace() == []
 
 
 def test_a_subscriber_that_never_reads_does_not_slow_the_pipeline(simulated_rig, rendered_sweep, tmp_path):
@@ -326,8 +320,7 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
         """Request a reload and wait until both threads have taken it (then a moment to apply it)."""
         pipeline.request_reload(rig_with(status_ms))
         deadline = time.monotonic() + 10.0
-        while (pipeline._pending_rig is not None or pipeline._pending_outputs is not None) and (
-                time.monotonic() < deadline):
+        while pipeline.reload_pending and time.monotonic() < deadline:
             time.sleep(0.02)
         time.sleep(0.2)
 

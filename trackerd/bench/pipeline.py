@@ -23,9 +23,9 @@ time spent not running), the same work done back to back with warm caches
 (memory source; on the development VM, a pair after 14 ms idle costs nearly
 twice one right after another), and the CPU time the hypervisor stole during
 the run (/proc/stat). Each pair's time off the CPU, in both threads, is taken
-apart (trackerd.pipeline.threadtime): waiting on the guest's run queue, asleep
-on a lock or the GIL, or neither (the hypervisor or interrupts); and the
-latency of the pairs that nothing held up is shown beside that of all, as is
+apart (an observer installed in the pipeline, trackerd.bench.pairtrace): waiting
+on the guest's run queue, asleep on a lock or the GIL, or neither (the
+hypervisor or interrupts); and the latency of the pairs that nothing held up is shown beside that of all, as is
 that of the pairs during which /proc/stat shows no CPU stolen.
 
 And side by side in the same run, as root: the latency while the CPUs are held
@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import itertools
 import json
 import multiprocessing
 import os
@@ -56,16 +55,12 @@ import numpy as np
 import zmq
 
 from trackerd import cpu_latency
+from trackerd.bench.pairtrace import TraceObserver, latency_by_steal, latency_by_wakeup, off_cpu_figures
 from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError
 from trackerd.pipeline.stats import percentiles_ms
-
-HELD_UP_NS = 1_000_000
-"""A pair was held up when, in all, it waited this long or longer: to be taken by the processing
-thread, in the hand-over to the publishing thread, and with either thread off the CPU while on it
-(about 0.3 ms for a pair nothing happened to, on the development VM)."""
 
 WAKEUP_MODES = ("auto", "alternate", "held", "off")
 
@@ -161,7 +156,8 @@ def run(args: argparse.Namespace) -> int:
             # Forked before any thread of the pipeline's starts; it connects once the console answers.
             viewer = context.Process(target=_view, args=(f"http://{listen}/ws", stop, viewer_results), daemon=True)
             viewer.start()
-    pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq), account_threads=True, tap=tap)
+    observer = TraceObserver()
+    pipeline = Pipeline(rig, factory, lambda r: Publisher(r.outputs.zmq), tap=tap, observer=observer)
     wakeup_request = contextlib.ExitStack()
     turns: list[tuple[int, bool]] = []
     try:
@@ -178,10 +174,11 @@ def run(args: argparse.Namespace) -> int:
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
         pairs0 = pipeline.pairs_processed
         status0 = pipeline.source.status()
-        windows = {"processing": pipeline.processing, **pipeline.stages, "processing_cpu": pipeline.processing_cpu}
+        kept = pipeline.figures
+        windows = {"processing": kept.processing, **kept.stages, "processing_cpu": kept.processing_cpu}
         for window in windows.values():
             window.record()
-        pipeline.start_trace()
+        observer.start()
         end = time.monotonic() + args.seconds
         machine = [(machine0_ns, machine0)]
         # The first turn from the start: the pair in flight when tracing began was received before it.
@@ -198,11 +195,11 @@ def run(args: argparse.Namespace) -> int:
                     wakeup_request.enter_context(cpu_latency.held(0))
                 turns.append((time.monotonic_ns(), not turns[-1][1]))
         samples = {name: window.recorded() for name, window in windows.items()}
-        trace = pipeline.trace()
+        trace = observer.trace()
         cpu1, wall1, machine1 = os.times(), time.monotonic(), _cpu_ticks()
         pairs = pipeline.pairs_processed - pairs0
         status1 = pipeline.source.status()
-        queue_drops = pipeline._queue.dropped
+        queue_drops = pipeline.pairs_dropped_before_publishing
     finally:
         wakeup_request.close()
         if console is not None:
@@ -309,116 +306,6 @@ def _paced_detection_ms(rig: Any, image_sets: list[list[np.ndarray]], pairs: int
         if index >= 2 * len(ways):  # the first pair of each way searches in full
             times[name].append(time.perf_counter_ns() - start)
     return {name: percentiles_ms(np.asarray(values, dtype=np.int64)) for name, values in times.items()}
-
-
-def off_cpu_figures(trace: list[Any]) -> dict[str, Any]:
-    """Where the pairs' time off the CPU went, from a pipeline's :class:`PairTrace` list (pure).
-
-    Per pair, the processing and publishing threads' time off the CPU is summed,
-    and split in all: on the guest's run queue, asleep (a lock, the GIL), or
-    neither (taken by the hypervisor or by interrupts). A pair was held up
-    (:data:`HELD_UP_NS`) by that time plus its waits to be taken and handed over.
-    """
-    if not trace:
-        return {"pairs": 0}
-    latency = np.array([t.latency_ns for t in trace], dtype=np.int64)
-    off = np.array([t.processing.off_cpu_ns + t.publishing.off_cpu_ns for t in trace], dtype=np.int64)
-    work = np.array([t.processing.wall_ns + t.publishing.wall_ns for t in trace], dtype=np.int64) - off
-    runqueue = sum(t.processing.runqueue_ns + t.publishing.runqueue_ns for t in trace)
-    asleep = sum(t.processing.asleep_ns + t.publishing.asleep_ns for t in trace)
-    unseen = sum(t.processing.unseen_ns + t.publishing.unseen_ns for t in trace)
-    total = max(int(off.sum()), 1)
-    waiting = np.array([t.waiting_ns for t in trace], dtype=np.int64)
-    handoff = np.array([t.handoff_ns for t in trace], dtype=np.int64)
-    held = off + waiting + handoff
-    clear = held < HELD_UP_NS
-    return {
-        "pairs": len(trace),
-        "pairs_held_up_1_ms_or_more": int((~clear).sum()),
-        "held_ms_per_pair": percentiles_ms(held),
-        "off_cpu_ms_per_pair": percentiles_ms(off),
-        "off_cpu_split_percent": {
-            "run_queue": round(100.0 * runqueue / total, 1),
-            "asleep": round(100.0 * asleep / total, 1),
-            "hypervisor_or_interrupts": round(100.0 * unseen / total, 1),
-        },
-        "work_ms_per_pair": percentiles_ms(work),
-        "waiting_ms": percentiles_ms(waiting),
-        "handoff_ms": percentiles_ms(handoff),
-        "latency_all_ms": percentiles_ms(latency),
-        "latency_not_held_up_ms": percentiles_ms(latency[clear]),
-    }
-
-
-def latency_by_steal(trace: list[Any], machine: list[tuple[int, dict[str, int] | None]]) -> dict[str, Any]:
-    """The latency of pairs during which the hypervisor stole no CPU time, beside the rest (pure).
-
-    ``machine`` is the run's /proc/stat samples, (monotonic ns, ticks), about 0.2 s apart: a
-    pair counts as quiet when no tick was stolen in any period between two samples that its
-    latency (arrival to published) overlaps. Side by side in one run, this tells the code's
-    tail from the machine's."""
-    samples = [(at, ticks) for at, ticks in machine if ticks is not None]
-    if len(samples) < 2 or not trace:
-        return {}
-    starts = np.array([at for at, _ in samples], dtype=np.int64)
-    stolen = np.diff([ticks["steal"] for _, ticks in samples]) > 0
-    received = np.array([t.received_ns for t in trace], dtype=np.int64)
-    latency = np.array([t.latency_ns for t in trace], dtype=np.int64)
-    first = np.searchsorted(starts, received, side="right") - 1
-    last = np.searchsorted(starts, received + latency, side="right") - 1
-    inside = (first >= 0) & (last < stolen.size)
-    # Periods with CPU stolen among first..last, from the running count.
-    running = np.concatenate([[0], np.cumsum(stolen)])
-    touched = running[np.clip(last, 0, stolen.size - 1) + 1] - running[np.clip(first, 0, stolen.size - 1)]
-    quiet = inside & (touched == 0)
-    loud = inside & ~quiet
-    return {
-        "periods": int(stolen.size),
-        "periods_with_steal": int(stolen.sum()),
-        "quiet": {"pairs": int(quiet.sum()), **percentiles_ms(latency[quiet])},
-        "stolen": {"pairs": int(loud.sum()), **percentiles_ms(latency[loud])},
-    }
-
-
-def latency_by_wakeup(
-    trace: list[Any], turns: list[tuple[int, bool]], machine: list[tuple[int, dict[str, int] | None]]
-) -> dict[str, Any]:
-    """The latency, the wait to be taken and the CPU stolen while the CPUs were held awake, and while
-    they were not (pure).
-
-    ``turns`` are (monotonic ns, held) from the run's start, each in force until
-    the next; a pair belongs to the turn it arrived in, a /proc/stat period of
-    ``machine`` to the turn its middle lies in. Only the conditions the run had are given.
-    """
-    if not turns:
-        return {}
-    starts = np.array([at for at, _ in turns], dtype=np.int64)
-    held = np.array([h for _, h in turns], dtype=bool)
-    received = np.array([t.received_ns for t in trace], dtype=np.int64)
-    latency = np.array([t.latency_ns for t in trace], dtype=np.int64)
-    waiting = np.array([t.waiting_ns for t in trace], dtype=np.int64)
-    turn_of_pair = np.searchsorted(starts, received, side="right") - 1
-    pair_held = np.where(turn_of_pair >= 0, held[np.clip(turn_of_pair, 0, None)], False)
-    pair_known = turn_of_pair >= 0
-    stolen = {True: 0, False: 0}
-    total = {True: 0, False: 0}
-    samples = [(at, ticks) for at, ticks in machine if ticks is not None]
-    for (at, before), (end, after) in itertools.pairwise(samples):
-        # By the period's middle: the bench switches right after taking a sample, so a period that
-        # begins at a switch lies in the turn that the switch begins.
-        turn = int(np.searchsorted(starts, (at + end) // 2, side="right")) - 1
-        if turn >= 0:
-            stolen[bool(held[turn])] += after["steal"] - before["steal"]
-            total[bool(held[turn])] += after["total"] - before["total"]
-    out: dict[str, Any] = {}
-    for name, condition in (("held", True), ("not_held", False)):
-        if not np.any(held == condition):
-            continue
-        chosen = pair_known & (pair_held == condition)
-        steal = round(100.0 * stolen[condition] / total[condition], 2) if total[condition] > 0 else None
-        out[name] = {"pairs": int(chosen.sum()), **percentiles_ms(latency[chosen]),
-                     "waiting_ms": percentiles_ms(waiting[chosen]), "steal_percent": steal}
-    return out
 
 
 _STAT_FIELDS = ("user", "nice", "system", "idle", "iowait", "irq", "softirq", "steal")

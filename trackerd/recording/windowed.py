@@ -11,7 +11,7 @@ changes with them, so the planner does not rely on knowing it: it checks.
 
 :class:`WindowPlanner` keeps two locators fed exactly as the pipeline feeds
 its own (reset on a recording's first pair and after a pair with an end not
-found, trackerd/pipeline/daemon.py):
+found, trackerd/pipeline/processing.py):
 
 * ``live`` sees the full frames: what the daemon computes;
 * ``replayed`` sees what the replay will see: the frame rebuilt from the last
