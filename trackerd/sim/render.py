@@ -29,8 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.wall import WallFrame
 from trackerd.pixelformat import from_rgb
 from trackerd.sim.appearance import DEFAULT_LOOK, Look, Occluder
 from trackerd.sim.scene import (
@@ -118,9 +118,9 @@ class SceneRenderer:
         self.noise_field = noise_field
         self._display_lookups: dict[tuple[int, int, int], tuple[NDArray[np.float32], NDArray[np.float32]]] = {}
         self._noise: dict[int, NDArray[np.float32]] = {}
-        self.cameras = cameras if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
+        self.cameras = cameras if cameras is not None else [camera_model(c) for c in rig.cameras]
         self.pixel_formats = [c.pixel_format for c in rig.cameras]
-        self.wall = WallFrame.from_config(rig.wall)
+        self.wall = wall_frame(rig.wall)
         self.room: Room = build_room(rig, self.wall)
         self.front_colour = rig.pointer.front_colour
         self._maps: dict[int, NDArray[np.float32]] = {}
