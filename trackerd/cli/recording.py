@@ -76,7 +76,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _progress(label: str):
-    from trackerd.recording.progress import ProgressLine
+    from trackerd.cli._progress import ProgressLine
 
     line = ProgressLine()
 

@@ -71,8 +71,8 @@ def parse_speed(text: str) -> float | None:
 
 
 def replay_command(args: argparse.Namespace) -> int:
+    from trackerd.cli._progress import ProgressLine
     from trackerd.cli.run import serve, zmq_publisher
-    from trackerd.recording.progress import ProgressLine
     from trackerd.recording.replay import ReplayPairSource
 
     recording = Recording.open(args.recording)
