@@ -5,7 +5,6 @@ Building one from the rig file's forms is the adapter's (tests/config/test_rig_g
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
