@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.locator import Locator
 from trackerd.sim.appearance import Look, Occluder
 from trackerd.sim.randomized import aimed_camera, build_rig
@@ -37,7 +37,7 @@ def _locate(rig, renderer, pose: PointerPose, rng, *, content=None, occluders=()
     views = [renderer.render(i, pose, rng, content=content, occluders=occluders) for i in range(len(renderer.cameras))]
     locator = Locator(rig, cameras=renderer.cameras)
     fix = locator.locate([v.image for v in views])
-    truth = true_wall_hit(pose, WallFrame.from_config(rig.wall)).wall_xy_m
+    truth = true_wall_hit(pose, wall_frame(rig.wall)).wall_xy_m
     error = None if fix.hit is None else float(np.linalg.norm(fix.hit.wall_xy_m - truth))
     return fix, error, views
 

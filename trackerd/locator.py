@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.errors import GeometryError
 from trackerd.geometry import two_cameras
 from trackerd.geometry.camera import CameraModel
@@ -149,8 +150,8 @@ class Locator:
     ) -> None:
         """``pixel_formats`` overrides the rig's per-camera format (still images read as RGB, say)."""
         self.rig = rig
-        self.cameras = list(cameras) if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
-        self.wall = wall or WallFrame.from_config(rig.wall)
+        self.cameras = list(cameras) if cameras is not None else [camera_model(c) for c in rig.cameras]
+        self.wall = wall or wall_frame(rig.wall)
         self.front_colour = rig.pointer.front_colour
         self.back_colour = "blue" if self.front_colour == "red" else "red"
         self._detectors: list | None = None

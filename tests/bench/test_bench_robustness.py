@@ -56,13 +56,13 @@ def test_figures_count_confident_wrong_answers_and_sigma_coverage() -> None:
 def test_the_geometric_floor_is_the_true_hit_when_the_ends_are_measured_exactly(monkeypatch, placement) -> None:
     """The floor runs the pointer fit on the true ends' images: with no noise it must land on the true hit
     (its figures are only worth printing if its own geometry is right), and with the bench's noise near it."""
-    from trackerd.geometry.wall import WallFrame
+    from trackerd.config.rig_geometry import wall_frame
     from trackerd.sim.randomized import random_rig, random_shot
     from trackerd.sim.scene import true_wall_hit
 
     rng = np.random.default_rng(5)
     drawn = random_rig(rng, placement=placement)
-    wall = WallFrame.from_config(drawn.rig.wall)
+    wall = wall_frame(drawn.rig.wall)
     shot = random_shot(drawn, rng, wall)
     truth = true_wall_hit(shot.pose, wall).wall_xy_m
     seeing = [True] * len(drawn.cameras)

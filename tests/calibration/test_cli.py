@@ -16,7 +16,7 @@ import pytest
 from calibration_frames import FrameSet, copy_set
 
 from trackerd.config.loader import load_rig
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import rotation_angle_deg
 
 REPO = Path(__file__).resolve().parents[2]
@@ -200,8 +200,8 @@ def test_a_new_installation_end_to_end(both_lenses: Calibrated, tmp_path: Path) 
     assert "geometry from new-wall-calibration.toml" in run.stdout
 
     # The recovered cameras are where the true ones are, in the true wall frame.
-    truth = [CameraModel.from_config(c) for c in load_rig(SIMULATED).config.cameras]
-    recovered = [CameraModel.from_config(c) for c in load_rig(workspace / "rig.toml").config.cameras]
+    truth = [camera_model(c) for c in load_rig(SIMULATED).config.cameras]
+    recovered = [camera_model(c) for c in load_rig(workspace / "rig.toml").config.cameras]
     for true_cam, cam in zip(truth, recovered, strict=True):
         assert np.linalg.norm(cam.centre_m - true_cam.centre_m) < 0.03
         assert rotation_angle_deg(cam.rotation @ true_cam.rotation.T) < 0.5

@@ -20,7 +20,7 @@ from trackerd.calibration.update import apply_intrinsics, apply_stereo, apply_wa
 from trackerd.calibration.wall import Pointing, fit_wall
 from trackerd.config.loader import merge_calibration
 from trackerd.config.models import CalibrationFile
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import rotation_angle_deg
 from trackerd.locator import Locator
 
@@ -45,7 +45,7 @@ def test_recovered_calibration_tracks_nearly_as_well_as_the_truth(
     )
     assert frame == "camera left"  # the blank rig has no pose for camera 1 to keep
     in_camera_frame = context.merged(calibration)
-    cameras_so_far = [CameraModel.from_config(c) for c in in_camera_frame.cameras]
+    cameras_so_far = [camera_model(c) for c in in_camera_frame.cameras]
     assert np.allclose(cameras_so_far[0].centre_m, 0.0)
 
     locator = Locator(in_camera_frame)
@@ -66,7 +66,7 @@ def test_recovered_calibration_tracks_nearly_as_well_as_the_truth(
     assert set(world_frames(calibration).values()) == {"wall"}
     recovered_rig = merge_calibration(blank, calibration, Path("calibration.toml"))
 
-    recovered = [CameraModel.from_config(c) for c in recovered_rig.cameras]
+    recovered = [camera_model(c) for c in recovered_rig.cameras]
     for true_cam, cam in zip(renderer.cameras, recovered, strict=True):
         centre_mm = np.linalg.norm(cam.centre_m - true_cam.centre_m) * 1000
         angle = rotation_angle_deg(cam.rotation @ true_cam.rotation.T)

@@ -21,7 +21,7 @@ from trackerd.calibration.store import (
 from trackerd.calibration.update import extrinsics_config
 from trackerd.config.loader import load_calibration, load_rig
 from trackerd.config.models import CalibrationFile, OpenCVIntrinsics, WallConfig
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import rotation_from_rvec
 
 REPO = Path(__file__).resolve().parents[2]
@@ -65,7 +65,7 @@ def intrinsics(fx: float = 1660.123456789012) -> OpenCVIntrinsics:
 
 def simulated_poses() -> dict[str, tuple[np.ndarray, np.ndarray]]:
     rig = load_rig(REPO / "config" / "simulated.toml").config
-    return {c.id: (m.rotation, m.translation_m) for c in rig.cameras for m in [CameraModel.from_config(c)]}
+    return {c.id: (m.rotation, m.translation_m) for c in rig.cameras for m in [camera_model(c)]}
 
 
 @pytest.fixture
@@ -106,7 +106,7 @@ def test_written_file_loads_through_the_loader_and_round_trips(blank_rig: Path) 
     # The rig now loads completely, and each camera is where the calibration put it.
     loaded = load_rig(blank_rig)
     assert loaded.sources["left"] == "from new-wall-calibration.toml"
-    model = CameraModel.from_config(loaded.config.camera("right"))
+    model = camera_model(loaded.config.camera("right"))
     rotation, translation = simulated_poses()["right"]
     assert np.allclose(model.rotation, rotation, atol=1e-15)
     assert np.allclose(model.translation_m, translation, atol=1e-15)

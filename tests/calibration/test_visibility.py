@@ -9,15 +9,14 @@ import numpy as np
 from trackerd.calibration.inputs import default_targets
 from trackerd.calibration.visibility import common_view_rectangle, touch_seen, view_targets
 from trackerd.config.loader import load_rig
-from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import camera_model, wall_frame
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 
 
 def _rig(name: str):
     rig = load_rig(CONFIG / name).config
-    return [CameraModel.from_config(c) for c in rig.cameras], WallFrame.from_config(rig.wall), rig.pointer
+    return [camera_model(c) for c in rig.cameras], wall_frame(rig.wall), rig.pointer
 
 
 def test_the_display_corners_are_each_seen_by_one_camera_only() -> None:

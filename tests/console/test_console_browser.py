@@ -28,7 +28,7 @@ from trackerd.acquisition.arv import aravis_missing_reason
 from trackerd.config.console import ConsoleConfig
 from trackerd.config.loader import dump_rig
 from trackerd.config.recording import RecordingConfig
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.sim.netns import netns_missing_reason
 
 CHROMIUM = "/usr/bin/chromium"
@@ -196,7 +196,7 @@ def test_the_page_shows_both_cameras_live(page, daemon) -> None:
 
 
 def test_end_markers_sit_where_the_published_ends_project(page, daemon) -> None:
-    cameras = {cam.id: CameraModel.from_config(cam) for cam in daemon["rig"].cameras}
+    cameras = {cam.id: camera_model(cam) for cam in daemon["rig"].cameras}
     pointers = daemon["subscriber"].pointers
     checked = 0
     deadline = time.monotonic() + 60.0

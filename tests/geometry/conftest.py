@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from trackerd.config.loader import load_rig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
 
@@ -19,7 +20,7 @@ def example_rig_cameras() -> dict[str, list[CameraModel]]:
     """Rig name ('simulated', 'datawall') -> the CameraModels of config/<name>.toml."""
     return {
         name: [
-            CameraModel.from_config(cam)
+            camera_model(cam)
             for cam in load_rig(CONFIG_DIR / f"{name}.toml").config.cameras
         ]
         for name in ("simulated", "datawall")
@@ -35,4 +36,4 @@ def simulated_cameras(example_rig_cameras: dict[str, list[CameraModel]]) -> list
 @pytest.fixture(scope="session")
 def datawall_wall() -> WallFrame:
     """The DataWall of config/datawall.toml: 3.6576 x 0.9144 m in z = 0, 7680x1920 display px."""
-    return WallFrame.from_config(load_rig(CONFIG_DIR / "datawall.toml").config.wall)
+    return wall_frame(load_rig(CONFIG_DIR / "datawall.toml").config.wall)

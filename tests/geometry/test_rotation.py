@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackerd.config.models import CameraConfig, FovIntrinsics, PoseExtrinsics
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import (
     R_REST,
     rotation_about_x,
@@ -112,7 +112,7 @@ def test_worked_example_in_docs_geometry() -> None:
         intrinsics=lens,
         extrinsics=pose,
     )
-    cam = CameraModel.from_config(config)
+    cam = camera_model(config)
     in_camera = cam.to_camera_frame(np.array([1.8288, 0.4572, 0.0]))[0]
     np.testing.assert_allclose(in_camera, [-1.9067, -0.2296, 3.9987], atol=5e-5)
     np.testing.assert_allclose(

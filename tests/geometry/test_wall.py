@@ -7,8 +7,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from trackerd.config.models import WallConfig
-from trackerd.errors import ConfigError, GeometryError
+from trackerd.errors import GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import rotation_from_rvec
 from trackerd.geometry.triangulation import closest_approach
@@ -403,33 +402,6 @@ def test_property_wall_coordinates_round_trip(x: float, y: float) -> None:
     world = frame.from_wall_m(np.array([x, y]))
     assert abs(frame.plane.signed_distance_m(world)) < 1e-9
     np.testing.assert_allclose(frame.to_wall_m(world), [x, y], atol=1e-9)
-
-
-def test_from_config_forms_agree_and_geometry_errors_become_config_errors() -> None:
-    corners = tuple(tuple(c) for c in DATAWALL_CORNERS.tolist())
-    by_corners = WallFrame.from_config(WallConfig(corners_m=corners))
-    by_points = WallFrame.from_config(
-        WallConfig(
-            points_m=corners[:3],
-            origin_m=(0, 0, 0),
-            x_direction=(1, 0, 0),
-            y_direction=(0, 1, 0),
-            width_m=WIDTH_M,
-            height_m=HEIGHT_M,
-        )
-    )
-    np.testing.assert_allclose(by_points.corners_m, by_corners.corners_m, atol=1e-15)
-    with pytest.raises(ConfigError, match=r"^wall: .*colinear"):
-        WallFrame.from_config(
-            WallConfig(
-                points_m=((0, 0, 0), (1, 0, 0), (2, 0, 0)),
-                origin_m=(0, 0, 0),
-                x_direction=(1, 0, 0),
-                y_direction=(0, 1, 0),
-                width_m=1.0,
-                height_m=1.0,
-            )
-        )
 
 
 # ----------------------------------------------------------------- end to end

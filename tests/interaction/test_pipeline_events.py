@@ -167,6 +167,6 @@ def test_every_event_reaches_a_subscriber_and_tuio(simulated_rig, session, tmp_p
 
 
 def rig_width(rig) -> float:
-    from trackerd.geometry.wall import WallFrame
+    from trackerd.config.rig_geometry import wall_frame
 
-    return WallFrame.from_config(rig.wall).width_m
+    return wall_frame(rig.wall).width_m

@@ -24,7 +24,7 @@ import zmq
 
 from trackerd.acquisition.arv import aravis_missing_reason
 from trackerd.config.loader import dump_rig
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.sim.netns import netns_missing_reason
 from trackerd.sim.rig import loop_truth
 
@@ -209,4 +209,4 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     fixes = statuses[-1]["fixes"]
     explained = fixes.get("not_found", 0) + fixes.get("rejected", 0) + statuses[-1]["pairing"]["dropped_pairs"]
     assert missing <= explained
-    assert WallFrame.from_config(rig.wall).on_wall(hits).mean() > 0.9
+    assert wall_frame(rig.wall).on_wall(hits).mean() > 0.9

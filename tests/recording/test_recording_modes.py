@@ -273,8 +273,8 @@ def test_windows_too_small_for_the_tracker_become_keyframes_and_the_hits_stay_th
     """The planner's check, not its guess of the windows, is what guarantees the hits: with windows
     cut far smaller than the tracker reads, pairs fail the check and are stored whole ('mismatch'),
     and the recording still gives exactly the raw recording's hits."""
-    from trackerd.cli.replay import replay_rig
     from trackerd.recording.export import export_recording
+    from trackerd.recording.replay_rig import replay_rig
     from trackerd.recording.windowed import WindowPlanner
 
     small = tmp_path / "small-windows.trec"

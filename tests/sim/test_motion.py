@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.wall import WallFrame
 from trackerd.sim.motion import MOTIONS, make_motion
 from trackerd.sim.scene import pose_visible, true_wall_hit
 
@@ -16,7 +16,7 @@ TIMES = np.linspace(0.0, 4.0, 161)
 
 @pytest.fixture(scope="module")
 def cameras(simulated_rig: RigConfig) -> list[CameraModel]:
-    return [CameraModel.from_config(c) for c in simulated_rig.cameras]
+    return [camera_model(c) for c in simulated_rig.cameras]
 
 
 @pytest.mark.parametrize("name", MOTIONS)
@@ -39,20 +39,20 @@ def test_motions_stay_in_every_cameras_view(simulated_rig: RigConfig, cameras, n
 
 @pytest.mark.parametrize("name", ["sweep", "figure8", "still"])
 def test_aiming_motions_hit_the_display(simulated_rig: RigConfig, name: str) -> None:
-    wall = WallFrame.from_config(simulated_rig.wall)
+    wall = wall_frame(simulated_rig.wall)
     motion = make_motion(name, simulated_rig)
     assert all(true_wall_hit(motion(t), wall).on_wall for t in TIMES)
 
 
 def test_sweep_covers_most_of_the_display_width(simulated_rig: RigConfig) -> None:
-    wall = WallFrame.from_config(simulated_rig.wall)
+    wall = wall_frame(simulated_rig.wall)
     motion = make_motion("sweep", simulated_rig)
     xs = [true_wall_hit(motion(t), wall).wall_xy_m[0] for t in TIMES]
     assert min(xs) < 0.15 * wall.width_m and max(xs) > 0.85 * wall.width_m
 
 
 def test_away_points_into_the_room(simulated_rig: RigConfig) -> None:
-    wall = WallFrame.from_config(simulated_rig.wall)
+    wall = wall_frame(simulated_rig.wall)
     motion = make_motion("away", simulated_rig)
     for t in TIMES:
         pose = motion(t)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.sim.appearance import CONTENT_KINDS, DEFAULT_LOOK, Look, Occluder, wall_content
 from trackerd.sim.randomized import LIGHTINGS, PAINTS, PLACEMENTS, aimed_camera, build_rig, random_rig, random_shot
 from trackerd.sim.render import SceneRenderer
@@ -83,5 +83,5 @@ def test_the_display_shows_its_content_and_the_look_changes_the_frame() -> None:
 
 def test_the_wall_plane_of_a_built_rig_is_the_display() -> None:
     rig, _ = _two_cameras()
-    wall = WallFrame.from_config(rig.wall)
+    wall = wall_frame(rig.wall)
     assert np.allclose(wall.normal, [0.0, 0.0, 1.0]) and abs(wall.width_m - 3.6) < 1e-9

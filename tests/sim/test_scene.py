@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.sim.scene import PointerPose, build_room, pose_aimed_at, pose_visible, random_pose, true_wall_hit
 
 
 def test_random_poses_point_at_the_wall_and_are_seen_by_both_cameras(simulated_rig) -> None:
     rng = np.random.default_rng(0)
-    wall = WallFrame.from_config(simulated_rig.wall)
-    cameras = [CameraModel.from_config(c) for c in simulated_rig.cameras]
+    wall = wall_frame(simulated_rig.wall)
+    cameras = [camera_model(c) for c in simulated_rig.cameras]
     on_wall = 0
     for _ in range(100):
         pose = random_pose(simulated_rig, rng, cameras, wall)
@@ -28,7 +27,7 @@ def test_random_poses_point_at_the_wall_and_are_seen_by_both_cameras(simulated_r
 
 
 def test_true_hit_of_an_aimed_pose_is_its_target(simulated_rig) -> None:
-    wall = WallFrame.from_config(simulated_rig.wall)
+    wall = wall_frame(simulated_rig.wall)
     target = wall.from_wall_m(np.array([1.0, 0.5]))
     pose = pose_aimed_at(np.array([2.0, 0.6, 1.8]), target, 0.45)
     hit = true_wall_hit(pose, wall)
@@ -39,11 +38,11 @@ def test_true_hit_of_an_aimed_pose_is_its_target(simulated_rig) -> None:
 
 
 def test_room_is_reproducible_and_holds_the_cameras(simulated_rig) -> None:
-    wall = WallFrame.from_config(simulated_rig.wall)
+    wall = wall_frame(simulated_rig.wall)
     room = build_room(simulated_rig, wall)
     assert room.fingerprint == build_room(simulated_rig, wall).fingerprint
     assert len(room.patches) + len(room.balls) == simulated_rig.simulation.clutter
     lower, upper = np.array(room.lower_m), np.array(room.upper_m)
     for cam in simulated_rig.cameras:
-        centre = CameraModel.from_config(cam).centre_m
+        centre = camera_model(cam).centre_m
         assert np.all(centre > lower) and np.all(centre < upper)

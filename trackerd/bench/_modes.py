@@ -71,9 +71,9 @@ def write_modes(raw_path: Path, workdir: Path, keyframe_interval_s: float) -> di
 def replay_modes(written: dict[str, dict[str, Any]], rig_path: str | None, truth: list[dict] | None
                  ) -> dict[str, dict[str, Any]]:
     """Each recording replayed at max speed through the pipeline; hits compared with the raw replay's."""
-    from trackerd.bench.replay import _replay_once
-    from trackerd.cli.replay import replay_rig
+    from trackerd.bench.replay import replay_once
     from trackerd.recording.reader import Recording
+    from trackerd.recording.replay_rig import replay_rig
 
     # "before": pairs handed from the reader thread one at a time, as before batching (old vs new, one run).
     runs = [("raw, before", "raw", True, False), ("raw", "raw", True, True),
@@ -86,7 +86,7 @@ def replay_modes(written: dict[str, dict[str, Any]], rig_path: str | None, truth
     for name, mode, verify, batch in runs:
         with Recording.open(written[mode]["path"]) as recording:
             rig, _ = replay_rig(recording, rig_path, ["tcp://127.0.0.1:*"])
-            figures = _replay_once(recording, rig, None, verify, len(recording), truth, keep_hits=True, batch=batch)
+            figures = replay_once(recording, rig, None, verify, len(recording), truth, keep_hits=True, batch=batch)
         hits = {h["sequence"]: {k: v for k, v in h.items() if k != "publish_ns"} for h in figures.pop("hit_messages")}
         if reference is None:
             reference = hits

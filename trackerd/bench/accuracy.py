@@ -43,6 +43,7 @@ from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.pointer_line import pointer_from_points
 from trackerd.geometry.rotation import rotation_about_x, rotation_about_y, rotation_about_z
@@ -110,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
 
 def build_variants(base: RigConfig) -> list[Variant]:
     """The configurations of the three groups, derived from the base rig."""
-    nominal = tuple(CameraModel.from_config(c) for c in base.cameras)
+    nominal = tuple(camera_model(c) for c in base.cameras)
     # Rendering is the bench's cost; the room's own anti-aliasing does not affect the pointer.
     base = base.model_copy(update={"simulation": base.simulation.model_copy(update={"background_supersampling": 1})})
     variants: list[Variant] = []

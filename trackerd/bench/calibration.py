@@ -42,7 +42,7 @@ from trackerd.calibration.wall import Pointing, Target, WallFit, corner_targets,
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig, merge_calibration
 from trackerd.config.models import CalibrationFile, RigConfig
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import rotation_angle_deg
 from trackerd.locator import Locator
 from trackerd.sim.board import BoardRenderer, poses_for_camera, poses_for_pair
@@ -298,7 +298,7 @@ def parameter_errors(study: SimulatedCalibration) -> dict[str, Any]:
     """The recovered parameters against the truth."""
     scene = study.scene
     true_cams = scene.cameras
-    recovered = [CameraModel.from_config(c) for c in study.recovered_rig.cameras]
+    recovered = [camera_model(c) for c in study.recovered_rig.cameras]
     cameras = {}
     for true_cam, cam in zip(true_cams, recovered, strict=True):
         result = study.intrinsics[cam.camera_id]

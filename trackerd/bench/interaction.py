@@ -29,7 +29,7 @@ from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.interaction import InteractionConfig
 from trackerd.config.loader import load_rig
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.interaction.engine import InteractionEngine
 from trackerd.interaction.scripted import GESTURES, gesture_session, pointing_session
 from trackerd.interaction.smoothing import smooth_track
@@ -157,7 +157,7 @@ def _run(engine: InteractionEngine, track) -> list:
 
 
 def gesture_figures(rig, args, rng) -> dict[str, Any]:
-    wall = WallFrame.from_config(rig.wall)
+    wall = wall_frame(rig.wall)
     cfg: InteractionConfig = rig.interaction
     templates = load_templates(cfg.gestures.template_dir, builtin=cfg.gestures.builtin, only=cfg.gestures.only)
     per = {name: {"performed": 0, "recognised": 0, "confused": {}} for name in GESTURES}
@@ -222,7 +222,7 @@ def hand_figures(rig, count: int, rng) -> dict[str, Any]:
 def cost_figures(rig, rng) -> dict[str, Any]:
     from trackerd.interaction.hand import HandDetector
 
-    wall = WallFrame.from_config(rig.wall)
+    wall = wall_frame(rig.wall)
     engine = InteractionEngine(rig.interaction, wall.width_m, wall.height_m, load_templates())
     track = gesture_session([str(n) for n in GESTURES] * 3, rng, wall.width_m, wall.height_m)
     costs = []

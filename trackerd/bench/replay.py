@@ -258,8 +258,8 @@ class _KeepingPublisher:
 
 
 def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None) -> dict[str, dict[str, Any]]:
-    from trackerd.cli.replay import replay_rig
     from trackerd.detect.reference import opencv_reference, report_baseline
+    from trackerd.recording.replay_rig import replay_rig
 
     rig, _ = replay_rig(recording, args.config if not args.recording else None, ["tcp://127.0.0.1:*"])
     bbox_rig = rig.model_copy(update={"detector": rig.detector.model_copy(update={"centroid": "bbox"})})
@@ -278,13 +278,13 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
     for name, run_rig, baseline, verify, count in runs:
         if args.cold:
             _drop_page_cache()
-        out[name] = _replay_once(recording, run_rig, baseline, verify, count, truth)
+        out[name] = replay_once(recording, run_rig, baseline, verify, count, truth)
         progress.step()
     progress.done()
     return out
 
 
-def _replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
+def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
                  truth: list[dict] | None, *, keep_hits: bool = False, batch: bool = True) -> dict[str, Any]:
     """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
     from trackerd.pipeline.daemon import Pipeline

@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
 
 def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]:
     """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
-    from trackerd.geometry.wall import WallFrame
+    from trackerd.config.rig_geometry import wall_frame
     from trackerd.locator import Locator
     from trackerd.sim.appearance import wall_content
     from trackerd.sim.randomized import random_rig, random_shot
@@ -128,7 +128,7 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
     widest = max(c.width_px for c in drawn.cameras)
     renderer = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
                              background_step=1 if widest <= 2000 else 2, noise_field=True)
-    wall = WallFrame.from_config(drawn.rig.wall)
+    wall = wall_frame(drawn.rig.wall)
     learned = False
     if learn_pairs:
         # Shots of their own, from their own generator and renderer (a renderer draws its noise field from the

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.camera import CameraModel
 
 Array = NDArray[np.float64]
@@ -188,7 +189,7 @@ class CalibrationHealth:
     @classmethod
     def for_rig(cls, rig, cameras: Sequence[CameraModel] | None = None, **kwargs) -> CalibrationHealth:
         """From a RigConfig (pointer ball size and front colour)."""
-        cams = list(cameras) if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
+        cams = list(cameras) if cameras is not None else [camera_model(c) for c in rig.cameras]
         kwargs.setdefault("length_m", rig.pointer.length_m)
         kwargs.setdefault("length_tolerance_m", rig.pointer.length_tolerance_m)
         return cls(cams, rig.pointer.end_diameter_m / 2.0, rig.pointer.front_colour, **kwargs)

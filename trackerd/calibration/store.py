@@ -243,7 +243,7 @@ def _same_access(fd: int, path: Path) -> None:
 def check_merged(rig: RigConfig, path: Path, check_wall: bool) -> None:
     """The loader's geometric checks on a merged rig (ConfigError naming ``path``), so that what
     is written is exactly what load_rig accepts."""
-    from trackerd.config.loader import check_rig_geometry
+    from trackerd.config.rig_geometry import check_rig_geometry
 
     check_rig_geometry(rig, path, check_wall=check_wall)
 

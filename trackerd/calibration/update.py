@@ -34,7 +34,7 @@ from trackerd.config.models import (
     RigConfig,
     WallConfig,
 )
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import rvec_from_rotation
 
 Array = NDArray[np.float64]
@@ -57,7 +57,7 @@ def camera_pose(rig: RigConfig, camera_id: str) -> tuple[Array, Array] | None:
     # CameraModel needs intrinsics to be built; the pose does not depend on them.
     if cam.intrinsics is None:
         cam = cam.model_copy(update={"intrinsics": FovIntrinsics(model="fov", horizontal_fov_deg=60.0)})
-    model = CameraModel.from_config(cam)
+    model = camera_model(cam)
     return model.rotation.copy(), model.translation_m.copy()
 
 

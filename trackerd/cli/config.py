@@ -8,6 +8,7 @@ import json
 import numpy as np
 
 from trackerd.config.loader import LoadedRig, load_rig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.errors import CalibrationPending, ConfigError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import ypr_from_world_from_camera
@@ -43,8 +44,8 @@ def check_command(args: argparse.Namespace) -> int:
         else:
             print(f"{args.file}: OK for calibration; not ready to track yet: {pending.detail}")
         return 0
-    cameras = [CameraModel.from_config(cam) for cam in loaded.config.cameras]
-    wall = WallFrame.from_config(loaded.config.wall)
+    cameras = [camera_model(cam) for cam in loaded.config.cameras]
+    wall = wall_frame(loaded.config.wall)
     if loaded.config.interaction.any_enabled:
         # What the daemon's interaction stage checks at start (templates, commands, hand camera,
         # TUIO host): OK here means `run` and `replay` start.

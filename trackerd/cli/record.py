@@ -22,9 +22,9 @@ import threading
 from pathlib import Path
 
 from trackerd.cli._args import positive_seconds
+from trackerd.cli._cameras import add_virtual_arguments
 from trackerd.config.loader import load_rig
 from trackerd.errors import RecordingError
-from trackerd.recording.cameras import add_virtual_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -49,9 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def record_command(args: argparse.Namespace) -> int:
-    from trackerd.recording.cameras import open_cameras
+    from trackerd.cli._cameras import open_cameras
+    from trackerd.cli._progress import ProgressLine, describe
     from trackerd.recording.outputs import check_new_recording
-    from trackerd.recording.progress import ProgressLine, describe
     from trackerd.recording.recorder import Recorder
     from trackerd.recording.writer import check_free_space
 

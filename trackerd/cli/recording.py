@@ -76,7 +76,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _progress(label: str):
-    from trackerd.recording.progress import ProgressLine
+    from trackerd.cli._progress import ProgressLine
 
     line = ProgressLine()
 
@@ -140,9 +140,9 @@ def convert_command(args: argparse.Namespace) -> int:
 
 
 def export_command(args: argparse.Namespace) -> int:
-    from trackerd.cli.replay import replay_rig
     from trackerd.recording.export import export_recording
     from trackerd.recording.outputs import output_folder
+    from trackerd.recording.replay_rig import replay_rig
 
     with Recording.open(args.recording) as recording:
         rig, notes = replay_rig(recording, args.config, None)

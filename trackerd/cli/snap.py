@@ -28,9 +28,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from trackerd.cli._cameras import add_virtual_arguments
 from trackerd.config.loader import load_rig
 from trackerd.errors import CameraError
-from trackerd.recording.cameras import add_virtual_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def snap_command(args: argparse.Namespace) -> int:
-    from trackerd.recording.cameras import open_cameras
+    from trackerd.cli._cameras import open_cameras
     from trackerd.recording.outputs import output_folder
 
     loaded = load_rig(args.config)

@@ -25,7 +25,6 @@ from trackerd.config.models import (
     CALIBRATION_ONLY_FORMAT,
     COLOUR_PIXEL_FORMATS,
     CalibrationFile,
-    CameraConfig,
     ColourThreshold,
     PointerColours,
     RigConfig,
@@ -421,17 +420,21 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
     # What can be checked is checked either way: every lens there is, and the wall against the cameras
     # once every camera is posed in the wall's frame.
     posed = all(cam.intrinsics is not None and cam.extrinsics is not None for cam in rig.cameras)
+    # Imported here, not at the top: importing any config model runs this module, and NumPy and
+    # OpenCV take a quarter of a second to import.
+    from trackerd.config.rig_geometry import check_lens, check_wall_in_front
+
     if posed and rig.wall is not None and frame is None:
-        _check_geometry(rig, rig_path if "inline" in sources["wall"] else calibration_path)
+        check_wall_in_front(rig, rig_path if "inline" in sources["wall"] else calibration_path)
     rig = _resolve_paths(rig, rig_path)
     for index, cam in enumerate(rig.cameras):
         if cam.intrinsics is None or cam.extrinsics is None:
             continue
         from_calibration = sources[cam.id].startswith(("from ", "intrinsics from "))
         if from_calibration:
-            _check_lens(cam, f"{calibration_path}: cameras.{cam.id}")
+            check_lens(cam, f"{calibration_path}: cameras.{cam.id}")
         else:
-            _check_lens(cam, f"{rig_path}: cameras[{index}]")
+            check_lens(cam, f"{rig_path}: cameras[{index}]")
     if not_ready and for_tracking:
         raise not_ready[0]
     thresholds = {
@@ -455,6 +458,8 @@ def check_ready_to_track(rig: RigConfig, where: object) -> None:
             raise CalibrationPending(
                 where, f"cameras[{index}].pixel_format: Mono8 cannot tell the pointer's red end from its blue end"
             )
+    from trackerd.config.rig_geometry import check_rig_geometry  # here, not at the top: as in load_rig
+
     check_rig_geometry(rig, Path(str(where)))
 
 
@@ -467,63 +472,6 @@ def _unfinished_frame(calibration: CalibrationFile) -> str | None:
         if frame.startswith("camera ") and entry.extrinsics is not None:
             return frame
     return None
-
-
-MAX_LENS_INVERSION_PX = 0.01
-"""A pixel taken to its ray and projected back must land this close to where it started."""
-
-
-def lens_fold_px(cam: CameraConfig) -> tuple[float, tuple[float, float]]:
-    """How far a pixel on the image border, taken to its ray and projected back, lands from where it
-    started (the worst over the border, px), and that pixel. Above MAX_LENS_INVERSION_PX the lens
-    model folds over: a calibration fitted without points near the corners can have the distorted
-    radius stop growing with the true radius there."""
-    import numpy as np
-
-    from trackerd.geometry.camera import CameraModel
-
-    model = CameraModel.from_config(cam)
-    if not model.has_distortion:
-        return 0.0, (0.0, 0.0)
-    w, h = cam.width_px - 0.5, cam.height_px - 0.5
-    steps = np.linspace(0.0, 1.0, 65)
-    border = np.vstack([
-        np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, -0.5)]),
-        np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, h)]),
-        np.column_stack([np.full(65, -0.5), -0.5 + steps * (h + 0.5)]),
-        np.column_stack([np.full(65, w), -0.5 + steps * (h + 0.5)]),
-    ])
-    origins, directions = model.pixel_to_ray(border)
-    miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
-    miss = np.where(np.isfinite(miss), miss, np.inf)
-    worst = int(np.argmax(miss))
-    return float(miss[worst]), (float(border[worst][0]), float(border[worst][1]))
-
-
-def _check_lens(cam: CameraConfig, where: str) -> None:
-    """Refuse a distortion model that cannot be inverted out to the image's edges (lens_fold_px):
-    the rays trackerd finds for those pixels would be silently wrong."""
-    miss, (u, v) = lens_fold_px(cam)
-    if miss > MAX_LENS_INVERSION_PX:
-        raise ConfigError(
-            f"{where}.intrinsics.distortion: the lens model folds over near the image edge: the ray"
-            f" for pixel ({u:.1f}, {v:.1f}) projects back {miss:.3g} px away, so the"
-            " calibration does not hold out to the corners (calibrate with the board near them,"
-            " or with fewer distortion terms: --distortion 4)"
-        )
-
-
-def check_rig_geometry(rig: RigConfig, path: Path, *, check_wall: bool = True) -> None:
-    """The geometric checks load_rig makes (lens invertible to the corners, a sane wall in front of
-    the cameras), for a rig assembled in memory, with errors naming ``path``."""
-    complete = rig.wall is not None
-    for cam in rig.cameras:
-        if cam.intrinsics is None or cam.extrinsics is None:
-            complete = False
-            continue
-        _check_lens(cam, f"{path}: cameras.{cam.id}")
-    if complete and check_wall:
-        _check_geometry(rig, path)
 
 
 def _resolve_paths(rig: RigConfig, rig_path: Path) -> RigConfig:
@@ -547,31 +495,6 @@ def _resolve_paths(rig: RigConfig, rig_path: Path) -> RigConfig:
             update={"gestures": gestures.model_copy(update=gestures_update)}
         )
     return rig.model_copy(update=update) if update else rig
-
-
-def _check_geometry(rig: RigConfig, wall_path: Path | None) -> None:
-    """Build the wall frame once so an impossible wall is reported now, naming its file."""
-    from trackerd.geometry.wall import WallFrame  # geometry imports config models
-
-    try:
-        wall = WallFrame.from_config(rig.wall)
-    except ConfigError as err:
-        raise ConfigError(f"{wall_path}: {err}") from err
-    # Corners listed clockwise (seen from the room) give a frame whose normal points
-    # into the wall and whose x runs up it; every camera then sits behind the wall.
-    from trackerd.geometry.camera import CameraModel
-
-    behind = [
-        cam.id for cam in rig.cameras
-        if cam.extrinsics is not None and cam.intrinsics is not None
-        and wall.plane.signed_distance_m(CameraModel.from_config(cam).centre_m) < 0
-    ]
-    if behind:
-        key = "wall.corners_m" if rig.wall.corners_m is not None else "wall.x_direction/y_direction"
-        raise ConfigError(
-            f"{wall_path}: {key}: camera(s) {', '.join(behind)} would be behind the wall; list the corners"
-            " bottom-left, bottom-right, top-right, top-left as seen from the room (x right, y up)"
-        )
 
 
 def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) -> RigConfig:

@@ -15,16 +15,6 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.config.models import (
-    CameraConfig,
-    FovIntrinsics,
-    OpenCVExtrinsics,
-    OpenCVIntrinsics,
-    PoseExtrinsics,
-    horizontal_focal_px,
-)
-from trackerd.geometry.rotation import rotation_from_rvec, world_from_camera_ypr
-
 Array = NDArray[np.float64]
 
 # undistortPoints' default of 5 iterations leaves errors of a tenth of a pixel near the
@@ -64,39 +54,6 @@ class CameraModel:
         object.__setattr__(self, "centre_m", centre)
 
     # ----------------------------------------------------------------- construction
-
-    @classmethod
-    def from_config(cls, cam: CameraConfig) -> CameraModel:
-        """Build the model from a camera's validated configuration (intrinsics and extrinsics set)."""
-        if cam.intrinsics is None or cam.extrinsics is None:
-            raise ValueError(f"camera '{cam.id}' needs intrinsics and extrinsics")
-        intr = cam.intrinsics
-        if isinstance(intr, FovIntrinsics):
-            fx = horizontal_focal_px(intr, cam.width_px)
-            if intr.vertical_fov_deg is None:
-                fy = fx
-            else:
-                fy = (cam.height_px / 2.0) / np.tan(np.radians(intr.vertical_fov_deg) / 2.0)
-            # Centre of an image W pixels wide, in OpenCV's pixel-centre coordinates.
-            cx, cy = (cam.width_px - 1) / 2.0, (cam.height_px - 1) / 2.0
-            dist: tuple[float, ...] = ()
-        else:
-            assert isinstance(intr, OpenCVIntrinsics)
-            fx, fy, cx, cy, dist = intr.fx_px, intr.fy_px, intr.cx_px, intr.cy_px, intr.distortion
-        matrix = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-        ext = cam.extrinsics
-        if isinstance(ext, PoseExtrinsics):
-            world_from_cam = world_from_camera_ypr(ext.yaw_deg, ext.pitch_deg, ext.roll_deg)
-            rotation = world_from_cam.T
-            translation = -rotation @ np.asarray(ext.position_m, dtype=float)
-        else:
-            assert isinstance(ext, OpenCVExtrinsics)
-            if ext.rvec is not None:
-                rotation = rotation_from_rvec(np.asarray(ext.rvec))
-            else:
-                rotation = np.asarray(ext.rotation_matrix, dtype=float)
-            translation = np.asarray(ext.tvec_m, dtype=float)
-        return cls(cam.id, cam.width_px, cam.height_px, matrix, np.asarray(dist), rotation, translation)
 
     @classmethod
     def from_pose(

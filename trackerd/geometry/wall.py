@@ -13,8 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.config.models import WallConfig
-from trackerd.errors import ConfigError, GeometryError
+from trackerd.errors import GeometryError
 
 Array = NDArray[np.float64]
 
@@ -317,26 +316,6 @@ class WallFrame:
         y_axis = _in_plane_axis(y_hint, normal, x_axis, "y")
         dw, dh = display_px if display_px is not None else (None, None)
         return cls(origin, x_axis, y_axis, width_m, height_m, dw, dh, residuals)
-
-    @classmethod
-    def from_config(cls, wall: WallConfig) -> WallFrame:
-        """Build the frame from a validated wall configuration (ConfigError if it has no plane)."""
-        display = None
-        if wall.display_width_px is not None and wall.display_height_px is not None:
-            display = (wall.display_width_px, wall.display_height_px)
-        try:
-            if wall.corners_m is not None:
-                return cls.from_corners(np.array(wall.corners_m), display, wall.planarity_tolerance_m)
-            assert wall.points_m is not None and wall.origin_m is not None
-            assert wall.x_direction is not None and wall.y_direction is not None
-            assert wall.width_m is not None and wall.height_m is not None
-            return cls.from_points(
-                np.array(wall.points_m), np.array(wall.origin_m), np.array(wall.x_direction),
-                np.array(wall.y_direction), wall.width_m, wall.height_m, display,
-                wall.planarity_tolerance_m,
-            )
-        except GeometryError as err:
-            raise ConfigError(f"wall: {err}") from err
 
 
 MAX_DIRECTION_TILT_DEG = 30.0

@@ -41,6 +41,7 @@ import numpy as np
 
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.errors import ConfigError
 from trackerd.geometry.wall import WallFrame
 from trackerd.interaction.engine import Event, InteractionEngine, Step
@@ -114,7 +115,7 @@ class InteractionExtension:
         """Every part for ``rig`` (ConfigError, one line, when the rig cannot run), nothing installed yet."""
         cfg = rig.interaction
         checked = check_interaction(rig)
-        wall = WallFrame.from_config(rig.wall)
+        wall = wall_frame(rig.wall)
         engine = InteractionEngine(cfg, wall.width_m, wall.height_m, checked.templates)
         if previous is not None:
             # Session ids go on counting across rebuilds: a client must never see one twice.

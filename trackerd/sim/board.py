@@ -27,7 +27,7 @@ from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import SourceStatus
 from trackerd.calibration.board import BoardSpec
 from trackerd.geometry.rotation import rotation_about_x, rotation_about_y, rotation_about_z
-from trackerd.sim.render import AMBIENT, DIFFUSE, SceneRenderer, _format_values, _quantise
+from trackerd.sim.render import AMBIENT, DIFFUSE, SceneRenderer, raw_values, sensor_output
 
 Array = NDArray[np.float64]
 
@@ -119,9 +119,9 @@ class BoardRenderer:
                 bx0, by0 = max(0, x0 - pad), max(0, y0 - pad)
                 bx1, by1 = min(camera.width_px, x1 + pad), min(camera.height_px, y1 + pad)
                 rgb[by0:by1, bx0:bx1] = cv2.GaussianBlur(rgb[by0:by1, bx0:bx1], (0, 0), blur_px)
-        values = _format_values(rgb.astype(np.float32), fmt, 0, 0)
+        values = raw_values(rgb.astype(np.float32), fmt, 0, 0)
         sim = self.scene.rig.simulation
-        image = _quantise(values, rng, sim.noise_sigma, sim.shot_noise, noise)
+        image = sensor_output(values, rng, sim.noise_sigma, sim.shot_noise, noise)
         corners_world = pose.to_world(self.spec.object_points_m)
         corners_px = camera.project(corners_world)
         facing = float((camera.centre_m - pose.origin_m) @ pose.rotation[:, 2]) < 0.0

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.sim.render import AMBIENT, DIFFUSE, SceneRenderer, _format_values, _quantise
+from trackerd.sim.render import AMBIENT, DIFFUSE, SceneRenderer, raw_values, sensor_output
 from trackerd.sim.scene import SKIN_RGB
 
 Array = NDArray[np.float64]
@@ -214,13 +214,13 @@ class HandRenderer:
 
     def _frame_values(self) -> NDArray[np.float32]:
         if self._formatted is None:
-            self._formatted = _format_values(self._background, self.pixel_format, 0, 0)
+            self._formatted = raw_values(self._background, self.pixel_format, 0, 0)
         return self._formatted
 
     def empty(self, rng: np.random.Generator) -> NDArray[np.uint8]:
         """The room without a hand, with sensor noise."""
         sim = self.renderer.rig.simulation
-        return _quantise(self._frame_values().copy(), rng, sim.noise_sigma, sim.shot_noise, True)
+        return sensor_output(self._frame_values().copy(), rng, sim.noise_sigma, sim.shot_noise, True)
 
     def placement(self, pose: HandPose) -> tuple[Array, Array]:
         """The hand's frame in the world: (rotation (3, 3) whose columns are its axes, centre (3,))."""
@@ -286,10 +286,10 @@ class HandRenderer:
         premultiplied = colour.reshape(h, w, n, 3).mean(axis=2)
         blended = premultiplied + (1.0 - coverage[..., None]) * self._background[y0:y1, x0:x1]
         values = self._frame_values().copy()
-        region = _format_values(blended.astype(np.float32), self.pixel_format, x0, y0)
+        region = raw_values(blended.astype(np.float32), self.pixel_format, x0, y0)
         values[y0:y1, x0:x1] = region
         sim = self.renderer.rig.simulation
-        image = _quantise(values, rng, sim.noise_sigma, sim.shot_noise, noise)
+        image = sensor_output(values, rng, sim.noise_sigma, sim.shot_noise, noise)
         palm_px = cam.project(centre[None])[0]
         area = float((hit & skin).reshape(h, w, n).mean(axis=2).sum())
         return RenderedHand(image, self.pixel_format, pose, (float(palm_px[0]), float(palm_px[1])),

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.geometry.wall import WallFrame
 from trackerd.sim.scene import PointerPose, pose_aimed_at
 
@@ -47,7 +48,7 @@ class Stage:
 
     @classmethod
     def from_rig(cls, rig: RigConfig) -> Stage:
-        wall = WallFrame.from_config(rig.wall)
+        wall = wall_frame(rig.wall)
         sim = rig.simulation
         distance = sum(sim.presenter_distance_m) / 2.0
         height = sum(sim.hand_height_m) / 2.0

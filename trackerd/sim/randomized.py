@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
 from trackerd.sim.appearance import CONTENT_KINDS, Look, Occluder
@@ -324,7 +325,7 @@ def _look(rng: np.random.Generator, lighting: str, paint: str) -> tuple[Look, fl
 def random_shot(drawn: RandomRig, rng: np.random.Generator, wall: WallFrame | None = None) -> RandomShot:
     """A pointer pose aimed at the wall from the presenter's area, seen by at least two cameras, with
     its motion during the exposure, occluders and what the display shows."""
-    wall = wall or WallFrame.from_config(drawn.rig.wall)
+    wall = wall or wall_frame(drawn.rig.wall)
     pointer = drawn.rig.pointer
     lower, upper = (np.asarray(v) for v in drawn.presenter_box_m)
     for _ in range(2000):

@@ -29,8 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.wall import WallFrame
 from trackerd.pixelformat import from_rgb
 from trackerd.sim.appearance import DEFAULT_LOOK, Look, Occluder
 from trackerd.sim.scene import (
@@ -118,9 +118,9 @@ class SceneRenderer:
         self.noise_field = noise_field
         self._display_lookups: dict[tuple[int, int, int], tuple[NDArray[np.float32], NDArray[np.float32]]] = {}
         self._noise: dict[int, NDArray[np.float32]] = {}
-        self.cameras = cameras if cameras is not None else [CameraModel.from_config(c) for c in rig.cameras]
+        self.cameras = cameras if cameras is not None else [camera_model(c) for c in rig.cameras]
         self.pixel_formats = [c.pixel_format for c in rig.cameras]
-        self.wall = WallFrame.from_config(rig.wall)
+        self.wall = wall_frame(rig.wall)
         self.room: Room = build_room(rig, self.wall)
         self.front_colour = rig.pointer.front_colour
         self._maps: dict[int, NDArray[np.float32]] = {}
@@ -196,7 +196,8 @@ class SceneRenderer:
                 truth_centre[colour] = camera.project(centre[None])[0]
                 full_area[colour] = silhouette_area_px(camera, centre, radius)
         draws = self._noise_window(camera_index, mosaic.shape, rng) if (noise and self.noise_field) else None
-        image = _quantise(mosaic, rng, self.rig.simulation.noise_sigma, self.rig.simulation.shot_noise, noise, draws)
+        sim = self.rig.simulation
+        image = sensor_output(mosaic, rng, sim.noise_sigma, sim.shot_noise, noise, draws)
         return RenderedView(image, fmt, ViewTruth(truth_centre, truth_centroid, truth_area, full_area))
 
     def _noise_window(self, index: int, shape: tuple[int, ...], rng: np.random.Generator) -> NDArray[np.float32]:
@@ -216,7 +217,7 @@ class SceneRenderer:
         illumination = self._illumination_map(index)
         if illumination is not None:
             rgb = rgb * illumination[y0 : y0 + h, x0 : x0 + w]
-        region = _format_values(rgb, fmt, x0, y0)
+        region = raw_values(rgb, fmt, x0, y0)
         if region.ndim == 2:
             mosaic[y0 : y0 + h, x0 : x0 + w] = region
         else:
@@ -230,7 +231,7 @@ class SceneRenderer:
         key = (index, "lit-" + fmt)
         cached = self._mosaics.get(key)
         if cached is None:
-            cached = _format_values(self._background(index) * illumination, fmt, 0, 0)
+            cached = raw_values(self._background(index) * illumination, fmt, 0, 0)
             self._mosaics[key] = cached
         return cached
 
@@ -424,7 +425,7 @@ class SceneRenderer:
         key = (index, fmt)
         cached = self._mosaics.get(key)
         if cached is None:
-            cached = _format_values(self._background(index), fmt, 0, 0)
+            cached = raw_values(self._background(index), fmt, 0, 0)
             self._mosaics[key] = cached
         return cached
 
@@ -892,8 +893,11 @@ def _undistort_fast(cam: CameraModel, pixels: Array) -> Array:
     return out.reshape(-1, 2)
 
 
-def _format_values(rgb: NDArray[np.float32], fmt: str, x0: int, y0: int) -> NDArray[np.float32]:
-    """RGB floats (h, w, 3) -> the camera's raw values for a region starting at (x0, y0)."""
+def raw_values(rgb: NDArray[np.float32], fmt: str, x0: int, y0: int) -> NDArray[np.float32]:
+    """RGB floats (h, w, 3) -> the camera's raw values for a region starting at (x0, y0).
+
+    Every renderer of the simulator (the scene, the calibration board, the hand) goes through
+    this and :func:`sensor_output`, so their frames share one sensor model."""
     from trackerd.pixelformat import BAYER_LAYOUTS
 
     layout = BAYER_LAYOUTS.get(fmt)
@@ -913,7 +917,7 @@ def _format_values(rgb: NDArray[np.float32], fmt: str, x0: int, y0: int) -> NDAr
     return out
 
 
-def _quantise(
+def sensor_output(
     values: NDArray[np.float32], rng: np.random.Generator, read_sigma: float, shot: float, noise: bool,
     draws: NDArray[np.float32] | None = None,
 ) -> NDArray[np.uint8]:

@@ -39,8 +39,8 @@ import numpy as np
 
 import trackerd
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import wall_frame
 from trackerd.errors import CameraError, TrackerdError
-from trackerd.geometry.wall import WallFrame
 from trackerd.sim import netns
 from trackerd.sim.motion import DEFAULT_PERIOD_S, make_motion
 
@@ -100,7 +100,7 @@ def loop_truth(rig: RigConfig, motion: str, period_s: float, content_fps: float)
     from trackerd.sim.scene import true_wall_hit
 
     moving = make_motion(motion, rig, period_s)
-    wall = WallFrame.from_config(rig.wall)
+    wall = wall_frame(rig.wall)
     n_frames = max(1, round(period_s * content_fps))
     frames = []
     for index in range(n_frames):

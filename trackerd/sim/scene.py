@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.errors import GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame, intersect_line_plane
@@ -173,7 +174,7 @@ def build_room(rig: RigConfig, wall: WallFrame) -> Room:
     depth = sim.room_depth_m
     # Keep every camera inside the box.
     for cam in rig.cameras:
-        pos = CameraModel.from_config(cam).centre_m
+        pos = camera_model(cam).centre_m
         x0, x1 = min(x0, pos[0] - 0.3), max(x1, pos[0] + 0.3)
         floor, ceiling = min(floor, pos[1] - 0.3), max(ceiling, pos[1] + 0.3)
         depth = max(depth, pos[2] + 0.3)
@@ -251,8 +252,8 @@ def random_pose(
     the wall, at a hand's height, and aimed at a random point of the display
     (or, with probability ``1 - on_wall_fraction``, at a point just beyond its edge).
     """
-    wall = wall or WallFrame.from_config(rig.wall)
-    cameras = cameras or [CameraModel.from_config(c) for c in rig.cameras]
+    wall = wall or wall_frame(rig.wall)
+    cameras = cameras or [camera_model(c) for c in rig.cameras]
     sim = rig.simulation
     near, far = sim.presenter_distance_m
     low, high = sim.hand_height_m

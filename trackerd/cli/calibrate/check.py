@@ -11,7 +11,7 @@ from trackerd.calibration.live import CheckSession
 from trackerd.calibration.report import health_text
 from trackerd.calibration.store import open_rig
 from trackerd.cli.calibrate.common import Output, check_source, run_live, simulated_pointer
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 from trackerd.locator import Locator
 
 
@@ -20,7 +20,7 @@ def check_command(args: argparse.Namespace) -> int:
     context = open_rig(args.config)
     rig = context.complete()
     mode = check_source(args, "--pairs DIR", args.pairs is not None)
-    cameras = [CameraModel.from_config(c) for c in rig.cameras]
+    cameras = [camera_model(c) for c in rig.cameras]
     health = CalibrationHealth.for_rig(rig, cameras, window=max(args.fixes, 10_000))
     frames = 0
     if mode == "live":

@@ -18,7 +18,7 @@ from trackerd.calibration.live import run_session
 from trackerd.calibration.stereo import Lens
 from trackerd.calibration.store import RigContext, require_output, write_calibration
 from trackerd.config.models import CameraConfig, PoseExtrinsics, RigConfig
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 
 
 class Output:
@@ -78,7 +78,7 @@ def lens_of(cam: CameraConfig) -> Lens:
             f"camera '{cam.id}' has no intrinsics yet; run `trackerd calibrate intrinsics --camera {cam.id}` first"
         )
     posed = cam.model_copy(update={"extrinsics": PoseExtrinsics(kind="pose", position_m=(0.0, 0.0, 0.0))})
-    model = CameraModel.from_config(posed)
+    model = camera_model(posed)
     return Lens(model.matrix.copy(), model.distortion.copy())
 
 

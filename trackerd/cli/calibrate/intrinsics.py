@@ -26,8 +26,8 @@ from trackerd.cli.calibrate.common import (
     snapshot_dir,
     write_result,
 )
-from trackerd.config.loader import MAX_LENS_INVERSION_PX, lens_fold_px
 from trackerd.config.models import CameraConfig, PoseExtrinsics
+from trackerd.config.rig_geometry import MAX_LENS_INVERSION_PX, lens_fold_px
 
 
 def intrinsics_command(args: argparse.Namespace) -> int:

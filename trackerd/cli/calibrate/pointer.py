@@ -10,7 +10,7 @@ from trackerd.calibration.colours import COLOURS, ColourLearner, LearnedFigures
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.store import RigContext, open_rig, today, with_pointer_colours
 from trackerd.cli.calibrate.common import Output, check_source, run_live, simulated_pointer, write_result
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 
 DEFAULT_FRAMES = 60
 """Pairs with the pointer located to learn from, live."""
@@ -33,7 +33,7 @@ def pointer_command(args: argparse.Namespace) -> int:
         if live_only:
             raise CalibrationError(f"{' and '.join(live_only)}: only with --live or --recording; --pairs DIR"
                                    " learns from every pair in the folder")
-    cameras = [CameraModel.from_config(c) for c in rig.cameras]
+    cameras = [camera_model(c) for c in rig.cameras]
     if mode == "live":
         learner = ColourLearner(rig, cameras, wanted=args.frames or DEFAULT_FRAMES)
         out.say("wave the pointer slowly through the room, where every camera sees both ends,"

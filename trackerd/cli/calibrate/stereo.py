@@ -29,7 +29,7 @@ from trackerd.cli.calibrate.common import (
     write_result,
 )
 from trackerd.config.models import CameraConfig
-from trackerd.geometry.camera import CameraModel
+from trackerd.config.rig_geometry import camera_model
 
 
 def stereo_command(args: argparse.Namespace) -> int:
@@ -204,5 +204,5 @@ def _stated_baseline_m(cam1: CameraConfig, cam2: CameraConfig) -> float | None:
     or an earlier calibration), or None when either camera has no pose yet."""
     if cam1.extrinsics is None or cam2.extrinsics is None or cam1.intrinsics is None or cam2.intrinsics is None:
         return None
-    centres = [CameraModel.from_config(cam).centre_m for cam in (cam1, cam2)]
+    centres = [camera_model(cam).centre_m for cam in (cam1, cam2)]
     return float(np.linalg.norm(centres[1] - centres[0]))

@@ -24,8 +24,7 @@ from trackerd.calibration.visibility import common_view_rectangle, touch_seen, v
 from trackerd.calibration.wall import Pointing, Target, Touch, fit_problem, fit_wall
 from trackerd.cli.calibrate.common import Output, check_source, run_live, simulation_truth, snapshot_dir, write_result
 from trackerd.config.models import RigConfig
-from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.wall import WallFrame
+from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.locator import Locator
 
 
@@ -39,7 +38,7 @@ def wall_command(args: argparse.Namespace) -> int:
             raise CalibrationError(f"--points FILE is the whole input; it takes no {' or '.join(extra)}")
         return _measured_wall(context, args, out)
     rig = context.complete()
-    nominal = WallFrame.from_config(context.rig.wall or rig.wall)
+    nominal = wall_frame(context.rig.wall or rig.wall)
     size = (nominal.width_m, nominal.height_m)
     display = nominal.display_width_px, nominal.display_height_px
     display_px = display if nominal.has_display else None
@@ -124,8 +123,8 @@ def _touch_targets_in_view(
             " touch only targets you can see in both cameras' images"
         )
         return labels
-    cameras = [CameraModel.from_config(c) for c in rig.cameras]
-    wall = WallFrame.from_config(rig.wall)
+    cameras = [camera_model(c) for c in rig.cameras]
+    wall = wall_frame(rig.wall)
     xy = np.array([targets[label].wall_xy_m for label in labels])
     seen = touch_seen(cameras, wall, xy, radius)
     out_of_view = [(label, row) for label, row in zip(labels, seen, strict=True) if not row.all()]
@@ -208,7 +207,7 @@ def _wall_from_folder(
 def _measured_wall(context: RigContext, args: argparse.Namespace, out: Output) -> int:
     wall = read_measured_wall(args.points)
     try:
-        frame = WallFrame.from_config(wall)
+        frame = wall_frame(wall)
     except Exception as err:  # ConfigError or GeometryError, both one-line TrackerdErrors
         raise CalibrationError(f"{args.points}: {err}") from err
     points = np.array(wall.points_m if wall.points_m is not None else wall.corners_m)
