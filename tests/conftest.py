@@ -52,3 +52,21 @@ def rng() -> np.random.Generator:
 def pytest_configure(config: pytest.Config) -> None:
     # Benchmarks and the CLI share the cache with tests when run from the repo.
     os.environ.setdefault("TRACKERD_RENDER_CACHE", str(RENDER_CACHE))
+
+
+CAMERA_MARKERS = frozenset({"root", "aravis", "pylon", "gentl", "hardware"})
+"""Tests with these markers run cameras: virtual GigE Vision rigs in network namespaces (their
+prefixes, locks and ports are shared within a module and sometimes across modules), pylon's
+emulated cameras or a GenTL producer. scripts/test runs the suite on two pytest-xdist workers;
+the modules holding such tests all go to one of them, in order, so two rigs never compete for a
+prefix or a port."""
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's hook, which reads the groups
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # Whole modules: a module's other tests share its rigs' ports and files (a refusal test binds
+    # the endpoint its module's daemons use).
+    with_cameras = {item.path for item in items if CAMERA_MARKERS & {mark.name for mark in item.iter_markers()}}
+    for item in items:
+        if item.path in with_cameras:
+            item.add_marker(pytest.mark.xdist_group("cameras"))

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,13 +71,23 @@ def _cached(kind: str, key: str, build: Callable[[Path], dict]) -> FrameSet:
     truth_path = folder / "truth.json"
     if truth_path.exists():
         return FrameSet(folder, json.loads(truth_path.read_text()))
-    work = CACHE / f".{kind}-{key}.tmp"
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir(parents=True)
-    truth = build(work)
-    (work / "truth.json").write_text(json.dumps(truth))
-    shutil.rmtree(folder, ignore_errors=True)
-    work.rename(folder)
+    # A work folder of this process's own: the suite's two workers may build the same set at once.
+    CACHE.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{kind}-{key}.", dir=CACHE))
+    try:
+        truth = build(work)
+        (work / "truth.json").write_text(json.dumps(truth))
+        if folder.exists() and not truth_path.exists():
+            shutil.rmtree(folder, ignore_errors=True)  # left incomplete by an older version
+        try:
+            work.rename(folder)
+        except OSError:
+            if not truth_path.exists():
+                raise
+            # Another process finished the same set first: theirs is as good.
+            return FrameSet(folder, json.loads(truth_path.read_text()))
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
     return FrameSet(folder, truth)
 
 
