@@ -81,12 +81,18 @@ def test_the_locators_messages_for_many_poses(simulated_rig):
             _same_as_pydantic(message)
             if isinstance(message, HitMessage):
                 hits += 1
-                smoothed = message.model_copy(update={
-                    "wall_x_m": message.wall_x_m * 0.999, "wall_y_m": message.wall_y_m + 1e-9,
-                    "on_wall": not message.on_wall, "raw_wall_x_m": message.wall_x_m,
-                    "raw_wall_y_m": message.wall_y_m, "raw_display_x_px": message.display_x_px,
-                    "raw_display_y_px": message.display_y_px, "cursor_id": 3,
-                })
+                smoothed = message.model_copy(
+                    update={
+                        "wall_x_m": message.wall_x_m * 0.999,
+                        "wall_y_m": message.wall_y_m + 1e-9,
+                        "on_wall": not message.on_wall,
+                        "raw_wall_x_m": message.wall_x_m,
+                        "raw_wall_y_m": message.wall_y_m,
+                        "raw_display_x_px": message.display_x_px,
+                        "raw_display_y_px": message.display_y_px,
+                        "cursor_id": 3,
+                    }
+                )
                 _same_as_pydantic(smoothed)
             else:
                 statuses[message.status] = statuses.get(message.status, 0) + 1
@@ -109,8 +115,13 @@ def test_the_status_the_publisher_fills_in():
 
 def test_numpy_scalars_in_an_update_are_written_as_their_values():
     """pydantic writes a NumPy float or bool given to ``model_copy`` as the Python value; so does the encoder."""
-    update = {"wall_x_m": np.float64(0.1), "distance_m": np.float32(0.1), "on_wall": np.bool_(False),
-              "cursor_id": np.int64(4), "front_m": (np.float64(1.0), np.float32(0.2), 3.0)}
+    update = {
+        "wall_x_m": np.float64(0.1),
+        "distance_m": np.float32(0.1),
+        "on_wall": np.bool_(False),
+        "cursor_id": np.int64(4),
+        "front_m": (np.float64(1.0), np.float32(0.2), 3.0),
+    }
     _same_as_pydantic(hit_message().model_copy(update=update))
     with pytest.raises(TypeError):  # pydantic refuses an array too
         encode(hit_message(), {"front_m": np.array([1.0, 2.0, 3.0])})
@@ -126,8 +137,25 @@ def test_a_misspelt_update_is_refused_and_stray_attributes_are_left_out():
 
 # ------------------------------------------------------------------ generated messages
 
-AWKWARD_FLOATS = [0.0, -0.0, 0.1, 1 / 3, 1e-4, 1e-5, 1e-7, 1e15, 1e16, 9.999999999999999e15, 1.5e300, 5e-324,
-                  2.2250738585072014e-308, 1.7976931348623157e308, float("nan"), float("inf"), float("-inf")]
+AWKWARD_FLOATS = [
+    0.0,
+    -0.0,
+    0.1,
+    1 / 3,
+    1e-4,
+    1e-5,
+    1e-7,
+    1e15,
+    1e16,
+    9.999999999999999e15,
+    1.5e300,
+    5e-324,
+    2.2250738585072014e-308,
+    1.7976931348623157e308,
+    float("nan"),
+    float("inf"),
+    float("-inf"),
+]
 
 
 def _values(annotation: object) -> st.SearchStrategy:
