@@ -40,10 +40,6 @@ class GeometryError(TrackerdError):
     """A geometric configuration that has no answer (parallel rays, a line parallel to the wall)."""
 
 
-class DetectionError(TrackerdError):
-    """An image in which the pointer cannot be located (missing end, unusable frame)."""
-
-
 class ImageError(TrackerdError):
     """An image file that cannot be read or does not match the camera it is said to come from."""
 

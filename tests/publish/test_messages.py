@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from tests.publish.conftest import hit_message
+from tests.publish.conftest import hit_message, status_message
 from trackerd.locator import Locator
-from trackerd.publish import HitMessage, PointerMessage, decode, encode, messages_from_fix
+from trackerd.publish import HitMessage, LatencyPart, PointerMessage, decode, encode, messages_from_fix
 
 
 def _centroids(locator: Locator, front_m, back_m):
@@ -84,3 +84,15 @@ def test_messages_refuse_non_finite_numbers_and_unknown_fields():
         HitMessage.model_validate({**hit_message().model_dump(), "wall_x_m": float("nan")})
     with pytest.raises(ValueError):
         HitMessage.model_validate({**hit_message().model_dump(), "wal_x_m": 1.0})
+
+
+def test_decode_keeps_a_status_s_stages():
+    """Regression: decode read the values of ``stages`` (a dict of LatencyPart by stage name) as
+    one LatencyPart, dropped the stage names as unknown fields and returned ``stages == {}``."""
+    status = status_message().model_copy(update={"stages": {
+        "detect": LatencyPart(samples=3, p50_ms=2.5), "publish": LatencyPart(samples=3, p50_ms=0.2)}})
+    topic, payload = encode(status)
+    newer = json.loads(payload)
+    newer["stages"]["detect"]["p95_ms"] = 3.0  # a newer MINOR's field inside a part is still ignored
+    decoded = decode(topic, json.dumps(newer).encode())
+    assert decoded.stages == status.stages

@@ -150,8 +150,8 @@ class WallFloats:
     def of(cls, wall: WallFrame) -> WallFloats:
         plane = wall.plane
         display = (wall.display_width_px, wall.display_height_px) if wall.has_display else None
-        return cls(_vec3(plane.normal), float(plane.offset_m), _vec3(wall.origin_m), _vec3(wall.x_axis),
-                   _vec3(wall.y_axis), float(wall.width_m), float(wall.height_m), display)  # type: ignore[arg-type]
+        return cls(as_vec3(plane.normal), float(plane.offset_m), as_vec3(wall.origin_m), as_vec3(wall.x_axis),
+                   as_vec3(wall.y_axis), float(wall.width_m), float(wall.height_m), display)  # type: ignore[arg-type]
 
     def direction_sin(self, start_m: Vec3, through_m: Vec3) -> float:
         """Sine of the angle between the line through the two points and the wall's plane (0 if they coincide)."""
@@ -188,7 +188,8 @@ class WallFloats:
         return WallHitFloats(u, point, (wall_x, wall_y), display, on_wall)
 
 
-def _vec3(values: Array) -> Vec3:
+def as_vec3(values: Array) -> Vec3:
+    """A point or vector of three coordinates (3,) as a tuple of Python floats."""
     x, y, z = (float(v) for v in np.asarray(values, dtype=np.float64).ravel())
     return x, y, z
 

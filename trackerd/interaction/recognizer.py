@@ -94,11 +94,6 @@ def prepare(points: Array, rotation_invariant: bool) -> Array:
     return shape
 
 
-def mean_distance(a: Array, b: Array) -> float:
-    """Mean distance between corresponding points of two (N, 2) strokes."""
-    return float(np.mean(np.hypot(*(a - b).T)))
-
-
 def distance_at_best_angle(candidate: Array, template: Array, limit_rad: float) -> float:
     """Smallest mean distance over rotations of ``candidate`` within +-``limit_rad``.
 

@@ -2,15 +2,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
+from trackerd.geometry.wall import as_vec3
 from trackerd.locator import Locator, PointerFix
 from trackerd.publish.messages import HitMessage, Message, PointerMessage
-
-
-def _vec3(values: np.ndarray) -> tuple[float, float, float]:
-    x, y, z = (float(v) for v in np.asarray(values, dtype=np.float64).ravel()[:3])
-    return x, y, z
 
 
 def messages_from_fix(fix: PointerFix, locator: Locator, *, sequence: int, capture_ns: int) -> list[Message]:
@@ -25,7 +19,7 @@ def messages_from_fix(fix: PointerFix, locator: Locator, *, sequence: int, captu
     line = fix.line
     if not fix.found or line is None:
         return []
-    front, back = _vec3(line.front_m), _vec3(line.back_m)
+    front, back = as_vec3(line.front_m), as_vec3(line.back_m)
     out: list[Message] = [
         PointerMessage(
             sequence=sequence,
@@ -34,7 +28,7 @@ def messages_from_fix(fix: PointerFix, locator: Locator, *, sequence: int, captu
             front_colour=locator.front_colour,
             front_m=front,
             back_m=back,
-            direction=_vec3(line.direction),
+            direction=as_vec3(line.direction),
             length_m=line.length_m,
             front_gap_mm=line.front_gap_m * 1000.0,
             back_gap_mm=line.back_gap_m * 1000.0,

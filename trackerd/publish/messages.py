@@ -18,9 +18,13 @@ topic's name, because ZeroMQ subscriptions match by prefix.
 
 from __future__ import annotations
 
+import typing
+from collections.abc import Mapping
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from trackerd.publish.payload import payload_json
 
 SCHEMA_VERSION = "1.4"
 """MAJOR.MINOR of the message set this code writes."""
@@ -520,9 +524,10 @@ def _check_topics() -> None:
 _check_topics()
 
 
-def encode(message: Message) -> tuple[bytes, bytes]:
-    """The two frames of a message: topic and UTF-8 JSON payload."""
-    return message.topic.encode("ascii"), message.model_dump_json().encode("utf-8")
+def encode(message: Message, update: Mapping[str, Any] | None = None) -> tuple[bytes, bytes]:
+    """The two frames of ``message.model_copy(update=update)``: topic and UTF-8 JSON payload, the
+    payload byte for byte ``model_dump_json``'s, written without the copy (trackerd.publish.payload)."""
+    return message.topic.encode("ascii"), payload_json(message, update)
 
 
 def decode(topic: bytes, payload: bytes) -> Message:
@@ -557,6 +562,9 @@ def _known_only(model: type[BaseModel], data: Any) -> Any:
         sub = _part_type(field.annotation)
         if sub is not None and isinstance(value, list | tuple):
             out[key] = [_known_only(sub, v) for v in value]
+        elif sub is not None and typing.get_origin(field.annotation) is dict and isinstance(value, dict):
+            # A dict of parts (status.stages): its keys are names, not the part's fields.
+            out[key] = {name: _known_only(sub, v) for name, v in value.items()}
         elif sub is not None:
             out[key] = _known_only(sub, value)
         else:
@@ -565,11 +573,9 @@ def _known_only(model: type[BaseModel], data: Any) -> Any:
 
 
 def _part_type(annotation: Any) -> type[BaseModel] | None:
-    from typing import get_args
-
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return annotation
-    for arg in get_args(annotation):
+    for arg in typing.get_args(annotation):
         found = _part_type(arg)
         if found is not None:
             return found

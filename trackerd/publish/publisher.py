@@ -228,8 +228,7 @@ class Publisher:
         """Stamp ``publish_ns`` and send; never blocks. False when the message was dropped (queue full)."""
         if self._closed:
             raise PublishError("the publisher is closed")
-        stamped = message.model_copy(update={"publish_ns": self._clock()})
-        return self._send(*encode(stamped))
+        return self._send(*encode(message, {"publish_ns": self._clock()}))
 
     def publish_status(self, message: StatusMessage) -> bool:
         """Publish a status with the publisher's counters filled in; it becomes the last value for late joiners."""
@@ -237,10 +236,9 @@ class Publisher:
             raise PublishError("the publisher is closed")
         counts = dict(self._counts)
         counts["status"] = counts.get("status", 0) + 1
-        stamped = message.model_copy(
-            update={"publish_ns": self._clock(), "messages": counts, "dropped_messages": self._dropped}
+        return self._send(
+            *encode(message, {"publish_ns": self._clock(), "messages": counts, "dropped_messages": self._dropped})
         )
-        return self._send(*encode(stamped))
 
     def _send(self, topic: bytes, payload: bytes) -> bool:
         if topic == STATUS_TOPIC:
