@@ -508,7 +508,7 @@ def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
     cols, rows = spec.inner_corners
     if min(grey.shape[:2]) >= 720:
         grey = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    found: list[tuple[int, bool, int, int]] = []
+    candidates: list[tuple[int, bool, int, int]] = []
     tried = {(cols, rows), (rows, cols)}  # the size given, either way round, is what was not found
     for dc in (-1, 0, 1):
         for dr in (-1, 0, 1):
@@ -516,16 +516,16 @@ def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
                 if (c, r) in tried or min(c, r) < 2:
                     continue
                 tried.add((c, r))
-                for flags in (cv2.CALIB_CB_NORMALIZE_IMAGE, 0):
-                    corners = _sb(grey, c, r, flags)
-                    # A grid that runs onto the printed margin is not a board of that size.
-                    if corners is not None and corners_are_junctions(grey, corners.reshape(r, c, 2)):
-                        found.append((c * r, not swapped, c, r))
-                        break
-    if not found:
-        return None
-    _, _, c, r = max(found)
-    return f"chessboard:{c + 1}x{r + 1}:{_mm(spec.square_m)}"
+                candidates.append((c * r, not swapped, c, r))
+    # The largest first, the way round the user gave before the other: the first found is the
+    # answer, and a failed search (about 0.3 s on a 640 x 480 photo) is not run for the smaller ones.
+    for _, _, c, r in sorted(candidates, reverse=True):
+        for flags in (cv2.CALIB_CB_NORMALIZE_IMAGE, 0):
+            corners = _sb(grey, c, r, flags)
+            # A grid that runs onto the printed margin is not a board of that size.
+            if corners is not None and corners_are_junctions(grey, corners.reshape(r, c, 2)):
+                return f"chessboard:{c + 1}x{r + 1}:{_mm(spec.square_m)}"
+    return None
 
 
 def _sector_corners_near(grey: NDArray[np.uint8], rough: Array, cols: int, rows: int, finder: str) -> Array | None:
