@@ -47,6 +47,7 @@ def _playwright_missing() -> str | None:
 
 
 pytestmark = [
+    pytest.mark.serial,  # a daemon on the virtual rig and a browser
     pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
     pytest.mark.skipif(netns_missing_reason() is not None,
                        reason=f"needs network namespaces (root): {netns_missing_reason()}"),
@@ -172,8 +173,10 @@ def _frames(page, camera: str) -> int:
 def test_the_page_shows_both_cameras_live(page, daemon) -> None:
     start = time.monotonic()
     for cam in ("left", "right"):
-        page.wait_for_function(f'Number(document.querySelector(\'.camera[data-camera="{cam}"]\').dataset.frames) >= 2',
-                               timeout=DEADLINE_MS)
+        # The cards are made once the page has the rig's cameras: until then there is no card.
+        page.wait_for_function(
+            f'Number(document.querySelector(\'.camera[data-camera="{cam}"]\')?.dataset.frames ?? 0) >= 2',
+            timeout=DEADLINE_MS)
     print(f"\npage loaded in {page.loaded_s:.2f} s; both cameras' second image {time.monotonic() - start:.2f} s later")
     # The frame rate the page shows (a figure for the docs, not asserted).
     counted, since = _frames(page, "left"), time.monotonic()
