@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
-
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
 
@@ -54,19 +53,19 @@ def pytest_configure(config: pytest.Config) -> None:
     os.environ.setdefault("TRACKERD_RENDER_CACHE", str(RENDER_CACHE))
 
 
-CAMERA_MARKERS = frozenset({"root", "aravis", "pylon", "gentl", "hardware"})
-"""Tests with these markers run cameras: virtual GigE Vision rigs in network namespaces (their
-prefixes, locks and ports are shared within a module and sometimes across modules), pylon's
-emulated cameras or a GenTL producer. scripts/test runs the suite on two pytest-xdist workers;
-the modules holding such tests all go to one of them, in order, so two rigs never compete for a
-prefix or a port."""
+SERIAL_MARKERS = frozenset({"root", "aravis", "pylon", "gentl", "hardware", "serial"})
+"""Modules holding a test with one of these markers run in scripts/test's second pass, alone and
+one test after another: they run cameras (virtual GigE Vision rigs in network namespaces, whose
+prefixes, locks and ports a module's tests share, pylon's emulation, a GenTL producer), daemons
+or a browser, or measure how long something takes (`serial`: stopping within a second, events
+within a few seconds). The first pass runs the rest on two pytest-xdist workers."""
 
 
-@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's hook, which reads the groups
+@pytest.hookimpl(tryfirst=True)  # before pytest's -m selection reads the markers
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     # Whole modules: a module's other tests share its rigs' ports and files (a refusal test binds
     # the endpoint its module's daemons use).
-    with_cameras = {item.path for item in items if CAMERA_MARKERS & {mark.name for mark in item.iter_markers()}}
+    serial = {item.path for item in items if SERIAL_MARKERS & {mark.name for mark in item.iter_markers()}}
     for item in items:
-        if item.path in with_cameras:
-            item.add_marker(pytest.mark.xdist_group("cameras"))
+        if item.path in serial:
+            item.add_marker(pytest.mark.serial)

@@ -31,7 +31,7 @@ ENDPOINT = "tcp://127.0.0.1:5583"
 """Away from the rig's own 5560, which other tests use. Fixed, because the endpoint is part of the rig
 the simulated cameras' rendered loop is cached under: a new one each run would render it again (~20 s)."""
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.serial]  # serial: runs the installed demo on a virtual rig
 
 
 def _run(*command: str | Path, timeout_s: float, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 import signal
 import subprocess
 import sys
@@ -10,7 +12,7 @@ from pathlib import Path
 
 from acq_helpers import needs_aravis
 
-pytestmark = [needs_aravis]
+pytestmark = [needs_aravis, pytest.mark.serial]  # serial: times how soon the daemon stops
 
 RIG = Path(__file__).resolve().parents[2] / "config" / "simulated.toml"
 

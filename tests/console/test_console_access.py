@@ -23,6 +23,8 @@ from trackerd.pipeline.daemon import Pipeline
 from trackerd.pipeline.tap import ConsoleTap
 from trackerd.publish import Publisher
 
+pytestmark = pytest.mark.serial  # runs daemons with their consoles
+
 
 def _free_port() -> int:
     with socket.socket() as s:

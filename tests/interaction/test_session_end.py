@@ -28,6 +28,8 @@ from trackerd.publish.messages import HitMessage, Message
 from trackerd.sim.motion import Stage
 from trackerd.sim.scene import pose_aimed_at
 
+pytestmark = pytest.mark.serial  # runs the pipeline on paced sources
+
 EPOCH_NS = 1_800_000_000 * 10**9
 """The publishing clock at the first pair."""
 IMAGE = np.zeros((8, 8), np.uint8)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 import logging
 import time
 
@@ -16,6 +18,8 @@ from trackerd.pipeline.colourwatch import WATCH_EVERY_S, ColourWatch
 from trackerd.pipeline.daemon import Pipeline
 from trackerd.publish import Publisher
 from trackerd.publish.messages import ColourWatchPart
+
+pytestmark = pytest.mark.serial  # runs the pipeline on paced sources
 
 
 def _pairs(renderer, content, count: int, offset: float, seed: int):

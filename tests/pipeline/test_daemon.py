@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 import contextlib
 import itertools
 import json
@@ -19,6 +21,8 @@ from trackerd.pipeline.daemon import Pipeline
 from trackerd.pipeline.processing import HEALTH_EVERY
 from trackerd.publish import Publisher
 from trackerd.sdnotify import SdNotify
+
+pytestmark = pytest.mark.serial  # runs daemons and times their reloads and stops
 
 
 def _rig_on(rig, endpoint: str, status_ms: float = 200.0):

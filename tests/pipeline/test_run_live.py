@@ -29,6 +29,7 @@ from trackerd.sim.netns import netns_missing_reason
 from trackerd.sim.rig import loop_truth
 
 pytestmark = [
+    pytest.mark.serial,  # a daemon under a stand-in for systemd, on the virtual rig
     pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
     pytest.mark.skipif(netns_missing_reason() is not None,
                        reason=f"needs network namespaces (root): {netns_missing_reason()}"),

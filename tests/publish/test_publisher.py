@@ -26,6 +26,8 @@ from trackerd.errors import ConfigError
 from trackerd.publish import SCHEMA_VERSION, Publisher, PublishError, decode
 from trackerd.publish import publisher as publisher_module
 
+pytestmark = pytest.mark.serial  # publishes on real sockets at rates it measures
+
 
 def _endpoint(kind: str, tmp_path: Path) -> str:
     return "tcp://127.0.0.1:*" if kind == "tcp" else f"ipc://{tmp_path}/trackerd.sock"

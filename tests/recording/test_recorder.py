@@ -21,6 +21,8 @@ from trackerd.recording.reader import Recording
 from trackerd.recording.recorder import Recorder
 from trackerd.recording.writer import DiskFullError
 
+pytestmark = pytest.mark.serial  # records paced sources to disk
+
 
 @pytest.fixture(scope="module")
 def bundle_pairs(bundle):

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from trackerd.cli.demo import summary_line
 from trackerd.cli.main import build_parser
+
+pytestmark = pytest.mark.serial  # runs the demo on a virtual rig
 
 
 def test_demo_runs_the_rig_on_jumbo_frames_under_its_own_prefix_if_asked() -> None:
