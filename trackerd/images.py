@@ -20,6 +20,7 @@ such a frame is suspect, for the commands to warn.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -52,11 +53,13 @@ def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) ->
                 f" delivers {camera.pixel_format} frames of shape {expected} (uint8)"
             )
         return frame, camera.pixel_format
-    frame = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if frame is None:
+    decoded = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if decoded is None:
         raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, TIFF, PGM, or .npy)")
-    if frame.dtype != np.uint8:
-        raise ImageError(f"{path}: {frame.dtype} pixels; only 8-bit images are supported")
+    if decoded.dtype != np.uint8:
+        raise ImageError(f"{path}: {decoded.dtype} pixels; only 8-bit images are supported")
+    # OpenCV's stubs type every image as an array of any number type; the dtype was checked just above.
+    frame = cast(NDArray[np.uint8], decoded)
     height, width = frame.shape[:2]
     if (width, height) != (camera.width_px, camera.height_px):
         raise ImageError(

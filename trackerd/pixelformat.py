@@ -13,6 +13,7 @@ GenICam names the pattern by its top-left 2x2 cell read row by row: BayerRG8 is
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -96,17 +97,24 @@ def image_from_payload(payload: bytes | memoryview | NDArray[np.uint8], pixel_fo
     (H, W) or (H, W, 3) uint8 (:func:`frame_shape`); bytes past the image are ignored.
     """
     nbytes = frame_nbytes(pixel_format, width_px, height_px)
-    if memoryview(payload).nbytes < nbytes:
+    available = len(payload) if isinstance(payload, bytes) else payload.nbytes
+    if available < nbytes:
         return None
     image = np.frombuffer(payload, dtype=np.uint8, count=nbytes).reshape(frame_shape(pixel_format, width_px, height_px))
     image.flags.writeable = False
     return image
 
 
+def _uint8(converted: object) -> Image:
+    """A colour conversion's result, typed as what it is: OpenCV converts uint8 to uint8, but its stubs
+    type every result as an array of any number type."""
+    return cast(Image, converted)
+
+
 def to_rgb(frame: Image, pixel_format: str) -> Image:
     """Any supported frame -> an (H, W, 3) RGB image (Bayer is demosaiced bilinearly by OpenCV)."""
     if is_bayer(pixel_format):
-        return cv2.cvtColor(frame, _DEMOSAIC_TO_RGB[pixel_format])
+        return _uint8(cv2.cvtColor(frame, _DEMOSAIC_TO_RGB[pixel_format]))
     if pixel_format == "RGB8":
         return frame
     if pixel_format == "BGR8":
@@ -128,7 +136,7 @@ def from_rgb(rgb: Image, pixel_format: str) -> Image:
     if pixel_format == "BGR8":
         return np.ascontiguousarray(rgb[..., ::-1])
     if pixel_format == "Mono8":
-        return cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY)
+        return _uint8(cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY))
     layout = BAYER_LAYOUTS.get(pixel_format)
     if layout is None:
         raise ValueError(f"unsupported pixel format {pixel_format!r}")

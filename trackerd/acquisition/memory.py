@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.acquisition.pacing import wait_until_due
 from trackerd.acquisition.source import PairSource
-from trackerd.acquisition.status import CameraStatus, SourceStatus
+from trackerd.acquisition.status import CameraState, CameraStatus, SourceStatus
 from trackerd.config.models import RigConfig
 
 
@@ -122,7 +122,7 @@ class MemoryPairSource(PairSource):
         with self._lock:
             elapsed_s = max((time.monotonic_ns() - self._start_ns) / 1e9, 1e-9)
             rate = self._served / elapsed_s if self._running else 0.0
-            state = "streaming" if self._running else "stopped"
+            state: CameraState = "streaming" if self._running else "stopped"
             return SourceStatus(
                 running=self._running,
                 trigger="memory",

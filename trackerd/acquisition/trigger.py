@@ -153,16 +153,16 @@ class TriggerGate:
         with self._lock:
             decision = self._decisions.get(tick)
             if decision is None:
-                fire, left_out = True, set()
+                fire, stalled = True, set[int]()
                 for index, ready in self._members.items():
                     if ready():
                         self._not_ready[index] = 0
                         continue
                     self._not_ready[index] += 1
-                    left_out.add(index)
+                    stalled.add(index)
                     if self._not_ready[index] <= self.stall_ticks:
                         fire = False
-                decision = (fire, frozenset(left_out))
+                decision = (fire, frozenset(stalled))
                 self._decisions[tick] = decision
                 if not fire:
                     self.skipped += 1

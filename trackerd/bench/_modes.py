@@ -21,8 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from trackerd.bench.progress import BenchProgress
+from trackerd.recording.format import Mode
 
-MODES = ("raw", "compressed", "windowed")
+MODES: tuple[Mode, ...] = ("raw", "compressed", "windowed")
 
 
 def write_modes(raw_path: Path, workdir: Path, keyframe_interval_s: float) -> dict[str, dict[str, Any]]:

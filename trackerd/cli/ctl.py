@@ -19,10 +19,14 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from trackerd.cli._args import positive_int, positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.errors import TrackerdError
+
+if TYPE_CHECKING:
+    from trackerd.console.client import ConsoleClient
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -49,7 +53,7 @@ class NoDaemon(TrackerdError):
     """No trackerd console answers where the rig says."""
 
 
-def connect(config: str, listen: str | None):
+def connect(config: str, listen: str | None) -> tuple[ConsoleClient, dict[str, Any]]:
     from trackerd.console.client import ConsoleClient
 
     rig = load_rig(config).config

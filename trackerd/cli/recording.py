@@ -15,11 +15,16 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from trackerd.cli._args import positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.errors import RecordingError
 from trackerd.recording.reader import Recording
+
+if TYPE_CHECKING:
+    from trackerd.cli._progress import ProgressLine
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -75,7 +80,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     exp.set_defaults(handler=export_command)
 
 
-def _progress(label: str):
+def _progress(label: str) -> tuple[ProgressLine, Callable[[int, int], None]]:
     from trackerd.cli._progress import ProgressLine
 
     line = ProgressLine()
