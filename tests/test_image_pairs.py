@@ -54,7 +54,7 @@ def test_folders_that_cannot_be_paired_say_why(tmp_path: Path) -> None:
     with pytest.raises(ImageError, match=r"no images of cameras left, right: name them <name>-<camera>"):
         pair_images(tmp_path / "none", ["left", "right"])
     _touch(tmp_path / "one", "01-left.png", "01-right.png", "02-left.png")
-    with pytest.raises(ImageError, match="'02' has 02-left.png but no image from right"):
+    with pytest.raises(ImageError, match=r"'02' has 02-left\.png but no image from right"):
         pair_images(tmp_path / "one", ["left", "right"])
     _touch(tmp_path / "twice", "left/01.png", "left/left01.png", "right/01.png")
     with pytest.raises(ImageError, match="two images of camera 'left' for '01'"):

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import pytest
-
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import pytest
 from acq_helpers import needs_aravis
 
 pytestmark = [needs_aravis, pytest.mark.serial]  # serial: times how soon the daemon stops

@@ -111,9 +111,9 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
             if sub.poll(50):
                 topic, payload = sub.recv_multipart()
                 live.append((topic.decode(), json.loads(payload)))
-                if until is not None and live[-1][0] == "status":
-                    if (live[-1][1].get("recording") or {}).get("state") == until:
-                        return
+                if (until is not None and live[-1][0] == "status"
+                        and (live[-1][1].get("recording") or {}).get("state") == until):
+                    return
 
     daemon = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
