@@ -6,6 +6,10 @@ camera ends up with intrinsics and extrinsics. Any problem raises
 :class:`~trackerd.errors.ConfigError` with one line of the form::
 
     rig.toml: cameras[1].pixel_format: Mono8 is monochrome and cannot ...
+
+Beside it: reading the TOML (``tomlread``), strict validation and the one-line errors
+(``validation``), what a valid rig still lacks to track (``readiness``), and a command's options
+applied to a loaded rig (``overrides``); their public names are importable from here too.
 """
 
 from __future__ import annotations
@@ -59,7 +63,6 @@ class LoadedRig:
     threshold_sources: dict[str, str] | None = None
     """'red' / 'blue' -> where the detector's threshold for that end comes from: 'rig file'
     ([detector.<colour>]), 'learned' (pointer_colours) or 'default'."""
-
 
 
 def parse_rig(data: dict[str, Any], path: Path) -> RigConfig:

@@ -7,6 +7,9 @@ described in :attr:`Recording.problems`, one line each naming the file, the
 pair and the byte offset; the pairs before a problem stay readable. Frames are
 served as read-only NumPy views into a memory map of pairs.dat (no copy), so
 replay costs only the pixels the detector actually looks at.
+
+Reading the index and scanning past it is :mod:`trackerd.recording.index`'s;
+rebuilding compressed and windowed frames, :mod:`trackerd.recording.decoding`'s.
 """
 
 from __future__ import annotations
