@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Write the wire protocol's JSON Schemas (docs/schema/*.json) and the field tables of docs/protocol.md.
 
-Run after changing trackerd/publish/messages.py; tests/publish/test_schema.py fails until you do.
+Run after changing trackerd/publish/messages/; tests/publish/test_schema.py fails until you do.
 Usage: .venv/bin/python scripts/export_schemas.py
 """
 

@@ -21,6 +21,7 @@ from rec_helpers import one_line_error, replay_and_listen, trackerd, without_pub
 
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.errors import RecordingError
+from trackerd.recording import format as format_module
 from trackerd.recording import reader as reader_module
 from trackerd.recording.codec import WINDOW, WINDOWS_HEADER, Canvases, Window
 from trackerd.recording.convert import convert_recording
@@ -234,8 +235,10 @@ def test_a_reader_refuses_a_mode_it_does_not_know_in_one_line(bundle, tmp_path, 
     assert struct.unpack_from("<HH", (raw / "pairs.dat").read_bytes(), 8) == (1, 1)
     # A trackerd that reads MAJOR 1 only (every trackerd before the compressed and windowed modes).
     with monkeypatch.context() as old:
+        # The version check (format.check_major) and the metadata's upgrades (reader) each read them.
+        old.setattr(format_module, "FORMAT_MAJOR", 1)
+        old.setattr(format_module, "FORMAT_VERSION", "1.0")
         old.setattr(reader_module, "FORMAT_MAJOR", 1)
-        old.setattr(reader_module, "FORMAT_VERSION", "1.0")
         with pytest.raises(RecordingError, match=r"format 2\.x is newer than this trackerd reads \(1\.0\)"):
             Recording.open(compressed)
         with Recording.open(raw) as recording:  # a raw recording stays readable by it

@@ -6,7 +6,7 @@ from __future__ import annotations
 import ipaddress
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from trackerd.acquisition import gvcp
 from trackerd.acquisition.arv import aravis_missing_reason, load_aravis
@@ -69,6 +69,57 @@ class CameraDetails:
         return asdict(self)
 
 
+class FeatureReader(Protocol):
+    """A camera's GenICam features as a backend without Aravis's camera API reads them (pylon, GenTL)."""
+
+    def has(self, name: str) -> bool:
+        """Whether the camera has the feature and it is available now."""
+        ...
+
+    def value(self, name: str, default: Any = None) -> Any:
+        """The feature's value, ``default`` without it."""
+        ...
+
+    def span(self, name: str) -> tuple[float, float] | None:
+        """A number feature's (min, max), None without it."""
+        ...
+
+    def entries(self, name: str) -> tuple[str, ...]:
+        """An enumeration's entries, () without it."""
+        ...
+
+    def size(self, name: str) -> tuple[int, int, int]:
+        """An integer feature's (min, max, increment), (0, 0, 1) without it."""
+        ...
+
+
+def details_from_features(device: DeviceEntry, features: FeatureReader) -> CameraDetails:
+    """What a camera offers, read feature by feature by name (the standard features' names, SFNC)."""
+    sources = features.entries("TriggerSource")
+    return CameraDetails(
+        device_id=device.device_id,
+        vendor=device.vendor,
+        model=device.model,
+        serial=device.serial,
+        protocol=device.protocol,
+        sensor_px=(int(features.value("SensorWidth", 0)), int(features.value("SensorHeight", 0))),
+        width_px=features.size("Width"),
+        height_px=features.size("Height"),
+        pixel_format=str(features.value("PixelFormat", "")),
+        pixel_formats=features.entries("PixelFormat"),
+        frame_rate_hz=features.span("AcquisitionFrameRate"),
+        exposure_us=features.span("ExposureTime"),
+        gain=features.span("Gain"),
+        triggers=features.entries("TriggerSelector"),
+        trigger_sources=sources,
+        trigger_activations=features.entries("TriggerActivation"),
+        software_trigger="Software" in sources,
+        ptp=next((f for f in PTP_FEATURES if features.has(f)), None),
+        packet_size_bytes=features.value("GevSCPSPacketSize"),
+        packet_delay=features.has("GevSCPD"),
+    )
+
+
 def list_devices(include_fake: bool = False, producers: list[str] | None = None) -> list[DeviceEntry]:
     """Every camera Aravis discovers, then every camera pylon finds when pypylon is installed, then the
     devices of each GenTL producer in ``producers`` (``.cti`` paths; harvesters needed).
@@ -94,7 +145,7 @@ def list_gentl_entries(producers: list[str]) -> list[DeviceEntry]:
     """The devices each GenTL producer offers, as entries of the listing (``backend = "gentl"``)."""
     from trackerd.acquisition.gentl import list_gentl_devices
 
-    entries = []
+    entries: list[DeviceEntry] = []
     for path in producers:
         resolved = str(Path(path).expanduser().resolve())
         entries.extend(
@@ -236,8 +287,9 @@ def _enumeration(camera: Any, feature: str, glib: Any) -> tuple[str, ...]:
 
 
 def _details(camera: Any, device: DeviceEntry, glib: Any) -> CameraDetails:
-    width = (*camera.get_width_bounds(), camera.get_width_increment())
-    height = (*camera.get_height_bounds(), camera.get_height_increment())
+    width_min, width_max = camera.get_width_bounds()
+    height_min, height_max = camera.get_height_bounds()
+    sensor_width, sensor_height = camera.get_sensor_size()
     ptp = next((f for f in PTP_FEATURES if camera.is_feature_available(f)), None)
     packet_size = None
     if camera.is_gv_device():
@@ -251,9 +303,9 @@ def _details(camera: Any, device: DeviceEntry, glib: Any) -> CameraDetails:
         model=camera.get_model_name() or device.model,
         serial=camera.get_device_serial_number() or device.serial,
         protocol=device.protocol,
-        sensor_px=tuple(camera.get_sensor_size()),
-        width_px=tuple(int(v) for v in width),
-        height_px=tuple(int(v) for v in height),
+        sensor_px=(sensor_width, sensor_height),
+        width_px=(int(width_min), int(width_max), int(camera.get_width_increment())),
+        height_px=(int(height_min), int(height_max), int(camera.get_height_increment())),
         pixel_format=camera.get_pixel_format_as_string() or "",
         pixel_formats=tuple(camera.dup_available_pixel_formats_as_strings() or ()),
         frame_rate_hz=_bounds(camera, "is_frame_rate_available", "get_frame_rate_bounds", glib),

@@ -8,12 +8,12 @@ the grabber as GenICam devices. pylon, the other GenTL-capable backend, loads Ba
 (docs/acquisition.md). harvesters is the optional extra ``trackerd[gentl]``; without it, asking for
 this backend raises CameraError naming the extra.
 
-One producer is loaded once per process (:class:`_Producer`) and shared by every camera that names
-it: GenTL libraries are process-wide, and a second harvesters ``Harvester`` on the same ``.cti`` sees
-no devices. harvesters' device list can only be refreshed while none of the producer's cameras is open
-(its ``update()`` closes them all), so a camera that appears after another camera of the same producer
-has opened is found only when that one closes; for a grabber, whose cameras are cabled before the
-daemon starts, that is the normal case.
+One producer is loaded once per process and shared by every camera that names it
+(:mod:`trackerd.acquisition.gentl_producer`, whose names this module re-exports). harvesters'
+device list can only be refreshed while none of the producer's cameras is open (its ``update()``
+closes them all), so a camera that appears after another camera of the same producer has opened is
+found only when that one closes; for a grabber, whose cameras are cabled before the daemon starts,
+that is the normal case.
 
 A :class:`GentlSession` is one connection: harvesters' ``ImageAcquirer``, configured from the rig file
 and acquiring with ``buffer_count`` announced buffers. The worker pops one buffer at a time
@@ -33,144 +33,49 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from trackerd.acquisition.arv import CameraConfigError, describe_lookup
+from trackerd.acquisition.gentl_producer import (
+    GENTL_EXTRA,
+    GentlDevice,
+    Producer,
+    genicam_errors,
+    harvesters_missing_reason,
+    list_gentl_devices,
+    load_harvesters,
+    producer,
+    producer_path,
+)
 from trackerd.acquisition.session import Grab
 from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
 from trackerd.errors import CameraError
 
-log = logging.getLogger(__name__)
+if TYPE_CHECKING:
+    from trackerd.acquisition.discovery import CameraDetails, DeviceEntry
 
-GENTL_EXTRA = "trackerd[gentl]"
-"""The optional extra that installs harvesters (and pypylon)."""
+__all__ = [
+    "GENTL_EXTRA",
+    "PADDED_FORMATS",
+    "GentlDevice",
+    "GentlSession",
+    "Producer",
+    "describe_gentl_camera",
+    "harvesters_missing_reason",
+    "list_gentl_devices",
+    "load_harvesters",
+    "open_session",
+    "producer",
+    "producer_path",
+    "resolve_device_id",
+]
+
+log = logging.getLogger(__name__)
 
 PADDED_FORMATS = {"RGB8": "RGBa8", "BGR8": "BGRa8"}
 """A producer that offers only the 4-byte form of a colour format (viky.cti's RGBa8) is read as the
 3-byte one the rig asks for, its padding byte dropped in the one copy every frame gets anyway."""
-
-
-def load_harvesters() -> Any:
-    """harvesters' ``Harvester`` class; CameraError naming the extra to install if it is missing."""
-    try:
-        from harvesters.core import Harvester
-    except ImportError as err:
-        raise CameraError(
-            f"backend = 'gentl' needs harvesters, which is not installed ({err}); install the optional extra:"
-            f" pip install '{GENTL_EXTRA}'"
-        ) from err
-    return Harvester
-
-
-def harvesters_missing_reason() -> str | None:
-    """Why the gentl backend cannot be used here, or None if it can (for skipping tests and commands)."""
-    try:
-        load_harvesters()
-    except CameraError as err:
-        return str(err)
-    return None
-
-
-def _genicam_errors() -> tuple[type[Exception], ...]:
-    """The exceptions a GenICam node or a GenTL call raises (genicam's, and harvesters' ValueError)."""
-    from genicam import genapi, gentl
-
-    return (genapi.GenericException, gentl.GenericException, ValueError)
-
-
-def producer_path(cam: CameraConfig) -> Path:
-    """The camera's producer file; CameraConfigError naming it if it is not there."""
-    where = f"camera '{cam.id}' (backend gentl)"
-    if not cam.producer:
-        raise CameraConfigError(f"{where} has no producer (the GenTL producer's .cti file) in the rig file")
-    path = Path(cam.producer).expanduser()
-    if not path.is_file():
-        raise CameraConfigError(
-            f"{where}: producer = {cam.producer!r}: no such file (the grabber vendor's GenTL producer,"
-            " a .cti file; its SDK installs it and usually lists its directory in GENICAM_GENTL64_PATH)"
-        )
-    return path.resolve()
-
-
-@dataclass(frozen=True)
-class GentlDevice:
-    """One device a producer offers."""
-
-    device_id: str
-    """The producer's device id (GenTL ``DEVICE_INFO_ID``): ``device_id`` in the rig file."""
-    serial: str
-    vendor: str
-    model: str
-    tl_type: str
-    """The producer's transport layer type: ``CoaXPress``, ``CameraLink``, ``GEV``, ``Custom``, ..."""
-
-
-class _Producer:
-    """One loaded producer, shared by the cameras that name it."""
-
-    def __init__(self, path: Path) -> None:
-        harvester_class = load_harvesters()
-        self.path = path
-        self.lock = threading.Lock()
-        self.open_count = 0
-        self.harvester = harvester_class()
-        try:
-            self.harvester.add_file(str(path), check_existence=True, check_validity=True)
-            self.harvester.update()
-        except (OSError, *_genicam_errors()) as err:
-            raise CameraError(f"GenTL producer {path} cannot be loaded: {err}") from err
-
-    def devices(self) -> list[GentlDevice]:
-        """What the producer offers; refreshed only while none of its cameras is open."""
-        with self.lock:
-            if self.open_count == 0:
-                self.harvester.update()
-            return [
-                GentlDevice(
-                    device_id=str(info.id_),
-                    serial=str(info.serial_number or ""),
-                    vendor=str(info.vendor or ""),
-                    model=str(info.model or ""),
-                    tl_type=str(info.tl_type or ""),
-                )
-                for info in self.harvester.device_info_list
-            ]
-
-    def create(self, device_id: str) -> Any:
-        """An ``ImageAcquirer`` on ``device_id`` (ValueError if the producer does not list it)."""
-        with self.lock:
-            acquirer = self.harvester.create({"id_": device_id})
-            self.open_count += 1
-            return acquirer
-
-    def release(self, acquirer: Any) -> None:
-        with self.lock:
-            try:
-                acquirer.destroy()
-            finally:
-                self.open_count -= 1
-
-
-_producers: dict[Path, _Producer] = {}
-_producers_lock = threading.Lock()
-
-
-def producer(path: Path) -> _Producer:
-    """The loaded producer at ``path`` (loaded on first use; CameraError if it cannot be)."""
-    path = path.resolve()  # one producer per file, however the rig spells its path
-    with _producers_lock:
-        if path not in _producers:
-            _producers[path] = _Producer(path)
-        return _producers[path]
-
-
-def list_gentl_devices(path: str | Path) -> list[GentlDevice]:
-    """Every device the producer at ``path`` offers (CameraError if harvesters or the file is missing)."""
-    resolved = Path(path).expanduser()
-    if not resolved.is_file():
-        raise CameraError(f"GenTL producer {path}: no such file")
-    return producer(resolved.resolve()).devices()
 
 
 def resolve_device_id(cam: CameraConfig) -> str:
@@ -196,7 +101,7 @@ class GentlSession:
     camera_id: str
     camera: Any
     """harvesters' ``ImageAcquirer``."""
-    owner: _Producer
+    owner: Producer
     pixel_format: str = ""
     """The PFNC name trackerd reports (the rig's), which may be the padded form's 3-byte reading."""
     padded: bool = False
@@ -216,7 +121,7 @@ class GentlSession:
         """The next filled buffer with its host arrival time, or None after ``timeout_us``."""
         try:
             buffer = self.camera.try_fetch(timeout=max(timeout_us, 1000) / 1e6)
-        except _genicam_errors() as err:
+        except genicam_errors() as err:
             self.notes.append(f"fetch failed: {err}")
             self.control_lost.set()
             return None
@@ -264,7 +169,7 @@ class GentlSession:
             if self.tick_ns > 0:
                 return round(int(module.timestamp) * self.tick_ns)
             return int(module.timestamp_ns)
-        except _genicam_errors():
+        except genicam_errors():
             # The producer has no timestamps (viky.cti): stop asking; capture time is the host time.
             self.tick_ns = -1.0
             return 0
@@ -274,7 +179,7 @@ class GentlSession:
         try:
             sent_ns = time.monotonic_ns()
             self.camera.remote_device.node_map.TriggerSoftware.execute()
-        except _genicam_errors() as err:
+        except genicam_errors() as err:
             raise CameraError(f"camera '{self.camera_id}': software trigger failed: {_message(err)}") from err
         return sent_ns
 
@@ -292,7 +197,7 @@ class GentlSession:
         self.closed = True
         try:
             self.camera.stop()
-        except _genicam_errors() as err:
+        except genicam_errors() as err:
             self.notes.append(f"close: {err}")
         finally:
             self.owner.release(self.camera)
@@ -322,7 +227,7 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Gent
     where = f"camera '{cam.id}' ({describe_lookup(cam)})"
     try:
         acquirer = owner.create(device_id)
-    except _genicam_errors() as err:
+    except genicam_errors() as err:
         raise CameraError(
             f"{where}: {owner.path} does not offer {device_id!r} ({err});"
             f" `trackerd cameras --producer {owner.path}` lists what it offers"
@@ -332,7 +237,7 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Gent
         _configure(session, cam, rig)
         acquirer.num_buffers = max(cam.acquisition.buffer_count, acquirer.min_num_buffers)
         acquirer.start()
-    except _genicam_errors() as err:
+    except genicam_errors() as err:
         session.abandon()
         raise CameraError(f"{where}: {_message(err)}") from err
     except CameraError:
@@ -357,7 +262,7 @@ def _allowed(node: Any, unit: str = "") -> str | None:
             return "one of " + ", ".join(node.symbolics)
         if hasattr(node, "min"):
             return f"{node.min:g} to {node.max:g}{' ' + unit if unit else ''}"
-    except _genicam_errors():
+    except genicam_errors():
         return None
     return None
 
@@ -374,7 +279,7 @@ def _write(cam: CameraConfig, session: GentlSession, setting: str, feature: str,
             node.from_string(value)
         else:
             node.value = value
-    except _genicam_errors() as err:
+    except genicam_errors() as err:
         limits = _allowed(node, unit)
         which = f", which allows {limits}" if limits else ""
         raise CameraConfigError(
@@ -456,56 +361,43 @@ def _configure_trigger(session: GentlSession, cam: CameraConfig, rig: RigAcquisi
             session.notes.append("no TriggerActivation feature; the camera's default edge applies")
 
 
-def describe_gentl_camera(device: Any) -> Any:
+def describe_gentl_camera(device: DeviceEntry) -> CameraDetails:
     """What a device a producer offers allows (a :class:`~trackerd.acquisition.discovery.CameraDetails`)."""
-    from trackerd.acquisition.discovery import CameraDetails
+    from trackerd.acquisition.discovery import details_from_features
 
     owner = producer(Path(device.producer))
     try:
         acquirer = owner.create(device.device_id)
-    except _genicam_errors() as err:
+    except genicam_errors() as err:
         raise CameraError(f"cannot open {device.device_id} on {owner.path}: {err}") from err
     session = GentlSession(device.device_id, acquirer, owner)
     try:
-
-        def span(name: str) -> tuple[float, float] | None:
-            node = _node(session, name)
-            return (float(node.min), float(node.max)) if node is not None else None
-
-        def entries(name: str) -> tuple[str, ...]:
-            node = _node(session, name)
-            return tuple(node.symbolics) if node is not None else ()
-
-        def size(name: str) -> tuple[int, int, int]:
-            node = _node(session, name)
-            return (int(node.min), int(node.max), int(node.inc)) if node is not None else (0, 0, 1)
-
-        def value(name: str, default: Any = None) -> Any:
-            node = _node(session, name)
-            return node.value if node is not None else default
-
-        sources = entries("TriggerSource")
-        return CameraDetails(
-            device_id=device.device_id,
-            vendor=device.vendor,
-            model=device.model,
-            serial=device.serial,
-            protocol=device.protocol,
-            sensor_px=(int(value("SensorWidth", 0)), int(value("SensorHeight", 0))),
-            width_px=size("Width"),
-            height_px=size("Height"),
-            pixel_format=str(value("PixelFormat", "")),
-            pixel_formats=entries("PixelFormat"),
-            frame_rate_hz=span("AcquisitionFrameRate"),
-            exposure_us=span("ExposureTime"),
-            gain=span("Gain"),
-            triggers=entries("TriggerSelector"),
-            trigger_sources=sources,
-            trigger_activations=entries("TriggerActivation"),
-            software_trigger="Software" in sources,
-            ptp=next((f for f in ("PtpEnable", "GevIEEE1588") if _node(session, f) is not None), None),
-            packet_size_bytes=value("GevSCPSPacketSize"),
-            packet_delay=_node(session, "GevSCPD") is not None,
-        )
+        return details_from_features(device, _GentlFeatures(session))
     finally:
         session.close()
+
+
+@dataclass(frozen=True)
+class _GentlFeatures:
+    """An open session's features through harvesters' typed nodes (discovery.FeatureReader)."""
+
+    session: GentlSession
+
+    def has(self, name: str) -> bool:
+        return _node(self.session, name) is not None
+
+    def value(self, name: str, default: Any = None) -> Any:
+        node = _node(self.session, name)
+        return node.value if node is not None else default
+
+    def span(self, name: str) -> tuple[float, float] | None:
+        node = _node(self.session, name)
+        return (float(node.min), float(node.max)) if node is not None else None
+
+    def entries(self, name: str) -> tuple[str, ...]:
+        node = _node(self.session, name)
+        return tuple(node.symbolics) if node is not None else ()
+
+    def size(self, name: str) -> tuple[int, int, int]:
+        node = _node(self.session, name)
+        return (int(node.min), int(node.max), int(node.inc)) if node is not None else (0, 0, 1)

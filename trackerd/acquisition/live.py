@@ -9,10 +9,10 @@ several seconds giving up on a camera that no longer answers. The consumer's
 thread only waits in :meth:`LivePairSource.next_pair`.
 
 Clocks: each camera's device timestamps are mapped to the host's monotonic
-clock by a :class:`~trackerd.acquisition.clock.DeviceClock`. Without PTP every
-camera has its own mapping (pairing by host time, with each camera's offset
-estimated and tracked); with PTP enabled and every camera in Master or Slave
-state, one shared mapping is used, so pairs are formed by device time.
+clock (:mod:`trackerd.acquisition.rig_clocks`). Without PTP every camera has its
+own mapping (pairing by host time, with each camera's offset estimated and
+tracked); with PTP enabled and every camera in Master or Slave state, one shared
+mapping is used, so pairs are formed by device time.
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ import threading
 import time
 from collections import deque
 
-from trackerd.acquisition.arv import PTP_LOCKED_STATES
-from trackerd.acquisition.clock import DeviceClock, NonDecreasing
+from trackerd.acquisition.clock import NonDecreasing
 from trackerd.acquisition.frame import FramePair
 from trackerd.acquisition.meters import RateMeter, SkewWindow
 from trackerd.acquisition.pairing import Arrival, Pairer, spread_ns
+from trackerd.acquisition.rig_clocks import CLOCK_WARMUP_FRAMES as CLOCK_WARMUP_FRAMES  # where it was first
+from trackerd.acquisition.rig_clocks import RigClocks
 from trackerd.acquisition.session import Session, load_backends
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import SourceStatus
@@ -45,14 +46,6 @@ SEARCH_JOIN_S = 0.1
 discovery, which takes a second and cannot be interrupted, and it holds nothing to release."""
 TRIGGER_LEAD_NS = 50_000_000
 """The first software trigger tick is this far after start, once every camera is open."""
-CLOCK_WARMUP_FRAMES = 8
-"""A camera's first frames after (re)connecting are not paired: its device-to-host offset
-estimate has seen too few transfer delays to be trusted yet. Pairing by time needs it for
-the match; pairing by trigger count needs it for the skew check, which would otherwise
-compare a frame's arrival time (a fresh estimate is just that) with the other camera's
-capture time, and let frames captured tens of milliseconds apart through."""
-
-
 class Releaser:
     """Drops connections to lost cameras, each on a thread of its own.
 
@@ -124,10 +117,9 @@ class LivePairSource(PairSource):
         self._ready = threading.Condition(self._lock)
         self._pairs: deque[FramePair] = deque()
         self._pairer = Pairer(self._n, self._tolerance_ns, acq.frame_queue_length, acq.trigger == "software")
-        window_ns = int(acq.clock_window_s * 1e9)
-        self._clocks = [DeviceClock(window_ns) for _ in range(self._n)]
-        self._shared_clock = DeviceClock(window_ns) if acq.ptp else None
         self._workers: list[CameraWorker] = []
+        self._clocks = RigClocks(self._n, int(acq.clock_window_s * 1e9), acq.ptp,
+                                 lambda: [w.figures.ptp_state for w in self._workers])
         self.abandoned_threads: list[str] = []
         """Cameras whose thread was still searching for them when stop() returned (see SEARCH_JOIN_S)."""
         self._releaser = Releaser()
@@ -165,8 +157,7 @@ class LivePairSource(PairSource):
                 self._acq.frame_queue_length,
                 self._acq.trigger == "software",
             )
-        for clock in [*self._clocks, *([self._shared_clock] if self._shared_clock else [])]:
-            clock.reset()
+        self._clocks.reset_all()
         gate = None
         if schedule is not None:
             # A camera that answers no trigger for a quarter second stops holding the others
@@ -241,7 +232,7 @@ class LivePairSource(PairSource):
 
     def status(self) -> SourceStatus:
         now = time.monotonic_ns()
-        cameras = tuple(worker.status(self._clock_for(i).offset_ns) for i, worker in enumerate(self._workers))
+        cameras = tuple(worker.status(self._clocks.clock_for(i).offset_ns) for i, worker in enumerate(self._workers))
         with self._lock:
             skew = self._skews.percentiles_us()
             return SourceStatus(
@@ -268,7 +259,7 @@ class LivePairSource(PairSource):
     # ------------------------------------------------------------------ FrameSink (worker threads)
 
     def deliver(self, arrival: Arrival) -> None:
-        if self._clock_settling(arrival):
+        if self._clocks.settling(arrival):
             with self._lock:
                 self._pairer.dropped["clock_warmup"] += 1
             return
@@ -284,7 +275,7 @@ class LivePairSource(PairSource):
             self._pairer.set_active(camera_index, False)
 
     def camera_back(self, camera_index: int) -> None:
-        self._clocks[camera_index].reset()
+        self._clocks.reset(camera_index)
         with self._lock:
             self._pairer.set_active(camera_index, True)
 
@@ -299,38 +290,14 @@ class LivePairSource(PairSource):
         return self._releaser.put(session)
 
     def observe_clock(self, camera_index: int, device_ns: int, host_ns: int) -> int:
-        if device_ns == 0:
-            return host_ns
-        self._clocks[camera_index].observe(device_ns, host_ns)
-        if self._shared_clock is not None:
-            self._shared_clock.observe(device_ns, host_ns)
-        return self._clock_for(camera_index).to_host_ns(device_ns, host_ns)
+        return self._clocks.observe(camera_index, device_ns, host_ns)
 
     # ------------------------------------------------------------------ internals
-
-    def _ptp_locked(self) -> bool:
-        return (
-            self._shared_clock is not None
-            and bool(self._workers)
-            and all(w.figures.ptp_state in PTP_LOCKED_STATES for w in self._workers)
-        )
-
-    def _clock_settling(self, arrival: Arrival) -> bool:
-        """The frame's capture time is its camera's offset estimate still settling (a camera
-        without device timestamps has no estimate: its capture times are arrival times)."""
-        if arrival.frame.device_timestamp_ns == 0:
-            return False
-        return self._clock_for(arrival.camera_index).observations < CLOCK_WARMUP_FRAMES
-
-    def _clock_for(self, camera_index: int) -> DeviceClock:
-        if self._shared_clock is not None and self._ptp_locked():
-            return self._shared_clock
-        return self._clocks[camera_index]
 
     def _pairing_basis(self) -> str:
         if self._acq.trigger == "software":
             return "trigger count"
-        return "device time (PTP)" if self._ptp_locked() else "host time"
+        return "device time (PTP)" if self._clocks.ptp_locked() else "host time"
 
     def _queue_pair(self, group: tuple[Arrival, ...]) -> None:
         """Make a pair of ``group`` and queue it for the consumer, dropping the oldest if the queue is full.

@@ -35,7 +35,7 @@ import logging
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from trackerd.acquisition.arv import CameraConfigError, describe_lookup
 from trackerd.acquisition.session import Grab
@@ -43,6 +43,9 @@ from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
 from trackerd.errors import CameraError
 from trackerd.pixelformat import PFNC_NAMES
+
+if TYPE_CHECKING:
+    from trackerd.acquisition.discovery import CameraDetails, DeviceEntry
 
 log = logging.getLogger(__name__)
 
@@ -435,9 +438,9 @@ def _configure_trigger(session: PylonSession, cam: CameraConfig, rig: RigAcquisi
             session.notes.append("no TriggerActivation feature; the camera's default edge applies")
 
 
-def describe_pylon_camera(device: Any) -> Any:
+def describe_pylon_camera(device: DeviceEntry) -> CameraDetails:
     """What a camera pylon lists offers (a :class:`~trackerd.acquisition.discovery.CameraDetails`)."""
-    from trackerd.acquisition.discovery import CameraDetails
+    from trackerd.acquisition.discovery import details_from_features
 
     pylon, genicam = load_pylon()
     factory = pylon.TlFactory.GetInstance()
@@ -450,49 +453,44 @@ def describe_pylon_camera(device: Any) -> Any:
     except genicam.GenericException as err:
         raise CameraError(f"cannot open {device.device_id}: {_message(err)}") from err
     try:
-
-        def value(name: str, default: Any = None) -> Any:
-            node = _node(camera, name)
-            return node.GetValue() if node is not None and genicam.IsReadable(node) else default
-
-        def span(name: str, *more: str) -> tuple[float, float] | None:
-            found = _first(camera, name, *more)
-            if found is None:
-                return None
-            node = _node(camera, found)
-            return float(node.GetMin()), float(node.GetMax())
-
-        def entries(name: str) -> tuple[str, ...]:
-            node = _node(camera, name)
-            return tuple(node.Symbolics) if node is not None else ()
-
-        def size(name: str) -> tuple[int, int, int]:
-            node = _node(camera, name)
-            return (int(node.GetMin()), int(node.GetMax()), int(node.GetInc())) if node is not None else (0, 0, 1)
-
-        sources = entries("TriggerSource")
-        return CameraDetails(
-            device_id=device.device_id,
-            vendor=device.vendor,
-            model=device.model,
-            serial=device.serial,
-            protocol=device.protocol,
-            sensor_px=(int(value("SensorWidth", 0)), int(value("SensorHeight", 0))),
-            width_px=size("Width"),
-            height_px=size("Height"),
-            pixel_format=str(value("PixelFormat", "")),
-            pixel_formats=entries("PixelFormat"),
-            frame_rate_hz=span("AcquisitionFrameRate", "AcquisitionFrameRateAbs"),
-            exposure_us=span("ExposureTime", "ExposureTimeAbs"),
-            gain=span("Gain", "GainRaw"),
-            triggers=entries("TriggerSelector"),
-            trigger_sources=sources,
-            trigger_activations=entries("TriggerActivation"),
-            software_trigger="Software" in sources,
-            ptp=_first(camera, "PtpEnable", "GevIEEE1588"),
-            packet_size_bytes=value("GevSCPSPacketSize"),
-            packet_delay=_node(camera, "GevSCPD") is not None,
-        )
+        return details_from_features(device, _PylonFeatures(camera, genicam))
     finally:
         camera.Close()
         camera.DestroyDevice()
+
+
+SPAN_FALLBACKS = {
+    "AcquisitionFrameRate": ("AcquisitionFrameRateAbs",),
+    "ExposureTime": ("ExposureTimeAbs",),
+    "Gain": ("GainRaw",),
+}
+"""Older Basler GigE cameras' names for the standard number features (pre-SFNC 2.0)."""
+
+
+@dataclass(frozen=True)
+class _PylonFeatures:
+    """An open InstantCamera's features (discovery.FeatureReader); a standard number feature the
+    camera lacks is read under its older Basler name."""
+
+    camera: Any
+    genicam: Any
+
+    def has(self, name: str) -> bool:
+        return _node(self.camera, name) is not None
+
+    def value(self, name: str, default: Any = None) -> Any:
+        node = _node(self.camera, name)
+        return node.GetValue() if node is not None and self.genicam.IsReadable(node) else default
+
+    def span(self, name: str) -> tuple[float, float] | None:
+        found = _first(self.camera, name, *SPAN_FALLBACKS.get(name, ()))
+        node = _node(self.camera, found) if found is not None else None
+        return (float(node.GetMin()), float(node.GetMax())) if node is not None else None
+
+    def entries(self, name: str) -> tuple[str, ...]:
+        node = _node(self.camera, name)
+        return tuple(node.Symbolics) if node is not None else ()
+
+    def size(self, name: str) -> tuple[int, int, int]:
+        node = _node(self.camera, name)
+        return (int(node.GetMin()), int(node.GetMax()), int(node.GetInc())) if node is not None else (0, 0, 1)

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 from trackerd.config.models import RigConfig
 from trackerd.errors import ConfigError
@@ -62,7 +62,7 @@ def open_cameras(
             from trackerd.sim import netns
             from trackerd.sim.rig import VirtualRig
 
-            network = "netns" if netns.netns_missing_reason() is None else "loopback"
+            network: Literal["netns", "loopback"] = "netns" if netns.netns_missing_reason() is None else "loopback"
             if network == "netns":
                 try:
                     netns.plan(len(rig.cameras), prefix or netns.DEFAULT_PREFIX, subnet or netns.DEFAULT_SUBNET)

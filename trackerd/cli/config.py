@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 import numpy as np
 
 from trackerd.config.loader import LoadedRig, load_rig
+from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.errors import CalibrationPending, ConfigError
 from trackerd.geometry.camera import CameraModel
@@ -45,6 +47,7 @@ def check_command(args: argparse.Namespace) -> int:
             print(f"{args.file}: OK for calibration; not ready to track yet: {pending.detail}")
         return 0
     cameras = [camera_model(cam) for cam in loaded.config.cameras]
+    assert loaded.config.wall is not None  # load_rig raised CalibrationPending without one
     wall = wall_frame(loaded.config.wall)
     if loaded.config.interaction.any_enabled:
         # What the daemon's interaction stage checks at start (templates, commands, hand camera,
@@ -60,8 +63,9 @@ def check_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> dict:
+def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> dict[str, Any]:
     rig = loaded.config
+    assert rig.pointer is not None  # load_rig raised CalibrationPending without one
     return {
         "file": str(loaded.path),
         "ready_to_track": True,
@@ -132,6 +136,7 @@ def describe(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> 
     if wall.has_display:
         lines.append(f"    display {wall.display_width_px}x{wall.display_height_px} px")
     p = rig.pointer
+    assert p is not None  # load_rig raised CalibrationPending without one
     lines.append(
         f"  pointer: {p.front_colour} end in front, {p.length_m * 1000:.0f} mm between end centres"
         f" (+-{p.length_tolerance_m * 1000:.0f} mm), ends {p.end_diameter_m * 1000:.0f} mm"
@@ -140,7 +145,7 @@ def describe(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> 
     return "\n".join(lines)
 
 
-def _thresholds_line(rig, sources: dict[str, str]) -> str:
+def _thresholds_line(rig: RigConfig, sources: dict[str, str]) -> str:
     """The detector's thresholds and where they come from (learned colours, the rig file, defaults)."""
     learned = rig.pointer_colours
     parts = []
@@ -150,7 +155,8 @@ def _thresholds_line(rig, sources: dict[str, str]) -> str:
             parts.append(f"{colour} {threshold.min_excess} (rig file's [detector.{colour}])")
         elif learned is not None:
             seen = learned.of(colour)
-            parts.append(f"{colour} {threshold.min_excess} (learned: ball {seen.ball_excess}, room {seen.background_excess})")
+            parts.append(f"{colour} {threshold.min_excess}"
+                         f" (learned: ball {seen.ball_excess}, room {seen.background_excess})")
         else:
             parts.append(f"{colour} {threshold.min_excess} (default)")
     when = f"; colours learned {learned.learned}" if learned is not None else (

@@ -1,4 +1,4 @@
-"""Rig configuration: pydantic models (models.py) and TOML loading (loader.py)."""
+"""Rig configuration: pydantic models (models.py, one module per section) and TOML loading (loader.py)."""
 
 from trackerd.config.loader import LoadedRig, load_calibration, load_rig
 from trackerd.config.models import (

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict
 
+Vec3 = tuple[float, float, float]
+"""A point or direction in the world frame (metres for a point)."""
+
 
 class ConfigModel(BaseModel):
     """Base for every configuration model: closed (unknown keys are errors) and immutable.

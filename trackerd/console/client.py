@@ -36,7 +36,7 @@ class ConsoleClient:
 
     @classmethod
     def for_rig(cls, rig: Any, listen: str | None = None) -> ConsoleClient:
-        from trackerd.console.server import read_token
+        from trackerd.console.access import read_token
 
         token = read_token(rig.console.token_file) if rig.console.token_file is not None else None
         return cls(listen or rig.console.listen, token)
@@ -87,7 +87,7 @@ class ConsoleClient:
 
     def snapshot_into(self, folder: Path, name: str | None = None) -> dict[str, Any]:
         """Take a snapshot from the running pipeline and download its files into ``folder``."""
-        answer = self.post("/api/snapshot" + (f"?name={urllib.parse.quote(name)}" if name else ""))
+        answer: dict[str, Any] = self.post("/api/snapshot" + (f"?name={urllib.parse.quote(name)}" if name else ""))
         folder.mkdir(parents=True, exist_ok=True)
         for entry in answer["files"]:
             self.download(entry["url"], folder / entry["name"])

@@ -18,6 +18,7 @@ from __future__ import annotations
 import struct
 import sys
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import zstandard
@@ -52,7 +53,8 @@ class ZstdCoder:
         self._decompressor = zstandard.ZstdDecompressor()
 
     def compress(self, data: bytes | memoryview | NDArray[np.uint8]) -> bytes:
-        return self._compressor.compress(data)
+        # An ndarray is a C-contiguous buffer like the others; numpy's stubs do not declare the buffer protocol.
+        return self._compressor.compress(cast("memoryview", data))
 
     def decompress(self, stored: bytes | memoryview, expected_bytes: int, where: str, *, at_most: bool = False
                    ) -> bytes:
@@ -164,7 +166,7 @@ class Canvases:
                 slot = k
                 break
         if slot is None:
-            canvas, held = key.copy(), []
+            canvas, held = key.copy(), cast("list[Window]", [])
             self.copies += 1
             if len(self._canvases) < self.MAX_CANVASES:
                 self._canvases.append((canvas, held))

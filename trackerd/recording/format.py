@@ -28,13 +28,13 @@ from __future__ import annotations
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from trackerd.errors import RecordingError
 
-FORMAT_NAME = "trackerd-recording"
+FORMAT_NAME: Final = "trackerd-recording"
 FORMAT_MAJOR = 2
 FORMAT_MINOR = 0
 FORMAT_VERSION = f"{FORMAT_MAJOR}.{FORMAT_MINOR}"
@@ -329,3 +329,14 @@ def unpack_index_entry(data: bytes | memoryview, entry_bytes: int, where: str) -
     if zlib.crc32(memoryview(data)[: entry_bytes - 4]) != crc:
         raise RecordingError(f"{where}: index entry checksum mismatch (the entry is damaged)")
     return IndexEntry(offset, record_bytes, pair_index, sequence, timestamp_ns)
+
+
+def check_major(major: int, where: str) -> None:
+    """RecordingError unless this trackerd reads files of format MAJOR ``major``."""
+    if major > FORMAT_MAJOR:
+        raise RecordingError(
+            f"{where}: recording format {major}.x is newer than this trackerd reads ({FORMAT_VERSION});"
+            " upgrade trackerd to read it"
+        )
+    if major < 1:
+        raise RecordingError(f"{where}: recording format {major}.x does not exist")

@@ -21,7 +21,7 @@ import os
 import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -321,7 +321,7 @@ class RecordingWriter:
     def _keyframe_due(self, pair: FramePair) -> bool:
         return self._last_key_ns is None or pair.timestamp_ns - self._last_key_ns >= self._keyframe_ns
 
-    def _payloads(self, pair: FramePair) -> tuple[list[memoryview | bytes], list[int], bool]:
+    def _payloads(self, pair: FramePair) -> tuple[Sequence[memoryview | bytes], list[int], bool]:
         """Each frame's payload and encoding, and whether the record is a keyframe."""
         raws = self._raw_frames(pair)
         n = len(raws)
@@ -360,7 +360,7 @@ class RecordingWriter:
             raise RecordingError(
                 f"{self.path}: a pair of {len(pair.frames)} frames; this recording holds {len(self._cameras)} cameras"
             )
-        out: list[memoryview | bytes] = []
+        out: list[memoryview] = []
         for frame, cam in zip(pair.frames, self._cameras, strict=True):
             image = frame.image
             if frame.camera_id != cam.id or frame.pixel_format != cam.pixel_format or image.shape != cam.shape:
@@ -370,7 +370,9 @@ class RecordingWriter:
                     f" this recording holds {cam.pixel_format} {cam.width_px}x{cam.height_px} frames from"
                     f" '{cam.id}' (a reconfigured camera needs a new recording)"
                 )
-            out.append(memoryview(np.ascontiguousarray(image, dtype=np.uint8)).cast("B"))
+            contiguous = np.ascontiguousarray(image, dtype=np.uint8)
+            # ndarray has the buffer protocol; numpy's stubs do not declare it.
+            out.append(memoryview(cast("bytes", contiguous)).cast("B"))
         return out
 
     def close(self, reason: str = "stopped", dropped_pairs: int = 0) -> None:

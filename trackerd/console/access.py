@@ -1,0 +1,80 @@
+"""Who may use the console: its token, and the checks that keep other web sites' pages out.
+
+Without a token, being on the loopback address is the console's only protection, and any page open
+in a browser on this machine can make requests to it; with one, every request must carry it (a
+query parameter once, then a cookie, or an ``Authorization: Bearer`` header).
+"""
+
+from __future__ import annotations
+
+import secrets
+from pathlib import Path
+
+from aiohttp import web
+from aiohttp.typedefs import Handler, Middleware
+
+from trackerd.errors import ConfigError
+from trackerd.files import read_bounded
+
+COOKIE = "trackerd_console_token"
+ACTION_HEADER = "X-Trackerd-Console"
+"""Every POST must carry it: a page of another site cannot add it without the console's consent."""
+LOCAL_NAMES = ("127.0.0.1", "localhost", "::1")
+
+
+def read_token(path: Path) -> str:
+    """The token in ``path`` (ConfigError naming the file when it is missing or empty)."""
+    try:
+        text = read_bounded(path, 4096).decode("utf-8", "replace").strip()
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the console token file ({err.strerror or err})") from None
+    if not text:
+        raise ConfigError(f"{path}: the console token file is empty")
+    return text.splitlines()[0].strip()
+
+
+def access_middleware(token: str | None) -> Middleware:
+    """The middleware that refuses cross-site requests (403) and, with a ``token``, requests without
+    it (401); a request that gave the token as ``?token=`` gets it back as a cookie."""
+
+    @web.middleware
+    async def check(request: web.Request, handler: Handler) -> web.StreamResponse:
+        refused = cross_site(request, token)
+        if refused is not None:
+            return web.json_response({"error": refused}, status=403)
+        if token is None:
+            return await handler(request)
+        given = request.query.get("token") or request.cookies.get(COOKIE)
+        header = request.headers.get("Authorization", "")
+        if header.startswith("Bearer "):
+            given = header.removeprefix("Bearer ").strip()
+        if given is None or not secrets.compare_digest(given.encode(), token.encode()):
+            return web.json_response({"error": "the console needs its token (?token=... or Authorization: Bearer)"},
+                                     status=401)
+        response = await handler(request)
+        if "token" in request.query and not response.prepared:
+            response.set_cookie(COOKIE, token, httponly=True, samesite="Strict")
+        return response
+
+    return check
+
+
+def cross_site(request: web.Request, token: str | None) -> str | None:
+    """Why a request that another web site could have made the operator's browser send is
+    refused, else None.
+
+    Actions must carry a header such a page cannot add without the console's consent (it answers
+    no CORS preflight), the WebSocket must come from the console's own page (Origin), and without
+    a token the Host must be this machine's name for it (a DNS name pointed at 127.0.0.1 by
+    another site does not pass).
+    """
+    if request.method == "POST" and ACTION_HEADER not in request.headers:
+        return f"actions need the header {ACTION_HEADER} (the console's page and `trackerd ctl` send it)"
+    origin = request.headers.get("Origin")
+    # Behind a reverse proxy the page's origin is the proxy's, which it names in X-Forwarded-Host.
+    hosts = {request.host, request.headers.get("X-Forwarded-Host")}
+    if request.path == "/ws" and origin is not None and origin.split("://", 1)[-1] not in hosts:
+        return f"a WebSocket from {origin} is not the console's page"
+    if token is None and request.host.rsplit(":", 1)[0].strip("[]") not in LOCAL_NAMES:
+        return f"Host {request.host} is not this machine's (use 127.0.0.1, or give the console a token)"
+    return None
