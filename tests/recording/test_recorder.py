@@ -116,15 +116,24 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
     sub.setsockopt(zmq.SUBSCRIBE, b"status")
     sub.connect(endpoint)
     states: list[str] = []
+    written = [0]
 
-    def listen(seconds: float, until: str | None = None) -> None:
-        """Statuses for ``seconds``, or until the recording's state is ``until`` (a slow disk may
-        take a while to finish a recording: the next reload must not overtake it)."""
+    def listen(seconds: float, until: str | None = None, pairs_over: int | None = None) -> None:
+        """Statuses for at most ``seconds``, until the recording's state is ``until`` (a slow disk may
+        take a while to finish a recording: the next reload must not overtake it) or until it has
+        written more than ``pairs_over`` pairs."""
         end = time.monotonic() + seconds
-        while time.monotonic() < end and not (until is not None and states and states[-1] == until):
+
+        def arrived() -> bool:
+            if until is not None:
+                return bool(states) and states[-1] == until
+            return pairs_over is not None and written[0] > pairs_over
+
+        while time.monotonic() < end and not arrived():
             if sub.poll(20):
                 status = json.loads(sub.recv_multipart()[1])
                 recording = status.get("recording") or {}
+                written[0] = recording.get("pairs", 0)
                 if not states or states[-1] != recording.get("state"):
                     states.append(recording.get("state"))
 
@@ -133,12 +142,12 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
         listen(20.0, until="idle")
         pipeline.request_reload(on)
         listen(20.0, until="recording")
-        listen(0.4)  # some pairs into this recording
+        listen(20.0, pairs_over=5)  # some pairs into this recording
         pipeline.request_reload(off)
         listen(20.0, until="stopped")
         pipeline.request_reload(on)
         listen(20.0, until="recording")
-        listen(0.4)
+        listen(20.0, pairs_over=5)
     finally:
         pipeline.stop()
         sub.close(0)
