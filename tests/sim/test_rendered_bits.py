@@ -1,7 +1,7 @@
 """Rendered frames stay bit for bit what they were (trackerd/sim): a guard for refactoring the renderer.
 
 Each scene below is rendered exactly as its user renders it (the demo's loop frames as
-:func:`trackerd.sim.rig.render_loop`'s workers do, randomized installations and shots as
+:func:`trackerd.sim.loops.render_loop`'s workers do, randomized installations and shots as
 ``trackerd bench robustness`` does, a hand as the interaction bench does) and its image and
 ground truth are hashed. The hashes were recorded on the code before the simulator was split
 into modules (issue 16); a change that moves code without changing what it computes keeps them.
