@@ -39,7 +39,7 @@ from trackerd.config.rig_geometry import wall_frame
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
 from trackerd.sim.appearance import CONTENT_KINDS, Look, Occluder
-from trackerd.sim.scene import PointerPose, pose_aimed_at, true_wall_hit
+from trackerd.sim.scene import PointerPose, pose_aimed_at, scene_pointer, scene_wall, true_wall_hit
 
 Array = NDArray[np.float64]
 
@@ -325,8 +325,8 @@ def _look(rng: np.random.Generator, lighting: str, paint: str) -> tuple[Look, fl
 def random_shot(drawn: RandomRig, rng: np.random.Generator, wall: WallFrame | None = None) -> RandomShot:
     """A pointer pose aimed at the wall from the presenter's area, seen by at least two cameras, with
     its motion during the exposure, occluders and what the display shows."""
-    wall = wall or wall_frame(drawn.rig.wall)
-    pointer = drawn.rig.pointer
+    wall = wall or wall_frame(scene_wall(drawn.rig))
+    pointer = scene_pointer(drawn.rig)
     lower, upper = (np.asarray(v) for v in drawn.presenter_box_m)
     for _ in range(2000):
         tip = rng.uniform(lower, upper)
@@ -388,16 +388,17 @@ def _occluders(rng: np.random.Generator, occlusion: str, pose: PointerPose, draw
     """What stands in front of the pointer for an occlusion level; None when it cannot be placed."""
     if occlusion == "none":
         return ()
-    ball_r = drawn.rig.pointer.end_diameter_m / 2.0
+    ball_r = scene_pointer(drawn.rig).end_diameter_m / 2.0
     if occlusion == "hand":
         # A finger or thumb against one ball, from the side.
-        centre = pose.front_m if rng.uniform() < 0.5 else pose.back_m
+        ball = pose.front_m if rng.uniform() < 0.5 else pose.back_m
         side = np.cross(pose.direction, rng.normal(size=3))
         side /= np.linalg.norm(side)
         radius = ball_r * float(rng.uniform(0.45, 0.8))
-        place = centre + side * (ball_r + radius * float(rng.uniform(0.2, 0.7)))
-        skin = tuple(float(c) for c in np.clip(np.array([0.80, 0.58, 0.47]) * rng.uniform(0.7, 1.1), 0, 1))
-        return (Occluder("sphere", tuple(float(v) for v in place), radius, skin, label="hand"),)  # type: ignore[arg-type]
+        place = ball + side * (ball_r + radius * float(rng.uniform(0.2, 0.7)))
+        red, green, blue = (float(c) for c in np.clip(np.array([0.80, 0.58, 0.47]) * rng.uniform(0.7, 1.1), 0, 1))
+        x, y, z = (float(v) for v in place)
+        return (Occluder("sphere", (x, y, z), radius, (red, green, blue), label="hand"),)
     # The presenter's body between one camera and one end, partly or wholly hiding it there.
     camera = drawn.cameras[int(rng.integers(0, len(drawn.cameras)))]
     end = pose.front_m if rng.uniform() < 0.5 else pose.back_m
