@@ -26,13 +26,19 @@ RENDER_VERSION = 1
 """Bump when the background rendering changes, so cached backgrounds are not reused."""
 
 
-def default_cache_dir() -> Path:
-    """$TRACKERD_RENDER_CACHE, else $XDG_CACHE_HOME/trackerd/backgrounds, else ~/.cache/trackerd/backgrounds."""
-    explicit = os.environ.get("TRACKERD_RENDER_CACHE")
+def user_cache_dir(variable: str, name: str) -> Path:
+    """$``variable``, else $XDG_CACHE_HOME/trackerd/``name``, else ~/.cache/trackerd/``name``: where the
+    simulator keeps what it renders once (backgrounds here, loops in :mod:`trackerd.sim.loops`)."""
+    explicit = os.environ.get(variable)
     if explicit:
         return Path(explicit)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "trackerd" / "backgrounds"
+    return Path(base) / "trackerd" / name
+
+
+def default_cache_dir() -> Path:
+    """$TRACKERD_RENDER_CACHE, else $XDG_CACHE_HOME/trackerd/backgrounds, else ~/.cache/trackerd/backgrounds."""
+    return user_cache_dir("TRACKERD_RENDER_CACHE", "backgrounds")
 
 
 class RoomBackgrounds:

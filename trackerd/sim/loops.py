@@ -28,6 +28,7 @@ import trackerd
 from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import wall_frame
 from trackerd.errors import TrackerdError
+from trackerd.sim.backgrounds import user_cache_dir
 from trackerd.sim.motion import DEFAULT_PERIOD_S, make_motion
 from trackerd.sim.scene import scene_wall, true_wall_hit
 
@@ -44,11 +45,7 @@ RENDERER_SOURCES = (
 
 def default_cache_dir() -> Path:
     """$TRACKERD_SIMRIG_CACHE, else $XDG_CACHE_HOME/trackerd/simrig, else ~/.cache/trackerd/simrig."""
-    explicit = os.environ.get("TRACKERD_SIMRIG_CACHE")
-    if explicit:
-        return Path(explicit)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "trackerd" / "simrig"
+    return user_cache_dir("TRACKERD_SIMRIG_CACHE", "simrig")
 
 
 @dataclass(frozen=True)
