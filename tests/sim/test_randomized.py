@@ -69,7 +69,7 @@ def test_the_display_shows_its_content_and_the_look_changes_the_frame() -> None:
     plain = SceneRenderer(rig, cams, cache_dir=False)
     without = plain.render(0, None, rng, noise=False).image
     shown = plain.render(0, None, rng, noise=False, content=wall_content("saturated blocks", rng)).image
-    _, _, (r0, r1, c0, c1) = plain._display_map(0)
+    _, _, (r0, r1, c0, c1) = plain.display.map(0)
     assert r1 > r0 and c1 > c0
     changed = without != shown
     assert changed[r0:r1, c0:c1].mean() > 0.3 and not changed[:r0].any() and not changed[r1:].any()

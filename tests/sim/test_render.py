@@ -31,7 +31,7 @@ def test_ray_map_matches_the_camera_model(renderer: SceneRenderer) -> None:
     rng = np.random.default_rng(3)
     px = rng.uniform([0, 0], [cam.width_px - 1, cam.height_px - 1], size=(200, 2))
     expected = cam.pixel_to_ray(px)[1]
-    got = renderer._rays(0, px[:, 0], px[:, 1])
+    got = renderer.rays(0, px[:, 0], px[:, 1])
     angle_error = np.arccos(np.clip(np.sum(expected * got, axis=1), -1, 1))
     # 1e-7 rad is 0.0002 px at f = 1660 px.
     assert angle_error.max() < 1e-7
@@ -130,7 +130,7 @@ def test_a_pointer_held_still_renders_as_if_cast_afresh_with_new_noise(renderer:
     fresh = SceneRenderer(simulated_rig, cache_dir=None)
     again = np.random.default_rng(9)
     np.testing.assert_array_equal(fresh.render(0, pose, again).image, first.image)
-    fresh._last_patch.clear()  # cast again
+    fresh.pointer.forget()  # cast again
     redone = fresh.render(0, pose, again)
     np.testing.assert_array_equal(redone.image, second.image)
     assert redone.truth.area_px == second.truth.area_px

@@ -271,10 +271,10 @@ def test_a_second_rig_with_the_same_prefix_is_turned_away_and_the_first_keeps_it
 def test_the_cache_keeps_the_most_recently_used_loops(simulated_rig: RigConfig, tmp_path: Path) -> None:
     import os
 
-    from trackerd.sim import rig as rig_module
+    from trackerd.sim.loops import prune_loops
 
     for name in ("a", "b", "c"):
         (tmp_path / name).mkdir()
     os.utime(tmp_path / "a", (1, 1))  # the oldest
-    rig_module._prune(tmp_path, keep=2)
+    prune_loops(tmp_path, keep=2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "c"]

@@ -12,6 +12,7 @@ import argparse
 import json
 import sys
 import threading
+from collections.abc import Callable
 from typing import Any
 
 import zmq
@@ -20,6 +21,7 @@ from trackerd.cli._args import add_console_option, positive_seconds
 from trackerd.cli.simrig import add_network_options
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig, with_console, with_endpoints
+from trackerd.config.models import RigConfig
 from trackerd.sim import netns
 from trackerd.sim.motion import MOTIONS
 
@@ -31,7 +33,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--config", default=str(example_rig("simulated")),
                         help="rig to simulate (default: the bundled config/simulated.toml)")
-    parser.add_argument("--motion", default="figure8", choices=MOTIONS, help="scripted pointer motion (default: figure8)")
+    parser.add_argument("--motion", default="figure8", choices=MOTIONS,
+                        help="scripted pointer motion (default: figure8)")
     parser.add_argument("--seconds", type=positive_seconds, help="stop after this long (default: until Ctrl-C)")
     parser.add_argument("--every", type=int, default=6, help="print one hit in this many (default 6: ten a second)")
     parser.add_argument("--endpoint", help="publish here instead of the rig's endpoint, for example to run"
@@ -45,14 +48,14 @@ def demo_command(args: argparse.Namespace) -> int:
     from trackerd.acquisition.live import AravisPairSource
     from trackerd.cli.listen import connectable_endpoint, format_message
     from trackerd.cli.run import serve, zmq_publisher
-    from trackerd.publish import PublishError
-    from trackerd.sim.rig import VirtualRig
+    from trackerd.publish import Publisher, PublishError
+    from trackerd.sim.rig import Network, VirtualRig
 
     rig = load_rig(args.config).config
     if args.endpoint is not None:
         rig = with_endpoints(rig, [args.endpoint])
     rig = with_console(rig, args.console)
-    network = "netns" if netns.netns_missing_reason() is None else "loopback"
+    network: Network = "netns" if netns.netns_missing_reason() is None else "loopback"
     if network == "loopback" and rig.acquisition.trigger == "software":
         rig = rig.model_copy(update={"acquisition": rig.acquisition.model_copy(update={"trigger": "free_running"})})
     print(f"trackerd demo: preparing the '{args.motion}' motion for {len(rig.cameras)} simulated cameras"
@@ -68,10 +71,10 @@ def demo_command(args: argparse.Namespace) -> int:
         summary: dict[str, Any] = {"hits": 0, "status": None, "busy_status": None}
         listeners: list[threading.Thread] = []
 
-        def publisher_then_listener(r):
+        def publisher_then_listener(r: RigConfig) -> Publisher:
             # The subscriber connects only once this daemon has bound its endpoint: connecting
             # before, it printed another daemon's hits there until this one failed to bind.
-            publisher = zmq_publisher(r)
+            publisher: Publisher = zmq_publisher(r)
             if not listeners:
                 endpoint = connectable_endpoint(publisher.endpoints[0])
                 listeners.append(threading.Thread(
@@ -107,7 +110,8 @@ def _another_endpoint(rig: Any) -> str:
     return "another --endpoint"
 
 
-def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str, Any], fmt) -> None:
+def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str, Any],
+            fmt: Callable[[str, dict[str, Any]], str]) -> None:
     """A subscriber like any application's: prints every ``every``-th hit and each status."""
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)

@@ -100,7 +100,7 @@ def _on_sigterm(_signum: int, _frame: FrameType | None) -> None:
 
 
 def simrig_command(args: argparse.Namespace) -> int:
-    from trackerd.sim.rig import VirtualRig
+    from trackerd.sim.rig import Network, VirtualRig
 
     rig = load_rig(args.config).config
     acq = rig.acquisition
@@ -114,7 +114,7 @@ def simrig_command(args: argparse.Namespace) -> int:
             f" root ({missing}); without root, the tests and `--measure` use one GigE Vision camera on"
             " 127.0.0.1 plus Aravis's in-process Fake camera (docs/acquisition.md)"
         )
-    network = "netns" if not missing else "loopback"
+    network: Network = "netns" if not missing else "loopback"
     interrupted = False
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:

@@ -26,11 +26,16 @@ import datetime as dt
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from trackerd.cli._cameras import add_virtual_arguments
 from trackerd.config.loader import load_rig
 from trackerd.errors import CameraError
+
+if TYPE_CHECKING:  # types only: the command imports the acquisition stack when it runs
+    from trackerd.acquisition.frame import FramePair
+    from trackerd.acquisition.source import PairSource
+    from trackerd.config.models import RigConfig
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -79,7 +84,7 @@ def snap_command(args: argparse.Namespace) -> int:
     return save_snap(pair, rig, folder, name, info)
 
 
-def _take(source, settle_s: float, timeout_s: float):
+def _take(source: PairSource, settle_s: float, timeout_s: float) -> FramePair:
     """The first pair after ``settle_s`` seconds of pairs (CameraError if none comes in time)."""
     start = time.monotonic()
     deadline = start + settle_s + timeout_s
@@ -90,7 +95,8 @@ def _take(source, settle_s: float, timeout_s: float):
     raise CameraError(f"no synchronized pair arrived within {timeout_s:g} s (see `trackerd cameras`)")
 
 
-def save_snap(pair, rig, folder: Path, name: str, camera_info: dict[str, Any] | None = None) -> int:
+def save_snap(pair: FramePair, rig: RigConfig, folder: Path, name: str,
+              camera_info: dict[str, Any] | None = None) -> int:
     """Locate the pointer in ``pair``, write the files (trackerd.recording.snapshot), print what was found."""
     from trackerd.locator import Locator
     from trackerd.recording.outputs import output_folder

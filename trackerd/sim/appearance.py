@@ -164,13 +164,14 @@ def wall_content(kind: str, rng: np.random.Generator, width_px: int = 768, heigh
         return image
     # A photo: smooth colourful gradients with blobs of every colour, some near the paints.
     corners = rng.uniform(0.05, 0.95, size=(2, 2, 3)).astype(np.float32)
-    image = cv2.resize(corners, (w, h), interpolation=cv2.INTER_LINEAR)
+    # np.asarray: OpenCV's stubs type its results loosely; float32 in is float32 out (no copy here).
+    image = np.asarray(cv2.resize(corners, (w, h), interpolation=cv2.INTER_LINEAR), dtype=np.float32)
     for _ in range(int(rng.integers(8, 20))):
         palette = _NEAR_PAINT if rng.uniform() < 0.5 else _OTHER
-        colour = np.asarray(palette[int(rng.integers(0, len(palette)))]) * rng.uniform(0.7, 1.05)
+        blob_rgb = np.asarray(palette[int(rng.integers(0, len(palette)))]) * rng.uniform(0.7, 1.05)
         centre = (int(rng.uniform(0, w)), int(rng.uniform(0, h)))
         axes = (int(rng.uniform(0.03, 0.25) * w), int(rng.uniform(0.05, 0.5) * h))
         cv2.ellipse(image, centre, axes, float(rng.uniform(0, 180)), 0, 360,
-                    tuple(float(c) for c in np.clip(colour, 0, 1)), -1, cv2.LINE_AA)
-    image = cv2.GaussianBlur(image, (0, 0), float(rng.uniform(0.5, 3.0)))
+                    tuple(float(c) for c in np.clip(blob_rgb, 0, 1)), -1, cv2.LINE_AA)
+    image = np.asarray(cv2.GaussianBlur(image, (0, 0), float(rng.uniform(0.5, 3.0))), dtype=np.float32)
     return np.clip(image, 0.0, 1.0)

@@ -6,7 +6,7 @@ image is ``Off``: one file per frame, in the order of their names, over and over
 An 8-bit greyscale file is delivered as it is in any 8-bit format, so a Bayer
 mosaic written as greyscale arrives as the BayerRG8 frame the renderer made.
 
-This module writes a motion's rendered loop (:func:`trackerd.sim.rig.render_loop`,
+This module writes a motion's rendered loop (:func:`trackerd.sim.loops.render_loop`,
 cached) as one directory of BMP files per camera (pylon reads a 1080p BMP in
 about 9 ms, a PNG in about 30) with the loop's ground truth, and the rig that
 opens two emulated cameras on them. Under a software trigger the two cameras
@@ -79,7 +79,7 @@ def write_scene_files(
 
     Returns the directories, in rig order, and the truth of each loop frame (``wall_xy_m``, ...).
     """
-    from trackerd.sim.rig import render_loop
+    from trackerd.sim.loops import render_loop
 
     loop = render_loop(rig, motion, period_s=period_s, content_fps=content_fps)
     dirs = []

@@ -14,7 +14,7 @@ The hand faces the camera (palm normal towards the camera's centre, tilted by
 up to ``tilt_deg``), is turned about that normal by ``roll_deg`` and scaled by
 ``scale``, and stands ``distance_m`` from the camera along the ray through a
 chosen image point. It is ray-cast through the camera's real lens model
-(:meth:`SceneRenderer._rays`), anti-aliased with ``SUPERSAMPLING``^2 rays per
+(:meth:`SceneRenderer.rays`), anti-aliased with ``SUPERSAMPLING``^2 rays per
 pixel, shaded by the room's light, composited over the empty room, mosaiced
 into the camera's pixel format and given the same sensor noise as the
 pointer's renders.
@@ -28,8 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.sim.render import AMBIENT, DIFFUSE, SceneRenderer, raw_values, sensor_output
+from trackerd.sim.render import SceneRenderer
+from trackerd.sim.room_shading import AMBIENT, DIFFUSE
 from trackerd.sim.scene import SKIN_RGB
+from trackerd.sim.sensor import raw_values, sensor_output
 
 Array = NDArray[np.float64]
 
@@ -198,7 +200,8 @@ def _capsule_normals(points: Array, capsule: _Capsule) -> Array:
     length = float(np.linalg.norm(axis))
     s = np.clip((points - capsule.a) @ (axis / length), 0.0, length)
     normals = points - (capsule.a + s[:, None] * (axis / length))
-    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    unit: Array = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    return unit
 
 
 class HandRenderer:
@@ -225,7 +228,7 @@ class HandRenderer:
     def placement(self, pose: HandPose) -> tuple[Array, Array]:
         """The hand's frame in the world: (rotation (3, 3) whose columns are its axes, centre (3,))."""
         cam = self.camera
-        ray = self.renderer._rays(self.index, np.array([pose.centre_px[0]]), np.array([pose.centre_px[1]]))[0]
+        ray = self.renderer.rays(self.index, np.array([pose.centre_px[0]]), np.array([pose.centre_px[1]]))[0]
         centre = cam.centre_m + pose.distance_m * ray
         # Camera axes in the world: rows of the world-to-camera rotation.
         right, down = cam.rotation[0], cam.rotation[1]
@@ -258,7 +261,7 @@ class HandRenderer:
         ox, oy = np.meshgrid(offsets, offsets)
         sample_x = (xs.reshape(-1, 1) + ox.reshape(1, -1)).ravel()
         sample_y = (ys.reshape(-1, 1) + oy.reshape(1, -1)).ravel()
-        dirs_world = self.renderer._rays(self.index, sample_x, sample_y)
+        dirs_world = self.renderer.rays(self.index, sample_x, sample_y)
         origin = rotation.T @ (cam.centre_m - centre)
         dirs = dirs_world @ rotation  # into the hand's frame
         best, normal = _ray_ellipsoid(origin, dirs, palm)

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import wall_frame
 from trackerd.geometry.wall import WallFrame
-from trackerd.sim.scene import PointerPose, pose_aimed_at
+from trackerd.sim.scene import PointerPose, pose_aimed_at, scene_pointer, scene_wall
 
 Array = NDArray[np.float64]
 
@@ -48,14 +48,14 @@ class Stage:
 
     @classmethod
     def from_rig(cls, rig: RigConfig) -> Stage:
-        wall = wall_frame(rig.wall)
+        wall = wall_frame(scene_wall(rig))
         sim = rig.simulation
         distance = sum(sim.presenter_distance_m) / 2.0
         height = sum(sim.hand_height_m) / 2.0
         floor_y = float(wall.corners_m[:, 1].min()) - sim.display_height_above_floor_m
         hand = wall.origin_m + 0.5 * wall.width_m * wall.x_axis + distance * wall.normal
         hand = hand + (floor_y + height - hand[1]) * np.array([0.0, 1.0, 0.0])
-        return cls(wall, rig.pointer.length_m, hand)
+        return cls(wall, scene_pointer(rig).length_m, hand)
 
     def on_wall(self, fx: float, fy: float) -> Array:
         """The wall point at fractions (fx, fy) of the display's width and height."""

@@ -20,6 +20,7 @@ everything that differs between real installations instead:
   the presenter's body between one camera and an end; the rod over a ball comes
   with the placement).
 
+The cameras are placed, aimed and given lenses by :mod:`trackerd.sim.random_cameras`.
 Every rig and shot carries the factor levels it was drawn with, so a benchmark
 can report per factor (:mod:`trackerd.bench.robustness`). A rig is a plain
 :class:`~trackerd.config.models.RigConfig` with the detector's and locator's
@@ -39,15 +40,22 @@ from trackerd.config.rig_geometry import wall_frame
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame
 from trackerd.sim.appearance import CONTENT_KINDS, Look, Occluder
-from trackerd.sim.scene import PointerPose, pose_aimed_at, true_wall_hit
+from trackerd.sim.random_cameras import RESOLUTIONS, aimed_camera, build_rig, camera_positions, draw_aimed_camera
+from trackerd.sim.scene import PointerPose, pose_aimed_at, scene_pointer, scene_wall, true_wall_hit
 
 Array = NDArray[np.float64]
+
+__all__ = [
+    "LIGHTINGS", "OCCLUSIONS", "PAINTS", "PLACEMENTS", "RESOLUTIONS", "RandomRig", "RandomShot", "aimed_camera",
+    "build_rig", "random_rig", "random_shot",
+]
+"""The drawing of installations and shots, and the camera helpers (:mod:`trackerd.sim.random_cameras`)
+the tests' rooms build rigs with, imported from here."""
 
 PLACEMENTS = ("side-on", "behind high", "behind low", "ceiling", "asymmetric", "close", "far")
 LIGHTINGS = ("standard", "dim", "bright", "warm", "cold", "spotlight", "uneven", "glossy")
 PAINTS = ("standard", "dark", "orange-red", "crimson and navy", "bright and cyan")
 OCCLUSIONS = ("none", "hand", "body")
-RESOLUTIONS = ((1280, 720), (1920, 1080), (1920, 1200), (2448, 2048), (3840, 2160))
 
 _PAINT_RGB: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
     "standard": ((0.86, 0.10, 0.08), (0.10, 0.20, 0.86)),
@@ -116,7 +124,7 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
     upper = (0.88 * width, floor + 1.8, 2.8)
     centre = np.array([(lower[i] + upper[i]) / 2.0 for i in range(3)])
     count = int(rng.choice([2, 2, 2, 3, 3, 4]))
-    positions = _camera_positions(rng, placement, count, width, floor, centre)
+    positions = camera_positions(rng, placement, count, width, floor, centre)
     ball_d = float(rng.uniform(0.02, 0.05))
     rod_d = float(min(rng.uniform(0.006, 0.016), 0.6 * ball_d))
     length = float(rng.uniform(0.3, 0.6))
@@ -128,7 +136,7 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
     core_z = (1.3, 2.4)
     box = np.array([[x, y, z] for x in core_x for y in (lower[1], upper[1]) for z in core_z])
     for index, position in enumerate(positions):
-        camera = _aimed_camera(rng, f"cam{index}", position, centre, box)
+        camera = draw_aimed_camera(rng, f"cam{index}", position, centre, box)
         if camera is None:
             return None
         model, fmt = camera
@@ -156,138 +164,6 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
         "resolution": "4K-class" if widest > 2000 else ("1080p-class" if widest > 1300 else "720p"),
     }
     return RandomRig(rig, tuple(cameras), look, factors, (lower, upper))
-
-
-def build_rig(name: str, cameras: list[tuple[CameraModel, str]], wall_width_m: float, wall_height_m: float,
-              above_floor_m: float, pointer: dict, simulation: dict | None = None) -> RigConfig:
-    """A rig file for cameras (their true models and pixel formats) in front of a wall in the plane z = 0,
-    from (0, 0) to (width, height), its display's bottom edge ``above_floor_m`` over the floor."""
-    corners = [[0.0, 0.0, 0.0], [wall_width_m, 0.0, 0.0], [wall_width_m, wall_height_m, 0.0], [0.0, wall_height_m, 0.0]]
-    return RigConfig.model_validate({
-        "name": name,
-        "cameras": [_camera_config(model, fmt) for model, fmt in cameras],
-        "wall": {"corners_m": corners, "display_width_px": 3840,
-                 "display_height_px": int(3840 * wall_height_m / wall_width_m)},
-        "pointer": pointer,
-        "simulation": {
-            "supersampling": 2, "background_supersampling": 1, "display_height_above_floor_m": above_floor_m,
-            "room_depth_m": 7.0, "hand_height_m": (1.0, 1.8), **(simulation or {}),
-        },
-    })
-
-
-def aimed_camera(camera_id: str, position: Array, target: Array, width_px: int, height_px: int, hfov_deg: float,
-                 distortion: Array | None = None, roll_deg: float = 0.0) -> CameraModel:
-    """A camera at ``position`` looking at ``target`` (image y down, world y up), with a horizontal field
-    of view and the principal point at the image's centre."""
-    forward = np.asarray(target, dtype=np.float64) - np.asarray(position, dtype=np.float64)
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 1.0, 0.0])
-    right /= np.linalg.norm(right)
-    down = np.cross(forward, right)
-    roll = math.radians(roll_deg)
-    right, down = (math.cos(roll) * right + math.sin(roll) * down, -math.sin(roll) * right + math.cos(roll) * down)
-    focal = (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-    matrix = np.array([[focal, 0.0, (width_px - 1) / 2.0], [0.0, focal, (height_px - 1) / 2.0], [0.0, 0.0, 1.0]])
-    return CameraModel.from_pose(camera_id, width_px, height_px, matrix,
-                                 np.zeros(5) if distortion is None else np.asarray(distortion, dtype=np.float64),
-                                 np.asarray(position, dtype=np.float64), np.column_stack([right, down, forward]))
-
-
-def _camera_positions(rng: np.random.Generator, placement: str, count: int, width: float, floor: float,
-                      centre: Array) -> list[Array]:
-    """Positions of ``count`` cameras for a placement family (world: x along the wall, y up, z out of it)."""
-
-    def side(k: int) -> Array:
-        x = -rng.uniform(0.2, 1.2) if k % 2 == 0 else width + rng.uniform(0.2, 1.2)
-        return np.array([x, floor + rng.uniform(1.8, 2.6), rng.uniform(2.3, 3.6)])
-
-    def behind(k: int, high: bool) -> Array:
-        spread = rng.uniform(0.6, 2.2) * (1 if k % 2 == 0 else -1) + rng.uniform(-0.3, 0.3)
-        y = floor + (rng.uniform(2.2, 2.9) if high else rng.uniform(0.7, 1.3))
-        return np.array([width / 2.0 + spread, y, rng.uniform(4.5, 6.5)])
-
-    def ceiling(k: int) -> Array:
-        # Under the ceiling over the back of the presenter's area, looking steeply down past them.
-        spread = rng.uniform(0.4, 1.6) * (1 if k % 2 == 0 else -1)
-        return np.array([width / 2.0 + spread, floor + rng.uniform(2.75, 2.95), rng.uniform(3.2, 4.4)])
-
-    families = {
-        "side-on": lambda k: side(k),
-        "behind high": lambda k: behind(k, True),
-        "behind low": lambda k: behind(k, False),
-        "ceiling": ceiling,
-    }
-    if placement in families:
-        return [families[placement](k) for k in range(count)]
-    if placement == "asymmetric":
-        kinds = list(rng.permutation(list(families)))
-        return [families[kinds[k % len(kinds)]](k) for k in range(count)]
-    # close / far: side-on or behind, moved towards or away from the presenter's area.
-    base = side if rng.uniform() < 0.5 else (lambda k: behind(k, rng.uniform() < 0.5))
-    scale = rng.uniform(0.55, 0.75) if placement == "close" else rng.uniform(1.3, 1.6)
-    out = []
-    for k in range(count):
-        position = centre + scale * (base(k) - centre)
-        position[1] = min(max(position[1], floor + 0.4), floor + 2.95)
-        out.append(position)
-    return out
-
-
-def _aimed_camera(rng: np.random.Generator, camera_id: str, position: Array, target: Array, box: Array
-                  ) -> tuple[CameraModel, str] | None:
-    """A camera at ``position`` looking at ``target``, with a lens that takes in the presenter's area."""
-    width_px, height_px = RESOLUTIONS[int(rng.choice(len(RESOLUTIONS), p=[0.3, 0.4, 0.17, 0.08, 0.05]))]
-    aim = target + rng.normal(0.0, 0.15, size=3)
-    forward = aim - position
-    forward /= np.linalg.norm(forward)
-    up = np.array([0.0, 1.0, 0.0])
-    right = np.cross(forward, up)
-    if np.linalg.norm(right) < 1e-6:
-        return None
-    right /= np.linalg.norm(right)
-    down = np.cross(forward, right)
-    roll = math.radians(float(rng.uniform(-8.0, 8.0)))
-    right, down = (math.cos(roll) * right + math.sin(roll) * down, -math.sin(roll) * right + math.cos(roll) * down)
-    world_from_cam = np.column_stack([right, down, forward])
-    # The field of view the presenter's area needs from here, then a lens a little wider or narrower.
-    in_cam = (box - position) @ world_from_cam
-    if np.any(in_cam[:, 2] <= 0.3):
-        return None
-    need_x = float(np.max(np.abs(in_cam[:, 0] / in_cam[:, 2])))
-    need_y = float(np.max(np.abs(in_cam[:, 1] / in_cam[:, 2])))
-    tan_half = max(need_x, need_y * width_px / height_px) * float(rng.uniform(1.0, 1.35))
-    hfov = 2.0 * math.degrees(math.atan(tan_half))
-    if not 30.0 <= hfov <= 120.0:
-        return None
-    focal = (width_px / 2.0) / tan_half * float(rng.uniform(0.995, 1.005))
-    cx = (width_px - 1) / 2.0 + float(rng.uniform(-0.02, 0.02)) * width_px
-    cy = (height_px - 1) / 2.0 + float(rng.uniform(-0.02, 0.02)) * height_px
-    matrix = np.array([[focal, 0.0, cx], [0.0, focal * float(rng.uniform(0.998, 1.002)), cy], [0.0, 0.0, 1.0]])
-    # Wide lenses are distorted more; keep the radial map monotonic out to the corners.
-    strength = min(1.0, hfov / 100.0)
-    k1 = float(rng.uniform(-0.35, 0.05)) * strength
-    k2 = float(rng.uniform(-0.02, 0.12)) * strength
-    corner_r2 = ((width_px / 2.0) ** 2 + (height_px / 2.0) ** 2) / focal**2 * 1.1
-    r2 = np.linspace(0.0, corner_r2, 200)
-    if np.any(np.diff(np.sqrt(r2) * (1.0 + k1 * r2 + k2 * r2 * r2)) <= 0):
-        k1, k2 = k1 / 3.0, 0.0
-    distortion = np.array([k1, k2, float(rng.uniform(-5e-4, 5e-4)), float(rng.uniform(-5e-4, 5e-4)), 0.0])
-    fmt = str(rng.choice(["BayerRG8", "BayerRG8", "BayerBG8", "BayerGR8", "BayerGB8", "RGB8"]))
-    model = CameraModel.from_pose(camera_id, width_px, height_px, matrix, distortion, position, world_from_cam)
-    return model, fmt
-
-
-def _camera_config(model: CameraModel, pixel_format: str) -> dict:
-    k = model.matrix
-    return {
-        "id": model.camera_id, "serial": f"RND-{model.camera_id}", "width_px": model.width_px,
-        "height_px": model.height_px, "pixel_format": pixel_format,
-        "intrinsics": {"model": "opencv", "fx_px": float(k[0, 0]), "fy_px": float(k[1, 1]), "cx_px": float(k[0, 2]),
-                       "cy_px": float(k[1, 2]), "distortion": [float(v) for v in model.distortion]},
-        "extrinsics": {"kind": "opencv", "rotation_matrix": model.rotation.tolist(),
-                       "tvec_m": model.translation_m.tolist()},
-    }
 
 
 def _look(rng: np.random.Generator, lighting: str, paint: str) -> tuple[Look, float, float]:
@@ -325,8 +201,8 @@ def _look(rng: np.random.Generator, lighting: str, paint: str) -> tuple[Look, fl
 def random_shot(drawn: RandomRig, rng: np.random.Generator, wall: WallFrame | None = None) -> RandomShot:
     """A pointer pose aimed at the wall from the presenter's area, seen by at least two cameras, with
     its motion during the exposure, occluders and what the display shows."""
-    wall = wall or wall_frame(drawn.rig.wall)
-    pointer = drawn.rig.pointer
+    wall = wall or wall_frame(scene_wall(drawn.rig))
+    pointer = scene_pointer(drawn.rig)
     lower, upper = (np.asarray(v) for v in drawn.presenter_box_m)
     for _ in range(2000):
         tip = rng.uniform(lower, upper)
@@ -388,16 +264,17 @@ def _occluders(rng: np.random.Generator, occlusion: str, pose: PointerPose, draw
     """What stands in front of the pointer for an occlusion level; None when it cannot be placed."""
     if occlusion == "none":
         return ()
-    ball_r = drawn.rig.pointer.end_diameter_m / 2.0
+    ball_r = scene_pointer(drawn.rig).end_diameter_m / 2.0
     if occlusion == "hand":
         # A finger or thumb against one ball, from the side.
-        centre = pose.front_m if rng.uniform() < 0.5 else pose.back_m
+        ball = pose.front_m if rng.uniform() < 0.5 else pose.back_m
         side = np.cross(pose.direction, rng.normal(size=3))
         side /= np.linalg.norm(side)
         radius = ball_r * float(rng.uniform(0.45, 0.8))
-        place = centre + side * (ball_r + radius * float(rng.uniform(0.2, 0.7)))
-        skin = tuple(float(c) for c in np.clip(np.array([0.80, 0.58, 0.47]) * rng.uniform(0.7, 1.1), 0, 1))
-        return (Occluder("sphere", tuple(float(v) for v in place), radius, skin, label="hand"),)  # type: ignore[arg-type]
+        place = ball + side * (ball_r + radius * float(rng.uniform(0.2, 0.7)))
+        red, green, blue = (float(c) for c in np.clip(np.array([0.80, 0.58, 0.47]) * rng.uniform(0.7, 1.1), 0, 1))
+        x, y, z = (float(v) for v in place)
+        return (Occluder("sphere", (x, y, z), radius, (red, green, blue), label="hand"),)
     # The presenter's body between one camera and one end, partly or wholly hiding it there.
     camera = drawn.cameras[int(rng.integers(0, len(drawn.cameras)))]
     end = pose.front_m if rng.uniform() < 0.5 else pose.back_m

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.config.models import RigConfig
+from trackerd.config.models import PointerConfig, RigConfig, WallConfig
 from trackerd.config.rig_geometry import camera_model, wall_frame
-from trackerd.errors import GeometryError
+from trackerd.errors import ConfigError, GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.wall import WallFrame, intersect_line_plane
 
@@ -37,6 +37,20 @@ SKIN_RGB = (0.80, 0.58, 0.47)
 HANDLE_LENGTH_FACTOR = 0.25
 """Handle behind the back ball, as a fraction of the pointer length."""
 HAND_RADIUS_M = 0.045
+
+
+def scene_pointer(rig: RigConfig) -> PointerConfig:
+    """The rig's pointer, which every simulated scene shows (a rig file may leave it out)."""
+    if rig.pointer is None:
+        raise ConfigError(f"rig '{rig.name}': the simulator needs the [pointer] it is to render")
+    return rig.pointer
+
+
+def scene_wall(rig: RigConfig) -> WallConfig:
+    """The rig's wall, which every simulated room is built around (a rig file may leave it out)."""
+    if rig.wall is None:
+        raise ConfigError(f"rig '{rig.name}': the simulator needs the [wall] its room is built around")
+    return rig.wall
 
 
 @dataclass(frozen=True)
@@ -191,7 +205,7 @@ def build_room(rig: RigConfig, wall: WallFrame) -> Room:
     balls: list[Ball] = []
     lower = (x0, floor, 0.0)
     upper = (x1, ceiling, depth)
-    ball_r = rig.pointer.end_diameter_m / 2.0
+    ball_r = scene_pointer(rig).end_diameter_m / 2.0
     for index in range(sim.clutter):
         kind = index % 4
         colour = _clutter_colour(rng, index)
@@ -252,12 +266,12 @@ def random_pose(
     the wall, at a hand's height, and aimed at a random point of the display
     (or, with probability ``1 - on_wall_fraction``, at a point just beyond its edge).
     """
-    wall = wall or wall_frame(rig.wall)
+    wall = wall or wall_frame(scene_wall(rig))
     cameras = cameras or [camera_model(c) for c in rig.cameras]
     sim = rig.simulation
     near, far = sim.presenter_distance_m
     low, high = sim.hand_height_m
-    length = rig.pointer.length_m
+    length = scene_pointer(rig).length_m
     floor_y = float(wall.corners_m[:, 1].min()) - sim.display_height_above_floor_m
     for _ in range(max_tries):
         if rng.uniform() < on_wall_fraction:
