@@ -18,14 +18,19 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from trackerd import logs
 from trackerd.cli._args import add_console_option, positive_seconds
 from trackerd.config.loader import load_rig, with_console
 from trackerd.config.models import RigConfig
-from trackerd.errors import TrackerdError
+from trackerd.errors import ConfigError, TrackerdError
 from trackerd.sdnotify import SdNotify
+
+if TYPE_CHECKING:
+    from trackerd.pipeline.extensions import ExtensionContext, PipelineExtension
 
 log = logging.getLogger("trackerd.run")
 
@@ -68,9 +73,34 @@ def run_command(args: argparse.Namespace) -> int:
                  camera_info=info, exit_if_stuck=True)
 
 
+def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[PipelineExtension]:
+    """The extensions the rig asks for, in a fixed order: recording sees pairs before interaction.
+
+    Each is imported here, by name: they and their dependencies are part of trackerd (pyproject's
+    dependencies), so one that cannot be imported is a broken installation and fails the start
+    with its ImportError, never skipped. What the rig asks of one is checked by its ``create``;
+    a ConfigError then names the rig file, as the loader's own errors do."""
+    from trackerd.interaction.extension import create as interaction_extension
+    from trackerd.recording.extension import create as recording_extension
+
+    creators: list[Callable[[RigConfig, ExtensionContext], PipelineExtension | None]] = [
+        recording_extension, interaction_extension]
+    built = []
+    for create in creators:
+        try:
+            extension = create(rig, context)
+        except ConfigError as err:
+            if context.rig_file is None:
+                raise
+            raise err.in_file(context.rig_file) from None
+        if extension is not None:
+            built.append(extension)
+    return built
+
+
 def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
           publisher_factory=zmq_publisher, banner: str | None = None, clock_offset_ns: int | None = None,
-          until=None, camera_info=None, exit_if_stuck: bool = False) -> int:
+          until=None, camera_info=None, exit_if_stuck: bool = False, replay: bool = False) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
 
     ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
@@ -79,21 +109,23 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     ``camera_info`` go into the metadata of recordings made on demand. ``exit_if_stuck``: when a
     camera thread is still searching for its camera once everything is stopped, end the process
     here (`trackerd run`, which has nothing left to do; not for callers that clean up after).
+    ``replay``: the pairs come from a recording, and what is published must follow from them
+    alone (trackerd.pipeline.extensions.ExtensionContext.replay).
     """
     from trackerd.pipeline.daemon import Pipeline
-    from trackerd.pipeline.extensions import ExtensionContext, for_rig
+    from trackerd.pipeline.extensions import ExtensionContext
 
     notifier = SdNotify()
     if clock_offset_ns is None:
         clock_offset_ns = time.time_ns() - time.monotonic_ns()
     context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info,
-                               clock_offset_ns=clock_offset_ns)
+                               clock_offset_ns=clock_offset_ns, replay=replay)
     tap = None
     if rig.console.enabled:
         from trackerd.pipeline.tap import ConsoleTap
 
         tap = ConsoleTap()
-    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig, context),
+    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=build_extensions(rig, context),
                         clock_offset_ns=clock_offset_ns, tap=tap)
     console = None
     stop = threading.Event()

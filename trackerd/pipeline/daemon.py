@@ -43,8 +43,9 @@ from trackerd.locator import Locator
 from trackerd.pipeline.colourwatch import ColourWatch
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.figures import PipelineFigures
+from trackerd.pipeline.handover import Processed, StageLinks
 from trackerd.pipeline.observer import PairObserver
-from trackerd.pipeline.processing import HEALTH_EVERY, Processed, ProcessingStage
+from trackerd.pipeline.processing import HEALTH_EVERY, ProcessingStage
 from trackerd.pipeline.publishing import PublishingStage
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.reload import ReloadRequests
@@ -102,15 +103,11 @@ class Pipeline:
         self._started_ns = time.monotonic_ns()
         self._status_sequence = 0
         self._slot = SourceSlot(source_factory, self._notifier)
-        self._processing = ProcessingStage(
-            rig, self._slot, self._queue, self.figures, self._reload, self._notifier,
-            clock_offset_ns=self.clock_offset_ns, extensions=self.extensions, tap=tap, observer=observer,
-        )
-        self._publishing = PublishingStage(
-            rig, publisher_factory, self._queue, self.figures, self._reload, self._state, self._notifier,
-            clock_offset_ns=self.clock_offset_ns, source_status=self._slot.status, status_for=self._status_for,
-            tap=tap, observer=observer,
-        )
+        links = StageLinks(self._queue, self.figures, self._reload, self._notifier, self.clock_offset_ns, tap,
+                           observer)
+        self._processing = ProcessingStage(rig, self._slot, links, self.extensions)
+        self._publishing = PublishingStage(rig, publisher_factory, links, self._state,
+                                           source_status=self._slot.status, status_for=self._status_for)
 
     # ------------------------------------------------------------------ control
 
