@@ -30,7 +30,14 @@ from trackerd.errors import ConfigError, TrackerdError
 from trackerd.sdnotify import SdNotify
 
 if TYPE_CHECKING:
+    from trackerd.acquisition.live import LivePairSource
+    from trackerd.acquisition.source import PairSource
+    from trackerd.acquisition.worker import OpenHook
+    from trackerd.console.server import ConsoleServer
+    from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import ExtensionContext, PipelineExtension
+    from trackerd.publish import Publisher
+    from trackerd.recording.cameras import CameraInfo
 
 log = logging.getLogger("trackerd.run")
 
@@ -48,7 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run_command)
 
 
-def aravis_source(rig: RigConfig, on_open=None):
+def aravis_source(rig: RigConfig, on_open: OpenHook | None = None) -> LivePairSource:
     """The daemon's cameras; ``on_open(camera_id, camera)`` runs after each (re)connection."""
     from trackerd.acquisition.live import LivePairSource
 
@@ -56,7 +63,7 @@ def aravis_source(rig: RigConfig, on_open=None):
     return LivePairSource(rig, wait_for_cameras=True, on_open=on_open)
 
 
-def zmq_publisher(rig: RigConfig):
+def zmq_publisher(rig: RigConfig) -> Publisher:
     from trackerd.publish import Publisher
 
     return Publisher(rig.outputs.zmq)
@@ -98,9 +105,11 @@ def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[Pipeline
     return built
 
 
-def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
-          publisher_factory=zmq_publisher, banner: str | None = None, clock_offset_ns: int | None = None,
-          until=None, camera_info=None, exit_if_stuck: bool = False, replay: bool = False) -> int:
+def serve(rig: RigConfig, path: Path | None, source_factory: Callable[[RigConfig], PairSource], *,
+          seconds: float | None = None, publisher_factory: Callable[[RigConfig], Publisher] = zmq_publisher,
+          banner: str | None = None, clock_offset_ns: int | None = None,
+          until: Callable[[Pipeline], bool] | None = None, camera_info: CameraInfo | None = None,
+          exit_if_stuck: bool = False, replay: bool = False) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
 
     ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
@@ -191,7 +200,7 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     return code
 
 
-def _start_console(console, rig: RigConfig):
+def _start_console(console: ConsoleServer, rig: RigConfig) -> ConsoleServer | None:
     """Start the console; None when the default address is taken (another daemon, a replay beside
     it: the daemon runs on without it), TrackerdError when an address given for it is."""
     try:
@@ -204,7 +213,7 @@ def _start_console(console, rig: RigConfig):
     return console
 
 
-def _reload(pipeline, path: Path | None) -> None:
+def _reload(pipeline: Pipeline, path: Path | None) -> None:
     if path is None:
         log.warning("SIGHUP: no configuration file to reload")
         return

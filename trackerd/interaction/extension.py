@@ -110,6 +110,8 @@ class InteractionExtension:
         """Every part for ``rig`` (ConfigError, one line, when the rig cannot run), nothing installed yet."""
         cfg = rig.interaction
         checked = check_interaction(rig)
+        if rig.wall is None:
+            raise ConfigError("interaction: the rig has no [wall], which events are placed on")
         wall = wall_frame(rig.wall)
         engine = InteractionEngine(cfg, wall.width_m, wall.height_m, checked.templates)
         if previous is not None:

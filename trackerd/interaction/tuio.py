@@ -53,7 +53,7 @@ class Cursor:
     acceleration_per_s2: float
 
 
-def _message(*args: object) -> OscMessageBuilder:
+def _message(*args: str | int | float) -> OscMessageBuilder:
     builder = OscMessageBuilder(address=ADDRESS)
     for arg in args:
         if isinstance(arg, str):

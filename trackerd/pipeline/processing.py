@@ -61,8 +61,6 @@ class ProcessingStage:
         self.rig = rig
         self.slot = slot
         self._links = links
-        self._reload = links.reload
-        self._notifier = links.notifier
         self.extensions = extensions
         self.locator = Locator(rig)
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
@@ -102,7 +100,7 @@ class ProcessingStage:
             if pair is None:
                 if self.slot.some_camera_recovering():
                     # A power-cycled camera is not a stalled pipeline: keep systemd's watchdog fed.
-                    self._notifier.progress()
+                    self._links.notifier.progress()
                 continue
             taken_mark = observer.mark() if observer is not None else None
             start, start_cpu = time.monotonic_ns(), time.thread_time_ns()
@@ -142,15 +140,15 @@ class ProcessingStage:
                                       marks=marks, health=health))
             figures.processing_cpu.add(time.thread_time_ns() - start_cpu)
             figures.pairs_processed += 1
-            self._notifier.progress()
+            self._links.notifier.progress()
 
     def _apply_requested_rig(self) -> None:
         """The first phase of a reload (trackerd.pipeline.reload); a failure keeps the old rig."""
-        rig = self._reload.take_rig()
+        rig = self._links.reload.take_rig()
         if rig is None:
             return
         old = self.rig
-        self._reload.in_progress = True
+        self._links.reload.in_progress = True
         try:
             locator = Locator(rig)
             if source_settings(rig) != source_settings(old):
@@ -158,10 +156,10 @@ class ProcessingStage:
                 self.slot.reopen(rig, old)
         except Exception as err:  # noqa: BLE001 - a bad reload keeps the old configuration
             log.error("reload failed, keeping the previous configuration: %s", err)
-            self._notifier.ready("running (reload failed: previous configuration kept)")
+            self._links.notifier.ready("running (reload failed: previous configuration kept)")
             return
         finally:
-            self._reload.in_progress = False
+            self._links.reload.in_progress = False
         self.locator = locator
         for extension in self.extensions:
             extension.reload(rig)
@@ -172,6 +170,6 @@ class ProcessingStage:
         self.rig = rig
         # The publishing thread rebinds for changed outputs; unchanged ones still re-read the
         # CURVE client keys, so adding or revoking a subscriber is a reload, not a restart.
-        self._reload.applied(rig)
+        self._links.reload.applied(rig)
         log.info("reload: configuration applied")
-        self._notifier.ready("running (configuration reloaded)")
+        self._links.notifier.ready("running (configuration reloaded)")

@@ -57,8 +57,6 @@ class PublishingStage:
         """The rig whose outputs the publisher is bound to."""
         self._factory = publisher_factory
         self._links = links
-        self._queue = links.queue
-        self._reload = links.reload
         self._state = state
         self._source_status = source_status
         self._status_for = status_for
@@ -92,8 +90,8 @@ class PublishingStage:
             if now >= next_poll:
                 next_poll = now + STATE_POLL_S
                 status = self._source_status()
-                states = tuple(c.state for c in status.cameras) if status is not None else ()
-                states += ("reloading",) if self._reload.in_progress else ()
+                states: tuple[str, ...] = tuple(c.state for c in status.cameras) if status is not None else ()
+                states += ("reloading",) if self._links.reload.in_progress else ()
                 if states != last_states or now >= next_status:
                     last_states = states
                     # Read each time: a reload may change it.
@@ -103,11 +101,11 @@ class PublishingStage:
                 # What the processing thread handed over before it stopped, its last words
                 # included, goes out before the final status (which the publisher flushes).
                 processing_done.wait(STOP_DRAIN_S)
-                while (item := self._queue.get(0.0)) is not None:
+                while (item := self._links.queue.get(0.0)) is not None:
                     self._publish_item(item)
                 break
             self._apply_outputs()
-            item = self._queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
+            item = self._links.queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
             if item is not None:
                 self._publish_item(item)
         self._state.stop()
@@ -144,7 +142,7 @@ class PublishingStage:
     def _apply_outputs(self) -> None:
         """The second phase of a reload: rebind the publisher for changed outputs (on failure go back
         to the old endpoints), else read the CURVE client keys again."""
-        rig = self._reload.take_outputs()
+        rig = self._links.reload.take_outputs()
         if rig is None:
             return
         assert self.publisher is not None

@@ -10,7 +10,7 @@ every pair, so no other part of the daemon builds a wire message.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, Literal, cast
 
 from trackerd.geometry.wall import as_vec3
 from trackerd.locator import Locator, PointerFix, WallHit
@@ -30,6 +30,7 @@ from trackerd.publish.messages import (
     CommandMessage,
     DwellMessage,
     EnterMessage,
+    FixStatus,
     GestureMessage,
     HandMessage,
     HitMessage,
@@ -70,15 +71,17 @@ def fix_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_n
         PointerMessage(
             sequence=sequence,
             capture_ns=capture_ns,
-            status=fix.status,
-            front_colour=front_colour,
+            # The fix's status, the front colour and the line's method are plain strings where they are
+            # made (the locator, the rig, the geometry); the model validates them against its literals.
+            status=cast(FixStatus, fix.status),
+            front_colour=cast(Literal["red", "blue"], front_colour),
             front_m=front,
             back_m=back,
             direction=as_vec3(line.direction),
             length_m=line.length_m,
             front_gap_mm=line.front_gap_m * 1000.0,
             back_gap_mm=line.back_gap_m * 1000.0,
-            method=line.method,
+            method=cast(Literal["planes", "points", "fit"], line.method),
         )
     ]
     hit = fix.hit
@@ -141,17 +144,18 @@ def event_messages(events: Iterable[Event]) -> list[Message]:
 
 def event_message(event: Event) -> Message:
     """The wire message of one extension event."""
-    common = {"sequence": event.sequence, "capture_ns": event.capture_ns}
     if isinstance(event, PointingEvent):
-        return _pointing_message(event, common)
+        return _pointing_message(event)
     if isinstance(event, HandSeen):
-        return HandMessage(**common, camera=event.camera, present=event.present, fingers=event.fingers,
+        return HandMessage(sequence=event.sequence, capture_ns=event.capture_ns, camera=event.camera,
+                           present=event.present, fingers=event.fingers,
                            fingers_now=event.fingers_now, image_x_px=event.centre_px[0],
                            image_y_px=event.centre_px[1], area_px=event.area_px)
     if isinstance(event, CommandIssued):
         cause = event.cause
         position = _pointing_fields(cause) if isinstance(cause, PointingEvent) else {}
-        return CommandMessage(**common, command=event.command, trigger=event.trigger, trigger_topic=cause.kind,
+        return CommandMessage(sequence=event.sequence, capture_ns=event.capture_ns, command=event.command,
+                              trigger=event.trigger, trigger_topic=cause.kind,
                               **position)
     raise TypeError(f"no message for a {type(event).__name__}")
 
@@ -162,8 +166,8 @@ def _pointing_fields(event: PointingEvent) -> dict[str, Any]:
             "display_x_px": at.display_x_px, "display_y_px": at.display_y_px}
 
 
-def _pointing_message(event: PointingEvent, common: dict[str, Any]) -> Message:
-    fields = {**common, **_pointing_fields(event)}
+def _pointing_message(event: PointingEvent) -> Message:
+    fields = {"sequence": event.sequence, "capture_ns": event.capture_ns, **_pointing_fields(event)}
     if isinstance(event, Entered):
         return EnterMessage(**fields)
     if isinstance(event, Left):
