@@ -57,12 +57,12 @@ class HandPoses:
     thread of their own, started with the first offer and stopped by :meth:`stop`."""
 
     def __init__(self, config: HandConfig, camera_index: int, camera_id: str, maker: EventMaker, *,
-                 threaded: bool) -> None:
+                 threaded: bool, detector: HandDetector | None = None) -> None:
         self.camera_index = camera_index
         self.camera_id = camera_id
         self.threaded = threaded
         self._maker = maker
-        self._detector = HandDetector(config)
+        self._detector = detector or HandDetector(config)
         self._debouncer = FingerDebouncer(config.debounce_pairs)
         self._last: HandObservation | None = None
         self._lock = threading.Lock()
@@ -74,6 +74,8 @@ class HandPoses:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._failure: BaseException | None = None
+        self.looked = 0
+        """Looks made so far."""
 
     @property
     def dropped(self) -> int:
@@ -150,6 +152,7 @@ class HandPoses:
         """One look and what it changes: a hand seen steadily (and its command when the count
         changes), or one seen before gone again."""
         seen = self._detector.look(look.image, look.pixel_format)
+        self.looked += 1
         out: list[Event] = []
         if seen is None:
             last = self._last
