@@ -72,9 +72,10 @@ class Left(PointingEvent):
     """The pointer stopped pointing at the display (``at``: its last position on it)."""
 
     kind: ClassVar[str] = "leave"
-
     reason: Literal["off_display", "lost"]
+    """off_display: it points beside the display (or away); lost: no hit at all."""
     duration_ms: float
+    """Time from the session's enter to this leave."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -82,8 +83,8 @@ class Dwelt(PointingEvent):
     """The hit rested for ``dwell_ms`` (a click)."""
 
     kind: ClassVar[str] = "dwell"
-
     dwell_ms: float
+    """How long the hit had rested when the dwell was decided (at least the configured time)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -91,16 +92,21 @@ class Gestured(PointingEvent):
     """A stroke recognised as the gesture ``name`` (``at``: where it ended); times on the publishing clock."""
 
     kind: ClassVar[str] = "gesture"
-
     name: str
+    """The template's name (``swipe_left``, ``circle_cw``, one an operator recorded)."""
     score: float
+    """How well the stroke matched the template, 0 to 1."""
     start_ns: int
     end_ns: int
+    """The stroke's first and last hit, capture times on the publishing clock."""
     path_m: float
+    """The stroke's path length on the wall."""
     start_x_m: float
     start_y_m: float
+    """Where on the wall the stroke began."""
     runner_up: str | None
     runner_up_score: float
+    """The next best gesture and its score (None and 0.0 with a single template)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -109,13 +115,17 @@ class HandSeen(Event):
     the other fields then repeat the last look's)."""
 
     kind: ClassVar[str] = "hand"
-
     camera: str
+    """The id of the camera the hand was looked for in."""
     present: bool
     fingers: int
+    """Extended fingers, debounced (seen on ``debounce_pairs`` looks in a row)."""
     fingers_now: int
+    """Extended fingers in this look alone."""
     centre_px: tuple[float, float]
+    """The palm's centre in the camera's full-resolution image (x right, y down)."""
     area_px: float
+    """The hand's area in full-resolution pixels."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -123,10 +133,11 @@ class CommandIssued(Event):
     """A command of the rig's grammar, set off by ``cause`` (published right after it)."""
 
     kind: ClassVar[str] = "command"
-
     command: str
     trigger: str
+    """What set it off: a gesture's name, ``enter``, ``leave``, ``dwell`` or ``hand_N``."""
     cause: PointingEvent | HandSeen
+    """The event that set it off (published right before it)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,18 +14,7 @@ from typing import Any, Literal, cast
 
 from trackerd.geometry.wall import as_vec3
 from trackerd.locator import Locator, PointerFix, WallHit
-from trackerd.pipeline.events import (
-    CommandIssued,
-    CursorHit,
-    Dwelt,
-    Entered,
-    Event,
-    Gestured,
-    HandSeen,
-    Left,
-    PairEvents,
-    PointingEvent,
-)
+from trackerd.pipeline import events as ev
 from trackerd.publish.messages import (
     CommandMessage,
     DwellMessage,
@@ -60,7 +49,7 @@ def messages_from_fix(fix: PointerFix, locator: Locator, *, sequence: int, captu
 
 
 def fix_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_ns: int,
-                 cursor: CursorHit | None = None) -> list[Message]:
+                 cursor: ev.CursorHit | None = None) -> list[Message]:
     """:func:`messages_from_fix` with the front end's colour given (the locator's at the time of the
     fix), and the hit published as ``cursor`` says (smoothed, in a pointing session) when given."""
     line = fix.line
@@ -112,7 +101,7 @@ def fix_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_n
     return out
 
 
-def _as_cursor(located: dict[str, Any], cursor: CursorHit) -> dict[str, Any]:
+def _as_cursor(located: dict[str, Any], cursor: ev.CursorHit) -> dict[str, Any]:
     """The hit's position fields as ``cursor`` publishes them: smoothed, the located ones as ``raw_*``."""
     smoothed = cursor.smoothed
     if smoothed is None:
@@ -128,7 +117,7 @@ def _as_cursor(located: dict[str, Any], cursor: CursorHit) -> dict[str, Any]:
 
 
 def pair_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_ns: int,
-                  events: PairEvents) -> list[Message]:
+                  events: ev.PairEvents) -> list[Message]:
     """Every message of one pair, in the order published: the events that end what came before,
     the fix's pointer and hit, the events the pair completed (trackerd.pipeline.events.PairEvents)."""
     return [
@@ -138,43 +127,43 @@ def pair_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_
     ]
 
 
-def event_messages(events: Iterable[Event]) -> list[Message]:
+def event_messages(events: Iterable[ev.Event]) -> list[Message]:
     return [event_message(event) for event in events]
 
 
-def event_message(event: Event) -> Message:
+def event_message(event: ev.Event) -> Message:
     """The wire message of one extension event."""
-    if isinstance(event, PointingEvent):
+    if isinstance(event, ev.PointingEvent):
         return _pointing_message(event)
-    if isinstance(event, HandSeen):
+    if isinstance(event, ev.HandSeen):
         return HandMessage(sequence=event.sequence, capture_ns=event.capture_ns, camera=event.camera,
                            present=event.present, fingers=event.fingers,
                            fingers_now=event.fingers_now, image_x_px=event.centre_px[0],
                            image_y_px=event.centre_px[1], area_px=event.area_px)
-    if isinstance(event, CommandIssued):
+    if isinstance(event, ev.CommandIssued):
         cause = event.cause
-        position = _pointing_fields(cause) if isinstance(cause, PointingEvent) else {}
+        position = _pointing_fields(cause) if isinstance(cause, ev.PointingEvent) else {}
         return CommandMessage(sequence=event.sequence, capture_ns=event.capture_ns, command=event.command,
                               trigger=event.trigger, trigger_topic=cause.kind,
                               **position)
     raise TypeError(f"no message for a {type(event).__name__}")
 
 
-def _pointing_fields(event: PointingEvent) -> dict[str, Any]:
+def _pointing_fields(event: ev.PointingEvent) -> dict[str, Any]:
     at = event.at
     return {"cursor_id": event.cursor_id, "wall_x_m": at.x_m, "wall_y_m": at.y_m,
             "display_x_px": at.display_x_px, "display_y_px": at.display_y_px}
 
 
-def _pointing_message(event: PointingEvent) -> Message:
+def _pointing_message(event: ev.PointingEvent) -> Message:
     fields = {"sequence": event.sequence, "capture_ns": event.capture_ns, **_pointing_fields(event)}
-    if isinstance(event, Entered):
+    if isinstance(event, ev.Entered):
         return EnterMessage(**fields)
-    if isinstance(event, Left):
+    if isinstance(event, ev.Left):
         return LeaveMessage(**fields, reason=event.reason, duration_ms=event.duration_ms)
-    if isinstance(event, Dwelt):
+    if isinstance(event, ev.Dwelt):
         return DwellMessage(**fields, dwell_ms=event.dwell_ms)
-    if isinstance(event, Gestured):
+    if isinstance(event, ev.Gestured):
         return GestureMessage(
             **fields, name=event.name, score=round(event.score, 4), start_ns=event.start_ns,
             end_ns=event.end_ns, duration_ms=(event.end_ns - event.start_ns) / 1e6, path_m=event.path_m,
