@@ -66,8 +66,10 @@ class HandPoses:
         self._debouncer = FingerDebouncer(config.debounce_pairs)
         self._last: HandObservation | None = None
         self._lock = threading.Lock()
-        """Held by a look and by whatever touches its state (the detector, debouncer, outbox)."""
+        """Held by a look and by whatever touches the look's state (the detector, the debouncer)."""
         self._outbox: list[Event] = []
+        self._outbox_lock = threading.Lock()
+        """Held only to hand finished looks' events over: the processing thread never waits for a look."""
         self._generation = 0
         """Counts session ends: a look handed over before one is not made after it."""
         self._mailbox: DropOldestQueue[_Look] = DropOldestQueue(1)
@@ -101,7 +103,7 @@ class HandPoses:
             raise RuntimeError("the hand-pose thread failed") from self._failure
         if not self._outbox:
             return []
-        with self._lock:
+        with self._outbox_lock:
             out, self._outbox = self._outbox, []
         return out
 
@@ -111,9 +113,9 @@ class HandPoses:
         ``forget_scene`` also forgets the learnt empty scene."""
         while self._mailbox.get(0.0) is not None:
             pass  # a look handed over before the end is no longer wanted
-        with self._lock:
+        with self._lock:  # waits for a look in progress
             self._generation += 1
-            out, self._outbox = self._outbox, []
+            out = self.take()
             last = self._last
             if last is not None and self._debouncer.stable is not None:
                 out.append(HandSeen(sequence=sequence, capture_ns=capture_ns, camera=self.camera_id, present=False,
@@ -142,8 +144,11 @@ class HandPoses:
                 if look is None:
                     continue
                 with self._lock:
-                    if look.generation == self._generation:
-                        self._outbox += self._look(look)
+                    if look.generation != self._generation:
+                        continue  # handed over before a session ended
+                    events = self._look(look)
+                    with self._outbox_lock:  # before a session can end: its events go out ahead of the end
+                        self._outbox += events
         except BaseException as err:
             log.exception("the hand-pose thread failed")
             self._failure = err
