@@ -40,6 +40,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # publisher, and the pipeline's own parts (queues, figures, the extension interface, the tap).
     ("stages", ("trackerd.acquisition", "trackerd.calibration", "trackerd.publish", "trackerd.pipeline.queues",
                 "trackerd.pipeline.stats", "trackerd.pipeline.threadtime", "trackerd.pipeline.extensions",
+                "trackerd.pipeline.events",
                 "trackerd.pipeline.tap")),
     # Beside the pipeline, attached through its extension interface or its tap.
     ("beside the pipeline", ("trackerd.recording", "trackerd.interaction", "trackerd.console")),

@@ -8,10 +8,11 @@ from pathlib import Path
 
 import pytest
 
+from trackerd.cli.run import build_extensions
 from trackerd.config.loader import load_rig
 from trackerd.errors import ConfigError
 from trackerd.interaction.extension import create
-from trackerd.pipeline.extensions import ExtensionContext, for_rig
+from trackerd.pipeline.extensions import ExtensionContext
 
 SIMULATED = Path(__file__).resolve().parents[2] / "config" / "simulated.toml"
 
@@ -45,7 +46,7 @@ def test_config_check_refuses_what_the_daemon_refuses(tmp_path, make, text):
     path = _rig_file(tmp_path, make(tmp_path))
     loaded = load_rig(path)
     with pytest.raises(ConfigError) as refused:
-        for_rig(loaded.config, ExtensionContext(rig_file=loaded.path))  # what run and replay build at start
+        build_extensions(loaded.config, ExtensionContext(rig_file=loaded.path))  # what run and replay build at start
     done = _check(path)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     # The same line, naming the rig file first as every configuration error does.

@@ -1,7 +1,8 @@
 """A pointing session never ends silently: reset, reload and stop of the interaction extension.
 
-The extension is fed real pairs and hit messages built from scripted wall hits
-(the locator is not needed to say where the hit is), and a UDP socket on
+The extension is fed real pairs with fixes built from scripted wall hits (the
+locator is not needed to say where the hit is), its events turned into messages
+as the publisher does (trackerd.publish.from_fix), and a UDP socket on
 loopback decodes the TUIO bundles with the test's own OSC decoder. The last
 test runs the real pipeline on rendered frames and stops it with the pointer
 on the display, as `kill -TERM` does.
@@ -19,12 +20,15 @@ import zmq
 from tests.gated import GatedPairSource, wait_for_status
 from tests.interaction.osc_decode import decode_bundle
 from trackerd.acquisition.frame import Frame, FramePair
+from trackerd.geometry.pointer_line import PointerLine
 from trackerd.interaction.extension import InteractionExtension, create
 from trackerd.interaction.scripted import RATE_HZ, rest, swipe_path
-from trackerd.locator import PointerFix
+from trackerd.locator import PointerFix, WallHit
 from trackerd.pipeline.daemon import Pipeline
+from trackerd.pipeline.extensions import Located
 from trackerd.publish import Publisher
-from trackerd.publish.messages import HitMessage, Message
+from trackerd.publish.from_fix import event_messages, pair_messages
+from trackerd.publish.messages import Message
 from trackerd.sim.motion import Stage
 from trackerd.sim.scene import pose_aimed_at
 
@@ -33,7 +37,13 @@ pytestmark = pytest.mark.serial  # runs the pipeline on paced sources
 EPOCH_NS = 1_800_000_000 * 10**9
 """The publishing clock at the first pair."""
 IMAGE = np.zeros((8, 8), np.uint8)
-NO_FIX = PointerFix(status="hit", reason=None, centroids_px=())
+LINE = PointerLine(np.array([0.0, 0.0, 2.0]), np.array([0.0, 0.0, 2.45]), 0.0005, 0.0005, "planes", 1.0)
+
+
+def _fix_at(point_m: np.ndarray) -> PointerFix:
+    """A fix whose published hit is at ``point_m`` on the wall."""
+    hit = WallHit(np.array([float(point_m[0]), float(point_m[1])]), np.zeros(3), None, True, 2.5)
+    return PointerFix(status="hit", reason=None, centroids_px=(), line=LINE, hit=hit)
 
 
 @pytest.fixture
@@ -72,7 +82,8 @@ def _rig(simulated_rig, tuio_port: int | None, **commands: str):
 
 
 class Feeder:
-    """Pairs at 60 per second with a hit message where the scripted hit is, through one extension."""
+    """Pairs at 60 per second with a hit where the scripted hit is, through one extension; what it
+    makes of them as the publisher sends it (the pointer messages left out)."""
 
     def __init__(self, extension: InteractionExtension) -> None:
         self.extension = extension
@@ -84,10 +95,10 @@ class Feeder:
             time_ns = 10**12 + int(self.sequence * 1e9 / RATE_HZ)
             capture_ns = time_ns - 10**12 + EPOCH_NS
             frames = tuple(Frame(camera, self.sequence, 0, time_ns, "Mono8", IMAGE) for camera in ("left", "right"))
-            hit = HitMessage(sequence=self.sequence, capture_ns=capture_ns, wall_x_m=float(point[0]),
-                             wall_y_m=float(point[1]), on_wall=True, distance_m=2.5, front_m=(0.0, 0.0, 2.0),
-                             back_m=(0.0, 0.0, 2.45), ray_gap_mm=0.5)
-            out += self.extension.on_fix(NO_FIX, FramePair(frames, time_ns, 0, self.sequence), [hit])
+            fix = _fix_at(point)
+            events = self.extension.on_located(Located(FramePair(frames, time_ns, 0, self.sequence), fix, capture_ns))
+            out += [m for m in pair_messages(fix, "red", sequence=self.sequence, capture_ns=capture_ns, events=events)
+                    if m.topic != "pointer"]
             self.sequence += 1
         return out
 
@@ -194,7 +205,7 @@ def test_finish_returns_the_leave_and_close_removes_the_cursor(simulated_rig, ud
     assert extension is not None
     Feeder(extension).feed(rest(np.array([1.5, 0.5]), 0.5, rng))
     assert _alive(_bundles(udp)[-1]) == [1]
-    ending = extension.finish()
+    ending = event_messages(extension.finish())
     assert [(m.topic, m.cursor_id) for m in ending] == [("leave", 1), ("command", 1)]
     assert extension.finish() == []
     extension.close()  # nothing more to say: the cursor is already removed

@@ -13,9 +13,10 @@ from rec_helpers import one_line_error, trackerd
 
 from trackerd.acquisition.arv import aravis_missing_reason
 from trackerd.acquisition.memory import MemoryPairSource
+from trackerd.cli.run import build_extensions
 from trackerd.config.recording import RecordingConfig
 from trackerd.pipeline.daemon import Pipeline
-from trackerd.pipeline.extensions import for_rig
+from trackerd.pipeline.extensions import ExtensionContext
 from trackerd.publish import Publisher
 from trackerd.recording.reader import Recording
 from trackerd.recording.recorder import Recorder
@@ -110,7 +111,7 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
     on = off.model_copy(update={"recording": RecordingConfig(directory=directory, enabled=True)})
     images = [pair.images for pair in pairs]
     pipeline = Pipeline(off, lambda r: MemoryPairSource(r, images, rate_hz=60.0), lambda r: Publisher(r.outputs.zmq),
-                        extensions=for_rig(off))
+                        extensions=build_extensions(off, ExtensionContext()))
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"status")

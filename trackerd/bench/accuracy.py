@@ -295,7 +295,7 @@ def _worst(anatomy: list[tuple[float, float, float]]) -> dict[str, float] | None
     rows = np.asarray(anatomy) * 1000.0
     worst = rows[rows[:, 0] >= np.percentile(rows[:, 0], 90)]
     return {
-        "poses": int(len(worst)),
+        "poses": len(worst),
         "error_mm": round(float(np.median(worst[:, 0])), 2),
         "exact_centroids_mm": round(float(np.median(worst[:, 1])), 2),
         "sigma_mm": round(float(np.median(worst[:, 2])), 2),

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -29,9 +30,12 @@ from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.interaction import InteractionConfig
 from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import wall_frame
-from trackerd.interaction.engine import InteractionEngine
-from trackerd.interaction.scripted import GESTURES, gesture_session, pointing_session
+from trackerd.errors import ConfigError
+from trackerd.geometry.wall import WallFrame
+from trackerd.interaction.engine import Event, InteractionEngine
+from trackerd.interaction.scripted import GESTURES, Track, gesture_session, pointing_session
 from trackerd.interaction.smoothing import smooth_track
 from trackerd.interaction.templates import load_templates
 
@@ -87,7 +91,7 @@ def _lag_mm(times_ns: np.ndarray, raw_m: np.ndarray, smoothed_m: np.ndarray, fro
     return float(np.mean((raw_m[from_index:] - smoothed_m[from_index:]) @ direction)) * 1000.0
 
 
-def smoothing_figures(rig, args, rng) -> dict[str, Any]:
+def smoothing_figures(rig: RigConfig, args: argparse.Namespace, rng: np.random.Generator) -> dict[str, Any]:
     cfg = rig.interaction.smoothing
     rate_hz = 60.0
     frame_mm_at_1m_s = 1000.0 / rate_hz
@@ -111,7 +115,7 @@ def smoothing_figures(rig, args, rng) -> dict[str, Any]:
     return out
 
 
-def _rendered_smoothing(rig, pairs: int, rate_hz: float, rng) -> dict[str, Any]:
+def _rendered_smoothing(rig: RigConfig, pairs: int, rate_hz: float, rng: np.random.Generator) -> dict[str, Any]:
     """The real locator on rendered frames: a still pointer, and one whose hit moves at 1 m/s."""
     from trackerd.locator import Locator
     from trackerd.sim.motion import Stage
@@ -122,11 +126,14 @@ def _rendered_smoothing(rig, pairs: int, rate_hz: float, rng) -> dict[str, Any]:
     locator = Locator(rig)
     stage = Stage.from_rig(rig)
     wall = renderer.wall
+    if rig.pointer is None:
+        raise ConfigError(f"rig '{rig.name}': no [pointer]; the bench renders one")
+    length_m = rig.pointer.length_m
 
     def hits(targets_m: np.ndarray) -> np.ndarray:
         out = []
         for target in targets_m:
-            pose = pose_aimed_at(stage.hand_m, wall.from_wall_m(target), rig.pointer.length_m)
+            pose = pose_aimed_at(stage.hand_m, wall.from_wall_m(target), length_m)
             fix = locator.locate([renderer.render(i, pose, rng).image for i in range(len(renderer.cameras))])
             out.append(fix.hit.wall_xy_m[:2] if fix.hit is not None else (np.nan, np.nan))
         return np.array(out, dtype=np.float64)
@@ -149,40 +156,57 @@ def _rendered_smoothing(rig, pairs: int, rate_hz: float, rng) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- gestures
 
 
-def _run(engine: InteractionEngine, track) -> list:
-    events = []
+def _wall(rig: RigConfig) -> WallFrame:
+    if rig.wall is None:
+        raise ConfigError(f"rig '{rig.name}': no [wall]; the bench places its gestures on one")
+    return wall_frame(rig.wall)
+
+
+@dataclass
+class _Recognition:
+    """How often one gesture was performed, recognised, and taken for another."""
+
+    performed: int = 0
+    recognised: int = 0
+    confused: dict[str, int] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"performed": self.performed, "recognised": self.recognised, "confused": self.confused,
+                "rate": round(self.recognised / max(self.performed, 1), 3)}
+
+
+def _run(engine: InteractionEngine, track: Track) -> list[Event]:
+    events: list[Event] = []
     for t, p in zip(track.times_ns, track.points_m, strict=True):
         events += engine.step(int(t), None if np.isnan(p[0]) else p).events
     return [e for e in events if e.kind == "gesture"]
 
 
-def gesture_figures(rig, args, rng) -> dict[str, Any]:
-    wall = wall_frame(rig.wall)
+def gesture_figures(rig: RigConfig, args: argparse.Namespace, rng: np.random.Generator) -> dict[str, Any]:
+    wall = _wall(rig)
     cfg: InteractionConfig = rig.interaction
     templates = load_templates(cfg.gestures.template_dir, builtin=cfg.gestures.builtin, only=cfg.gestures.only)
-    per = {name: {"performed": 0, "recognised": 0, "confused": {}} for name in GESTURES}
+    per = {name: _Recognition() for name in GESTURES}
     for _ in range(args.sessions):
         names = [str(n) for n in rng.permutation(GESTURES)]
         track = gesture_session(names, rng, wall.width_m, wall.height_m, noise_mm=args.noise_mm)
         found = _run(InteractionEngine(cfg, wall.width_m, wall.height_m, templates), track)
         for name, start, end in track.labels:
-            per[name]["performed"] += 1
+            per[name].performed += 1
             match = [g for g in found if g.detail["start_ns"] < end and g.detail["end_ns"] > start]
             got = match[0].detail["name"] if match else "none"
             if got == name:
-                per[name]["recognised"] += 1
+                per[name].recognised += 1
             else:
-                per[name]["confused"][got] = per[name]["confused"].get(got, 0) + 1
-    for figures in per.values():
-        figures["rate"] = round(figures["recognised"] / max(figures["performed"], 1), 3)
+                per[name].confused[got] = per[name].confused.get(got, 0) + 1
     track = pointing_session(args.pointing_minutes * 60.0, rng, wall.width_m, wall.height_m, noise_mm=args.noise_mm)
     false = _run(InteractionEngine(cfg, wall.width_m, wall.height_m, templates), track)
     by_name: dict[str, int] = {}
     for g in false:
         by_name[g.detail["name"]] = by_name.get(g.detail["name"], 0) + 1
-    return {"noise_mm": args.noise_mm, "per_gesture": per,
-            "overall_rate": round(sum(f["recognised"] for f in per.values())
-                                  / max(sum(f["performed"] for f in per.values()), 1), 3),
+    return {"noise_mm": args.noise_mm, "per_gesture": {name: f.to_json() for name, f in per.items()},
+            "overall_rate": round(sum(f.recognised for f in per.values())
+                                  / max(sum(f.performed for f in per.values()), 1), 3),
             "random_pointing_minutes": args.pointing_minutes, "false_gestures": len(false),
             "false_per_minute": round(len(false) / args.pointing_minutes, 3), "false_by_name": by_name}
 
@@ -190,7 +214,7 @@ def gesture_figures(rig, args, rng) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- hands
 
 
-def hand_figures(rig, count: int, rng) -> dict[str, Any]:
+def hand_figures(rig: RigConfig, count: int, rng: np.random.Generator) -> dict[str, Any]:
     from trackerd.interaction.hand import HandDetector
     from trackerd.sim.hand import HandRenderer, random_hand_pose
     from trackerd.sim.render import SceneRenderer
@@ -219,10 +243,10 @@ def hand_figures(rig, count: int, rng) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- cost
 
 
-def cost_figures(rig, rng) -> dict[str, Any]:
+def cost_figures(rig: RigConfig, rng: np.random.Generator) -> dict[str, Any]:
     from trackerd.interaction.hand import HandDetector
 
-    wall = wall_frame(rig.wall)
+    wall = _wall(rig)
     engine = InteractionEngine(rig.interaction, wall.width_m, wall.height_m, load_templates())
     track = gesture_session([str(n) for n in GESTURES] * 3, rng, wall.width_m, wall.height_m)
     costs = []

@@ -55,10 +55,12 @@ import numpy as np
 import zmq
 
 from trackerd import cpu_latency
+from trackerd.acquisition.source import PairSource
 from trackerd.bench.pairtrace import TraceObserver, latency_by_steal, latency_by_wakeup, off_cpu_figures
 from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
 from trackerd.errors import ConfigError
 from trackerd.pipeline.stats import percentiles_ms
 
@@ -118,12 +120,12 @@ def run(args: argparse.Namespace) -> int:
         frames = [np.load(path) for path in loop.frame_paths]
         image_sets = [[cam[i] for cam in frames] for i in range(loop.n_frames)]
 
-        def factory(r):
+        def factory(r: RigConfig) -> PairSource:
             return MemoryPairSource(r, image_sets, rate_hz=args.rate)
 
         source_note = f"rendered '{args.motion}' loop ({loop.n_frames} scenes) from memory at {args.rate:g} pairs/s"
-        back_to_back = _back_to_back_ms(rig, image_sets)
-        paced_detection = _paced_detection_ms(rig, image_sets, args.paced_pairs)
+        back_to_back: dict[str, Any] | None = _back_to_back_ms(rig, image_sets)
+        paced_detection: dict[str, Any] | None = _paced_detection_ms(rig, image_sets, args.paced_pairs)
     else:
         from trackerd.acquisition.live import AravisPairSource
         from trackerd.sim.rig import VirtualRig
@@ -133,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         virtual.start()
         rig = virtual.daemon_rig
 
-        def factory(r):
+        def factory(r: RigConfig) -> PairSource:
             return AravisPairSource(r, on_open=virtual.on_open)
 
         source_note = f"virtual GigE Vision rig, '{args.motion}', {rig.acquisition.trigger}"
@@ -173,7 +175,10 @@ def run(args: argparse.Namespace) -> int:
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
         pairs0 = pipeline.pairs_processed
-        status0 = pipeline.source.status()
+        source = pipeline.source
+        if source is None:
+            raise RuntimeError("the pipeline started without a source")
+        status0 = source.status()
         kept = pipeline.figures
         windows = {"processing": kept.processing, **kept.stages, "processing_cpu": kept.processing_cpu}
         for window in windows.values():
@@ -198,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
         trace = observer.trace()
         cpu1, wall1, machine1 = os.times(), time.monotonic(), _cpu_ticks()
         pairs = pipeline.pairs_processed - pairs0
-        status1 = pipeline.source.status()
+        status1 = source.status()
         queue_drops = pipeline.pairs_dropped_before_publishing
     finally:
         wakeup_request.close()
@@ -354,7 +359,8 @@ def _free_port() -> int:
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+        port: int = s.getsockname()[1]
+        return port
 
 
 def _view(url: str, stop: Any, results: Any) -> None:

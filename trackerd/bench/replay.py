@@ -138,15 +138,19 @@ def _record(rig: RigConfig, args: argparse.Namespace, workdir: Path) -> tuple[Pa
     source = MemoryPairSource(rig, image_sets, rate_hz=args.rate, count=count)
     samples: list[tuple[float, float]] = []
     if args.record_via == "daemon":
+        from trackerd.interaction.extension import create as interaction_extension
         from trackerd.pipeline.daemon import Pipeline
-        from trackerd.pipeline.extensions import for_rig
         from trackerd.publish import Publisher
+        from trackerd.recording.extension import create as recording_extension
 
         directory = workdir / "daemon"
         bench_rig = _bench_rig(rig, "tcp://127.0.0.1:*", RecordingConfig(directory=directory, enabled=True))
+        # As `trackerd run` builds them (trackerd/cli/run.py).
+        extension = recording_extension(bench_rig)
+        assert extension is not None  # the bench rig gives it a directory
+        interaction = interaction_extension(bench_rig)
         pipeline = Pipeline(bench_rig, lambda r: source, lambda r: Publisher(r.outputs.zmq),
-                            extensions=for_rig(bench_rig))
-        extension = next(e for e in pipeline.extensions if e.name == "recording")
+                            extensions=[extension, *([interaction] if interaction is not None else [])])
         pipeline.start()
         try:
             while source.status().running and pipeline.failure is None:
@@ -287,8 +291,10 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
 def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
                  truth: list[dict] | None, *, keep_hits: bool = False, batch: bool = True) -> dict[str, Any]:
     """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
+    from trackerd.interaction.extension import create as interaction_extension
     from trackerd.pipeline.daemon import Pipeline
-    from trackerd.pipeline.extensions import for_rig
+    from trackerd.pipeline.extensions import ExtensionContext, PipelineExtension
+    from trackerd.recording.extension import create as recording_extension
     from trackerd.recording.replay import ReplayPairSource
 
     source = ReplayPairSource(recording, speed=None, verify=verify, count=count, batch=batch)
@@ -298,7 +304,11 @@ def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, cou
         publishers.append(_KeepingPublisher(r))
         return publishers[-1]
 
-    pipeline = Pipeline(rig, lambda r: source, publisher_factory, extensions=for_rig(rig),
+    # As `trackerd replay` builds them (trackerd/cli/run.py).
+    context = ExtensionContext(replay=True)
+    extensions: list[PipelineExtension] = [
+        e for e in (recording_extension(rig, context), interaction_extension(rig, context)) if e is not None]
+    pipeline = Pipeline(rig, lambda r: source, publisher_factory, extensions=extensions,
                         clock_offset_ns=source.pipeline_clock_offset_ns())
     if baseline is not None:
         pipeline.locator = _BaselineLocator(rig, baseline)

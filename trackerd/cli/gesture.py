@@ -28,8 +28,9 @@ import json
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -51,6 +52,7 @@ from trackerd.interaction.templates import (
 )
 
 DEFAULT_ENDPOINT = "tcp://127.0.0.1:5560"
+T = TypeVar("T")
 
 
 class RecordTimeout(TrackerdError):
@@ -224,7 +226,7 @@ def _remove_empty(folders: list[Path]) -> None:
 
 def _merge(old: Template, new: Template) -> Template:
     """The examples of both; gates wide enough for both."""
-    def widest(a, b, pick):
+    def widest(a: T | None, b: T | None, pick: Callable[[T, T], T]) -> T | None:
         return None if a is None or b is None else pick(a, b)
 
     return Template(

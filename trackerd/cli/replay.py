@@ -113,7 +113,7 @@ def replay_command(args: argparse.Namespace) -> int:
         return source.finished and pipeline.pairs_processed >= source.delivered and pipeline.backlog <= 0
 
     code = serve(rig, None, lambda _r: source, seconds=args.seconds, publisher_factory=publisher_factory,
-                 clock_offset_ns=source.pipeline_clock_offset_ns(), until=until)
+                 clock_offset_ns=source.pipeline_clock_offset_ns(), until=until, replay=True)
     progress.done()
     summary = _summary(source, publishers, recording)
     if pipelines:

@@ -18,14 +18,26 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from trackerd import logs
 from trackerd.cli._args import add_console_option, positive_seconds
 from trackerd.config.loader import load_rig, with_console
 from trackerd.config.models import RigConfig
-from trackerd.errors import TrackerdError
+from trackerd.errors import ConfigError, TrackerdError
 from trackerd.sdnotify import SdNotify
+
+if TYPE_CHECKING:
+    from trackerd.acquisition.live import LivePairSource
+    from trackerd.acquisition.source import PairSource
+    from trackerd.acquisition.worker import OpenHook
+    from trackerd.console.server import ConsoleServer
+    from trackerd.pipeline.daemon import Pipeline
+    from trackerd.pipeline.extensions import ExtensionContext, PipelineExtension
+    from trackerd.publish import Publisher
+    from trackerd.recording.cameras import CameraInfo
 
 log = logging.getLogger("trackerd.run")
 
@@ -43,7 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run_command)
 
 
-def aravis_source(rig: RigConfig, on_open=None):
+def aravis_source(rig: RigConfig, on_open: OpenHook | None = None) -> LivePairSource:
     """The daemon's cameras; ``on_open(camera_id, camera)`` runs after each (re)connection."""
     from trackerd.acquisition.live import LivePairSource
 
@@ -51,7 +63,7 @@ def aravis_source(rig: RigConfig, on_open=None):
     return LivePairSource(rig, wait_for_cameras=True, on_open=on_open)
 
 
-def zmq_publisher(rig: RigConfig):
+def zmq_publisher(rig: RigConfig) -> Publisher:
     from trackerd.publish import Publisher
 
     return Publisher(rig.outputs.zmq)
@@ -68,9 +80,36 @@ def run_command(args: argparse.Namespace) -> int:
                  camera_info=info, exit_if_stuck=True)
 
 
-def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float | None = None,
-          publisher_factory=zmq_publisher, banner: str | None = None, clock_offset_ns: int | None = None,
-          until=None, camera_info=None, exit_if_stuck: bool = False) -> int:
+def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[PipelineExtension]:
+    """The extensions the rig asks for, in a fixed order: recording sees pairs before interaction.
+
+    Each is imported here, by name: they and their dependencies are part of trackerd (pyproject's
+    dependencies), so one that cannot be imported is a broken installation and fails the start
+    with its ImportError, never skipped. What the rig asks of one is checked by its ``create``;
+    a ConfigError then names the rig file, as the loader's own errors do."""
+    from trackerd.interaction.extension import create as interaction_extension
+    from trackerd.recording.extension import create as recording_extension
+
+    creators: list[Callable[[RigConfig, ExtensionContext], PipelineExtension | None]] = [
+        recording_extension, interaction_extension]
+    built = []
+    for create in creators:
+        try:
+            extension = create(rig, context)
+        except ConfigError as err:
+            if context.rig_file is None:
+                raise
+            raise err.in_file(context.rig_file) from None
+        if extension is not None:
+            built.append(extension)
+    return built
+
+
+def serve(rig: RigConfig, path: Path | None, source_factory: Callable[[RigConfig], PairSource], *,
+          seconds: float | None = None, publisher_factory: Callable[[RigConfig], Publisher] = zmq_publisher,
+          banner: str | None = None, clock_offset_ns: int | None = None,
+          until: Callable[[Pipeline], bool] | None = None, camera_info: CameraInfo | None = None,
+          exit_if_stuck: bool = False, replay: bool = False) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
 
     ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
@@ -79,21 +118,23 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     ``camera_info`` go into the metadata of recordings made on demand. ``exit_if_stuck``: when a
     camera thread is still searching for its camera once everything is stopped, end the process
     here (`trackerd run`, which has nothing left to do; not for callers that clean up after).
+    ``replay``: the pairs come from a recording, and what is published must follow from them
+    alone (trackerd.pipeline.extensions.ExtensionContext.replay).
     """
     from trackerd.pipeline.daemon import Pipeline
-    from trackerd.pipeline.extensions import ExtensionContext, for_rig
+    from trackerd.pipeline.extensions import ExtensionContext
 
     notifier = SdNotify()
     if clock_offset_ns is None:
         clock_offset_ns = time.time_ns() - time.monotonic_ns()
     context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info,
-                               clock_offset_ns=clock_offset_ns)
+                               clock_offset_ns=clock_offset_ns, replay=replay)
     tap = None
     if rig.console.enabled:
         from trackerd.pipeline.tap import ConsoleTap
 
         tap = ConsoleTap()
-    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=for_rig(rig, context),
+    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=build_extensions(rig, context),
                         clock_offset_ns=clock_offset_ns, tap=tap)
     console = None
     stop = threading.Event()
@@ -159,7 +200,7 @@ def serve(rig: RigConfig, path: Path | None, source_factory, *, seconds: float |
     return code
 
 
-def _start_console(console, rig: RigConfig):
+def _start_console(console: ConsoleServer, rig: RigConfig) -> ConsoleServer | None:
     """Start the console; None when the default address is taken (another daemon, a replay beside
     it: the daemon runs on without it), TrackerdError when an address given for it is."""
     try:
@@ -172,7 +213,7 @@ def _start_console(console, rig: RigConfig):
     return console
 
 
-def _reload(pipeline, path: Path | None) -> None:
+def _reload(pipeline: Pipeline, path: Path | None) -> None:
     if path is None:
         log.warning("SIGHUP: no configuration file to reload")
         return

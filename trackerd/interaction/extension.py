@@ -1,23 +1,26 @@
 """The interaction stage as a pipeline extension: smoothed hits, events, commands, hands and TUIO.
 
-``create(rig)`` builds it from ``[interaction]`` (None when everything there is
-off). In the processing thread, per pair, :meth:`InteractionExtension.on_fix`:
+``create(rig, context)`` builds it from ``[interaction]`` (None when everything
+there is off). In the processing thread, per located pair,
+:meth:`InteractionExtension.on_located`:
 
-1. feeds the pair's capture time and raw wall hit to the engine
+1. feeds the pair's capture time and its located wall hit (the one published,
+   trackerd.publish.from_fix.published_hit) to the engine
    (trackerd/interaction/engine.py), which smooths it and decides events;
-2. replaces the ``hit`` message's position with the smoothed one, keeping the
-   raw one in ``raw_*`` and adding the ``cursor_id``;
-3. appends ``enter`` / ``leave`` / ``dwell`` / ``gesture`` messages, each
-   followed by its ``command`` when the grammar maps it;
-4. on one pair in ``hand.every_n_pairs``, looks for a hand in the configured
-   camera (about 4-5 ms at half resolution on the development machine, so
-   about 1.2 ms per pair on average at the default of 4) and appends a ``hand``
-   message (and a ``command`` when the debounced count changes);
+2. says how the pair's hit is published: at the smoothed position, the
+   located one kept as ``raw_*``, with the ``cursor_id``;
+3. adds ``enter`` / ``leave`` / ``dwell`` / ``gesture`` events, each followed
+   by its command when the grammar maps it (trackerd/interaction/outcomes.py);
+4. on one pair in ``hand.every_n_pairs``, has the configured camera's frame
+   looked at for a hand (trackerd/interaction/handposes.py: on a thread of its
+   own live, in the processing thread in a replay) and adds the ``hand`` events
+   of finished looks (and a command when the debounced count changes);
 5. sends the TUIO bundle for the pair (a non-blocking UDP send).
 
-Event times are capture times on the publishing clock: the offset from the
-pair's monotonic capture time to ``capture_ns`` is read off the pair's own
-messages, so events line up with the hits exactly.
+It answers with domain events (trackerd.pipeline.events); the publisher turns
+them into wire messages. Event times are capture times on the publishing
+clock: the pair's own (``Located.capture_ns``), and for a gesture's start and
+end the engine's times moved by the pair's clock offset.
 
 A pointing session never ends silently. A :meth:`~InteractionExtension.reload`
 that rebuilds the stage, and a :meth:`~InteractionExtension.reset` (a recording
@@ -25,7 +28,7 @@ starts, a looped replay wraps), end it as a ``leave`` (reason ``lost``, stamped
 with the session's last pair) and its command, published ahead of the next
 pair's messages, and with an empty TUIO ``alive``; ``cursor_id`` and the TUIO
 frame count carry on. At stop, :meth:`~InteractionExtension.finish` returns the
-session's last messages for the caller to publish, and
+session's last events for the caller to publish, and
 :meth:`~InteractionExtension.close` sends the last empty ``alive``.
 """
 
@@ -43,37 +46,29 @@ from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import wall_frame
 from trackerd.errors import ConfigError
-from trackerd.geometry.wall import WallFrame
-from trackerd.interaction.engine import Event, InteractionEngine, Step
-from trackerd.interaction.grammar import Grammar
-from trackerd.interaction.hand import FingerDebouncer, HandDetector, HandObservation
-from trackerd.interaction.tuio import TuioSender
+from trackerd.interaction.engine import InteractionEngine
+from trackerd.interaction.handposes import HandPoses
+from trackerd.interaction.outcomes import EventMaker
+from trackerd.interaction.tuio import TuioSender, WallCursor
 from trackerd.interaction.validate import check_interaction
-from trackerd.locator import PointerFix
+from trackerd.pipeline.events import CursorHit, Event, Gestured, PairEvents
 from trackerd.pipeline.stats import Window
-from trackerd.publish.messages import (
-    CommandMessage,
-    DwellMessage,
-    EnterMessage,
-    GestureMessage,
-    HandMessage,
-    HitMessage,
-    LeaveMessage,
-    Message,
-)
+from trackerd.publish.from_fix import published_hit
 
 if TYPE_CHECKING:
-    from trackerd.pipeline.extensions import ExtensionContext
+    from trackerd.pipeline.extensions import ExtensionContext, Located
 
 log = logging.getLogger(__name__)
 
 
 def create(rig: RigConfig, context: ExtensionContext | None = None) -> InteractionExtension | None:
-    """The interaction stage for a rig, or None when ``[interaction]`` turns everything off
-    (``context``, what the daemon knows beyond the rig, is not needed here)."""
+    """The interaction stage for a rig, or None when ``[interaction]`` turns everything off.
+
+    Replayed (``context.replay``), hand poses are looked for in the processing thread, so the
+    replay publishes what the pairs alone decide (trackerd/interaction/handposes.py)."""
     if not rig.interaction.any_enabled:
         return None
-    return InteractionExtension(rig)
+    return InteractionExtension(rig, threaded_hands=not (context is not None and context.replay))
 
 
 @dataclass(frozen=True)
@@ -81,28 +76,29 @@ class _Parts:
     """What a configuration builds (see InteractionExtension._parts)."""
 
     rig: RigConfig
-    wall: WallFrame
-    grammar: Grammar
     engine: InteractionEngine
-    hand_camera: int | None
-    tuio: TuioSender | None
+    maker: EventMaker
+    hands: HandPoses | None
+    tuio: WallCursor | None
 
 
 class InteractionExtension:
-    """See the module docstring. ``on_fix`` runs in the processing thread, ``status`` in the publishing one."""
+    """See the module docstring. ``on_located`` runs in the processing thread, ``status`` in the publishing one."""
 
     name = "interaction"
 
-    def __init__(self, rig: RigConfig) -> None:
+    def __init__(self, rig: RigConfig, *, threaded_hands: bool = True) -> None:
+        self._threaded_hands = threaded_hands
         self._install(self._parts(rig, None))
         self.cost = Window()
-        """Time per pair in on_fix (ns), drained into each status."""
-        self._offset_ns = time.time_ns() - time.monotonic_ns()
+        """Time per pair in on_located (ns), drained into each status."""
+        self._offset_ns = 0
+        """The last pair's clock offset (monotonic to publishing clock)."""
         self._pairs = 0
         self._event_counts: dict[str, int] = {}
         self._gesture_counts: dict[str, int] = {}
-        self._pending: list[Message] = []
-        """Messages that end a session outside on_fix (reload, reset), published ahead of the next pair's."""
+        self._pending: list[Event] = []
+        """Events that end a session outside on_located (reload, reset), published ahead of the next pair's."""
         self._reset_requested = threading.Event()
         self._last_sequence = 0
         self._last_capture_ns = 0
@@ -110,32 +106,33 @@ class InteractionExtension:
         self._tuio_frames = 0
         """The last ``fseq`` of the TUIO senders closed so far."""
 
-    @staticmethod
-    def _parts(rig: RigConfig, previous: InteractionEngine | None) -> _Parts:
+    def _parts(self, rig: RigConfig, previous: InteractionEngine | None) -> _Parts:
         """Every part for ``rig`` (ConfigError, one line, when the rig cannot run), nothing installed yet."""
         cfg = rig.interaction
         checked = check_interaction(rig)
+        if rig.wall is None:
+            raise ConfigError("interaction: the rig has no [wall], which events are placed on")
         wall = wall_frame(rig.wall)
         engine = InteractionEngine(cfg, wall.width_m, wall.height_m, checked.templates)
         if previous is not None:
             # Session ids go on counting across rebuilds: a client must never see one twice.
             engine.cursor_id = previous.cursor_id
             engine.rejected_total = previous.rejected_total
-        tuio = TuioSender(cfg.tuio) if cfg.tuio.enabled else None
-        return _Parts(rig, wall, checked.grammar, engine, checked.hand_camera, tuio)
+        maker = EventMaker(wall, checked.grammar, smoothing=cfg.smoothing.enabled)
+        hands = None
+        if cfg.hand.enabled and checked.hand_camera is not None:
+            hands = HandPoses(cfg.hand, checked.hand_camera, rig.cameras[checked.hand_camera].id, maker,
+                              threaded=self._threaded_hands)
+        tuio = WallCursor(TuioSender(cfg.tuio), wall.width_m, wall.height_m) if cfg.tuio.enabled else None
+        return _Parts(rig, engine, maker, hands, tuio)
 
     def _install(self, parts: _Parts) -> None:
         self.rig = parts.rig
         self.config = parts.rig.interaction
-        self.wall = parts.wall
-        self.grammar = parts.grammar
         self.engine = parts.engine
-        self.hand_camera = parts.hand_camera
-        self.hand = HandDetector(self.config.hand) if self.config.hand.enabled else None
-        self.debouncer = FingerDebouncer(self.config.hand.debounce_pairs)
-        self._last_hand: HandObservation | None = None
+        self.maker = parts.maker
+        self.hands = parts.hands
         self.tuio = parts.tuio
-        self._last_smoothed: np.ndarray | None = None
 
     # ------------------------------------------------------------------ PipelineExtension
 
@@ -143,41 +140,35 @@ class InteractionExtension:
         """Nothing to do before the locator."""
         return False
 
-    def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]:
+    def on_located(self, located: Located) -> PairEvents:
         start = time.perf_counter_ns()
         if self._reset_requested.is_set():
             self._reset_requested.clear()
             self._reset_now()
         pending, self._pending = self._pending, []
-        if messages:
-            self._offset_ns = messages[0].capture_ns - pair.timestamp_ns
-        capture_ns = pair.timestamp_ns + self._offset_ns
-        out = list(messages)
-        hit_index = next((i for i, m in enumerate(out) if isinstance(m, HitMessage)), None)
-        raw = None
-        if hit_index is not None:
-            hit = out[hit_index]
-            assert isinstance(hit, HitMessage)
-            raw = np.array([hit.wall_x_m, hit.wall_y_m])
+        pair, capture_ns = located.pair, located.capture_ns
+        self._offset_ns = located.clock_offset_ns
+        hit = published_hit(located.fix)
+        raw = None if hit is None else np.array([float(v) for v in hit.wall_xy_m[:2]])
         step = self.engine.step(pair.timestamp_ns, raw)
-        if hit_index is not None and step.smoothed_m is not None:
-            out[hit_index] = self._smoothed_hit(out[hit_index], step.smoothed_m, step.inside)  # type: ignore[arg-type]
-        for event in step.events:
-            message = self._event_message(event, pair.sequence, capture_ns)
-            out.append(message)
-            trigger = event.detail["name"] if event.kind == "gesture" else event.kind
-            if event.kind == "gesture":
-                self._gesture_counts[trigger] = self._gesture_counts.get(trigger, 0) + 1
-            self._command(out, trigger, message, pair.sequence, capture_ns)
-        if self.hand is not None and self._pairs % self.config.hand.every_n_pairs == 0:
-            self._look_for_hand(out, pair, capture_ns)
+        cursor: CursorHit | None = None
+        if hit is not None and step.smoothed_m is not None:
+            cursor = self.maker.cursor_hit(step.smoothed_m, self.engine.cursor_id if step.inside else None)
+        events = self.maker.events(step.events, sequence=pair.sequence, capture_ns=capture_ns,
+                                   clock_offset_ns=self._offset_ns)
+        for event in events:
+            if isinstance(event, Gestured):
+                self._gesture_counts[event.name] = self._gesture_counts.get(event.name, 0) + 1
+        if self.hands is not None:
+            due = self._pairs % self.config.hand.every_n_pairs == 0
+            events += self.hands.offer(pair, capture_ns) if due else self.hands.take()
         if self.tuio is not None:
-            self._send_tuio(pair.timestamp_ns, step)
-        self._count(out[len(messages):])
+            self.tuio.frame(pair.timestamp_ns, step.smoothed_m, step.inside, step.velocity_m_s, self.engine.cursor_id)
+        self._count(events)
         self._pairs += 1
         self._last_sequence, self._last_capture_ns = pair.sequence, capture_ns
         self.cost.add(time.perf_counter_ns() - start)
-        return pending + out if pending else out
+        return PairEvents(pending, cursor, events)
 
     def status(self) -> dict[str, Any] | None:
         cost = self.cost.drain()
@@ -189,9 +180,9 @@ class InteractionExtension:
             "gestures": dict(self._gesture_counts),
             "templates": len(self.engine.templates),
             "strokes_rejected": self.engine.rejected_total,
-            "hand": self.hand is not None,
-            "tuio_packets": None if self.tuio is None else self.tuio.packets,
-            "tuio_errors": None if self.tuio is None else self.tuio.errors,
+            "hand": self.hands is not None,
+            "tuio_packets": None if self.tuio is None else self.tuio.sender.packets,
+            "tuio_errors": None if self.tuio is None else self.tuio.sender.errors,
         }
         if cost.size:
             p50, p99 = np.percentile(cost, [50, 99]) / 1e3
@@ -212,13 +203,15 @@ class InteractionExtension:
         ending = self._end_session()
         self._pending += ending
         self._count(ending)
+        if self.hands is not None:
+            self.hands.stop()
         if self.tuio is not None:
-            self.tuio.close()
-            self._tuio_frames = self.tuio.frame_count
+            self.tuio.sender.close()
+            self._tuio_frames = self.tuio.sender.frame_count
         if parts.tuio is not None:
             # Clients take a bundle numbered below the last one they saw as late, and drop it,
             # so the count goes on even after a time with TUIO off.
-            parts.tuio.continue_after(self._tuio_frames)
+            parts.tuio.sender.continue_after(self._tuio_frames)
         self._install(parts)
 
     def reset(self) -> None:
@@ -234,150 +227,47 @@ class InteractionExtension:
         """
         self._reset_requested.set()
 
-    def finish(self) -> list[Message]:
-        """The stage's last messages, at stop: the ``leave`` (and command) of a session in
+    def finish(self) -> list[Event]:
+        """The stage's last events, at stop: the ``leave`` (and command) of a session in
         progress and any not yet published, for the caller to publish before the publisher
-        closes. Also removes the TUIO cursor. Call it once no ``on_fix`` runs; idempotent."""
+        closes. Also stops the hand-pose thread and removes the TUIO cursor. Call it once no
+        ``on_located`` runs; idempotent."""
         self._reset_requested.clear()
+        if self.hands is not None:
+            self.hands.stop()
         ending = self._pending + self._end_session()
         self._pending = []
         self._count(ending)
         if self.tuio is not None:
-            self.tuio.end()
+            self.tuio.sender.end()
         return ending
 
     def close(self) -> None:
-        """Close the TUIO socket, after a last empty ``alive`` so no client keeps the cursor."""
+        """Stop the hand-pose thread; close the TUIO socket after a last empty ``alive``, so no
+        client keeps the cursor."""
+        if self.hands is not None:
+            self.hands.stop()
         if self.tuio is not None:
-            self.tuio.close()
+            self.tuio.sender.close()
             self.tuio = None
 
     def _reset_now(self) -> None:
-        ending = self._end_session()
+        ending = self._end_session(forget_scene=True)
         self._pending += ending
         self._count(ending)
-        if self.hand is not None:
-            self.hand.reset()
         self._pairs = 0
-        self._last_smoothed = None
         if self.tuio is not None:
-            self.tuio.end()
+            self.tuio.forget()
 
-    def _end_session(self) -> list[Message]:
-        """Reset the engine and the hand's debouncer; the messages that end what was going on."""
-        out: list[Message] = []
-        for event in self.engine.reset():
-            message = self._event_message(event, self._last_sequence, self._last_capture_ns)
-            out.append(message)
-            self._command(out, event.kind, message, self._last_sequence, self._last_capture_ns)
-        if self.hand_camera is not None and self._last_hand is not None and self.debouncer.stable is not None:
-            last = self._last_hand
-            out.append(HandMessage(sequence=self._last_sequence, capture_ns=self._last_capture_ns,
-                                   camera=self.rig.cameras[self.hand_camera].id, present=False,
-                                   fingers=self.debouncer.stable, fingers_now=last.fingers,
-                                   image_x_px=last.centre_px[0], image_y_px=last.centre_px[1],
-                                   area_px=last.area_px))
-        self._last_hand = None
-        self.debouncer.reset()
+    def _end_session(self, *, forget_scene: bool = False) -> list[Event]:
+        """Reset the engine and the hand's count; the events that end what was going on."""
+        sequence, capture_ns = self._last_sequence, self._last_capture_ns
+        out = self.maker.events(self.engine.reset(), sequence=sequence, capture_ns=capture_ns,
+                                clock_offset_ns=self._offset_ns)
+        if self.hands is not None:
+            out += self.hands.end_session(sequence, capture_ns, forget_scene=forget_scene)
         return out
 
-    def _count(self, messages: list[Message]) -> None:
-        for message in messages:
-            self._event_counts[message.topic] = self._event_counts.get(message.topic, 0) + 1
-
-    # ------------------------------------------------------------------ messages
-
-    def _display(self, position_m: np.ndarray) -> tuple[float | None, float | None]:
-        if not self.wall.has_display:
-            return None, None
-        px = self.wall.to_display_px(position_m)
-        return float(px[0]), float(px[1])
-
-    def _smoothed_hit(self, hit: HitMessage, smoothed_m: np.ndarray, inside: bool) -> HitMessage:
-        cursor = self.engine.cursor_id if inside else None
-        if not self.config.smoothing.enabled:
-            return hit.model_copy(update={"cursor_id": cursor})
-        x, y = self._display(smoothed_m)
-        return hit.model_copy(update={
-            "wall_x_m": float(smoothed_m[0]), "wall_y_m": float(smoothed_m[1]),
-            "display_x_px": x, "display_y_px": y,
-            "on_wall": bool(self.wall.on_wall(smoothed_m)),
-            "raw_wall_x_m": hit.wall_x_m, "raw_wall_y_m": hit.wall_y_m,
-            "raw_display_x_px": hit.display_x_px, "raw_display_y_px": hit.display_y_px,
-            "cursor_id": cursor,
-        })
-
-    def _event_message(self, event: Event, sequence: int, capture_ns: int) -> Message:
-        x, y = self._display(event.position_m)
-        common = {"sequence": sequence, "capture_ns": capture_ns, "cursor_id": event.cursor_id,
-                  "wall_x_m": float(event.position_m[0]), "wall_y_m": float(event.position_m[1]),
-                  "display_x_px": x, "display_y_px": y}
-        d = event.detail
-        if event.kind == "enter":
-            return EnterMessage(**common)
-        if event.kind == "leave":
-            return LeaveMessage(**common, reason=d["reason"], duration_ms=d["duration_ms"])
-        if event.kind == "dwell":
-            return DwellMessage(**common, dwell_ms=d["dwell_ms"])
-        return GestureMessage(
-            **common, name=d["name"], score=round(float(d["score"]), 4),
-            start_ns=d["start_ns"] + self._offset_ns, end_ns=d["end_ns"] + self._offset_ns,
-            duration_ms=(d["end_ns"] - d["start_ns"]) / 1e6, path_m=d["path_m"],
-            start_wall_x_m=float(d["start_m"][0]), start_wall_y_m=float(d["start_m"][1]),
-            runner_up=d["runner_up"],
-            runner_up_score=None if d["runner_up"] is None else round(float(d["runner_up_score"]), 4),
-        )
-
-    def _command(self, out: list[Message], trigger: str, message: Message, sequence: int, capture_ns: int) -> None:
-        command = self.grammar.command_for(trigger)
-        if command is None:
-            return
-        position = {}
-        if not isinstance(message, HandMessage):
-            position = {key: getattr(message, key)
-                        for key in ("cursor_id", "wall_x_m", "wall_y_m", "display_x_px", "display_y_px")}
-        out.append(CommandMessage(sequence=sequence, capture_ns=capture_ns, command=command, trigger=trigger,
-                                  trigger_topic=message.topic, **position))
-
-    # ------------------------------------------------------------------ hands and TUIO
-
-    def _look_for_hand(self, out: list[Message], pair: FramePair, capture_ns: int) -> None:
-        assert self.hand is not None and self.hand_camera is not None
-        frame = pair.frames[self.hand_camera]
-        seen = self.hand.look(frame.image, frame.pixel_format)
-        camera = frame.camera_id
-        if seen is None:
-            if self._last_hand is not None and self.debouncer.stable is not None:
-                last = self._last_hand
-                out.append(HandMessage(sequence=pair.sequence, capture_ns=capture_ns, camera=camera, present=False,
-                                       fingers=self.debouncer.stable, fingers_now=last.fingers,
-                                       image_x_px=last.centre_px[0], image_y_px=last.centre_px[1],
-                                       area_px=last.area_px))
-            self._last_hand = None
-            self.debouncer.reset()
-            return
-        self._last_hand = seen
-        changed = self.debouncer.add(seen.fingers)
-        if self.debouncer.stable is None:
-            return  # not seen steadily enough yet
-        message = HandMessage(sequence=pair.sequence, capture_ns=capture_ns, camera=camera, present=True,
-                              fingers=self.debouncer.stable, fingers_now=seen.fingers,
-                              image_x_px=seen.centre_px[0], image_y_px=seen.centre_px[1], area_px=seen.area_px)
-        out.append(message)
-        if changed:
-            self._command(out, f"hand_{self.debouncer.stable}", message, pair.sequence, capture_ns)
-
-    def _send_tuio(self, time_ns: int, step: Step) -> None:
-        assert self.tuio is not None
-        if step.smoothed_m is not None:
-            self._last_smoothed = step.smoothed_m
-        if not step.inside or self._last_smoothed is None:
-            self._last_smoothed = None
-            self.tuio.frame(time_ns, None)
-            return
-        # A pair without a hit while entered keeps the cursor where it was (no remove and re-add).
-        w, h = self.wall.width_m, self.wall.height_m
-        x = min(max(float(self._last_smoothed[0]) / w, 0.0), 1.0)
-        y = min(max(1.0 - float(self._last_smoothed[1]) / h, 0.0), 1.0)
-        vx, vy = float(step.velocity_m_s[0]) / w, -float(step.velocity_m_s[1]) / h
-        self.tuio.frame(time_ns, (self.engine.cursor_id, x, y, vx, vy))
+    def _count(self, events: list[Event]) -> None:
+        for event in events:
+            self._event_counts[event.kind] = self._event_counts.get(event.kind, 0) + 1

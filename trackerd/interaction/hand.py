@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -88,10 +89,10 @@ def colour_mask(rgb: NDArray[np.uint8], config: HandConfig) -> NDArray[np.uint8]
     s_lo, s_hi = (round(v * 255) for v in config.saturation_range_ratio)
     v_lo = round(config.min_value_ratio * 255)
     if lo_hue <= hi_hue:
-        return cv2.inRange(hsv, (math.floor(lo_hue), s_lo, v_lo), (math.ceil(hi_hue), s_hi, 255))
+        return _u8(cv2.inRange(hsv, (math.floor(lo_hue), s_lo, v_lo), (math.ceil(hi_hue), s_hi, 255)))
     upper = cv2.inRange(hsv, (math.floor(lo_hue), s_lo, v_lo), (180, s_hi, 255))
     lower = cv2.inRange(hsv, (0, s_lo, v_lo), (math.ceil(hi_hue), s_hi, 255))
-    return cv2.bitwise_or(upper, lower)
+    return _u8(cv2.bitwise_or(upper, lower))
 
 
 def count_fingers(contour: NDArray[np.int32], mask: NDArray[np.uint8]) -> tuple[int, tuple[float, float], float]:
@@ -146,6 +147,11 @@ def _fingers_by_reach(local: NDArray[np.uint8], centre: NDArray[np.float64], rad
     return int(np.any((widths >= FINGER_WIDTH[0] * radius) & (widths <= FINGER_WIDTH[1] * radius)))
 
 
+def _u8(mask: cv2.typing.MatLike) -> NDArray[np.uint8]:
+    """A mask OpenCV made from 8-bit images, typed as such (its stubs say only "a matrix")."""
+    return cast(NDArray[np.uint8], mask)
+
+
 class HandDetector:
     """Finds the hand in frames of one camera and counts its fingers; keeps the learnt empty scene."""
 
@@ -164,7 +170,7 @@ class HandDetector:
         threshold = self.config.background_difference_ratio
         if threshold > 0:
             mask = self._moving(rgb, mask, threshold)
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._kernel)
+        mask = _u8(cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._kernel))
         contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         if not contours:
             return None
@@ -172,7 +178,8 @@ class HandDetector:
         area_half = float(cv2.contourArea(contour))
         if area_half * 4.0 < self.config.min_area_px:
             return None
-        fingers, (cx, cy), radius = count_fingers(contour, mask)
+        # findContours gives int32 point arrays; OpenCV's stubs say only "a matrix".
+        fingers, (cx, cy), radius = count_fingers(cast(NDArray[np.int32], contour), mask)
         # Half-resolution pixel (i, j) covers full-resolution pixels 2i..2i+1: centre at 2i + 0.5.
         return HandObservation(fingers, (2.0 * cx + 0.5, 2.0 * cy + 0.5), 2.0 * radius, 4.0 * area_half)
 
@@ -192,7 +199,7 @@ class HandDetector:
         # Learn slowly, and not where something changed: a hand held still is not absorbed at once.
         still = cv2.bitwise_not(cv2.dilate(changed, self._kernel, iterations=2))
         cv2.accumulateWeighted(rgb, self._background, BACKGROUND_RATE, mask=still)
-        return cv2.bitwise_and(mask, changed)
+        return _u8(cv2.bitwise_and(mask, changed))
 
 
 class FingerDebouncer:

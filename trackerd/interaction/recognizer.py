@@ -67,7 +67,7 @@ def resample(points: Array, count: int = POINTS) -> Array:
 
 def normalise(points: Array) -> Array:
     """Centroid at the origin and RMS radius 1 (uniform scale): (N, 2) -> (N, 2)."""
-    centred = points - points.mean(axis=0)
+    centred: Array = points - points.mean(axis=0)
     radius = math.sqrt(float(np.mean(np.sum(centred * centred, axis=1))))
     if not radius > 0.0:
         raise ValueError("the stroke has no extent")
@@ -82,7 +82,8 @@ def indicative_angle(points: Array) -> float:
 def rotate(points: Array, angle_rad: float) -> Array:
     """Points (N, 2) turned anticlockwise by ``angle_rad`` about the origin."""
     c, s = math.cos(angle_rad), math.sin(angle_rad)
-    return points @ np.array([[c, s], [-s, c]])
+    turned: Array = points @ np.array([[c, s], [-s, c]])
+    return turned
 
 
 def prepare(points: Array, rotation_invariant: bool) -> Array:

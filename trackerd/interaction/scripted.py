@@ -24,9 +24,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from trackerd.interaction.templates import Template
 
 Array = NDArray[np.float64]
 
@@ -79,7 +83,8 @@ def circle_path(name: str, centre_m: Array, diameter_m: float, duration_s: float
     phase = start_rad + sense * 2.0 * math.pi * turns * (0.5 * s + 0.5 * _samples(duration_s, rate_hz) / duration_s)
     ellipse = np.column_stack([np.cos(phase), aspect * np.sin(phase)]) * diameter_m / 2.0
     c, si = math.cos(tilt_rad), math.sin(tilt_rad)
-    return centre_m + ellipse @ np.array([[c, si], [-si, c]])
+    turned: Array = ellipse @ np.array([[c, si], [-si, c]])
+    return centre_m + turned
 
 
 def random_gesture(name: str, rng: np.random.Generator, width_m: float, height_m: float,
@@ -104,8 +109,9 @@ def random_gesture(name: str, rng: np.random.Generator, width_m: float, height_m
 def rest(position_m: Array, duration_s: float, rng: np.random.Generator, rate_hz: float = RATE_HZ) -> Array:
     """A resting hand: slow drift of a few millimetres (N, 2)."""
     n = len(_samples(duration_s, rate_hz))
-    drift = np.cumsum(rng.normal(0.0, 0.0004, (n, 2)), axis=0)
-    return position_m + drift - drift[0]
+    drift: Array = np.cumsum(rng.normal(0.0, 0.0004, (n, 2)), axis=0)
+    out: Array = position_m + drift - drift[0]
+    return out
 
 
 def aimed_move(start_m: Array, target_m: Array, width_m: float, rng: np.random.Generator,
@@ -216,7 +222,7 @@ def _as_track(points: Array, labels: list[tuple[str, int, int]], rng: np.random.
     return Track(times, noisy, tuple((n, int(times[a]), int(times[min(b, len(times) - 1)])) for n, a, b in labels))
 
 
-def builtin_templates():
+def builtin_templates() -> list[Template]:
     """The templates shipped in trackerd/interaction/templates/, from ideal strokes.
 
     Swipes: one straight example each, directional (+-30 degrees), and gated as
@@ -230,7 +236,7 @@ def builtin_templates():
     from trackerd.interaction.templates import Template
 
     rng = np.random.default_rng(0)
-    out = []
+    out: list[Template] = []
     for name in DIRECTIONS:
         path = swipe_path(name, np.zeros(2), 0.6, 0.25, rng, ideal=True)
         out.append(Template(name, (prepare(path, False),), rotation_invariant=False, max_rotation_deg=30.0,

@@ -29,6 +29,8 @@ import math
 import socket
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
 from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 from pythonosc.osc_message_builder import OscMessageBuilder
 
@@ -51,7 +53,7 @@ class Cursor:
     acceleration_per_s2: float
 
 
-def _message(*args: object) -> OscMessageBuilder:
+def _message(*args: str | int | float) -> OscMessageBuilder:
     builder = OscMessageBuilder(address=ADDRESS)
     for arg in args:
         if isinstance(arg, str):
@@ -163,3 +165,35 @@ class TuioSender:
         self.end()
         self._closed = True
         self._socket.close()
+
+
+class WallCursor:
+    """The pointer's TUIO cursor, one frame per pair: its smoothed hit normalised to the wall
+    (x right, y down, 0 to 1), with the filter's velocity."""
+
+    def __init__(self, sender: TuioSender, width_m: float, height_m: float) -> None:
+        self.sender = sender
+        self.width_m = width_m
+        self.height_m = height_m
+        self._last_m: NDArray[np.float64] | None = None
+
+    def frame(self, time_ns: int, smoothed_m: NDArray[np.float64] | None, inside: bool,
+              velocity_m_s: NDArray[np.float64], cursor_id: int) -> None:
+        """Send this pair's bundle: the cursor while the pointer is entered, else none."""
+        if smoothed_m is not None:
+            self._last_m = smoothed_m
+        if not inside or self._last_m is None:
+            self._last_m = None
+            self.sender.frame(time_ns, None)
+            return
+        # A pair without a hit while entered keeps the cursor where it was (no remove and re-add).
+        w, h = self.width_m, self.height_m
+        x = min(max(float(self._last_m[0]) / w, 0.0), 1.0)
+        y = min(max(1.0 - float(self._last_m[1]) / h, 0.0), 1.0)
+        vx, vy = float(velocity_m_s[0]) / w, -float(velocity_m_s[1]) / h
+        self.sender.frame(time_ns, (cursor_id, x, y, vx, vy))
+
+    def forget(self) -> None:
+        """No cursor any more (a reset): an empty ``alive`` now, and the last position forgotten."""
+        self._last_m = None
+        self.sender.end()

@@ -47,6 +47,7 @@ from trackerd.config.models import RigConfig
 from trackerd.detect.colour import SampleGrid, sample_grid
 from trackerd.detect.margin import Disc, colour_samples
 from trackerd.geometry.camera import CameraModel
+from trackerd.locator import PointerFix
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +87,7 @@ class ColourWatch:
         self._warned: tuple[str, ...] = ()
         """The colours warned of at the last measurement (logged when it changes, not every time the figures do)."""
 
-    def due(self, fix, now_ns: int | None = None) -> bool:
+    def due(self, fix: PointerFix, now_ns: int | None = None) -> bool:
         """Whether this pair's frames should be measured (called on the processing thread)."""
         now_ns = time.monotonic_ns() if now_ns is None else now_ns
         line = fix.line
@@ -97,16 +98,18 @@ class ColourWatch:
         self._next_ns = now_ns + int(WATCH_EVERY_S * 1e9)
         return True
 
-    def measure(self, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str], fix,
+    def measure(self, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str], fix: PointerFix,
                 now_ns: int | None = None) -> None:
         """Measure one located pair's frames (on the watch's own thread)."""
         from trackerd.calibration.colours import ball_discs
 
-        pointer = self.rig.pointer
+        pointer, line = self.rig.pointer, fix.line
+        if pointer is None or line is None:
+            return  # nothing to measure around (due() passes only located pairs of a rig that tracks)
         radius_m = pointer.end_diameter_m / 2.0
         best: dict[str, Reading] = {}
         for index, (camera, image, pixel_format) in enumerate(zip(self.cameras, images, pixel_formats, strict=True)):
-            discs: dict[str, Disc | None] = ball_discs(camera, fix.line.front_m, fix.line.back_m, radius_m,
+            discs: dict[str, Disc | None] = ball_discs(camera, line.front_m, line.back_m, radius_m,
                                                        pointer.front_colour)
             if any(d is None for d in discs.values()):
                 continue
@@ -151,23 +154,31 @@ class ColourWatch:
             return ()
         return tuple(colour for colour in COLOURS if self._close(colour))
 
+    def _threshold(self, colour: str) -> int:
+        """The detector's ``min_excess`` for the end of this colour."""
+        detector = self.rig.detector
+        return (detector.red if colour == "red" else detector.blue).min_excess
+
     def _close(self, colour: str) -> bool:
+        if self._latest is None:
+            return False
         reading = self._latest[colour]
         baseline, ball = self._reference(colour)
         if baseline is None or reading.room_excess < baseline + WARN_RISE:
             return False
         if ball is None:
-            return reading.room_excess >= getattr(self.rig.detector, colour).min_excess
+            return reading.room_excess >= self._threshold(colour)
         then, now = ball - baseline, ball - reading.room_excess
         return not (then > 0 and now >= then / 2.0)
 
     def warning(self) -> str | None:
         """One line when the room has come close to an end's colour, else None."""
         lines = []
+        latest = self._latest or {}
         for colour in self.warned_colours():
-            reading = self._latest[colour]
+            reading = latest[colour]
             baseline, ball = self._reference(colour)
-            threshold = getattr(self.rig.detector, colour).min_excess
+            threshold = self._threshold(colour)
             where = "" if reading.at_px is None else f" near ({reading.at_px[0]:.0f}, {reading.at_px[1]:.0f})"
             against = (f"the pointer's {ball:.0f}" if ball is not None else f"the threshold {threshold}")
             since = "when learned" if self.learned is not None else "at start"
@@ -193,7 +204,7 @@ class ColourWatch:
             reading = self._latest[colour]
             baseline, ball = self._reference(colour)
             part[colour] = {
-                "threshold": getattr(self.rig.detector, colour).min_excess,
+                "threshold": self._threshold(colour),
                 "room_excess": reading.room_excess,
                 "camera": reading.camera,
                 "at_px": reading.at_px,
@@ -209,7 +220,7 @@ class WatchThread:
     newest matters)."""
 
     def __init__(self) -> None:
-        self._slot: tuple | None = None
+        self._slot: tuple[ColourWatch, Sequence[NDArray[np.uint8]], Sequence[str], PointerFix] | None = None
         self._wake = threading.Condition()
         self._stopping = False
         self._thread = threading.Thread(target=self._run, name="trackerd-colour-watch", daemon=True)
@@ -217,7 +228,8 @@ class WatchThread:
     def start(self) -> None:
         self._thread.start()
 
-    def offer(self, watch: ColourWatch, images, pixel_formats, fix) -> None:
+    def offer(self, watch: ColourWatch, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str],
+              fix: PointerFix) -> None:
         """A due pair for ``watch`` (called on the processing thread; never waits)."""
         with self._wake:
             self._slot = (watch, images, pixel_formats, fix)
@@ -236,6 +248,8 @@ class WatchThread:
                 self._wake.wait_for(lambda: self._slot is not None or self._stopping)
                 if self._stopping:
                     return
+                if self._slot is None:
+                    continue
                 watch, images, pixel_formats, fix = self._slot
                 self._slot = None
             try:

@@ -31,20 +31,21 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
+from typing import Generic, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import SourceStatus
-from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator
 from trackerd.pipeline.colourwatch import ColourWatch
 from trackerd.pipeline.extensions import PipelineExtension
 from trackerd.pipeline.figures import PipelineFigures
+from trackerd.pipeline.handover import Processed, StageLinks
 from trackerd.pipeline.observer import PairObserver
-from trackerd.pipeline.processing import HEALTH_EVERY, Processed, ProcessingStage
+from trackerd.pipeline.processing import HEALTH_EVERY, ProcessingStage
 from trackerd.pipeline.publishing import PublishingStage
 from trackerd.pipeline.queues import DropOldestQueue
 from trackerd.pipeline.reload import ReloadRequests
@@ -59,6 +60,18 @@ from trackerd.sdnotify import SdNotify
 __all__ = ["HEALTH_EVERY", "Pipeline"]
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
+
+
+class _ReadThrough(Generic[T]):
+    """A read-only attribute of the pipeline that is one of its parts' (``part.name``), read at each access."""
+
+    def __init__(self, part: str, name: str) -> None:
+        self.part = part
+        self.name = name
+
+    def __get__(self, pipeline: object, owner: type | None = None) -> T:
+        return cast(T, getattr(getattr(pipeline, self.part), self.name))  # typed by the declaration
 
 
 class Pipeline:
@@ -102,15 +115,11 @@ class Pipeline:
         self._started_ns = time.monotonic_ns()
         self._status_sequence = 0
         self._slot = SourceSlot(source_factory, self._notifier)
-        self._processing = ProcessingStage(
-            rig, self._slot, self._queue, self.figures, self._reload, self._notifier,
-            clock_offset_ns=self.clock_offset_ns, extensions=self.extensions, tap=tap, observer=observer,
-        )
-        self._publishing = PublishingStage(
-            rig, publisher_factory, self._queue, self.figures, self._reload, self._state, self._notifier,
-            clock_offset_ns=self.clock_offset_ns, source_status=self._slot.status, status_for=self._status_for,
-            tap=tap, observer=observer,
-        )
+        links = StageLinks(self._queue, self.figures, self._reload, self._notifier, self.clock_offset_ns, tap,
+                           observer)
+        self._processing = ProcessingStage(rig, self._slot, links, self.extensions)
+        self._publishing = PublishingStage(rig, publisher_factory, links, self._state,
+                                           source_status=self._slot.status, status_for=self._status_for)
 
     # ------------------------------------------------------------------ control
 
@@ -169,19 +178,18 @@ class Pipeline:
         """The traceback of a thread that crashed (the daemon then exits non-zero), else None."""
         return self._failure_text
 
-    @property
-    def state(self) -> DaemonState:
-        return self._state.state
-
-    @property
-    def reload_pending(self) -> bool:
-        """A requested configuration that the processing or the publishing thread has yet to take."""
-        return self._reload.pending
-
-    @property
-    def rig(self) -> RigConfig:
-        """The configuration in force (a reload replaces it)."""
-        return self._processing.rig
+    # What callers read of what a part owns, read through at each access (a reload replaces some).
+    state = _ReadThrough[DaemonState]("_state", "state")
+    reload_pending = _ReadThrough[bool]("_reload", "pending")
+    """A requested configuration that the processing or the publishing thread has yet to take."""
+    rig = _ReadThrough[RigConfig]("_processing", "rig")
+    """The configuration in force (a reload replaces it)."""
+    colour_watch = _ReadThrough[ColourWatch]("_processing", "colour_watch")
+    source = _ReadThrough["PairSource | None"]("_slot", "source")
+    publisher = _ReadThrough["Publisher | None"]("_publishing", "publisher")
+    pairs_processed = _ReadThrough[int]("figures", "pairs_processed")
+    pairs_published = _ReadThrough[int]("figures", "pairs_published")
+    """Pairs whose messages the publishing thread has handed to the publisher."""
 
     @property
     def locator(self) -> Locator:
@@ -191,31 +199,6 @@ class Pipeline:
     def locator(self, locator: Locator) -> None:
         """Before :meth:`start` only (a benchmark's own locator): the processing thread owns it."""
         self._processing.locator = locator
-
-    @property
-    def health(self) -> CalibrationHealth:
-        return self._processing.health
-
-    @property
-    def colour_watch(self) -> ColourWatch:
-        return self._processing.colour_watch
-
-    @property
-    def source(self) -> PairSource | None:
-        return self._slot.source
-
-    @property
-    def publisher(self) -> Publisher | None:
-        return self._publishing.publisher
-
-    @property
-    def pairs_processed(self) -> int:
-        return self.figures.pairs_processed
-
-    @property
-    def pairs_published(self) -> int:
-        """Pairs whose messages the publishing thread has handed to the publisher."""
-        return self.figures.pairs_published
 
     @property
     def pairs_dropped_before_publishing(self) -> int:
@@ -242,7 +225,7 @@ class Pipeline:
         cameras = source_status.cameras if source_status is not None else ()
         state, detail = self._state.observe([(c.camera_id, c.state) for c in cameras],
                                             reloading=self._reload.in_progress)
-        health = self.health  # once: a reload may replace it meanwhile
+        health = self._processing.health  # once: a reload may replace it meanwhile
         colours = self.colour_watch.to_json()
         drained = self.figures.drain()
         self._status_sequence += 1

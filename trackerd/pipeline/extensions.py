@@ -1,9 +1,16 @@
 """Optional stages the daemon runs beside the locator: recording, interaction (smoothing, events).
 
-An extension sees every pair and every fix in the processing thread and may
-add or replace messages; its status becomes a field of the ``status`` message
-named after it. Extensions are built from the rig by :func:`for_rig`, so
-`trackerd run`, `trackerd replay` and the demo all get the same ones.
+An extension sees every pair before it is located (``on_pair``) and every
+located pair (``on_located``: the pair, its fix and its capture time on the
+publishing clock) in the processing thread, and answers with domain events
+(trackerd.pipeline.events), never wire messages: the publisher turns them into
+messages once (trackerd.publish.from_fix). Its status becomes a field of the
+``status`` message named after it.
+
+Extensions are built explicitly where the daemon is assembled (`trackerd run`
+and `trackerd replay` in trackerd/cli/run.py, the replay benchmark, the
+recording export), each from its own module's ``create(rig, context)``, which
+returns None when the rig does not ask for it.
 
 Starting afresh: when a pair does not follow from the one before (an on-demand
 recording starts with it, a replay loops round), every stage forgets what it
@@ -14,21 +21,34 @@ on, and a replay of the recording reproduces it.
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
-from trackerd.errors import ConfigError
 from trackerd.locator import PointerFix
-from trackerd.publish.messages import Message
+from trackerd.pipeline.events import Event, PairEvents
+
+
+@dataclass(frozen=True, slots=True)
+class Located:
+    """One pair as the locator left it: what an extension is handed after the locator."""
+
+    pair: FramePair
+    fix: PointerFix
+    capture_ns: int
+    """The pair's capture time on the publishing clock (its messages' ``capture_ns``)."""
+
+    @property
+    def clock_offset_ns(self) -> int:
+        """From the pair's monotonic capture time (``pair.timestamp_ns``) to the publishing clock."""
+        return self.capture_ns - self.pair.timestamp_ns
 
 
 class PipelineExtension(Protocol):
-    """What the pipeline calls. ``on_pair`` and ``on_fix`` run in the processing thread and must
+    """What the pipeline calls. ``on_pair`` and ``on_located`` run in the processing thread and must
     not block (hand heavy work to a thread of your own through a bounded queue); ``status`` runs
     in the publishing thread."""
 
@@ -40,7 +60,9 @@ class PipelineExtension(Protocol):
         pair (see the module's docstring), as when a recording starts with it."""
         ...
 
-    def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]: ...
+    def on_located(self, located: Located) -> PairEvents:
+        """What the extension makes of the located pair (trackerd.pipeline.events.NOTHING: nothing)."""
+        ...
 
     def reset(self) -> None:
         """Forget what was carried over from earlier pairs (processing thread, before the next pair)."""
@@ -50,8 +72,8 @@ class PipelineExtension(Protocol):
 
     def reload(self, rig: RigConfig) -> None: ...
 
-    def finish(self) -> list[Message]:
-        """The last messages, published at stop before the publisher closes (a pending leave)."""
+    def finish(self) -> list[Event]:
+        """The last events, published at stop before the publisher closes (a pending leave)."""
         ...
 
     def close(self) -> None: ...
@@ -69,32 +91,7 @@ class ExtensionContext:
     clock_offset_ns: int | None = None
     """The pipeline's monotonic-to-epoch offset (None: not fixed); recordings made on demand store
     it, so their replays publish the capture times the daemon published live, to the nanosecond."""
-
-
-# Each entry: a module defining ``create(rig, context) -> PipelineExtension | None`` (None: not
-# configured).
-EXTENSION_MODULES: Sequence[str] = ("trackerd.recording.extension", "trackerd.interaction.extension")
-
-
-def for_rig(rig: RigConfig, context: ExtensionContext | None = None) -> list[PipelineExtension]:
-    """The extensions the rig asks for, in a fixed order (recording sees pairs before interaction)."""
-    context = context or ExtensionContext()
-    out = []
-    for name in EXTENSION_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as err:
-            if err.name is not None and name.startswith(err.name):
-                continue  # that part of trackerd is not present in this build
-            raise
-        try:
-            extension = module.create(rig, context)
-        except ConfigError as err:
-            # What the rig asks of an extension is checked here, after the file was loaded: name the
-            # file, as the loader's own errors do.
-            if context.rig_file is None:
-                raise
-            raise err.in_file(context.rig_file) from None
-        if extension is not None:
-            out.append(extension)
-    return out
+    replay: bool = False
+    """The pairs come from a recording (a replay, an export): what is published must follow from
+    the pairs alone, never from timing, so work an extension does on a thread of its own when live
+    (hand poses) is done in the processing thread instead."""

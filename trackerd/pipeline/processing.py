@@ -1,10 +1,12 @@
-"""The processing stage: pairs in, each pair's messages out to the publishing thread.
+"""The processing stage: pairs in, each pair's result out to the publishing thread.
 
 For each pair the source delivers (renumbered across sources,
 trackerd.pipeline.sourceslot): the extensions see it, the locator locates the
-pointer, the messages are built, and they go to the publishing thread through a
-bounded queue that drops its oldest item when full. Between pairs it applies a
-requested configuration (the first phase of a reload, trackerd.pipeline.reload).
+pointer, the extensions add their events, and the result goes to the publishing
+thread through a bounded queue that drops its oldest item when full
+(trackerd.pipeline.handover); the publishing thread turns it into messages.
+Between pairs it applies a requested configuration (the first phase of a
+reload, trackerd.pipeline.reload).
 
 It owns the locator (detectors keep tracking state from pair to pair), the
 source's slot and the extensions' per-pair calls. It decides which fixes the
@@ -19,22 +21,16 @@ import logging
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator, PointerFix
 from trackerd.pipeline.colourwatch import ColourWatch, WatchThread
-from trackerd.pipeline.extensions import PipelineExtension
-from trackerd.pipeline.figures import PipelineFigures
-from trackerd.pipeline.observer import PairObserver
-from trackerd.pipeline.queues import DropOldestQueue
-from trackerd.pipeline.reload import ReloadRequests, changes_calibration, changes_colours, source_settings
+from trackerd.pipeline.events import NOTHING, PairEvents
+from trackerd.pipeline.extensions import Located, PipelineExtension
+from trackerd.pipeline.handover import Processed, StageLinks
+from trackerd.pipeline.reload import changes_calibration, changes_colours, source_settings
 from trackerd.pipeline.sourceslot import SourceSlot
-from trackerd.pipeline.tap import ConsoleTap
-from trackerd.publish import messages_from_fix
-from trackerd.publish.messages import Message
-from trackerd.sdnotify import SdNotify
 
 log = logging.getLogger(__name__)
 
@@ -57,55 +53,15 @@ def measures_health(pair_index: int, fix: PointerFix) -> bool:
     return fix.line is not None and pair_index % HEALTH_EVERY == 0
 
 
-@dataclass
-class Processed:
-    """What the processing thread hands the publisher for one pair."""
-
-    messages: list[Message]
-    received_ns: int
-    """Monotonic time the last frame of the pair arrived."""
-    capture_ns: int
-    """Capture time on the publishing clock."""
-    stage_ns: dict[str, int] = field(default_factory=dict)
-    final: bool = False
-    """The extensions' last messages at stop, not a pair's: not counted in the figures."""
-    taken_ns: int = 0
-    """Monotonic time the processing thread took the pair."""
-    queued_ns: int = 0
-    """Monotonic time the messages were handed to the publishing thread (with an observer only)."""
-    marks: tuple[object, object] | None = None
-    """The observer's marks of the processing thread, taking the pair and handing it over."""
-    health: tuple[CalibrationHealth, PointerFix] | None = None
-    """A fix to add to the calibration health record it was located under, once the messages are sent."""
-
-
 class ProcessingStage:
     """The processing thread's loop and what it owns (see the module's docstring)."""
 
-    def __init__(
-        self,
-        rig: RigConfig,
-        slot: SourceSlot,
-        queue: DropOldestQueue[Processed],
-        figures: PipelineFigures,
-        reload: ReloadRequests,
-        notifier: SdNotify,
-        *,
-        clock_offset_ns: int,
-        extensions: Sequence[PipelineExtension],
-        tap: ConsoleTap | None,
-        observer: PairObserver | None,
-    ) -> None:
+    def __init__(self, rig: RigConfig, slot: SourceSlot, links: StageLinks,
+                 extensions: Sequence[PipelineExtension]) -> None:
         self.rig = rig
         self.slot = slot
-        self._queue = queue
-        self._figures = figures
-        self._reload = reload
-        self._notifier = notifier
-        self._clock_offset_ns = clock_offset_ns
+        self._links = links
         self.extensions = extensions
-        self._tap = tap
-        self._observer = observer
         self.locator = Locator(rig)
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
         """The record fixes are measured into; a reload with a new calibration replaces it."""
@@ -117,7 +73,7 @@ class ProcessingStage:
     def run(self, stop: threading.Event) -> None:
         """The thread's body: pairs until ``stop``, then the extensions' last words."""
         try:
-            observer = self._observer
+            observer = self._links.observer
             if observer is not None:
                 observer.thread_started()
             try:
@@ -127,22 +83,24 @@ class ProcessingStage:
                     observer.thread_stopped()
             # The extensions' last words (a session still entered ends with a leave), queued
             # ahead of the final status so subscribers hear them before the socket closes.
-            last = [message for extension in self.extensions for message in extension.finish()]
+            last = [event for extension in self.extensions for event in extension.finish()]
             if last:
                 now = time.monotonic_ns()
-                self._queue.put(Processed(last, now, now + self._clock_offset_ns, final=True))
+                self._links.queue.put(Processed(None, self.locator.front_colour, 0, now,
+                                                now + self._links.clock_offset_ns, PairEvents(events=last), final=True))
         finally:
             self.done.set()
 
     def _process_pairs(self, stop: threading.Event) -> None:
-        observer, figures = self._observer, self._figures
+        links = self._links
+        observer, figures = links.observer, links.figures
         while not stop.is_set():
             self._apply_requested_rig()
             pair = self.slot.next_pair(PAIR_WAIT_S)
             if pair is None:
                 if self.slot.some_camera_recovering():
                     # A power-cycled camera is not a stalled pipeline: keep systemd's watchdog fed.
-                    self._notifier.progress()
+                    self._links.notifier.progress()
                 continue
             taken_mark = observer.mark() if observer is not None else None
             start, start_cpu = time.monotonic_ns(), time.thread_time_ns()
@@ -157,10 +115,11 @@ class ProcessingStage:
                 for extension in self.extensions:
                     extension.reset()
             fix = self.locator.locate(pair.images)
-            capture = pair.timestamp_ns + self._clock_offset_ns
-            messages = messages_from_fix(fix, self.locator, sequence=pair.sequence, capture_ns=capture)
+            capture = pair.timestamp_ns + links.clock_offset_ns
+            located = Located(pair, fix, capture)
+            events = NOTHING
             for extension in self.extensions:
-                messages = extension.on_fix(fix, pair, messages)
+                events = events.then(extension.on_located(located))
             figures.count_fix(fix.status)
             if fix.status == "not_found":
                 # Tracking windows are stale once the pointer is gone.
@@ -172,23 +131,24 @@ class ProcessingStage:
             watch = self.colour_watch
             if watch.due(fix):
                 self.watch_thread.offer(watch, pair.images, tuple(frame.pixel_format for frame in pair.frames), fix)
-            tap = self._tap
+            tap = links.tap
             if tap is not None and tap.frame_wanted:
                 tap.offer(pair, fix, self.locator)
-            self._queue.put(Processed(messages, received, capture, stage, taken_ns=start,
+            links.queue.put(Processed(fix, self.locator.front_colour, pair.sequence, received, capture, events,
+                                      stage, taken_ns=start,
                                       queued_ns=time.monotonic_ns() if observer is not None else 0,
                                       marks=marks, health=health))
             figures.processing_cpu.add(time.thread_time_ns() - start_cpu)
             figures.pairs_processed += 1
-            self._notifier.progress()
+            self._links.notifier.progress()
 
     def _apply_requested_rig(self) -> None:
         """The first phase of a reload (trackerd.pipeline.reload); a failure keeps the old rig."""
-        rig = self._reload.take_rig()
+        rig = self._links.reload.take_rig()
         if rig is None:
             return
         old = self.rig
-        self._reload.in_progress = True
+        self._links.reload.in_progress = True
         try:
             locator = Locator(rig)
             if source_settings(rig) != source_settings(old):
@@ -196,10 +156,10 @@ class ProcessingStage:
                 self.slot.reopen(rig, old)
         except Exception as err:  # noqa: BLE001 - a bad reload keeps the old configuration
             log.error("reload failed, keeping the previous configuration: %s", err)
-            self._notifier.ready("running (reload failed: previous configuration kept)")
+            self._links.notifier.ready("running (reload failed: previous configuration kept)")
             return
         finally:
-            self._reload.in_progress = False
+            self._links.reload.in_progress = False
         self.locator = locator
         for extension in self.extensions:
             extension.reload(rig)
@@ -210,6 +170,6 @@ class ProcessingStage:
         self.rig = rig
         # The publishing thread rebinds for changed outputs; unchanged ones still re-read the
         # CURVE client keys, so adding or revoking a subscriber is a reload, not a restart.
-        self._reload.applied(rig)
+        self._links.reload.applied(rig)
         log.info("reload: configuration applied")
-        self._notifier.ready("running (configuration reloaded)")
+        self._links.notifier.ready("running (configuration reloaded)")

@@ -1,7 +1,8 @@
 """The publishing stage: each pair's messages out over ZeroMQ, and the status about once a second.
 
 It owns the publisher (ZeroMQ sockets are never shared between threads): it
-binds it, sends every message the processing thread hands over, sends a status
+binds it, turns each pair's result the processing thread hands over into wire
+messages (the one conversion, trackerd.publish.from_fix) and sends them, sends a status
 on a schedule and at once on any change of the cameras' states, and rebinds it
 when a reload changes the outputs (the second phase, trackerd.pipeline.reload).
 Once a pair's messages are sent it measures calibration health from the pair's
@@ -22,15 +23,11 @@ from numpy.typing import NDArray
 
 from trackerd.acquisition.status import SourceStatus
 from trackerd.config.models import RigConfig
-from trackerd.pipeline.figures import PipelineFigures
-from trackerd.pipeline.observer import PairObserver, PairTimes
-from trackerd.pipeline.processing import PAIR_WAIT_S, Processed
-from trackerd.pipeline.queues import DropOldestQueue
-from trackerd.pipeline.reload import ReloadRequests
+from trackerd.pipeline.handover import Processed, StageLinks
+from trackerd.pipeline.observer import PairTimes
+from trackerd.pipeline.processing import PAIR_WAIT_S
 from trackerd.pipeline.state import DaemonStateMachine
-from trackerd.pipeline.tap import ConsoleTap
 from trackerd.publish import Publisher, StatusMessage
-from trackerd.sdnotify import SdNotify
 
 log = logging.getLogger(__name__)
 
@@ -50,31 +47,19 @@ class PublishingStage:
         self,
         rig: RigConfig,
         publisher_factory: Callable[[RigConfig], Publisher],
-        queue: DropOldestQueue[Processed],
-        figures: PipelineFigures,
-        reload: ReloadRequests,
+        links: StageLinks,
         state: DaemonStateMachine,
-        notifier: SdNotify,
         *,
-        clock_offset_ns: int,
         source_status: Callable[[], SourceStatus | None],
         status_for: StatusFor,
-        tap: ConsoleTap | None,
-        observer: PairObserver | None,
     ) -> None:
         self._rig = rig
         """The rig whose outputs the publisher is bound to."""
         self._factory = publisher_factory
-        self._queue = queue
-        self._figures = figures
-        self._reload = reload
+        self._links = links
         self._state = state
-        self._notifier = notifier
-        self._clock_offset_ns = clock_offset_ns
         self._source_status = source_status
         self._status_for = status_for
-        self._tap = tap
-        self._observer = observer
         self.publisher: Publisher | None = None
 
     def open(self) -> None:
@@ -87,7 +72,7 @@ class PublishingStage:
 
     def run(self, stop: threading.Event, processing_done: threading.Event) -> None:
         """The thread's body: messages and statuses until ``stop``, then what is left and the last status."""
-        observer = self._observer
+        observer = self._links.observer
         if observer is not None:
             observer.thread_started()
         try:
@@ -105,8 +90,8 @@ class PublishingStage:
             if now >= next_poll:
                 next_poll = now + STATE_POLL_S
                 status = self._source_status()
-                states = tuple(c.state for c in status.cameras) if status is not None else ()
-                states += ("reloading",) if self._reload.in_progress else ()
+                states: tuple[str, ...] = tuple(c.state for c in status.cameras) if status is not None else ()
+                states += ("reloading",) if self._links.reload.in_progress else ()
                 if states != last_states or now >= next_status:
                     last_states = states
                     # Read each time: a reload may change it.
@@ -116,11 +101,11 @@ class PublishingStage:
                 # What the processing thread handed over before it stopped, its last words
                 # included, goes out before the final status (which the publisher flushes).
                 processing_done.wait(STOP_DRAIN_S)
-                while (item := self._queue.get(0.0)) is not None:
+                while (item := self._links.queue.get(0.0)) is not None:
                     self._publish_item(item)
                 break
             self._apply_outputs()
-            item = self._queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
+            item = self._links.queue.get(min(PAIR_WAIT_S, max(0.0, next_poll - time.monotonic())))
             if item is not None:
                 self._publish_item(item)
         self._state.stop()
@@ -128,23 +113,25 @@ class PublishingStage:
 
     def _publish_item(self, item: Processed) -> None:
         assert self.publisher is not None
-        observer = self._observer
+        links = self._links
+        observer = links.observer
         sending_mark = observer.mark() if observer is not None and not item.final else None
         start = time.monotonic_ns()
-        for message in item.messages:
+        messages = item.messages()
+        for message in messages:
             self.publisher.publish(message)
         if item.final:
             return
         done = time.monotonic_ns()
-        self._figures.add_published(item.stage_ns, publish_ns=done - start, processing_ns=done - item.received_ns,
-                                    latency_ns=done + self._clock_offset_ns - item.capture_ns)
+        links.figures.add_published(item.stage_ns, publish_ns=done - start, processing_ns=done - item.received_ns,
+                                    latency_ns=done + links.clock_offset_ns - item.capture_ns)
         if observer is not None and item.marks is not None:
             times = PairTimes(received_ns=item.received_ns, taken_ns=item.taken_ns, queued_ns=item.queued_ns,
                               sending_ns=start, sent_ns=done)
             observer.published(times, item.marks, sending_mark)
-        tap = self._tap
+        tap = links.tap
         if tap is not None and tap.messages_wanted:
-            tap.on_messages(item.messages)
+            tap.on_messages(messages)
         if item.health is not None:
             # The messages are sent: the time to the next pair is idle anyway.
             record, fix = item.health
@@ -155,7 +142,7 @@ class PublishingStage:
     def _apply_outputs(self) -> None:
         """The second phase of a reload: rebind the publisher for changed outputs (on failure go back
         to the old endpoints), else read the CURVE client keys again."""
-        rig = self._reload.take_outputs()
+        rig = self._links.reload.take_outputs()
         if rig is None:
             return
         assert self.publisher is not None
@@ -181,9 +168,9 @@ class PublishingStage:
         assert self.publisher is not None
         message, drained = self._status_for(source_status)
         self.publisher.publish_status(message)
-        if self._tap is not None:
-            self._tap.on_status(message, drained)
+        if self._links.tap is not None:
+            self._links.tap.on_status(message, drained)
         line = f"{message.state}: " + ", ".join(f"{c.id} {c.state} {c.frame_rate_hz:.0f} fps" for c in message.cameras)
-        self._notifier.status(line if message.detail is None else f"{line} ({message.detail})")
+        self._links.notifier.status(line if message.detail is None else f"{line} ({message.detail})")
         if self._state.announce_ready():
-            self._notifier.ready(line)
+            self._links.notifier.ready(line)

@@ -9,10 +9,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import BaseModel
 
 import trackerd
 from trackerd.acquisition.status import SourceStatus
@@ -23,8 +24,10 @@ from trackerd.publish.messages import (
     CameraStatusPart,
     ColourWatchPart,
     DaemonState,
+    InteractionStatusPart,
     LatencyPart,
     PairingPart,
+    RecordingStatusPart,
 )
 
 END_TO_END = ("latency", "processing")
@@ -109,5 +112,14 @@ def status_message(f: StatusFigures) -> StatusMessage:
         fixes=dict(f.fixes),
         detail=f.detail,
         colours=ColourWatchPart.model_validate(f.colours) if f.colours is not None else None,
-        **{name: figures for name, figures in f.extensions.items() if figures},
+        interaction=_part(InteractionStatusPart, f.extensions.get("interaction")),
+        recording=_part(RecordingStatusPart, f.extensions.get("recording")),
     )
+
+
+PartT = TypeVar("PartT", bound=BaseModel)
+
+
+def _part(model: type[PartT], figures: Mapping[str, Any] | None) -> PartT | None:
+    """An extension's figures as the status's part for it; None when it is off or said nothing."""
+    return model.model_validate(figures) if figures else None

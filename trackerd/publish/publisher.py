@@ -353,9 +353,9 @@ class _LastValue:
     """
 
     def __init__(self, context: zmq.Context) -> None:
-        self._sub = context.socket(zmq.SUB)
+        self._sub: zmq.Socket = context.socket(zmq.SUB)
         # An XPUB so that the constructor can wait for the proxy's subscription (see the module's docstring).
-        self._pub = context.socket(zmq.XPUB)
+        self._pub: zmq.Socket = context.socket(zmq.XPUB)
         self._stop = threading.Event()
         self._seen = threading.Condition()
         self._statuses = 0

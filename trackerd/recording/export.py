@@ -20,7 +20,9 @@ import cv2
 from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
 from trackerd.locator import COLOURS, Locator, PointerFix
-from trackerd.publish import messages_from_fix
+from trackerd.pipeline.events import NOTHING
+from trackerd.pipeline.extensions import ExtensionContext, Located, PipelineExtension
+from trackerd.publish.from_fix import pair_messages
 from trackerd.publish.messages import HitMessage, Message
 from trackerd.recording.annotate import annotate, end_summary, fix_summary
 from trackerd.recording.outputs import output_folder
@@ -83,7 +85,8 @@ def export_recording(
 ) -> ExportSummary:
     """Write ``out/hits.csv`` (one row per pair) and, with ``images``, ``out/<pair>-<camera>.png`` for
     every ``every``-th pair. ``rig`` must match the recording's cameras (see replay_rig)."""
-    from trackerd.pipeline.extensions import for_rig
+    from trackerd.interaction.extension import create as interaction_extension
+    from trackerd.recording.extension import create as recording_extension
 
     stop = len(recording) if count is None else min(len(recording), first + count)
     if first >= stop:
@@ -95,7 +98,11 @@ def export_recording(
         rig = rig.model_copy(update={"interaction": rig.interaction.model_copy(
             update={"tuio": tuio.model_copy(update={"enabled": False})})})
     locator = Locator(rig)
-    extensions = for_rig(rig)
+    # As `trackerd replay` builds them (trackerd/cli/run.py): a replay's, whose results follow from
+    # the pairs alone.
+    context = ExtensionContext(replay=True)
+    extensions: list[PipelineExtension] = [
+        e for e in (recording_extension(rig, context), interaction_extension(rig, context)) if e is not None]
     offset = recording.metadata.clock_offset_ns
     columns = hit_columns()
     centroid_columns = [f"{cam.id}_{colour}_{axis}_px" for cam in rig.cameras for colour in COLOURS for axis in "xy"]
@@ -119,9 +126,12 @@ def export_recording(
                     extension.on_pair(pair)
                 fix = locator.locate(pair.images)
                 capture = pair.timestamp_ns + offset
-                messages: list[Message] = messages_from_fix(fix, locator, sequence=pair.sequence, capture_ns=capture)
+                located = Located(pair, fix, capture)
+                events = NOTHING
                 for extension in extensions:
-                    messages = extension.on_fix(fix, pair, messages)
+                    events = events.then(extension.on_located(located))
+                messages: list[Message] = pair_messages(fix, locator.front_colour, sequence=pair.sequence,
+                                                        capture_ns=capture, events=events)
                 if fix.status == "not_found":
                     locator.reset()  # the pipeline's rule: tracking windows are stale once the pointer is gone
                 statuses[fix.status] = statuses.get(fix.status, 0) + 1

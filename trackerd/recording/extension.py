@@ -25,9 +25,8 @@ from typing import Any
 
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
-from trackerd.locator import PointerFix
-from trackerd.pipeline.extensions import ExtensionContext
-from trackerd.publish.messages import Message
+from trackerd.pipeline.events import NOTHING, Event, PairEvents
+from trackerd.pipeline.extensions import ExtensionContext, Located
 from trackerd.recording.recorder import Recorder
 
 log = logging.getLogger(__name__)
@@ -91,11 +90,12 @@ class RecordingExtension:
     def reset(self) -> None:
         """Nothing carried over between pairs but the recording itself, which goes on."""
 
-    def finish(self) -> list[Message]:
+    def finish(self) -> list[Event]:
         return []
 
-    def on_fix(self, fix: PointerFix, pair: FramePair, messages: list[Message]) -> list[Message]:
-        return messages
+    def on_located(self, located: Located) -> PairEvents:
+        """Nothing to add: the pair was queued before the locator."""
+        return NOTHING
 
     def reload(self, rig: RigConfig) -> None:
         """A reload closes the current recording (without waiting); enabled starts the next one."""
