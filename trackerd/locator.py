@@ -158,7 +158,7 @@ class Locator:
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
-        self._wall_plain = WallFloats.of(self.wall)  # the wall in plain floats, for the per-pair geometry
+        self._wall_scalars = WallFloats.of(self.wall)  # the wall in plain floats, for the per-pair geometry
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         self._all_cameras = _CameraView.build(self.cameras)
         self._centres = self._all_cameras.centres_m
@@ -175,9 +175,9 @@ class Locator:
     @property
     def detectors(self) -> list:
         if self._detectors is None:
-            from trackerd.detect import ColourEndDetector, detect_together
+            from trackerd.detect import ColourEndDetector, detect_all_cameras
 
-            self._detect_together = detect_together
+            self._detect_all = detect_all_cameras
 
             self._detectors = [
                 ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.rig.pointer)
@@ -200,7 +200,7 @@ class Locator:
         start = time.perf_counter_ns()
         # Every camera's frame, the quick measurements of all taken together (trackerd.detect.detector).
         detectors = self.detectors  # made on first use, with the function below
-        detections = tuple(self._detect_together(detectors, images))
+        detections = tuple(self._detect_all(detectors, images))
         detected = time.perf_counter_ns()
         mode = self.rig.locator.refine
         fix = None
@@ -379,13 +379,13 @@ class Locator:
                 centroids, line, timings_ns={},
             )
         back, front = line.back_floats, line.front_floats
-        if self._wall_plain.direction_sin(back, front) < self._parallel_sin:
+        if self._wall_scalars.direction_sin(back, front) < self._parallel_sin:
             return PointerFix(
                 "parallel", f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
                 centroids, line, timings_ns={},
             )
         try:
-            intersection = self._wall_plain.hit(back, front)  # eq. 26-28, and the wall's frame
+            intersection = self._wall_scalars.hit(back, front)  # eq. 26-28, and the wall's frame
         except GeometryError as err:
             return PointerFix("parallel", str(err), centroids, line, timings_ns={})
         if intersection.u <= 0.0:
@@ -448,11 +448,11 @@ class Locator:
                 variants.append(tuple(moved))
         try:
             hits = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1), variants,
-                                              self._wall_plain.normal, self._wall_plain.offset_m)
+                                              self._wall_scalars.normal, self._wall_scalars.offset_m)
         except GeometryError:
             return None
         # The hits lie in the wall's plane: their spread in the wall's frame, along its two axes.
-        (hx, hy, hz), x_axis, y_axis = hits[0], self._wall_plain.x_axis, self._wall_plain.y_axis
+        (hx, hy, hz), x_axis, y_axis = hits[0], self._wall_scalars.x_axis, self._wall_scalars.y_axis
         total = 0.0
         for px, py, pz in hits[1:]:
             dx, dy, dz = px - hx, py - hy, pz - hz

@@ -295,7 +295,7 @@ class RefinedPath:
         line = PointerLine(fitted.front_m, fitted.back_m, gaps[0], gaps[1], "fit", gaps[2])
         uncertainty = None
         try:
-            wall = self.loc._wall_plain
+            wall = self.loc._wall_scalars
             covariance = hit_covariance(fitted.front_m, fitted.back_m, fitted.covariance, np.array(wall.normal),
                                         wall.offset_m, np.array([wall.x_axis, wall.y_axis]))
             uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))

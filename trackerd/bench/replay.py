@@ -223,7 +223,7 @@ class _BaselineLocator(Locator):
         rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": "never"})})
         super().__init__(rig)
         self._baselines = [_Baseline(function, fmt, rig) for fmt in self.pixel_formats]
-        self._detect_together = _each_alone
+        self._detect_all = _each_alone
 
     @property
     def detectors(self) -> list:

@@ -106,7 +106,8 @@ def naive_ends(frame: NDArray[np.uint8], pixel_format: str) -> dict[str, NDArray
     hsv = cv2.cvtColor(to_bgr(frame, pixel_format), cv2.COLOR_BGR2HSV)
     ends: dict[str, NDArray[np.float64] | None] = {}
     for colour, hue in (("red", 0), ("blue", 120)):
-        mask = cv2.inRange(hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40), (min(hue + HUE_HALF_WIDTH, 179), 255, 255))
+        mask = cv2.inRange(hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40),
+                           (min(hue + HUE_HALF_WIDTH, 179), 255, 255))
         if hue - HUE_HALF_WIDTH < 0:
             mask |= cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, 40), (179, 255, 255))
         count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
