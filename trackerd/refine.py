@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from trackerd.errors import GeometryError
 from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
-from trackerd.locator import COLOURS, PointerFix, _CameraView
+from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
     from trackerd.detect.result import EndDetection
@@ -216,14 +216,14 @@ class RefinedPath:
             missing = self.loc._missing(detections)
             reason = "; ".join(missing) if missing else "fewer than two cameras measured each end"
             return PointerFix("not_found", reason, centroids, timings_ns=timings, detections=detections)
-        view = _CameraView.of(self.loc, used)
+        view = self.loc.camera_set.subset(used)
         both = [k for k, i in enumerate(used) if per_camera[i][front] is not None and per_camera[i][back] is not None]
         pointer = self.loc.rig.pointer
         if init is None:
             if len(both) < 2:
                 return PointerFix("not_found", "fewer than two cameras measured both ends", centroids,
                                   timings_ns=timings, detections=detections)
-            sub = _CameraView.of(self.loc, [used[k] for k in both])
+            sub = self.loc.camera_set.subset([used[k] for k in both])
             normalised_both = np.stack([np.stack([per_camera[used[k]][front].normalised,
                                                   per_camera[used[k]][back].normalised]) for k in both])
             try:
@@ -295,7 +295,7 @@ class RefinedPath:
         line = PointerLine(fitted.front_m, fitted.back_m, gaps[0], gaps[1], "fit", gaps[2])
         uncertainty = None
         try:
-            wall = self.loc._wall_scalars
+            wall = self.loc.wall_scalars
             covariance = hit_covariance(fitted.front_m, fitted.back_m, fitted.covariance, np.array(wall.normal),
                                         wall.offset_m, np.array([wall.x_axis, wall.y_axis]))
             uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))
