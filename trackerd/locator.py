@@ -27,10 +27,10 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.config.models import RigConfig
+from trackerd.config.models import PointerConfig, RigConfig
 from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.detect.result import ImageDetections
-from trackerd.errors import GeometryError
+from trackerd.errors import ConfigError, GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.camera_set import CameraSet, estimate_line, hit_uncertainty_m
 from trackerd.geometry.pointer_line import PointerLine
@@ -121,9 +121,14 @@ class Locator:
     ) -> None:
         """``pixel_formats`` overrides the rig's per-camera format (still images read as RGB, say)."""
         self.rig = rig
+        if wall is None and rig.wall is not None:
+            wall = wall_frame(rig.wall)
+        if rig.pointer is None or wall is None:
+            raise ConfigError(f"rig '{rig.name}' has no [pointer] or no [wall]: it cannot locate the pointer")
+        self.pointer: PointerConfig = rig.pointer
+        self.wall: WallFrame = wall
         self.cameras = list(cameras) if cameras is not None else [camera_model(c) for c in rig.cameras]
-        self.wall = wall or wall_frame(rig.wall)
-        self.front_colour = rig.pointer.front_colour
+        self.front_colour = self.pointer.front_colour
         self.back_colour = "blue" if self.front_colour == "red" else "red"
         self._detectors: list[ColourEndDetector] | None = None
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
@@ -150,7 +155,7 @@ class Locator:
             self._detect_all = detect_all_cameras
 
             self._detectors = [
-                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.rig.pointer)
+                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.pointer)
                 for cfg, fmt in zip(self.rig.cameras, self.pixel_formats, strict=True)
             ]
         return self._detectors
@@ -191,7 +196,7 @@ class Locator:
         line = fix.line
         assert line is not None
         return (line.gap_m <= TIGHT_GAP_M
-                and abs(line.length_m - self.rig.pointer.length_m) <= TIGHT_LENGTH_M)
+                and abs(line.length_m - self.pointer.length_m) <= TIGHT_LENGTH_M)
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""
@@ -268,7 +273,7 @@ class Locator:
 
     def _estimate(self, normalised: Array, sphere_correction: bool, view: CameraSet) -> PointerLine:
         """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``."""
-        radius = self.rig.pointer.end_diameter_m / 2.0 if sphere_correction else None
+        radius = self.pointer.end_diameter_m / 2.0 if sphere_correction else None
         return estimate_line(normalised, view, self._min_plane_sin, radius)
 
     def _judge(
@@ -281,7 +286,7 @@ class Locator:
     ) -> PointerFix:
         """The fix for a line: rejected (length, ray gap), parallel, away, or a hit on or off the display
         with its uncertainty (``uncertainty_m``, or the planes' estimate from ``normalised``)."""
-        pointer = self.rig.pointer
+        pointer = self.pointer
         length_error = line.length_m - pointer.length_m
         if abs(length_error) > pointer.length_tolerance_m:
             return PointerFix(
@@ -311,7 +316,7 @@ class Locator:
             return PointerFix("away", "the pointer points away from the wall", centroids, line, timings_ns={})
         hit = self._wall_hit(intersection, line)
         uncertainty = uncertainty_m if uncertainty_m is not None else self._uncertainty(normalised, view)
-        status = "hit" if hit.on_wall else "off_wall"
+        status: FixStatus = "hit" if hit.on_wall else "off_wall"
         reason = None if hit.on_wall else "the pointer points at the wall outside the display"
         return PointerFix(status, reason, centroids, line, hit, uncertainty, timings_ns={})
 

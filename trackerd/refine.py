@@ -139,7 +139,7 @@ class RefinedPath:
 
         candidates = [search_candidates(image, self.loc.grids[index], self._radius_range_px(index))
                       for index, image in enumerate(images)]
-        pointer = self.loc.rig.pointer
+        pointer = self.loc.pointer
         room = self._room_side()
         def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float,
                  axis: tuple[float, float] | None) -> Candidate | None:
@@ -155,7 +155,7 @@ class RefinedPath:
         if isinstance(choice, str):
             missing = self.loc._missing(detections)
             reason = "; ".join([choice, *missing]) if missing else choice
-            empty = tuple({c: None for c in COLOURS} for _ in self.loc.cameras)
+            empty: tuple[dict[str, Array | None], ...] = tuple({c: None for c in COLOURS} for _ in self.loc.cameras)
             return PointerFix("not_found", reason, empty, timings_ns={"triangulate_ns": time.perf_counter_ns() - start},
                               detections=detections)
         per_camera = []
@@ -193,7 +193,7 @@ class RefinedPath:
         """The image radius a ball can have in camera ``index``: from half a metre away to as far as the
         wall's farthest corner (it is held in front of the wall)."""
         cam = self.loc.cameras[index]
-        radius = self.loc.rig.pointer.end_diameter_m / 2.0
+        radius = self.loc.pointer.end_diameter_m / 2.0
         farthest = float(np.max(np.linalg.norm(self.loc.wall.corners_m - cam.centre_m, axis=1))) + 0.5
         return cam.focal_px * radius / farthest, cam.focal_px * radius / 0.5
 
@@ -218,7 +218,7 @@ class RefinedPath:
             return PointerFix("not_found", reason, centroids, timings_ns=timings, detections=detections)
         view = self.loc.camera_set.subset(used)
         both = [k for k, i in enumerate(used) if per_camera[i][front] is not None and per_camera[i][back] is not None]
-        pointer = self.loc.rig.pointer
+        pointer = self.loc.pointer
         if init is None:
             if len(both) < 2:
                 return PointerFix("not_found", "fewer than two cameras measured both ends", centroids,

@@ -155,8 +155,10 @@ class BlobSearch:
                     wide,
                     self.step_cells,
                 )
+                own_mask = mask[0] if colour == "red" else mask[1]
+                assert own_mask is not None  # coarse_masks gives the mask of each colour given a threshold
                 seeds = seed_windows(
-                    {colour: mask[0] if colour == "red" else mask[1]},
+                    {colour: own_mask},
                     wide,
                     self.step_cells,
                     self.grid,

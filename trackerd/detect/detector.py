@@ -355,9 +355,10 @@ def detect_all_cameras(
                 assert detector._track is not None
                 both = detector._both_tracked(found[2 * k : 2 * k + 2], detector._track)
                 if both is not None:
-                    results[i] = detector._quick_result(both[0], both[1], set())
-                    if results[i] is not None:
-                        detector._remember(results[i])
+                    result = detector._quick_result(both[0], both[1], set())
+                    if result is not None:
+                        detector._remember(result)
+                        results[i] = result
     return [
         result if result is not None else detector.detect(frame)
         for detector, frame, result in zip(detectors, frames, results, strict=True)

@@ -185,7 +185,7 @@ def fit_pointer(
     chi2 = float(residuals @ residuals)
     jtj = jacobian.T @ jacobian
     try:
-        covariance = np.linalg.inv(jtj)
+        covariance = np.asarray(np.linalg.inv(jtj), dtype=np.float64)  # float64 already: typed, not copied
     except np.linalg.LinAlgError as err:
         raise GeometryError("the cameras do not constrain the pointer (singular fit)") from err
     dof = max(residuals.size - 6, 1)
