@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.errors import GeometryError
-from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, fit_pointer_robust, hit_covariance
+from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, EndViews, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
 from trackerd.locator import COLOURS, PointerFix
 
@@ -288,8 +288,9 @@ class RefinedPath:
                     wrong = abs(m.radius_px - expected) / camera.focal_px
                     covariances[k, e] = covariances[k, e] + np.eye(2) * wrong * wrong
         try:
-            fitted = fit_pointer_robust(rotations, translations, measured, covariances, pointer.length_m,
-                                        self.loc.rig.locator.length_sigma_m, start_points[0], start_points[1])
+            views = EndViews.of(rotations, translations, measured, covariances, pointer.length_m,
+                                self.loc.rig.locator.length_sigma_m)
+            fitted = fit_pointer_robust(views, start_points[0], start_points[1])
         except GeometryError as err:
             return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
         line = PointerLine(fitted.front_m, fitted.back_m, gaps[0], gaps[1], "fit", gaps[2])

@@ -224,7 +224,7 @@ def floor_hit(cameras: Sequence[CameraModel], seeing: list[bool], pose: PointerP
               rng: np.random.Generator) -> np.ndarray | None:
     """The geometric floor's wall hit (see the module): the true ends as every camera in ``seeing`` images
     them, moved by FLOOR_SIGMA_PX of noise, fitted as trackerd fits measured ends."""
-    from trackerd.geometry.pointer_fit import fit_pointer_robust
+    from trackerd.geometry.pointer_fit import EndViews, fit_pointer_robust
 
     assert rig.pointer is not None  # a rig that tracks
     used = [cam for cam, sees in zip(cameras, seeing, strict=True) if sees]
@@ -239,8 +239,9 @@ def floor_hit(cameras: Sequence[CameraModel], seeing: list[bool], pose: PointerP
             measured[k, e] = in_camera[:2] / in_camera[2] + rng.normal(0.0, sigma, 2)
             covariances[k, e] = np.eye(2) * sigma * sigma
     try:
-        fit = fit_pointer_robust(np.stack([c.rotation for c in used]), np.stack([c.translation_m for c in used]),
-                                 measured, covariances, rig.pointer.length_m, rig.locator.length_sigma_m, front, back)
+        views = EndViews.of(np.stack([c.rotation for c in used]), np.stack([c.translation_m for c in used]),
+                            measured, covariances, rig.pointer.length_m, rig.locator.length_sigma_m)
+        fit = fit_pointer_robust(views, front, back)
         hit = intersect_line_plane_m(fit.back_m, fit.front_m, wall)
     except GeometryError:
         return None
