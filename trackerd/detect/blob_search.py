@@ -71,7 +71,6 @@ class _Search:
     examined_all: bool
 
 
-
 @dataclass(frozen=True, slots=True)
 class BlobSearch:
     """One camera's blob search: its sample layout, thresholds, shape limits and pointer proportions."""
@@ -93,6 +92,7 @@ class BlobSearch:
     work: WorkspaceCache
 
     def full(self, frame: NDArray[np.uint8]) -> ImageDetections:
+        """Both ends searched for over the whole frame, from the subsampled pass's seeds."""
         step = self.step_cells
         r0, r1, c0, c1 = self.grid.interior()
         # Centre the coarse samples in their step x step blocks.
