@@ -45,7 +45,9 @@ Array = NDArray[np.float64]
 
 COLOURS = ("red", "blue")
 
-FixStatus = Literal["hit", "off_wall", "away", "parallel", "rejected", "not_found"]
+LineStatus = Literal["hit", "off_wall", "away", "parallel"]
+"""The outcomes of a fix with a plausible line: a pointer message's ``status`` on the wire."""
+FixStatus = LineStatus | Literal["rejected", "not_found"]
 """A fix's outcome, as the wire's ``status`` strings (see the module's docstring)."""
 
 TIGHT_GAP_M = 0.004
