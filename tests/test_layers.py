@@ -59,8 +59,6 @@ KNOWN_EXCEPTIONS: dict[tuple[str, str], str] = {
         "the detector's hot path, rewritten by the robustness issue; not touched by the layers change",
     ("trackerd.detect.search", "trackerd.detect.colour._plane"):
         "the detector's hot path, rewritten by the robustness issue; not touched by the layers change",
-    ("trackerd.refine", "trackerd.locator._CameraView"):
-        "the locator's hot path, rewritten by the robustness issue; not touched by the layers change",
 }
 
 

@@ -90,11 +90,11 @@ def test_reported_uncertainty_matches_the_spread_of_noisy_fixes(simulated_rig, r
 
 
 def test_two_camera_uncertainty_is_the_numpy_reference_in_plain_floats(simulated_rig, rendered_poses) -> None:
-    from trackerd.locator import _CameraView
+    from trackerd.geometry.camera_set import hit_uncertainty_reference_m, hit_uncertainty_two_m
 
     locator = Locator(simulated_rig)
     sigma = simulated_rig.locator.centroid_sigma_px
-    view = _CameraView.of(locator, None)
+    view = locator.camera_set
     rng = np.random.default_rng(3)
     compared = 0
     for _, centroids in rendered_poses:
@@ -104,8 +104,8 @@ def test_two_camera_uncertainty_is_the_numpy_reference_in_plain_floats(simulated
                 cam.normalized_from_pixels(np.array([c[locator.front_colour], c[locator.back_colour]]))
                 for cam, c in zip(locator.cameras, moved, strict=True)
             ])
-            fast = locator._uncertainty_two(normalised, view, sigma)
-            reference = locator._uncertainty_numpy(normalised, view, sigma)
+            fast = hit_uncertainty_two_m(normalised, view, sigma, locator.wall_scalars)
+            reference = hit_uncertainty_reference_m(normalised, view, sigma, locator.wall)
             assert fast == pytest.approx(reference, rel=1e-9, abs=1e-12)
             compared += 1
     assert compared >= 20

@@ -160,4 +160,5 @@ def _with_centroid(camera: CameraModel, normalised: Array, covariance: Array, ce
     cov = np.linalg.inv(info)
     # The centroid's value across the pointer; along it, the outline's (info_c has nothing along).
     mean = cov @ (info_o @ normalised + info_c @ centroid_n)
-    return mean, cov
+    # float64 already: typed, not copied (NumPy's stubs give inv and @ a looser dtype).
+    return np.asarray(mean, dtype=np.float64), np.asarray(cov, dtype=np.float64)

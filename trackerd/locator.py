@@ -22,28 +22,33 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.config.models import RigConfig
+from trackerd.config.models import PointerConfig, RigConfig
 from trackerd.config.rig_geometry import camera_model, wall_frame
-from trackerd.errors import GeometryError
-from trackerd.geometry import two_cameras
+from trackerd.detect.result import ImageDetections
+from trackerd.errors import ConfigError, GeometryError
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.pointer_line import (
-    PointerLine,
-    cross3,
-    estimate_pointer_line,
-    line_from_planes,
-    sphere_centre_direction,
-)
+from trackerd.geometry.camera_set import CameraSet, estimate_line, hit_uncertainty_m
+from trackerd.geometry.pointer_line import PointerLine
 from trackerd.geometry.wall import WallFloats, WallFrame, WallHitFloats
+
+if TYPE_CHECKING:
+    from trackerd.detect.detector import ColourEndDetector
+    from trackerd.ends import EndMeasurement
+    from trackerd.refine import RefinedPath
 
 Array = NDArray[np.float64]
 
 COLOURS = ("red", "blue")
+
+LineStatus = Literal["hit", "off_wall", "away", "parallel"]
+"""The outcomes of a fix with a plausible line: a pointer message's ``status`` on the wire."""
+FixStatus = LineStatus | Literal["rejected", "not_found"]
+"""A fix's outcome, as the wire's ``status`` strings (see the module's docstring)."""
 
 TIGHT_GAP_M = 0.004
 TIGHT_LENGTH_M = 0.012
@@ -76,7 +81,7 @@ class WallHit:
 class PointerFix:
     """The locator's answer for one set of images."""
 
-    status: str
+    status: FixStatus
     reason: str | None
     centroids_px: tuple[dict[str, Array | None], ...]
     """Per camera, per colour: the centroid used (None where the end was not found)."""
@@ -85,9 +90,9 @@ class PointerFix:
     uncertainty_m: float | None = None
     """Estimated standard error of the hit on the wall (RMS radius), from centroid noise."""
     timings_ns: dict[str, int] = field(default_factory=dict)
-    detections: tuple = ()
+    detections: tuple[ImageDetections, ...] = ()
     """The detector's full results, per camera (empty when centroids were given directly)."""
-    measurements: tuple = ()
+    measurements: tuple[dict[str, EndMeasurement | None], ...] = ()
     """Per camera, per colour: the end measurement the pointer fit used (trackerd.ends.EndMeasurement, or
     None where that camera did not measure that end); empty when the fit was not used."""
 
@@ -101,38 +106,6 @@ class PointerFix:
 def _finite_point(point_px: Array | None) -> bool:
     """A centroid that is there and finite (plain floats: this runs for every end of every pair)."""
     return point_px is not None and all(math.isfinite(v) for v in point_px)
-
-
-@dataclass(frozen=True)
-class _CameraView:
-    """The cameras one fix is computed from, with their stacked centres and rotations."""
-
-    cameras: list[CameraModel]
-    centres_m: Array
-    rotations: Array
-    floats: tuple[tuple, ...]
-    """Per camera, (centre, rotation rows, translation) as tuples of floats (trackerd.geometry.two_cameras)."""
-
-    @staticmethod
-    def of(locator: Locator, used: Sequence[int] | None) -> _CameraView:
-        """All the locator's cameras (``used`` None or all of them), or those listed."""
-        if used is None or len(used) == len(locator.cameras):
-            return locator._all_cameras
-        index = np.asarray(used)
-        return _CameraView([locator.cameras[i] for i in used], locator._centres[index], locator._rotations[index],
-                           tuple(locator._all_cameras.floats[i] for i in used))
-
-    @staticmethod
-    def build(cameras: list[CameraModel]) -> _CameraView:
-        centres = np.array([cam.centre_m for cam in cameras])
-        # d_world = d_cam @ R (R is world-to-camera), stacked for all cameras.
-        rotations = np.stack([cam.rotation for cam in cameras])
-        floats = tuple(
-            (tuple(cam.centre_m.tolist()), tuple(tuple(row) for row in cam.rotation.tolist()),
-             tuple(cam.translation_m.tolist()))
-            for cam in cameras
-        )
-        return _CameraView(cameras, centres, rotations, floats)
 
 
 class Locator:
@@ -150,21 +123,25 @@ class Locator:
     ) -> None:
         """``pixel_formats`` overrides the rig's per-camera format (still images read as RGB, say)."""
         self.rig = rig
+        if wall is None and rig.wall is not None:
+            wall = wall_frame(rig.wall)
+        if rig.pointer is None or wall is None:
+            raise ConfigError(f"rig '{rig.name}' has no [pointer] or no [wall]: it cannot locate the pointer")
+        self.pointer: PointerConfig = rig.pointer
+        self.wall: WallFrame = wall
         self.cameras = list(cameras) if cameras is not None else [camera_model(c) for c in rig.cameras]
-        self.wall = wall or wall_frame(rig.wall)
-        self.front_colour = rig.pointer.front_colour
+        self.front_colour = self.pointer.front_colour
         self.back_colour = "blue" if self.front_colour == "red" else "red"
-        self._detectors: list | None = None
+        self._detectors: list[ColourEndDetector] | None = None
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
         self._plane = self.wall.plane  # a property that recomputes; used several times per fix
-        self._wall_plain = WallFloats.of(self.wall)  # the wall in plain floats, for the per-pair geometry
+        self.wall_scalars = WallFloats.of(self.wall)  # the wall in plain floats, for the per-pair geometry
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
-        self._all_cameras = _CameraView.build(self.cameras)
-        self._centres = self._all_cameras.centres_m
-        self._rotations = self._all_cameras.rotations
+        self.camera_set = CameraSet.build(self.cameras)
+        self._centres = self.camera_set.centres_m
         self._grids: list | None = None
-        self._refined: Any = None
+        self._refined: RefinedPath | None = None
         """The refined path (trackerd/refine.py), made on first use."""
         self.centroids_trusted = True
         """Whether the last refined pair found every detector centroid agreeing with its ball's outline
@@ -175,12 +152,12 @@ class Locator:
     @property
     def detectors(self) -> list:
         if self._detectors is None:
-            from trackerd.detect import ColourEndDetector, detect_together
+            from trackerd.detect import ColourEndDetector, detect_all_cameras
 
-            self._detect_together = detect_together
+            self._detect_all = detect_all_cameras
 
             self._detectors = [
-                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.rig.pointer)
+                ColourEndDetector(self.rig.detector, fmt, cfg.width_px, cfg.height_px, self.pointer)
                 for cfg, fmt in zip(self.rig.cameras, self.pixel_formats, strict=True)
             ]
         return self._detectors
@@ -200,7 +177,7 @@ class Locator:
         start = time.perf_counter_ns()
         # Every camera's frame, the quick measurements of all taken together (trackerd.detect.detector).
         detectors = self.detectors  # made on first use, with the function below
-        detections = tuple(self._detect_together(detectors, images))
+        detections = tuple(self._detect_all(detectors, images))
         detected = time.perf_counter_ns()
         mode = self.rig.locator.refine
         fix = None
@@ -221,7 +198,7 @@ class Locator:
         line = fix.line
         assert line is not None
         return (line.gap_m <= TIGHT_GAP_M
-                and abs(line.length_m - self.rig.pointer.length_m) <= TIGHT_LENGTH_M)
+                and abs(line.length_m - self.pointer.length_m) <= TIGHT_LENGTH_M)
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""
@@ -280,7 +257,7 @@ class Locator:
         if len(used) < 2:
             return PointerFix("not_found", "; ".join(missing), centroids)
         # Cameras that saw both ends; with three or more cameras one may miss an end.
-        view = _CameraView.of(self, used)
+        view = self.camera_set.subset(used)
         # Undistort once: (C, 2, 2) normalised image coordinates, [camera, front/back, xy].
         normalised = np.stack([
             view.cameras[k].normalized_from_pixels(
@@ -296,73 +273,22 @@ class Locator:
         fix.timings_ns["triangulate_ns"] = time.perf_counter_ns() - start
         return fix
 
-    def _estimate(self, normalised: Array, sphere_correction: bool, view: _CameraView) -> PointerLine:
+    def _estimate(self, normalised: Array, sphere_correction: bool, view: CameraSet) -> PointerLine:
         """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``."""
-        if len(view.cameras) == 2:
-            fast = self._estimate_two(normalised, sphere_correction, view)
-            if fast is not None:
-                return fast
-        rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
-        rays /= np.sqrt(np.sum(rays * rays, axis=2, keepdims=True))
-        line = self._line_from_camera_rays(rays[:, 0], rays[:, 1], view)
-        if sphere_correction:
-            radius = self.rig.pointer.end_diameter_m / 2.0
-            front_depth = np.array([cam.to_camera_frame(line.front_m[None])[0, 2] for cam in view.cameras])
-            back_depth = np.array([cam.to_camera_frame(line.back_m[None])[0, 2] for cam in view.cameras])
-            if np.all(front_depth > radius) and np.all(back_depth > radius):
-                line = self._line_from_camera_rays(
-                    sphere_centre_direction(rays[:, 0], front_depth, radius),
-                    sphere_centre_direction(rays[:, 1], back_depth, radius),
-                    view,
-                )
-        return line
-
-    def _estimate_two(self, normalised: Array, sphere_correction: bool, view: _CameraView) -> PointerLine | None:
-        """:meth:`_estimate` for two cameras in plain floats (trackerd.geometry.two_cameras); None where
-        the planes are too close to parallel, for the general path's two-point line."""
-        (centre0, rows0, t0), (centre1, rows1, t1) = view.floats
-        (x0f, y0f), (x0b, y0b) = normalised[0].tolist()
-        (x1f, y1f), (x1b, y1b) = normalised[1].tolist()
-
-        def line_of(x0f: float, y0f: float, x0b: float, y0b: float, x1f: float, y1f: float, x1b: float,
-                    y1b: float) -> PointerLine | None:
-            return two_cameras.pointer_line(
-                centre0, centre1,
-                two_cameras.world_ray(rows0, x0f, y0f), two_cameras.world_ray(rows0, x0b, y0b),
-                two_cameras.world_ray(rows1, x1f, y1f), two_cameras.world_ray(rows1, x1b, y1b),
-                self._min_plane_sin,
-            )
-
-        line = line_of(x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b)
-        if line is None or not sphere_correction:
-            return line
-        radius = self.rig.pointer.end_diameter_m / 2.0
-        front, back = tuple(line.front_m.tolist()), tuple(line.back_m.tolist())
-        depths = [rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
-                  for rows, t in ((rows0, t0), (rows1, t1)) for p in (front, back)]
-        if min(depths) <= radius:
-            return line
-        # As sphere_centre_direction: the ellipse's centre lies (1 - r^2 / Z^2) further out.
-        k0f, k0b, k1f, k1b = (1.0 - (radius / z) ** 2 for z in depths)
-        return line_of(x0f * k0f, y0f * k0f, x0b * k0b, y0b * k0b, x1f * k1f, y1f * k1f, x1b * k1b, y1b * k1b)
-
-    def _line_from_camera_rays(self, front_cam: Array, back_cam: Array, view: _CameraView) -> PointerLine:
-        """Line from camera-frame unit rays (C, 3) through the front and back ends."""
-        front_world = np.einsum("cj,cjk->ck", front_cam, view.rotations)
-        back_world = np.einsum("cj,cjk->ck", back_cam, view.rotations)
-        return estimate_pointer_line(view.centres_m, front_world, back_world, self._min_plane_sin)
+        radius = self.pointer.end_diameter_m / 2.0 if sphere_correction else None
+        return estimate_line(normalised, view, self._min_plane_sin, radius)
 
     def _judge(
         self,
         line: PointerLine,
         centroids: tuple[dict[str, Array | None], ...],
         normalised: Array,
-        view: _CameraView,
+        view: CameraSet,
         uncertainty_m: float | None = None,
     ) -> PointerFix:
         """The fix for a line: rejected (length, ray gap), parallel, away, or a hit on or off the display
         with its uncertainty (``uncertainty_m``, or the planes' estimate from ``normalised``)."""
-        pointer = self.rig.pointer
+        pointer = self.pointer
         length_error = line.length_m - pointer.length_m
         if abs(length_error) > pointer.length_tolerance_m:
             return PointerFix(
@@ -379,20 +305,20 @@ class Locator:
                 centroids, line, timings_ns={},
             )
         back, front = line.back_floats, line.front_floats
-        if self._wall_plain.direction_sin(back, front) < self._parallel_sin:
+        if self.wall_scalars.direction_sin(back, front) < self._parallel_sin:
             return PointerFix(
                 "parallel", f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
                 centroids, line, timings_ns={},
             )
         try:
-            intersection = self._wall_plain.hit(back, front)  # eq. 26-28, and the wall's frame
+            intersection = self.wall_scalars.hit(back, front)  # eq. 26-28, and the wall's frame
         except GeometryError as err:
             return PointerFix("parallel", str(err), centroids, line, timings_ns={})
         if intersection.u <= 0.0:
             return PointerFix("away", "the pointer points away from the wall", centroids, line, timings_ns={})
         hit = self._wall_hit(intersection, line)
         uncertainty = uncertainty_m if uncertainty_m is not None else self._uncertainty(normalised, view)
-        status = "hit" if hit.on_wall else "off_wall"
+        status: FixStatus = "hit" if hit.on_wall else "off_wall"
         reason = None if hit.on_wall else "the pointer points at the wall outside the display"
         return PointerFix(status, reason, centroids, line, hit, uncertainty, timings_ns={})
 
@@ -401,79 +327,8 @@ class Locator:
         distance = (hit.u - 1.0) * line.length_m
         return WallHit(np.array(hit.wall_xy_m), np.array(hit.point_m), display, hit.on_wall, distance)
 
-    def _uncertainty(self, normalised: Array, view: _CameraView) -> float | None:
-        """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer.
-
-        Only displacements across each camera's image of the pointer move the
-        line (along it they only slide the ends), so one perturbation per end per
-        camera gives the Jacobian of the hit. Pixels are converted to normalised
-        coordinates with each camera's focal length (distortion's local scale
-        change of a few percent is ignored: this is an estimate).
-        """
-        sigma_px = self.rig.locator.centroid_sigma_px
-        if len(view.cameras) == 2:
-            return self._uncertainty_two(normalised, view, sigma_px)
-        return self._uncertainty_numpy(normalised, view, sigma_px)
-
-    def _uncertainty_numpy(self, normalised: Array, view: _CameraView, sigma_px: float) -> float | None:
-        """:meth:`_uncertainty` for any number of cameras: the reference of :meth:`_uncertainty_two`."""
-        n_cameras = len(view.cameras)
-        # Variant 0 is the measurement; then each end of each camera moved across the pointer.
-        variants = np.repeat(normalised[None], 1 + 2 * n_cameras, axis=0)
-        for index, cam in enumerate(view.cameras):
-            along = normalised[index, 0] - normalised[index, 1]
-            across = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
-            for end in (0, 1):
-                variants[1 + 2 * index + end, index, end] += across * sigma_px / cam.focal_px
-        try:
-            hits = self._plane_hits_xy(variants, view)
-        except GeometryError:
-            return None
-        return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
-
-    def _uncertainty_two(self, normalised: Array, view: _CameraView, sigma_px: float) -> float | None:
-        """:meth:`_uncertainty` for two cameras, in plain floats (trackerd.geometry.two_cameras)."""
-        (centre0, rows0, _), (centre1, rows1, _) = view.floats
-        measured = normalised.reshape(8).tolist()  # x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b
-        variants = [tuple(measured)]
-        for index, cam in enumerate(view.cameras):
-            xf, yf, xb, yb = measured[4 * index : 4 * index + 4]
-            along_x, along_y = xf - xb, yf - yb
-            scale = sigma_px / cam.focal_px / max(math.hypot(along_x, along_y), 1e-12)
-            shift = (-along_y * scale, along_x * scale)
-            for end in (0, 1):
-                moved = list(measured)
-                moved[4 * index + 2 * end] += shift[0]
-                moved[4 * index + 2 * end + 1] += shift[1]
-                variants.append(tuple(moved))
-        try:
-            hits = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1), variants,
-                                              self._wall_plain.normal, self._wall_plain.offset_m)
-        except GeometryError:
-            return None
-        # The hits lie in the wall's plane: their spread in the wall's frame, along its two axes.
-        (hx, hy, hz), x_axis, y_axis = hits[0], self._wall_plain.x_axis, self._wall_plain.y_axis
-        total = 0.0
-        for px, py, pz in hits[1:]:
-            dx, dy, dz = px - hx, py - hy, pz - hz
-            along_x = dx * x_axis[0] + dy * x_axis[1] + dz * x_axis[2]
-            along_y = dx * y_axis[0] + dy * y_axis[1] + dz * y_axis[2]
-            total += along_x * along_x + along_y * along_y
-        return math.sqrt(total)
-
-    def _plane_hits_xy(self, variants: Array, view: _CameraView) -> Array:
-        """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
-        coordinates (B, C, 2 ends, 2), in NumPy (two cameras take :meth:`_uncertainty_two`)."""
-        rays = np.concatenate([variants, np.ones((*variants.shape[:3], 1))], axis=3)
-        world = np.einsum("bcej,cjk->bcek", rays, view.rotations)
-        normals = cross3(world[:, :, 0], world[:, :, 1])
-        normals /= np.sqrt(np.sum(normals * normals, axis=-1, keepdims=True))
-        lines = [line_from_planes(view.centres_m, n) for n in normals]
-        points = np.array([line[0] for line in lines])
-        directions = np.array([line[1] for line in lines])
-        plane = self._plane
-        denominator = directions @ plane.normal
-        if np.any(np.abs(denominator) < 1e-9):
-            raise GeometryError("the pointer is parallel to the wall")
-        hits = points - (plane.signed_distance_m(points) / denominator)[:, None] * directions
-        return self.wall.to_wall_m(hits)
+    def _uncertainty(self, normalised: Array, view: CameraSet) -> float | None:
+        """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer
+        (:func:`~trackerd.geometry.camera_set.hit_uncertainty_m`)."""
+        return hit_uncertainty_m(normalised, view, self.rig.locator.centroid_sigma_px, self.wall,
+                                 self.wall_scalars)

@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.errors import GeometryError
-from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, fit_pointer_robust, hit_covariance
+from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, EndViews, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
-from trackerd.locator import COLOURS, PointerFix, _CameraView
+from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
     from trackerd.detect.result import EndDetection
@@ -139,7 +139,7 @@ class RefinedPath:
 
         candidates = [search_candidates(image, self.loc.grids[index], self._radius_range_px(index))
                       for index, image in enumerate(images)]
-        pointer = self.loc.rig.pointer
+        pointer = self.loc.pointer
         room = self._room_side()
         def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float,
                  axis: tuple[float, float] | None) -> Candidate | None:
@@ -155,7 +155,7 @@ class RefinedPath:
         if isinstance(choice, str):
             missing = self.loc._missing(detections)
             reason = "; ".join([choice, *missing]) if missing else choice
-            empty = tuple({c: None for c in COLOURS} for _ in self.loc.cameras)
+            empty: tuple[dict[str, Array | None], ...] = tuple({c: None for c in COLOURS} for _ in self.loc.cameras)
             return PointerFix("not_found", reason, empty, timings_ns={"triangulate_ns": time.perf_counter_ns() - start},
                               detections=detections)
         per_camera = []
@@ -193,7 +193,7 @@ class RefinedPath:
         """The image radius a ball can have in camera ``index``: from half a metre away to as far as the
         wall's farthest corner (it is held in front of the wall)."""
         cam = self.loc.cameras[index]
-        radius = self.loc.rig.pointer.end_diameter_m / 2.0
+        radius = self.loc.pointer.end_diameter_m / 2.0
         farthest = float(np.max(np.linalg.norm(self.loc.wall.corners_m - cam.centre_m, axis=1))) + 0.5
         return cam.focal_px * radius / farthest, cam.focal_px * radius / 0.5
 
@@ -216,14 +216,14 @@ class RefinedPath:
             missing = self.loc._missing(detections)
             reason = "; ".join(missing) if missing else "fewer than two cameras measured each end"
             return PointerFix("not_found", reason, centroids, timings_ns=timings, detections=detections)
-        view = _CameraView.of(self.loc, used)
+        view = self.loc.camera_set.subset(used)
         both = [k for k, i in enumerate(used) if per_camera[i][front] is not None and per_camera[i][back] is not None]
-        pointer = self.loc.rig.pointer
+        pointer = self.loc.pointer
         if init is None:
             if len(both) < 2:
                 return PointerFix("not_found", "fewer than two cameras measured both ends", centroids,
                                   timings_ns=timings, detections=detections)
-            sub = _CameraView.of(self.loc, [used[k] for k in both])
+            sub = self.loc.camera_set.subset([used[k] for k in both])
             normalised_both = np.stack([np.stack([per_camera[used[k]][front].normalised,
                                                   per_camera[used[k]][back].normalised]) for k in both])
             try:
@@ -288,14 +288,15 @@ class RefinedPath:
                     wrong = abs(m.radius_px - expected) / camera.focal_px
                     covariances[k, e] = covariances[k, e] + np.eye(2) * wrong * wrong
         try:
-            fitted = fit_pointer_robust(rotations, translations, measured, covariances, pointer.length_m,
-                                        self.loc.rig.locator.length_sigma_m, start_points[0], start_points[1])
+            views = EndViews.of(rotations, translations, measured, covariances, pointer.length_m,
+                                self.loc.rig.locator.length_sigma_m)
+            fitted = fit_pointer_robust(views, start_points[0], start_points[1])
         except GeometryError as err:
             return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
         line = PointerLine(fitted.front_m, fitted.back_m, gaps[0], gaps[1], "fit", gaps[2])
         uncertainty = None
         try:
-            wall = self.loc._wall_plain
+            wall = self.loc.wall_scalars
             covariance = hit_covariance(fitted.front_m, fitted.back_m, fitted.covariance, np.array(wall.normal),
                                         wall.offset_m, np.array([wall.x_axis, wall.y_axis]))
             uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))

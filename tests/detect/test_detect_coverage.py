@@ -1,6 +1,6 @@
 """The centre from every pixel, both ends at once on flat arrays, against the plain reference.
 
-trackerd.detect.coverage and trackerd.detect.quick measure both ends together on
+trackerd.detect.coverage and trackerd.detect.window_measure measure both ends together on
 flat arrays where a neighbour is an index offset; a wrong offset or a stale
 buffer shifts centres by hundredths of a pixel, which the accuracy tests would
 not single out. So on synthetic frames that exercise every rule (a rod across a
@@ -22,7 +22,7 @@ from trackerd.detect.centroid import measure, sample
 from trackerd.detect.colour import Threshold, sample_grid
 from trackerd.detect.coverage import rim_centres
 from trackerd.detect.flat import WorkspaceCache
-from trackerd.detect.quick import ANY_SHAPE, measure_windows, window_interior
+from trackerd.detect.window_measure import ANY_SHAPE, measure_windows, window_interior
 
 BAYER = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8")
 CFG = DetectorConfig()
@@ -153,7 +153,7 @@ def test_rims_at_the_frame_edge_keep_the_own_samples_centre(detect_rng) -> None:
 
 
 def test_a_larger_window_measures_what_the_own_window_does_or_nothing(detect_rng) -> None:
-    """detect_together measures every camera's ends in windows of the largest size any needs, with
+    """detect_all_cameras measures every camera's ends in windows of the largest size any needs, with
     each end kept inside the interior of the window its camera would use alone (window_interior).
     Then a larger window gives the own window's result, and refuses whatever the own window would
     not measure: here a red sticker that reaches the own window's border but lies well inside the

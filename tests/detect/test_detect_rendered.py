@@ -7,7 +7,7 @@ import pytest
 
 from trackerd.bench.detector import render_frames, trajectory
 from trackerd.config.models import RigConfig
-from trackerd.detect import ColourEndDetector, detect_together
+from trackerd.detect import ColourEndDetector, detect_all_cameras
 from trackerd.sim.scene import random_pose
 
 pytestmark = pytest.mark.slow
@@ -70,7 +70,7 @@ def test_rendered_motion_is_tracked_in_windows(simulated_rig, renderer) -> None:
 
 
 def test_both_cameras_measured_together_give_what_each_gives_alone(simulated_rig, renderer, monkeypatch) -> None:
-    """detect_together (the daemon's way) against each camera's detector on its own, frame by frame:
+    """detect_all_cameras (the daemon's way) against each camera's detector on its own, frame by frame:
     the same searches, the same ends, centres equal but for float32 rounding (1e-5 px). Midway one
     camera loses its track, so the other is measured alone while it searches in full."""
     rng = np.random.default_rng(21)
@@ -78,7 +78,7 @@ def test_both_cameras_measured_together_give_what_each_gives_alone(simulated_rig
     frames = [render_frames(renderer, path, cam, rng) for cam in (0, 1)]
     alone = [detector(simulated_rig, cam) for cam in (0, 1)]
     together = [detector(simulated_rig, cam) for cam in (0, 1)]
-    # Which frames detect_together leaves to a camera's own detect (the others it measured jointly).
+    # Which frames detect_all_cameras leaves to a camera's own detect (the others it measured jointly).
     on_its_own = []
     own_detect = ColourEndDetector.detect
 
@@ -94,7 +94,7 @@ def test_both_cameras_measured_together_give_what_each_gives_alone(simulated_rig
             together[1].reset()
         images = [frames[cam][k].image for cam in (0, 1)]
         expected = [d.detect(image) for d, image in zip(alone, images, strict=True)]
-        got = detect_together(together, images)
+        got = detect_all_cameras(together, images)
         for want, have in zip(expected, got, strict=True):
             assert have.search == want.search
             searches.append(have.search)

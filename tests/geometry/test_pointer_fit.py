@@ -9,6 +9,7 @@ from trackerd.errors import GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.pointer_fit import (
     DROPPED_VARIANCE,
+    EndViews,
     fit_pointer,
     fit_pointer_robust,
     hit_covariance,
@@ -50,7 +51,8 @@ def test_exact_measurements_give_the_ends_back_from_a_poor_start() -> None:
     measured = predict(rot, trans, FRONT, BACK)
     covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (2, 2, 1, 1))
     length = float(np.linalg.norm(FRONT - BACK))
-    fit = fit_pointer(rot, trans, measured, covariances, length, 0.003, FRONT + np.array([0.05, -0.03, 0.1]), BACK - 0.04)
+    views = EndViews.of(rot, trans, measured, covariances, length, 0.003)
+    fit = fit_pointer(views, FRONT + np.array([0.05, -0.03, 0.1]), BACK - 0.04)
     assert np.allclose(fit.front_m, FRONT, atol=1e-7) and np.allclose(fit.back_m, BACK, atol=1e-7)
     assert fit.chi2 < 1e-8 and fit.inflation == 1.0
 
@@ -68,7 +70,7 @@ def test_the_covariance_describes_the_scatter_of_fits_to_noisy_measurements() ->
     z = []
     for _ in range(300):
         noisy = truth + rng.normal(0.0, sigma, truth.shape)
-        fit = fit_pointer(rot, trans, noisy, covariances, length, 1e-4, FRONT, BACK)
+        fit = fit_pointer(EndViews.of(rot, trans, noisy, covariances, length, 1e-4), FRONT, BACK)
         # Without inflation: the scatter itself is what is checked.
         raw = fit.covariance / fit.inflation
         error = fit.front_m - FRONT
@@ -86,8 +88,8 @@ def test_one_measurement_pulled_by_an_occluder_is_left_out() -> None:
     measured[1, 0] += np.array([6.0, -2.0]) / 1600
     covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (4, 2, 1, 1))
     length = float(np.linalg.norm(FRONT - BACK))
-    plain = fit_pointer(rot, trans, measured, covariances, length, 0.003, FRONT, BACK)
-    robust = fit_pointer_robust(rot, trans, measured, covariances, length, 0.003, FRONT, BACK)
+    plain = fit_pointer(EndViews.of(rot, trans, measured, covariances, length, 0.003), FRONT, BACK)
+    robust = fit_pointer_robust(EndViews.of(rot, trans, measured, covariances, length, 0.003), FRONT, BACK)
     assert np.linalg.norm(plain.front_m - FRONT) > 2e-3
     assert robust.dropped == ((1, 0),)
     assert np.linalg.norm(robust.front_m - FRONT) < 1e-6
@@ -100,7 +102,8 @@ def test_a_missing_measurement_weighs_nothing() -> None:
     covariances = np.tile(np.eye(2) * (0.1 / 1600) ** 2, (3, 2, 1, 1))
     measured[2, 1] = [0.3, -0.2]  # nonsense, but "not there"
     covariances[2, 1] = np.eye(2) * DROPPED_VARIANCE
-    fit = fit_pointer(rot, trans, measured, covariances, float(np.linalg.norm(FRONT - BACK)), 0.003, FRONT, BACK)
+    views = EndViews.of(rot, trans, measured, covariances, float(np.linalg.norm(FRONT - BACK)), 0.003)
+    fit = fit_pointer(views, FRONT, BACK)
     assert np.linalg.norm(fit.back_m - BACK) < 1e-6
 
 
@@ -187,7 +190,7 @@ def test_near_parallel_interpretation_planes_a_good_line_and_an_honest_uncertain
         old = estimate_pointer_line(np.stack([c.centre_m for c in cameras]), dirs[:, 0], dirs[:, 1])
         assert old.plane_angle_sin < 0.08 and old.method == "points"
         old_errors.append(np.linalg.norm(intersect_line_plane(old.back_m, old.front_m, wall).point_m - true_hit))
-        fit = fit_pointer(rot, trans, measured, covariances, 0.42, 1e-4, old.front_m, old.back_m)
+        fit = fit_pointer(EndViews.of(rot, trans, measured, covariances, 0.42, 1e-4), old.front_m, old.back_m)
         hit = intersect_line_plane(fit.back_m, fit.front_m, wall).point_m
         fit_errors.append(np.linalg.norm(hit - true_hit))
         cov = hit_covariance(fit.front_m, fit.back_m, fit.covariance / fit.inflation, wall.normal, 0.0, axes)

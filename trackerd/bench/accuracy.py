@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.bench.progress import BenchProgress
 from trackerd.config.examples import example_rig
@@ -49,8 +50,8 @@ from trackerd.geometry.pointer_line import pointer_from_points
 from trackerd.geometry.rotation import rotation_about_x, rotation_about_y, rotation_about_z
 from trackerd.geometry.wall import intersect_line_plane
 from trackerd.locator import Locator
-from trackerd.sim.render import SceneRenderer
-from trackerd.sim.scene import random_pose, true_wall_hit
+from trackerd.sim.render import RenderedView, SceneRenderer
+from trackerd.sim.scene import PointerPose, WallHitTruth, random_pose, true_wall_hit
 
 FEET_PER_M = 1.0 / 0.3048
 REPORT_FIGURE_FT = 0.06
@@ -138,6 +139,8 @@ def build_variants(base: RigConfig) -> list[Variant]:
     for label, angles in rotations.items():
         cameras = tuple(_rotated(cam, *turn) for cam, turn in zip(nominal, angles, strict=True))
         variants.append(Variant("rotations", label, base, cameras))
+    if base.pointer is None:
+        raise ValueError(f"rig '{base.name}' has no [pointer]: the bench cannot render one")
     for length in (0.25, 0.35, 0.45, 0.6, 0.8):
         pointer = base.pointer.model_copy(update={"length_m": length})
         rig = base.model_copy(update={"pointer": pointer})
@@ -188,7 +191,7 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
     report = Locator(bbox_rig, cameras=[report_camera(c) for c in variant.cameras])
     errors: dict[str, list[float]] = {m: [] for m in METHODS}
     failures: dict[str, int] = {m: 0 for m in METHODS}
-    bias = {"perspective_px": [], "occlusion_px": []}
+    bias: dict[str, list[float]] = {"perspective_px": [], "occlusion_px": []}
     # Per pose trackerd located: (error, error from the renderer's exact centroids, the locator's
     # own 1-sigma estimate), in m: what makes the worst poses worst.
     anatomy: list[tuple[float, float, float]] = []
@@ -211,22 +214,31 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
                 anatomy.append((errors["trackerd"][-1], float(np.linalg.norm(exact.hit.wall_xy_m - truth.wall_xy_m)),
                                 float(fix.uncertainty_m)))
         if fix.found:
-            centroids = [(c["red"], c["blue"]) for c in fix.centroids_px]
+            centroids = [_both(c) for c in fix.centroids_px]
             _record(errors, failures, "two_points", _two_point_hit(ours, centroids), truth)
         else:
             failures["two_points"] += 1
         report.reset()
         baseline = report.locate(images)
         if baseline.line is not None:
-            centroids = [(c["red"], c["blue"]) for c in baseline.centroids_px]
+            centroids = [_both(c) for c in baseline.centroids_px]
             _record(errors, failures, "report", _two_point_hit(report, centroids), truth)
         else:
             failures["report"] += 1
     return {"errors_m": errors, "failures": failures, "poses": poses, "bias": bias, "anatomy": anatomy}
 
 
-def _record(errors, failures, method: str, hit_xy, truth) -> None:
-    if hit_xy is None:
+def _both(centroids: dict[str, NDArray[np.float64] | None]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A found fix's (red, blue) centroids in one camera (a found fix has both in every camera it used)."""
+    red, blue = centroids["red"], centroids["blue"]
+    if red is None or blue is None:
+        raise ValueError("a found fix without both centroids")
+    return red, blue
+
+
+def _record(errors: dict[str, list[float]], failures: dict[str, int], method: str,
+            hit_xy: NDArray[np.float64] | None, truth: WallHitTruth) -> None:
+    if hit_xy is None or truth.wall_xy_m is None:
         failures[method] += 1
     else:
         errors[method].append(float(np.linalg.norm(np.asarray(hit_xy) - truth.wall_xy_m)))
@@ -247,7 +259,8 @@ def _two_point_hit(locator: Locator, centroids: list[tuple[np.ndarray, np.ndarra
     return locator.wall.to_wall_m(hit.point_m) if float(hit.u) > 0 else None
 
 
-def _collect_bias(variant: Variant, pose, views, bias) -> None:
+def _collect_bias(variant: Variant, pose: PointerPose, views: list[RenderedView],
+                  bias: dict[str, list[float]]) -> None:
     """Measure the two known centroid error terms on the rendered truth.
 
     perspective: distance between a ball's projected centre and the centre of
@@ -255,10 +268,12 @@ def _collect_bias(variant: Variant, pose, views, bias) -> None:
     occlusion: distance between the ellipse centre and the centroid of what is
     actually visible (the rod hides part of a ball; along the pointer only).
     """
-    radius = variant.rig.pointer.end_diameter_m / 2.0
+    pointer = variant.rig.pointer
+    assert pointer is not None  # build_variants refuses a rig without one
+    radius = pointer.end_diameter_m / 2.0
     for cam, view in zip(variant.cameras, views, strict=True):
         for colour in ("red", "blue"):
-            centre = pose.centre_of(colour, variant.rig.pointer.front_colour)
+            centre = pose.centre_of(colour, pointer.front_colour)
             in_cam = cam.to_camera_frame(centre[None])[0]
             scale = in_cam[2] / (in_cam[2] ** 2 - radius**2)
             ellipse_world = (np.array([in_cam[0] * scale, in_cam[1] * scale, 1.0]) - cam.translation_m) @ cam.rotation
@@ -329,7 +344,8 @@ def summarise(variants: list[Variant], results: list[dict[str, Any]]) -> dict[st
             "poses": group["poses"],
             "methods": stats,
             "failures": group["failures"],
-            "target_met": ours["median_mm"] is not None and ours["median_mm"] <= 2.0 and ours["p95_mm"] <= 5.0,
+            "target_met": (ours["median_mm"] is not None and ours["median_mm"] <= 2.0
+                           and ours["p95_mm"] is not None and ours["p95_mm"] <= 5.0),
             "variants": group["variants"],
             "centroid_bias_px": {
                 k: {"median": round(float(np.median(v)), 4), "max": round(float(np.max(v)), 4)}

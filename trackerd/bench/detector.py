@@ -28,7 +28,9 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -105,6 +107,8 @@ def trajectory(
     rig: RigConfig, rng: np.random.Generator, n: int, step_m: float, cameras: list
 ) -> list[PointerPose]:
     """n poses of a pointer moving smoothly (step_m per frame) between random visible poses."""
+    if rig.pointer is None:
+        raise ValueError(f"rig '{rig.name}' has no [pointer]: the bench cannot render one")
     length = rig.pointer.length_m
     poses: list[PointerPose] = []
     start = random_pose(rig, rng, cameras)
@@ -212,15 +216,15 @@ def run(args: argparse.Namespace) -> int:
         for n, (cam, i) in enumerate(order):
             frame = sequences[cam][i]
             det = detectors[cam]
-            steps = {
-                "floor": lambda image: _floor(image),
-                "full": lambda image, d=det["full"]: _fresh(d, image),
-                "tracked": lambda image, d=det["tracked"]: d.detect(image),
-                "opencv": lambda image, f=formats[cam]: opencv_reference(image, f, cfg),
+            steps: dict[str, Callable[[NDArray[np.uint8]], object]] = {
+                "floor": _floor,
+                "full": partial(_fresh, det["full"]),
+                "tracked": det["tracked"].detect,
+                "opencv": partial(opencv_reference, pixel_format=formats[cam], cfg=cfg),
             }
             if args.own_samples:
-                steps["full_own"] = lambda image, d=det["full_own"]: _fresh(d, image)
-                steps["tracked_own"] = lambda image, d=det["tracked_own"]: d.detect(image)
+                steps["full_own"] = partial(_fresh, det["full_own"])
+                steps["tracked_own"] = det["tracked_own"].detect
             # Rotate the order every frame: each method in turn finds the frame already in
             # cache (after another read it) or not, so none is flattered by its place.
             names = list(steps)
@@ -230,6 +234,7 @@ def run(args: argparse.Namespace) -> int:
                 result = steps[name](frame.image)
                 times[name].append(time.perf_counter() - t0)
                 if name == "tracked":
+                    assert isinstance(result, ImageDetections)
                     windowed += result.search == "window"
                     if len(results["tracked"]) < len(order):
                         results["tracked"].append((frame, result))

@@ -285,9 +285,9 @@ PAUSE_S = 0.014
 
 def _paced_detection_ms(rig: Any, image_sets: list[list[np.ndarray]], pairs: int) -> dict[str, Any] | None:
     """Detection of a pair after a pause, as the daemon does it (both cameras' windows measured
-    together, trackerd.detect.detect_together) and one camera at a time, in turns pair by pair
+    together, trackerd.detect.detect_all_cameras) and one camera at a time, in turns pair by pair
     (each way with its own detectors, so each tracks as it would alone): wall time per pair, ms."""
-    from trackerd.detect import ColourEndDetector, detect_together
+    from trackerd.detect import ColourEndDetector, detect_all_cameras
 
     if pairs < 2 or len(rig.cameras) < 2:
         return None
@@ -304,7 +304,7 @@ def _paced_detection_ms(rig: Any, image_sets: list[list[np.ndarray]], pairs: int
         time.sleep(PAUSE_S)
         start = time.perf_counter_ns()
         if name == "together":
-            detect_together(ways[name], images)
+            detect_all_cameras(ways[name], images)
         else:
             for detector, image in zip(ways[name], images, strict=True):
                 detector.detect(image)

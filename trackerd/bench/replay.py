@@ -30,6 +30,7 @@ import shutil
 import tempfile
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +41,10 @@ from trackerd.config.examples import example_rig
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
+from trackerd.detect.result import ImageDetections
 from trackerd.locator import Locator
+from trackerd.publish import Publisher
+from trackerd.publish.messages import Message
 
 REFERENCE_PAIRS = 300
 """The baselines take tens of milliseconds a pair: they replay this many pairs by default."""
@@ -227,38 +231,29 @@ class _BaselineLocator(Locator):
         rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": "never"})})
         super().__init__(rig)
         self._baselines = [_Baseline(function, fmt, rig) for fmt in self.pixel_formats]
-        self._detect_together = _each_alone
+        self._detect_all = _each_alone
 
     @property
     def detectors(self) -> list:
         return self._baselines
 
 
-def _each_alone(detectors: list, frames: list) -> list:
+def _each_alone(detectors: Sequence[Any], frames: Sequence[np.ndarray]) -> list[ImageDetections]:
     """Each baseline detector on its own frame (they have no joint measurement)."""
     return [detector.detect(frame) for detector, frame in zip(detectors, frames, strict=True)]
 
 
-class _KeepingPublisher:
+class _KeepingPublisher(Publisher):
     """A real Publisher that also keeps the hits it publishes (for their error against the truth)."""
 
     def __init__(self, rig: RigConfig) -> None:
-        from trackerd.publish import Publisher
-
-        self._publisher = Publisher(rig.outputs.zmq)
+        super().__init__(rig.outputs.zmq)
         self.hits: list[dict[str, Any]] = []
-        self.endpoints = self._publisher.endpoints
 
-    def publish(self, message: Any) -> bool:
+    def publish(self, message: Message) -> bool:
         if message.topic == "hit":
             self.hits.append(message.model_dump())
-        return self._publisher.publish(message)
-
-    def publish_status(self, message: Any) -> bool:
-        return self._publisher.publish_status(message)
-
-    def close(self) -> None:
-        self._publisher.close()
+        return super().publish(message)
 
 
 def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None) -> dict[str, dict[str, Any]]:
@@ -325,7 +320,8 @@ def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, cou
     if pipeline.failure is not None:
         raise RuntimeError(f"the pipeline crashed during a replay:\n{pipeline.failure}")
     cpu_s = time.process_time() - cpu_start
-    elapsed = (source.last_delivery_ns - source.first_delivery_ns) / 1e9
+    first_ns, last_ns = source.first_delivery_ns, source.last_delivery_ns
+    elapsed = (last_ns - first_ns) / 1e9 if first_ns is not None and last_ns is not None else 0.0
     hits = [h for p in publishers for h in p.hits]
     figures: dict[str, Any] = {
         "pairs": source.delivered,

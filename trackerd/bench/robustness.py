@@ -34,12 +34,23 @@ import json
 import multiprocessing
 import time
 from collections import Counter
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from trackerd.bench.progress import BenchProgress
 from trackerd.errors import GeometryError
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from trackerd.config.models import RigConfig
+    from trackerd.geometry.camera import CameraModel
+    from trackerd.geometry.wall import WallFrame
+    from trackerd.sim.randomized import RandomRig
+    from trackerd.sim.render import SceneRenderer
+    from trackerd.sim.scene import PointerPose
 
 FACTORS = ("placement", "content", "lighting", "blur", "occlusion", "paint", "cameras", "resolution")
 MIN_VISIBLE = 0.6
@@ -128,6 +139,7 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
     widest = max(c.width_px for c in drawn.cameras)
     renderer = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
                              background_step=1 if widest <= 2000 else 2, noise_field=True)
+    assert drawn.rig.wall is not None and drawn.rig.pointer is not None  # a drawn rig has both
     wall = wall_frame(drawn.rig.wall)
     learned = False
     if learn_pairs:
@@ -184,7 +196,8 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
     return records
 
 
-def _learn_colours(rig, drawn, renderer, wall, rng: np.random.Generator, pairs: int):
+def _learn_colours(rig: RigConfig, drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame,
+                   rng: np.random.Generator, pairs: int) -> tuple[RigConfig, bool]:
     """The rig with its pointer colours learned from ``pairs`` shots, as `trackerd calibrate pointer` learns
     them; the rig unchanged (and False) where they cannot be learned (the operator would be told why)."""
     from trackerd.calibration import CalibrationError
@@ -207,11 +220,13 @@ def _learn_colours(rig, drawn, renderer, wall, rng: np.random.Generator, pairs: 
     return with_learned_colours(rig, colours), True
 
 
-def floor_hit(cameras, seeing: list[bool], pose, rig, wall, rng: np.random.Generator) -> np.ndarray | None:
+def floor_hit(cameras: Sequence[CameraModel], seeing: list[bool], pose: PointerPose, rig: RigConfig, wall: WallFrame,
+              rng: np.random.Generator) -> np.ndarray | None:
     """The geometric floor's wall hit (see the module): the true ends as every camera in ``seeing`` images
     them, moved by FLOOR_SIGMA_PX of noise, fitted as trackerd fits measured ends."""
-    from trackerd.geometry.pointer_fit import fit_pointer_robust
+    from trackerd.geometry.pointer_fit import EndViews, fit_pointer_robust
 
+    assert rig.pointer is not None  # a rig that tracks
     used = [cam for cam, sees in zip(cameras, seeing, strict=True) if sees]
     front = pose.centre_of(rig.pointer.front_colour, rig.pointer.front_colour)
     back = pose.centre_of("blue" if rig.pointer.front_colour == "red" else "red", rig.pointer.front_colour)
@@ -224,15 +239,16 @@ def floor_hit(cameras, seeing: list[bool], pose, rig, wall, rng: np.random.Gener
             measured[k, e] = in_camera[:2] / in_camera[2] + rng.normal(0.0, sigma, 2)
             covariances[k, e] = np.eye(2) * sigma * sigma
     try:
-        fit = fit_pointer_robust(np.stack([c.rotation for c in used]), np.stack([c.translation_m for c in used]),
-                                 measured, covariances, rig.pointer.length_m, rig.locator.length_sigma_m, front, back)
+        views = EndViews.of(np.stack([c.rotation for c in used]), np.stack([c.translation_m for c in used]),
+                            measured, covariances, rig.pointer.length_m, rig.locator.length_sigma_m)
+        fit = fit_pointer_robust(views, front, back)
         hit = intersect_line_plane_m(fit.back_m, fit.front_m, wall)
     except GeometryError:
         return None
     return hit
 
 
-def intersect_line_plane_m(back_m: np.ndarray, front_m: np.ndarray, wall) -> np.ndarray | None:
+def intersect_line_plane_m(back_m: np.ndarray, front_m: np.ndarray, wall: WallFrame) -> NDArray[np.float64] | None:
     """Where the line from ``back_m`` through ``front_m`` meets the wall, in the wall's frame (None when it
     points away)."""
     from trackerd.geometry.wall import intersect_line_plane
@@ -240,10 +256,12 @@ def intersect_line_plane_m(back_m: np.ndarray, front_m: np.ndarray, wall) -> np.
     hit = intersect_line_plane(back_m, front_m, wall.plane)
     if float(hit.u) <= 0:
         return None
-    return wall.to_wall_m(hit.point_m)
+    on_wall: NDArray[np.float64] = wall.to_wall_m(hit.point_m)
+    return on_wall
 
 
-def naive_hit(cameras, wall, images, pixel_formats, front_colour: str) -> np.ndarray | None:
+def naive_hit(cameras: Sequence[CameraModel], wall: WallFrame, images: Sequence[NDArray[np.uint8]],
+              pixel_formats: Sequence[str], front_colour: str) -> np.ndarray | None:
     """The naive method's wall hit: largest blob's box midpoints, each end triangulated, eq. 26-28."""
     from trackerd.detect.reference import naive_ends
     from trackerd.geometry.triangulation import triangulate_least_squares

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from trackerd.config.loader import load_rig
+from trackerd.detect.result import ImageDetections
 from trackerd.errors import ImageError
 from trackerd.images import raw_format_doubt, read_frame
 from trackerd.locator import Locator, PointerFix
@@ -89,7 +90,8 @@ def _snap_raw_frame(path: Path) -> Path | None:
 
 def _read_truth(path: str) -> dict[str, Any]:
     try:
-        return json.loads(Path(path).read_text())
+        truth: dict[str, Any] = json.loads(Path(path).read_text())
+        return truth
     except (OSError, ValueError) as err:
         raise ImageError(f"{path}: cannot read ground truth ({err})") from err
 
@@ -111,7 +113,8 @@ def _vec(values: Any) -> list[float] | None:
 
 def fix_to_json(fix: PointerFix, locator: Locator, images: list[str]) -> dict[str, Any]:
     cameras = []
-    for cam, path, detection in zip(locator.cameras, images, fix.detections or [None] * len(images), strict=True):
+    detections: list[ImageDetections | None] = list(fix.detections) if fix.detections else [None] * len(images)
+    for cam, path, detection in zip(locator.cameras, images, detections, strict=True):
         entry: dict[str, Any] = {"id": cam.camera_id, "image": str(path)}
         if detection is not None:
             for colour in ("red", "blue"):
@@ -157,7 +160,7 @@ def describe(fix: PointerFix, locator: Locator, images: list[str], truth: dict[s
         if detection is not None:
             for colour in ("red", "blue"):
                 end = detection.end(colour)
-                if end.found:
+                if end.centroid_px is not None:
                     x, y = end.centroid_px
                     parts.append(f"{colour} at ({x:.2f}, {y:.2f}) px, {end.area_px:.0f} px area")
                 else:

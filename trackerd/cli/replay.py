@@ -22,13 +22,18 @@ import argparse
 import json
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from trackerd.cli._args import add_console_option, positive_int, positive_seconds
 from trackerd.config.loader import with_console
 from trackerd.config.models import RigConfig
 from trackerd.recording.reader import Recording
 from trackerd.recording.replay_rig import replay_rig
+
+if TYPE_CHECKING:
+    from trackerd.pipeline.daemon import Pipeline
+    from trackerd.publish import Publisher
+    from trackerd.recording.replay import ReplayPairSource
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -92,17 +97,17 @@ def replay_command(args: argparse.Namespace) -> int:
           + (f", {args.passes} passes" if args.passes else ", looping" if args.loop else ""), file=sys.stderr)
     for note in notes:
         print(f"  {note}", file=sys.stderr)
-    publishers: list[Any] = []
+    publishers: list[Publisher] = []
     progress = ProgressLine()
     total = source.stop_at - source.first
 
-    def publisher_factory(r: RigConfig):
+    def publisher_factory(r: RigConfig) -> Publisher:
         publishers.append(zmq_publisher(r))
         return publishers[-1]
 
-    pipelines: list[Any] = []
+    pipelines: list[Pipeline] = []
 
-    def until(pipeline) -> bool:
+    def until(pipeline: Pipeline) -> bool:
         if not pipelines:
             pipelines.append(pipeline)
         if progress.due():
@@ -132,7 +137,7 @@ def replay_command(args: argparse.Namespace) -> int:
     return code
 
 
-def _summary(source, publishers: list[Any], recording: Recording) -> dict[str, Any]:
+def _summary(source: ReplayPairSource, publishers: list[Publisher], recording: Recording) -> dict[str, Any]:
     counts: dict[str, int] = {}
     for publisher in publishers:
         for topic, n in publisher.counts.items():

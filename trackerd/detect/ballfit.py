@@ -258,8 +258,8 @@ def _rims(profile: Array, rho: Array, radius: float, lattice_px: float, rising_r
     return rim, contrast
 
 
-def _rising_rims(profile: Array, rho: Array, radius: float, background: Array, falling: Array, half: int
-                 ) -> tuple[Array, Array, Array]:
+def _rising_rims(profile: Array, rho: Array, radius: float, background: Array,
+                 falling: NDArray[np.bool_], half: int) -> tuple[NDArray[np.bool_], Array, Array]:
     """The rims of the rays (of those without a falling rim) that cross from the ball into something *more*
     of its colour: a shaded ball before a bright picture of its own hue, whose colour excess rises at the
     rim rather than falls. There the rim is where the excess rises through the midpoint of the ball's own

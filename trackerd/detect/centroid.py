@@ -123,8 +123,8 @@ def measure(samples: Samples, weighted: bool, *, shape: bool = False) -> Measure
     if n_strong == 0:
         return None
     h, w = strong.shape
-    cols = strong.any(axis=0).nonzero()[0]
-    rows = strong.any(axis=1).nonzero()[0]
+    cols = np.flatnonzero(strong.any(axis=0))
+    rows = np.flatnonzero(strong.any(axis=1))
     c0, c1, r0, r1 = int(cols[0]), int(cols[-1]), int(rows[0]), int(rows[-1])
     s, x0, y0 = samples.cell_px, samples.x0_px, samples.y0_px
     bbox = (int(x0) + s * c0, int(y0) + s * r0, int(x0) + s * c1, int(y0) + s * r1)
@@ -204,7 +204,8 @@ def _coverage(excess: NDArray[np.float32], level: float) -> NDArray[np.float32]:
     ratio = excess / local
     ratio -= COVERAGE_FLOOR
     ratio *= 1.0 / (COVERAGE_FULL - COVERAGE_FLOOR)
-    return np.clip(ratio, 0.0, 1.0, out=ratio)
+    np.clip(ratio, 0.0, 1.0, out=ratio)
+    return ratio.astype(np.float32, copy=False)  # float32 already (float32 / float32): typed, not copied
 
 
 def keep_nearest_blob(samples: Samples, near_px: tuple[float, float]) -> None:

@@ -251,5 +251,7 @@ def green_at(
         # Greens sit where (x + y) has the parity of green_a's row + column.
         parity = (grid.green_a[0] + grid.green_a[1]) & 1
         x += (x + y + parity) & 1
-        return frame.reshape(-1)[y * width + x].astype(np.float64)
-    return frame[y, x, grid.channels[1]].astype(np.float64)
+        greens: NDArray[np.float64] = frame.reshape(-1)[y * width + x].astype(np.float64)
+        return greens
+    rgb_greens: NDArray[np.float64] = frame[y, x, grid.channels[1]].astype(np.float64)
+    return rgb_greens

@@ -11,6 +11,7 @@ Per frame (report section 3.2, eq. 10-12, made robust and sub-pixel):
 2. *Full search* otherwise: a subsampled pass over the whole frame (every
    ``search_step_px``) finds seeds of each colour; each seed is refined at full
    plane resolution in a small window (:mod:`trackerd.detect.candidates`).
+   Both blob searches are :mod:`trackerd.detect.blob_search`'s.
 3. *Selection* (:mod:`trackerd.detect.select`): blobs that cannot be a ball
    (area, elongation, fill) are dropped, and of the rest the red-blue pair most
    consistent with one pointer wins.
@@ -27,35 +28,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.config.models import DetectorConfig, PointerConfig
-from trackerd.detect.candidates import (
-    Candidate,
-    Limits,
-    Rejects,
-    grow,
-    refine,
-    seed_windows,
-    shape_score,
-)
-from trackerd.detect.centroid import (
-    Measurement,
-    candidate_region,
-    keep_nearest_blob,
-    measure,
-    measure_candidate,
-    measure_rims,
-    sample,
-)
-from trackerd.detect.colour import Region, SampleGrid, Threshold, coarse_masks, sample_grid
+from trackerd.detect.blob_search import BlobSearch, EndTrack
+from trackerd.detect.candidates import Limits, shape_score
+from trackerd.detect.centroid import Measurement, keep_nearest_blob, measure, sample
+from trackerd.detect.colour import Region, SampleGrid, Threshold, sample_grid
 from trackerd.detect.flat import WorkspaceCache
-from trackerd.detect.quick import ANY_SHAPE, Plain, measure_windows, window_interior
 from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
-from trackerd.detect.select import choose, missing_reason, pair_consistency, rod_evidence
+from trackerd.detect.select import pair_consistency
+from trackerd.detect.window_measure import BlobShape, measure_windows, window_interior
 from trackerd.errors import ImageError
 
 DEFAULT_LENGTH_OVER_DIAMETER = 12.0
@@ -64,49 +49,12 @@ DEFAULT_LENGTH_OVER_DIAMETER = 12.0
 DEFAULT_ROD_OVER_DIAMETER = 0.3
 """Rod diameter over ball diameter used when no PointerConfig is given."""
 
-MAX_WINDOWS = 12
-"""Seed windows refined per colour in one search, largest seed first; more is clutter."""
-
 QUICK_MAX_ELONGATION = 1.6
 QUICK_MIN_FILL = 0.6
 QUICK_AREA_RATIO = 1.6
 """The quick tracking measurement is taken only for a blob this round, this full and within
 this factor of its previous area; anything else (a second blob in the window, occlusion,
 a jump) goes through the blob search."""
-
-
-@dataclass(slots=True)
-class _Track:
-    """What the previous frame said about one end (plain floats: read a few times a frame)."""
-
-    x_px: float
-    y_px: float
-    vx_px: float
-    """Motion since the frame before, pixels per frame."""
-    vy_px: float
-    area_px: float
-    crowded: bool = False
-    """Whether the quick measurement had to pick the end out of other blobs of its colour
-    (then it does so straight away next time)."""
-
-    @property
-    def centre_px(self) -> NDArray[np.float64]:
-        return np.array([self.x_px, self.y_px])
-
-    @property
-    def velocity_px(self) -> NDArray[np.float64]:
-        return np.array([self.vx_px, self.vy_px])
-
-
-@dataclass(slots=True)
-class _Search:
-    """Candidates of one colour from one search, with what is needed to explain a miss."""
-
-    candidates: list[Candidate]
-    seeds: int
-    too_large_seeds: int
-    rejects: Rejects
-    examined_all: bool
 
 
 class ColourEndDetector:
@@ -148,16 +96,19 @@ class ColourEndDetector:
             self.rod_over_diameter = DEFAULT_ROD_OVER_DIAMETER
         step_px = search_step_px or cfg.search_step_px
         self.step_cells = max(1, round(step_px / self.grid.cell_px))
-        self._track: dict[str, _Track] | None = None
+        self._track: dict[str, EndTrack] | None = None
         self._crowded: set[str] = set()
         # None: as the configuration says (centroid = "coverage" uses every pixel of the rim).
         every_pixel = cfg.centroid == "coverage" if rim_pixels is None else rim_pixels
         self.rim_pixels = every_pixel and self.weighted and self.grid.is_bayer
-        # Weighted centres on a mosaic are measured for both ends at once (trackerd.detect.quick)
+        # Weighted centres on a mosaic are measured for both ends at once (trackerd.detect.window_measure)
         # wherever that gives what measuring them one by one gives.
         self.flat = self.weighted and self.grid.is_bayer
         self._work = WorkspaceCache()
-        self._plain = Plain(QUICK_MAX_ELONGATION, QUICK_MIN_FILL)
+        self._blobs = BlobSearch(cfg, self.grid, self.thresholds, self.limits, self.step_cells,
+                                 self.length_over_diameter, self.rod_over_diameter, self.weighted, self.flat,
+                                 self.rim_pixels, self._work)
+        self._round_blob = BlobShape(QUICK_MAX_ELONGATION, QUICK_MIN_FILL)
 
     def reset(self) -> None:
         """Forget the previous frame: the next frame is searched in full."""
@@ -169,11 +120,11 @@ class ColourEndDetector:
         result = None
         self._crowded = set()
         if self._track is not None:
-            result = self._quick_track(frame, self._track) or self._window_search(
+            result = self._quick_track(frame, self._track) or self._blobs.near(
                 frame, self._track
             )
         if result is None:
-            result = self._full_search(frame)
+            result = self._blobs.full(frame)
         self._remember(result)
         return result
 
@@ -187,31 +138,8 @@ class ColourEndDetector:
 
     # ------------------------------------------------------------------ searches
 
-    def _full_search(self, frame: NDArray[np.uint8]) -> ImageDetections:
-        step = self.step_cells
-        r0, r1, c0, c1 = self.grid.interior()
-        # Centre the coarse samples in their step x step blocks.
-        coarse = (r0 + step // 2, r1, c0 + step // 2, c1)
-        red, blue = coarse_masks(
-            frame, self.grid, self.thresholds["red"], self.thresholds["blue"], coarse, step
-        )
-        assert red is not None and blue is not None
-        seeds = seed_windows({"red": red, "blue": blue}, coarse, step, self.grid, self.limits)
-        jobs = [(colour, w) for colour in COLOURS for w in seeds[colour].windows[:MAX_WINDOWS]]
-        found = self._refine(frame, jobs)
-        searches = {}
-        for colour in COLOURS:
-            candidates, rejects = found[colour]
-            s = seeds[colour]
-            searches[colour] = _Search(
-                candidates, s.count, s.too_large, rejects, len(s.windows) <= MAX_WINDOWS
-            )
-        result = self._result(frame, searches, "full", None)
-        assert result is not None
-        return result
-
     def _quick_track(
-        self, frame: NDArray[np.uint8], track: dict[str, _Track]
+        self, frame: NDArray[np.uint8], track: dict[str, EndTrack]
     ) -> ImageDetections | None:
         """Each end measured straight in a small window where it should be, if it is plainly there.
 
@@ -230,7 +158,7 @@ class ColourEndDetector:
             radius = math.sqrt(t.area_px / math.pi)
             speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
             predicted = t.centre_px + t.velocity_px
-            window = self._window_around(predicted, 1.25 * radius + 0.5 * speed + 4.0)
+            window = self._blobs.window_around(predicted, 1.25 * radius + 0.5 * speed + 4.0)
             if window is None:
                 return None
             samples = sample(frame, self.grid, colour, thr, window)
@@ -238,22 +166,22 @@ class ColourEndDetector:
             if t.crowded:
                 keep_nearest_blob(samples, near)
             m = measure(samples, self.weighted)
-            if not t.crowded and not self._plainly(m, t.area_px):
+            if not t.crowded and not self._is_tracked_end(m, t.area_px):
                 # Something else of the colour in the window: keep the blob nearest the prediction.
                 keep_nearest_blob(samples, near)
                 m = measure(samples, self.weighted)
                 crowded.add(colour)
-            if not self._plainly(m, t.area_px):
+            if not self._is_tracked_end(m, t.area_px):
                 return None
             assert m is not None
             found[colour] = m
-        red, blue = self._centres(frame, [found["red"], found["blue"]])
+        red, blue = self._blobs.centres(frame, [found["red"], found["blue"]])
         return self._quick_result(red, blue, crowded)
 
     def _quick_both(
-        self, frame: NDArray[np.uint8], track: dict[str, _Track]
+        self, frame: NDArray[np.uint8], track: dict[str, EndTrack]
     ) -> tuple[Measurement, Measurement] | None:
-        """Both ends measured together in windows of one size (trackerd.detect.quick), if plain."""
+        """Both ends measured together in windows of one size (trackerd.detect.window_measure), if plain."""
         plan = self._quick_plan(track)
         if plan is None:
             return None
@@ -264,13 +192,13 @@ class ColourEndDetector:
             ends,
             half_cells,
             self.thresholds,
-            self._plain,
+            self._round_blob,
             self._work,
             every_pixel=self.rim_pixels,
         )
-        return None if found is None else self._both_plainly(found, track)
+        return None if found is None else self._both_tracked(found, track)
 
-    def _quick_plan(self, track: dict[str, _Track]) -> tuple[list[tuple[str, float, float]], int] | None:
+    def _quick_plan(self, track: dict[str, EndTrack]) -> tuple[list[tuple[str, float, float]], int] | None:
         """Where to measure each end quickly, (colour, x_px, y_px), and the windows' half size in
         cells: big enough for the larger end and its motion. None if a prediction is not finite."""
         ends = []
@@ -285,11 +213,11 @@ class ColourEndDetector:
             ends.append((colour, x, y))
         return ends, math.ceil(half_px / self.grid.cell_px)
 
-    def _both_plainly(
-        self, found: list[Measurement], track: dict[str, _Track]
+    def _both_tracked(
+        self, found: list[Measurement], track: dict[str, EndTrack]
     ) -> tuple[Measurement, Measurement] | None:
         for colour, m in zip(COLOURS, found, strict=True):
-            if not self._plainly(m, track[colour].area_px):
+            if not self._is_tracked_end(m, track[colour].area_px):
                 return None
         return found[0], found[1]
 
@@ -320,7 +248,7 @@ class ColourEndDetector:
         self._crowded = crowded
         return ImageDetections(ends[0], ends[1], "window")
 
-    def _plainly(self, m: Measurement | None, previous_area_px: float) -> bool:
+    def _is_tracked_end(self, m: Measurement | None, previous_area_px: float) -> bool:
         """Whether a quick measurement is plainly the end: whole, round, full, the same size."""
         return (
             m is not None
@@ -333,197 +261,13 @@ class ColourEndDetector:
             and self.limits.min_area_px <= m.area_px <= self.limits.max_area_px
         )
 
-    def _window_search(
-        self, frame: NDArray[np.uint8], track: dict[str, _Track]
-    ) -> ImageDetections | None:
-        """Both ends among the blobs near their previous positions, or None (search in full)."""
-        jobs = []
-        for colour in COLOURS:
-            t = track[colour]
-            radius = math.sqrt(t.area_px / math.pi)
-            speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
-            # Just around the ball first: it moves little between frames.
-            near = self._window_around(t.centre_px + t.velocity_px, _near_half_px(radius, speed))
-            if near is None:
-                return None
-            jobs.append((colour, near))
-        found = self._refine(frame, jobs)
-        searches = {}
-        for colour in COLOURS:
-            candidates, rejects = found[colour]
-            if not candidates:
-                # Then the whole tracking window, with the subsampled pass.
-                t = track[colour]
-                radius = math.sqrt(t.area_px / math.pi)
-                speed = math.hypot(float(t.velocity_px[0]), float(t.velocity_px[1]))
-                # Never smaller than the near window: after a jump the prediction can lie off
-                # the frame by more than track_window_px while the near window still reaches in.
-                wide = self._window_around(
-                    t.centre_px + t.velocity_px,
-                    max(self.cfg.track_window_px, 4.0 * radius, _near_half_px(radius, speed)),
-                )
-                if wide is None:
-                    return None
-                thr = self.thresholds[colour]
-                mask = coarse_masks(
-                    frame,
-                    self.grid,
-                    thr if colour == "red" else None,
-                    thr if colour == "blue" else None,
-                    wide,
-                    self.step_cells,
-                )
-                seeds = seed_windows(
-                    {colour: mask[0] if colour == "red" else mask[1]},
-                    wide,
-                    self.step_cells,
-                    self.grid,
-                    self.limits,
-                )[colour]
-                jobs = [(colour, w) for w in seeds.windows[:MAX_WINDOWS]]
-                candidates, rejects = self._refine(frame, jobs)[colour]
-                if not candidates:
-                    return None
-            searches[colour] = _Search(candidates, 1, 0, rejects, True)
-        return self._result(
-            frame, searches, "window", {c: track[c].area_px for c in COLOURS}, need_pair=True
-        )
-
-    def _window_around(self, centre_px: NDArray[np.float64], half_px: float) -> Region | None:
-        """The cells within ``half_px`` of ``centre_px`` (clipped to the frame), or None if none."""
-        x, y = float(centre_px[0]), float(centre_px[1])
-        if not (math.isfinite(x) and math.isfinite(y)):
-            return None
-        s = self.grid.cell_px
-        lo_r, hi_r, lo_c, hi_c = self.grid.interior()
-        region = (
-            max(lo_r, int((y - half_px) // s)),
-            min(hi_r, int((y + half_px) // s) + 1),
-            max(lo_c, int((x - half_px) // s)),
-            min(hi_c, int((x + half_px) // s) + 1),
-        )
-        if region[1] - region[0] < 2 or region[3] - region[2] < 2:
-            return None
-        return region
-
-    def _refine(
-        self, frame: NDArray[np.uint8], jobs: list[tuple[str, Region]]
-    ) -> dict[str, tuple[list[Candidate], Rejects]]:
-        """Ball-shaped candidates and rejects per colour, from refining (colour, window) jobs."""
-        refined = refine(frame, self.grid, jobs, self.thresholds, self.limits)
-        cut = [j for j, c in enumerate(refined.cut) if c]
-        if cut:
-            # A blob reaches its window's edge: the seed understated it (weak rim, fast motion).
-            again = refine(
-                frame,
-                self.grid,
-                [(jobs[j][0], grow(jobs[j][1], 2 * self.step_cells, self.grid)) for j in cut],
-                self.thresholds,
-                self.limits,
-            )
-            for i, j in enumerate(cut):
-                refined.candidates[j] = again.candidates[i]
-                refined.rejects[j] = again.rejects[i]
-        out: dict[str, tuple[list[Candidate], Rejects]] = {c: ([], Rejects({})) for c in COLOURS}
-        seen: set[tuple[int, int, int, int]] = set()
-        for (colour, _), candidates, rejects in zip(
-            jobs, refined.candidates, refined.rejects, strict=True
-        ):
-            found, total = out[colour]
-            total.merge(rejects)
-            for c in candidates:
-                # Grown windows can overlap their neighbours: keep each blob once.
-                key = c.bbox_px(self.grid)
-                if key not in seen:
-                    seen.add(key)
-                    found.append(c)
-        return out
-
-    # ------------------------------------------------------------------ results
-
-    def _result(
-        self,
-        frame: NDArray[np.uint8],
-        found: dict[str, _Search],
-        search: str,
-        previous_area_px: dict[str, float] | None,
-        need_pair: bool = False,
-    ) -> ImageDetections | None:
-        choice = choose(
-            found["red"].candidates,
-            found["blue"].candidates,
-            self.length_over_diameter,
-            previous_area_px,
-            lambda r, b: rod_evidence(frame, self.grid, r, b, self.rod_over_diameter),
-        )
-        if need_pair and not choice.paired:
-            return None
-        ends = {}
-        chosen = {}
-        for colour, cand in (("red", choice.red), ("blue", choice.blue)):
-            if cand is None:
-                s = found[colour]
-                ends[colour] = EndDetection.missing(
-                    missing_reason(colour, s.seeds, s.too_large_seeds, s.rejects, s.examined_all)
-                )
-            else:
-                chosen[colour] = cand
-        measured = self._measure_chosen(frame, list(chosen.values()))
-        scores = {"red": choice.red_score, "blue": choice.blue_score}
-        for colour, m in zip(chosen, measured, strict=True):
-            score = scores[colour]
-            ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, score, None)
-        return ImageDetections(ends["red"], ends["blue"], search)  # type: ignore[arg-type]
-
-    def _measure_chosen(
-        self, frame: NDArray[np.uint8], chosen: list[Candidate]
-    ) -> list[Measurement]:
-        """The chosen candidates' centres, areas and boxes, all at once when that is the same.
-
-        Measured together (trackerd.detect.quick) in square windows around each
-        blob's region when each blob was alone in its search window and each
-        window's thresholded samples all lie in the region :func:`measure_candidate`
-        would measure (then both see the same samples); otherwise one by one, other
-        blobs in the region left out.
-        """
-        if self.flat and chosen and all(c.alone and c.scale == 1 for c in chosen):
-            regions = [candidate_region(self.grid, c) for c in chosen]
-            ends, half_cells = [], 0
-            for c, (r0, r1, c0, c1) in zip(chosen, regions, strict=True):
-                row, col = (r0 + r1 - 1) // 2, (c0 + c1 - 1) // 2
-                half_cells = max(half_cells, row - r0, r1 - 1 - row, col - c0, c1 - 1 - col)
-                dr, dc = self.grid.offset(c.colour)
-                ends.append((c.colour, float(2 * col + dc), float(2 * row + dr)))
-            found = measure_windows(
-                frame,
-                self.grid,
-                ends,
-                half_cells,
-                self.thresholds,
-                ANY_SHAPE,
-                self._work,
-                within=regions,
-                every_pixel=self.rim_pixels,
-            )
-            if found is not None:
-                return found
-        measured = [
-            measure_candidate(frame, self.grid, c, self.thresholds[c.colour], self.weighted)
-            for c in chosen
-        ]
-        return self._centres(frame, measured)
-
-    def _centres(self, frame: NDArray[np.uint8], found: list[Measurement]) -> list[Measurement]:
-        """The ends' centres and areas from every pixel of their rims (or as measured)."""
-        return measure_rims(frame, self.grid, found, self._work) if self.rim_pixels else found
-
     def follow(self, red_px: NDArray[np.float64], blue_px: NDArray[np.float64], red_radius_px: float,
                blue_radius_px: float) -> None:
         """Track the ends from these positions next frame: where a search beyond this detector (the
         locator's, across cameras) found the balls this frame, whatever this detector took for them."""
         self._track = {
-            "red": _Track(float(red_px[0]), float(red_px[1]), 0.0, 0.0, math.pi * red_radius_px**2),
-            "blue": _Track(float(blue_px[0]), float(blue_px[1]), 0.0, 0.0, math.pi * blue_radius_px**2),
+            "red": EndTrack(float(red_px[0]), float(red_px[1]), 0.0, 0.0, math.pi * red_radius_px**2),
+            "blue": EndTrack(float(blue_px[0]), float(blue_px[1]), 0.0, 0.0, math.pi * blue_radius_px**2),
         }
 
     def _remember(self, result: ImageDetections) -> None:
@@ -540,16 +284,12 @@ class ColourEndDetector:
             if previous is not None:
                 vx, vy = x - previous[colour].x_px, y - previous[colour].y_px
             crowded = result.search == "window" and colour in self._crowded
-            track[colour] = _Track(x, y, vx, vy, end.area_px, crowded)
+            track[colour] = EndTrack(x, y, vx, vy, end.area_px, crowded)
         self._track = track
 
 
-def _near_half_px(radius_px: float, speed_px: float) -> float:
-    """Half-size of the first window a tracked end is looked for in (the blob search's near window)."""
-    return 2.0 * radius_px + speed_px + 8.0
 
-
-def detect_together(
+def detect_all_cameras(
     detectors: Sequence[ColourEndDetector], frames: Sequence[NDArray[np.uint8]]
 ) -> list[ImageDetections]:
     """Each camera's frame through its detector (what ``[d.detect(f) for ...]`` gives), with the
@@ -557,7 +297,7 @@ def detect_together(
 
     While every camera tracks the pointer plainly, which is the common case,
     the ends of all cameras are measured in one set of flat arrays
-    (trackerd.detect.quick) instead of one per camera: about half the NumPy
+    (trackerd.detect.window_measure) instead of one per camera: about half the NumPy
     calls, which is most of the cost of a pair. The windows then have one size,
     the largest any camera needs, and each end's thresholded samples must lie
     inside the window that camera would have used alone, off its border (then
@@ -593,31 +333,32 @@ def detect_together(
         if len(regions) == len(own):  # else its own windows would not fit in the frame
             planned.append((index, own_ends, own_half, regions))
     if len(planned) >= 2:
-        together = [index for index, _, _, _ in planned]
+        joined = [index for index, _, _, _ in planned]
         half_cells = max(half for _, _, half, _ in planned)
         ends = [end for _, plan_ends, _, _ in planned for end in plan_ends]
         within = [region for _, _, _, regions in planned for region in regions]
-        first = detectors[together[0]]
+        first = detectors[joined[0]]
         found = measure_windows(
-            [frames[i] for i in together for _ in COLOURS],
+            [frames[i] for i in joined for _ in COLOURS],
             first.grid,
             ends,
             half_cells,
             first.thresholds,
-            first._plain,
+            first._round_blob,
             first._work,
             within=within,
             every_pixel=first.rim_pixels,
         )
         if found is not None:
-            for k, i in enumerate(together):
+            for k, i in enumerate(joined):
                 detector = detectors[i]
                 assert detector._track is not None
-                both = detector._both_plainly(found[2 * k : 2 * k + 2], detector._track)
+                both = detector._both_tracked(found[2 * k : 2 * k + 2], detector._track)
                 if both is not None:
-                    results[i] = detector._quick_result(both[0], both[1], set())
-                    if results[i] is not None:
-                        detector._remember(results[i])
+                    result = detector._quick_result(both[0], both[1], set())
+                    if result is not None:
+                        detector._remember(result)
+                        results[i] = result
     return [
         result if result is not None else detector.detect(frame)
         for detector, frame, result in zip(detectors, frames, results, strict=True)

@@ -70,7 +70,7 @@ class Workspace:
         # The frame's pixels, window by window, and the four samples of each cell as planes:
         # plane 2 * dy + dx is the pixel (dx, dy) from the end's own colour sample, so plane 0
         # is the own colour, 1 the green to its right, 2 the green below, 3 the other colour.
-        # Plane 4 is the own sample's colour excess (trackerd.detect.quick).
+        # Plane 4 is the own sample's colour excess (trackerd.detect.window_measure).
         self.pixels = np.zeros((n, 2 * rows, 2 * cols), dtype=np.uint8)
         self.planes = np.zeros((5, size), dtype=F32)
         self.pixels_as_planes = self.pixels.reshape(n, rows, 2, cols, 2).transpose(2, 4, 0, 1, 3)

@@ -42,12 +42,13 @@ MIN_SATURATION = 100
 def to_bgr(frame: NDArray[np.uint8], pixel_format: str) -> NDArray[np.uint8]:
     """Any supported frame -> (H, W, 3) BGR, demosaicing a Bayer mosaic bilinearly."""
     code = _DEMOSAIC_TO_BGR.get(pixel_format)
+    # np.asarray: OpenCV's stubs type its results loosely; they are uint8 arrays (not copied).
     if code is not None:
-        return cv2.cvtColor(frame, code)
+        return np.asarray(cv2.cvtColor(frame, code), dtype=np.uint8)
     if pixel_format == "BGR8":
         return frame
     if pixel_format == "RGB8":
-        return cv2.cvtColor(frame, cv2.COLOR_RGB2BGR)
+        return np.asarray(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR), dtype=np.uint8)
     raise ImageError(f"pixel format {pixel_format!r} is not a colour format")
 
 
@@ -60,11 +61,11 @@ def opencv_reference(
     for colour, hue, thr in (("red", 0, cfg.red), ("blue", 120, cfg.blue)):
         low = (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, thr.min_value)
         high = (min(hue + HUE_HALF_WIDTH, 179), 255, 255)
-        mask = cv2.inRange(hsv, low, high)
+        mask = np.asarray(cv2.inRange(hsv, low, high), dtype=np.uint8)
         if hue - HUE_HALF_WIDTH < 0:  # red wraps around hue 0
-            mask |= cv2.inRange(
+            mask |= np.asarray(cv2.inRange(
                 hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, thr.min_value), (179, 255, 255)
-            )
+            ), dtype=np.uint8)
         m = cv2.moments(mask, binaryImage=True)
         if m["m00"] <= 0:
             ends[colour] = EndDetection.missing(f"no {colour} pixels in the hue band")
@@ -106,9 +107,11 @@ def naive_ends(frame: NDArray[np.uint8], pixel_format: str) -> dict[str, NDArray
     hsv = cv2.cvtColor(to_bgr(frame, pixel_format), cv2.COLOR_BGR2HSV)
     ends: dict[str, NDArray[np.float64] | None] = {}
     for colour, hue in (("red", 0), ("blue", 120)):
-        mask = cv2.inRange(hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40), (min(hue + HUE_HALF_WIDTH, 179), 255, 255))
+        mask = np.asarray(cv2.inRange(hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40),
+                                      (min(hue + HUE_HALF_WIDTH, 179), 255, 255)), dtype=np.uint8)
         if hue - HUE_HALF_WIDTH < 0:
-            mask |= cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, 40), (179, 255, 255))
+            mask |= np.asarray(cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, 40), (179, 255, 255)),
+                               dtype=np.uint8)
         count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         if count <= 1:
             ends[colour] = None

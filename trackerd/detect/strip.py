@@ -52,7 +52,8 @@ class Strip:
     def jobs_at(self, rows: NDArray[np.int64], cols: NDArray[np.int64]) -> list[int]:
         """Index of the window holding each strip cell (rows[i], cols[i]) (each inside a window)."""
         shelf = self.shelf_tops.searchsorted(rows, side="right") - 1
-        return self.shelf_jobs[shelf, cols].tolist()
+        jobs: list[int] = self.shelf_jobs[shelf, cols].tolist()
+        return jobs
 
     def origin(self, job: int, window: Region) -> tuple[int, int]:
         """(row, col) such that strip cell c of window ``job`` is frame cell origin + scale * c."""

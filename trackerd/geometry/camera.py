@@ -127,17 +127,19 @@ class CameraModel:
             skew = self.matrix[0, 1]
             y = (pix[:, 1] - cy) / fy
             x = (pix[:, 0] - cx - skew * y) / fx
-            return np.column_stack([x, y])
+            plain: Array = np.column_stack([x, y])
+            return plain
         out = cv2.undistortPoints(
             pix.reshape(-1, 1, 2), self.matrix, self.distortion, criteria=_UNDISTORT_CRITERIA
         )
-        return out.reshape(-1, 2)
+        return np.asarray(out, dtype=np.float64).reshape(-1, 2)  # float64 already: typed, not copied
 
     def rays_camera(self, pixels_px: Array) -> Array:
         """Pixels (N, 2) -> unit ray directions in the camera frame (N, 3)."""
         norm = self.normalized_from_pixels(pixels_px)
         dirs = np.column_stack([norm, np.ones(len(norm))])
-        return dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+        unit: Array = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+        return unit
 
     def pixel_to_ray(self, pixels_px: Array) -> tuple[Array, Array]:
         """Pixels (N, 2) -> rays in world coordinates: origins (N, 3) and unit directions (N, 3).

@@ -27,7 +27,7 @@ measurements (C, 2 ends, 2) with covariances (C, 2, 2, 2); ends are [front, back
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +35,34 @@ from numpy.typing import NDArray
 from trackerd.errors import GeometryError
 
 Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class EndViews:
+    """What the fit is given: C cameras' poses, their measurements of both ends, and the pointer's length."""
+
+    rotations: Array
+    """World-to-camera rotations (C, 3, 3)."""
+    translations_m: Array
+    """World-to-camera translations (C, 3)."""
+    measured: Array
+    """Each end in each camera's normalised image plane (C, 2 ends (front, back), 2)."""
+    covariances: Array
+    """Their covariances (C, 2, 2, 2); DROPPED_VARIANCE times the identity where a camera does not see an end."""
+    length_m: float
+    length_sigma_m: float
+    """The length prior's standard deviation."""
+    ball_radius_m: float = 0.0
+    """> 0: each measurement is the centre of the ball's image ellipse (a centroid); 0: the projection of
+    the ball's centre (a fitted outline)."""
+
+    @staticmethod
+    def of(rotations: Array, translations_m: Array, measured: Array, covariances: Array, length_m: float,
+           length_sigma_m: float, ball_radius_m: float = 0.0) -> EndViews:
+        """The views as float64 arrays (the covariances copied: the robust fit changes them)."""
+        return EndViews(np.asarray(rotations, dtype=np.float64), np.asarray(translations_m, dtype=np.float64),
+                        np.asarray(measured, dtype=np.float64), np.array(covariances, dtype=np.float64),
+                        float(length_m), float(length_sigma_m), float(ball_radius_m))
 
 
 @dataclass(frozen=True)
@@ -63,19 +91,8 @@ INCONSISTENT = 2.0
 """A fit whose chi-square exceeds this times its degrees of freedom looks for a measurement to leave out."""
 
 
-def fit_pointer_robust(
-    rotations: Array,
-    translations_m: Array,
-    measured: Array,
-    covariances: Array,
-    length_m: float,
-    length_sigma_m: float,
-    front0_m: Array,
-    back0_m: Array,
-    ball_radius_m: float = 0.0,
-    rounds: int = 2,
-    min_cameras: int = 2,
-) -> PointerFit:
+def fit_pointer_robust(views: EndViews, front0_m: Array, back0_m: Array, rounds: int = 2, min_cameras: int = 2
+                       ) -> PointerFit:
     """:func:`fit_pointer`, leaving out measurements that do not agree with the others.
 
     While the measurements disagree (reduced chi-square above INCONSISTENT), the fit is redone without
@@ -87,13 +104,10 @@ def fit_pointer_robust(
     the largest residuals are then often the good ones; where the cameras are nearly in line, it can
     pull the fit so far along their common direction that its own residual is small.
     """
-    rot = np.asarray(rotations, dtype=np.float64)
-    trans = np.asarray(translations_m, dtype=np.float64)
-    obs = np.asarray(measured, dtype=np.float64)
-    cov = np.array(covariances, dtype=np.float64)
+    cov = np.array(views.covariances, dtype=np.float64)  # a copy: measurements left out change it
     present = np.array([[float(np.trace(cov[c, e])) < DROPPED_VARIANCE for e in range(2)] for c in range(len(cov))])
     dropped: list[tuple[int, int]] = []
-    fit = fit_pointer(rot, trans, obs, cov, length_m, length_sigma_m, front0_m, back0_m, ball_radius_m)
+    fit = fit_pointer(replace(views, covariances=cov), front0_m, back0_m)
     for _ in range(rounds):
         if fit.chi2 <= INCONSISTENT * _dof(present):
             break
@@ -104,8 +118,7 @@ def fit_pointer_robust(
             trial = cov.copy()
             trial[c, e] = np.eye(2) * DROPPED_VARIANCE
             try:
-                candidate = fit_pointer(rot, trans, obs, trial, length_m, length_sigma_m, fit.front_m, fit.back_m,
-                                        ball_radius_m)
+                candidate = fit_pointer(replace(views, covariances=trial), fit.front_m, fit.back_m)
             except GeometryError:
                 continue
             if best is None or candidate.chi2 < best[0]:
@@ -141,24 +154,10 @@ def predict(rotations: Array, translations_m: Array, front_m: Array, back_m: Arr
     return np.stack([xc[..., 0] / z * factor, xc[..., 1] / z * factor], axis=-1)
 
 
-def fit_pointer(
-    rotations: Array,
-    translations_m: Array,
-    measured: Array,
-    covariances: Array,
-    length_m: float,
-    length_sigma_m: float,
-    front0_m: Array,
-    back0_m: Array,
-    ball_radius_m: float = 0.0,
-    max_iterations: int = 8,
-) -> PointerFit:
-    """Fit F and B (see the module). ``ball_radius_m`` > 0 predicts each measurement as the centre of
-    the ball's image ellipse (a centroid), 0 as the projection of the ball's centre (a fitted outline)."""
-    rot = np.asarray(rotations, dtype=np.float64)
-    trans = np.asarray(translations_m, dtype=np.float64)
-    obs = np.asarray(measured, dtype=np.float64)
-    cov = np.asarray(covariances, dtype=np.float64)
+def fit_pointer(views: EndViews, front0_m: Array, back0_m: Array, max_iterations: int = 8) -> PointerFit:
+    """Fit F and B (see the module) to ``views``, from F = ``front0_m`` and B = ``back0_m``."""
+    rot, trans, obs, cov = views.rotations, views.translations_m, views.measured, views.covariances
+    length_m, length_sigma_m, ball_radius_m = views.length_m, views.length_sigma_m, views.ball_radius_m
     cameras = rot.shape[0]
     # Whitening: L^T with L L^T = cov^-1, per camera and end.
     try:
@@ -185,7 +184,7 @@ def fit_pointer(
     chi2 = float(residuals @ residuals)
     jtj = jacobian.T @ jacobian
     try:
-        covariance = np.linalg.inv(jtj)
+        covariance = np.asarray(np.linalg.inv(jtj), dtype=np.float64)  # float64 already: typed, not copied
     except np.linalg.LinAlgError as err:
         raise GeometryError("the cameras do not constrain the pointer (singular fit)") from err
     dof = max(residuals.size - 6, 1)

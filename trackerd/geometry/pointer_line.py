@@ -107,7 +107,8 @@ def interpretation_plane_normals(front_dirs: Array, back_dirs: Array) -> Array:
     norms = np.sqrt(np.sum(normals * normals, axis=1, keepdims=True))
     if np.any(norms < 1e-12):
         raise GeometryError("the pointer's two ends coincide in an image: it is seen end-on")
-    return normals / norms
+    unit: Array = normals / norms
+    return unit
 
 
 def line_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, float]:
@@ -119,8 +120,8 @@ def line_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, fl
     GeometryError when the planes are parallel.
     """
     if len(normals) == 2:
-        points, directions, conditioning = two_plane_lines(centres_m, normals[None])
-        return points[0], directions[0], float(conditioning[0])
+        points, directions, conditionings = two_plane_lines(centres_m, normals[None])
+        return points[0], directions[0], float(conditionings[0])
     scatter = normals.T @ normals
     eigenvalues, eigenvectors = np.linalg.eigh(scatter)
     direction = eigenvectors[:, 0]
@@ -133,8 +134,8 @@ def line_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, fl
     offsets = np.sum(normals * centres_m, axis=1)
     lhs = scatter + np.outer(direction, direction)
     rhs = normals.T @ offsets + direction * (direction @ centres_m.mean(axis=0))
-    point = np.linalg.solve(lhs, rhs)
-    return point, direction, conditioning
+    point: Array = np.linalg.solve(lhs, rhs)
+    return point, np.asarray(direction, dtype=np.float64), conditioning
 
 
 def two_plane_lines(centres_m: Array, normals: Array) -> tuple[Array, Array, Array]:
@@ -173,7 +174,8 @@ def _ends_along_line(point: Array, direction: Array, origins: Array, dirs: Array
     sin2 = np.maximum(1.0 - b * b, 1e-18)
     s = (b * e - d1) / sin2
     s_mean = np.sum(s * sin2, axis=-1) / np.sum(sin2, axis=-1)
-    return point + s_mean[:, None] * direction
+    placed: Array = point + s_mean[:, None] * direction
+    return placed
 
 
 def estimate_pointer_line(
@@ -270,4 +272,5 @@ def sphere_centre_direction(centroid_dirs_cam: Array, depth_m: Array, radius_m: 
     normalised = dirs[:, :2] / dirs[:, 2:3]
     scale = 1.0 - (radius_m / np.asarray(depth_m, dtype=np.float64)) ** 2
     corrected = np.column_stack([normalised * scale[:, None], np.ones(len(dirs))])
-    return corrected / np.linalg.norm(corrected, axis=1, keepdims=True)
+    unit: Array = corrected / np.linalg.norm(corrected, axis=1, keepdims=True)
+    return unit

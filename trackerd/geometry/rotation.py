@@ -74,13 +74,13 @@ def ypr_from_world_from_camera(rotation: NDArray[np.float64]) -> tuple[float, fl
 def rotation_from_rvec(rvec: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rodrigues vector (axis * angle, radians) -> 3x3 rotation matrix."""
     matrix, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
-    return matrix
+    return np.asarray(matrix, dtype=np.float64)  # float64 already: typed, not copied
 
 
 def rvec_from_rotation(rotation: NDArray[np.float64]) -> NDArray[np.float64]:
     """3x3 rotation matrix -> Rodrigues vector, shape (3,)."""
     rvec, _ = cv2.Rodrigues(np.asarray(rotation, dtype=np.float64))
-    return rvec.reshape(3)
+    return np.asarray(rvec, dtype=np.float64).reshape(3)  # float64 already: typed, not copied
 
 
 def rotation_angle_deg(rotation: NDArray[np.float64]) -> float:

@@ -127,7 +127,8 @@ def plane_line_hits(c0: Vec, c1: Vec, rotations: tuple[Rows, Rows], variants: li
                     wall_normal: Vec, wall_offset_m: float) -> list[Vec]:
     """Where the interpretation planes' line meets the wall plane, for sets of normalised end
     coordinates (x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b): the batched path of the locator's
-    uncertainty (:meth:`Locator._plane_hits_xy`). The wall plane is n . x + offset = 0 (eq. 23).
+    uncertainty (:func:`trackerd.geometry.camera_set.hit_uncertainty_reference_m`). The wall plane is
+    n . x + offset = 0 (eq. 23).
 
     Raises GeometryError when the line of a set is parallel to the wall or the planes are parallel.
     """

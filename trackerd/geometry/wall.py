@@ -249,7 +249,7 @@ class WallFrame:
         The display's pixel (0, 0) edge is the wall's top-left corner, so
         ``px = x / width * W`` and ``py = (1 - y / height) * H``.
         """
-        if not self.has_display:
+        if self.display_width_px is None or self.display_height_px is None:
             raise ValueError("the wall has no display size configured")
         xy = np.asarray(wall_xy_m, dtype=np.float64)
         px = xy[..., 0] / self.width_m * self.display_width_px
@@ -388,7 +388,7 @@ def _check_rectangle(corners: Array, tolerance_m: float) -> None:
                 f"corners_m do not form a rectangle: the {a} edge is {lengths[a] * 1000:.0f} mm long and the"
                 f" {b} edge {lengths[b] * 1000:.0f} mm (order: bottom-left, bottom-right, top-right, top-left)"
             )
-    for index, (first, second) in enumerate((("bottom", "left"), ("bottom", "right"), ("top", "right"), ("top", "left"))):
+    for first, second in (("bottom", "left"), ("bottom", "right"), ("top", "right"), ("top", "left")):
         cos = abs(float(edges[first] @ edges[second])) / (lengths[first] * lengths[second])
         error = 90.0 - float(np.degrees(np.arccos(min(cos, 1.0))))
         if error > MAX_CORNER_ANGLE_ERROR_DEG:

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from trackerd.acquisition.frame import FramePair
 from trackerd.acquisition.pacing import wait_until_due
 from trackerd.acquisition.source import PairSource
-from trackerd.acquisition.status import CameraStatus, SourceStatus
+from trackerd.acquisition.status import CameraState, CameraStatus, SourceStatus
 from trackerd.errors import RecordingError
 from trackerd.recording.format import RecordHeader
 from trackerd.recording.reader import Recording, make_pair
@@ -271,7 +271,7 @@ class ReplayPairSource(PairSource):
                 self._times.popleft()
             rate = len(self._times) / (RATE_WINDOW_NS / 1e9) if self._running else 0.0
             skews = sorted(self._skews)
-            state = "streaming" if self._running else "stopped"
+            state: CameraState = "streaming" if self._running else "stopped"
             delivered = self.delivered
         p50 = skews[len(skews) // 2] / 1e3 if skews else None
         p99 = skews[min(len(skews) - 1, int(0.99 * len(skews)))] / 1e3 if skews else None

@@ -148,6 +148,7 @@ class WindowPlanner:
             now = {}
             for colour in COLOURS:
                 end = detection.end(colour)
+                assert end.centroid_px is not None  # both ends found
                 x, y = (float(v) for v in end.centroid_px[:2])
                 before = previous.get(colour) if previous else None
                 vx, vy = (x - before.x_px, y - before.y_px) if before else (0.0, 0.0)

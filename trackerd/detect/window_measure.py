@@ -1,6 +1,6 @@
 """Both ends measured at once in small windows where tracking expects them (Bayer frames).
 
-While the pointer is tracked, each end is almost always plainly where its
+While the pointer is tracked, each end is almost always where its
 motion says: one round blob in a small window around the prediction. This
 measures the ends' windows together, in one set of flat arrays
 (:mod:`trackerd.detect.flat`), all the way to the centre from every pixel:
@@ -34,7 +34,7 @@ from trackerd.detect.flat import Ops, Workspace, WorkspaceCache, run
 
 
 @dataclass(frozen=True, slots=True)
-class Plain:
+class BlobShape:
     """What a blob must be for the quick measurement to stand: round and full."""
 
     max_elongation: float
@@ -43,7 +43,7 @@ class Plain:
     """Thresholded samples over the box's samples."""
 
 
-ANY_SHAPE = Plain(float("inf"), 0.0)
+ANY_SHAPE = BlobShape(float("inf"), 0.0)
 
 
 def measure_windows(
@@ -52,7 +52,7 @@ def measure_windows(
     ends: list[tuple[str, float, float]],
     half_cells: int,
     thresholds: dict[str, Threshold],
-    plain: Plain,
+    shape: BlobShape,
     cache: WorkspaceCache,
     within: list[Region] | None = None,
     every_pixel: bool = True,
@@ -63,8 +63,8 @@ def measure_windows(
     ends of several cameras measured together: their frames must share ``grid``'s
     layout). Returns one measurement per end (centre and area from every pixel, or with
     ``every_pixel=False`` from the own samples alone), or None as soon as one end
-    is not plainly there: nothing of its colour, touching the window's border,
-    not ``plain``, outside its region of ``within`` (frame cells, one per end),
+    is not clearly there: nothing of its colour, touching the window's border,
+    not of ``shape``, outside its region of ``within`` (frame cells, one per end),
     or the window not fitting in the frame.
     """
     n = len(ends)
@@ -107,7 +107,7 @@ def measure_windows(
         tall, wide = i1 - i0 + 1, j1 - j0 + 1
         elongation = max(tall, wide) / min(tall, wide)
         fill = counts[e] / (tall * wide)
-        if elongation > plain.max_elongation or fill < plain.min_fill:
+        if elongation > shape.max_elongation or fill < shape.min_fill:
             return None
         boxes.append((i0, i1, j0, j1, elongation, fill))
 
