@@ -9,7 +9,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 NOT_SOURCE = shutil.ignore_patterns(
-    ".git", ".venv", ".cache", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".ruff_cache",
+    ".git", ".venv", ".cache", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".ruff_cache", ".mypy_cache",
     ".hypothesis", "simrig-out", "tests",
 )
 """What a build does not need from the checkout: VCS, caches, earlier builds' leftovers, the tests."""
