@@ -19,13 +19,8 @@ from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import grey_for_calibration
 from trackerd.calibration.collect import collect_views
 from trackerd.calibration.inputs import camera_frames
-from trackerd.calibration.live import (
-    IntrinsicsSession,
-    Steadiness,
-    StereoSession,
-    WallSession,
-    run_session,
-)
+from trackerd.calibration.live import IntrinsicsSession, StereoSession, run_session
+from trackerd.calibration.pointer_sessions import Steadiness, WallSession
 from trackerd.calibration.views import ViewSelector
 from trackerd.calibration.wall import fit_wall
 from trackerd.locator import Locator

@@ -28,9 +28,9 @@ from typing import Any
 from pydantic import ValidationError
 
 from trackerd.calibration import CalibrationError
-from trackerd.config.tomlwrite import dumps
 from trackerd.config.loader import describe_validation_error, load_calibration, merge_calibration, parse_rig, read_toml
 from trackerd.config.models import CALIBRATION_ONLY_FORMAT, CalibrationFile, RigConfig
+from trackerd.config.tomlwrite import dumps
 from trackerd.errors import ConfigError
 
 WORLD_FRAME_KEY = "world_frame"

@@ -193,7 +193,8 @@ def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], c
 def no_board_hint(spec: BoardSpec, frame: tuple[str, np.ndarray, str]) -> str:
     """What to say when no image showed the board: a board of a neighbouring size that one of them does
     show (the --board to give), else what else to check. Never a guess presented as the cause."""
-    from trackerd.calibration.board import board_size_hint, grey_for_calibration
+    from trackerd.calibration.board import grey_for_calibration
+    from trackerd.calibration.chessboard import board_size_hint
 
     name, image, pixel_format = frame
     other = board_size_hint(grey_for_calibration(image, pixel_format), spec)

@@ -6,8 +6,9 @@ import argparse
 from pathlib import Path
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, BoardView, Quality, grey_for_calibration
+from trackerd.calibration.board import BoardSpec, BoardView, grey_for_calibration
 from trackerd.calibration.collect import Collected, collect_views
+from trackerd.calibration.detection import Quality
 from trackerd.calibration.inputs import camera_frames, image_files
 from trackerd.calibration.intrinsics import MIN_VIEWS, MIN_VIEWS_FLOOR, IntrinsicsResult, calibrate_intrinsics
 from trackerd.calibration.live import IntrinsicsSession

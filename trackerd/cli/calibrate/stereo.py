@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, Quality, grey_for_calibration
+from trackerd.calibration.board import BoardSpec, grey_for_calibration
 from trackerd.calibration.collect import Collected, collect_pairs
+from trackerd.calibration.detection import Quality
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.live import StereoSession
 from trackerd.calibration.pictures import stereo_pictures, write_index

@@ -16,7 +16,7 @@ from trackerd.calibration.inputs import (
     read_targets,
     split_label,
 )
-from trackerd.calibration.live import WallSession
+from trackerd.calibration.pointer_sessions import WallSession
 from trackerd.calibration.report import measured_wall_text, wall_fit_json, wall_fit_text
 from trackerd.calibration.store import WORLD_FRAME_KEY, RigContext, open_rig
 from trackerd.calibration.update import apply_measured_wall, apply_wall_fit
