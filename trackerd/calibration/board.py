@@ -88,7 +88,7 @@ class BoardSpec:
                 f"board '{text}': expected chessboard:COLSxROWS:SQUARE_MM or"
                 " charuco:COLSxROWS:SQUARE_MM:MARKER_MM[:DICT], counting squares (e.g. chessboard:10x7:60)"
             )
-        kind = "charuco" if match["kind"] == "charuco" else "chessboard"
+        kind: Literal["chessboard", "charuco"] = "charuco" if match["kind"] == "charuco" else "chessboard"
         marker = match["marker"]
         if kind == "chessboard" and (marker or match["dict"]):
             raise ValueError(f"board '{text}': a chessboard has no markers")
@@ -158,7 +158,7 @@ class BoardSpec:
         """Whether squares (col, row) are black. A chessboard's top-left square is black; a ChArUco
         board's colouring follows OpenCV's (markers sit in the white squares)."""
         parity = (np.asarray(col) + np.asarray(row)) % 2
-        return parity == self._black_parity
+        return np.asarray(parity == self._black_parity, dtype=np.bool_)
 
     @cached_property
     def _black_parity(self) -> int:
@@ -194,7 +194,7 @@ class BoardSpec:
         out = []
         for marker_id, corners in zip(np.asarray(board.getIds()).ravel(), board.getObjPoints(), strict=True):
             byte_list = dictionary.bytesList[int(marker_id) : int(marker_id) + 1]
-            bits = cv2.aruco.Dictionary_getBitsFromByteList(byte_list, dictionary.markerSize)
+            bits = cv2.aruco.Dictionary.getBitsFromByteList(byte_list, dictionary.markerSize)
             out.append(
                 (int(marker_id), np.asarray(corners, dtype=np.float64).reshape(4, 3), np.asarray(bits, dtype=np.uint8))
             )
@@ -220,7 +220,7 @@ def grey_for_calibration(frame: NDArray[np.uint8], pixel_format: str) -> NDArray
     """
     if frame.ndim == 3:
         code = cv2.COLOR_RGB2GRAY if pixel_format == "RGB8" else cv2.COLOR_BGR2GRAY
-        return cv2.cvtColor(np.ascontiguousarray(frame), code)
+        return np.asarray(cv2.cvtColor(np.ascontiguousarray(frame), code), dtype=np.uint8)
     if pixel_format not in BAYER_LAYOUTS:
         return np.ascontiguousarray(frame)
     out = frame.astype(np.float32)
@@ -270,7 +270,7 @@ def stretched(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     low, high = (float(v) for v in np.percentile(image[::2, ::2], (1, 99)))
     if high - low < 1.0:
         return image
-    return np.clip((image.astype(np.float32) - low) * (255.0 / (high - low)), 0, 255).astype(np.uint8)
+    return np.asarray(np.clip((image.astype(np.float32) - low) * (255.0 / (high - low)), 0, 255), dtype=np.uint8)
 
 
 MIN_EDGE_CONTRAST = 8

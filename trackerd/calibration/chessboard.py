@@ -39,7 +39,7 @@ def find_chessboard(grey: NDArray[np.uint8], spec: BoardSpec, name: str) -> Boar
     # resolution in a window around it; the corners are refined below either way.
     finder = ""
     if min(grey.shape[:2]) >= 720:
-        small = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        small = np.asarray(cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA), dtype=np.uint8)
         found = _sector_corners(small, cols, rows)
         if found is not None:
             # Pixel centres sit at integers in both images: x_full = (x_small + 0.5) * 2 - 0.5.
@@ -146,7 +146,7 @@ def _sector_corners(
     return None
 
 
-def _first_search(image: NDArray[np.uint8], cols: int, rows: int) -> Array | None | Literal["larger board"]:
+def _first_search(image: NDArray[np.uint8], cols: int, rows: int) -> Array | Literal["larger board"] | None:
     """The first detector (sector-based, normalised), allowed to return a larger board than asked.
 
     Corners (cols * rows, 2) when it finds the board asked for (the same corners as without
@@ -248,7 +248,7 @@ def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
         return None
     cols, rows = spec.inner_corners
     if min(grey.shape[:2]) >= 720:
-        grey = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        grey = np.asarray(cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA), dtype=np.uint8)
     candidates: list[tuple[int, bool, int, int]] = []
     tried = {(cols, rows), (rows, cols)}  # the size given, either way round, is what was not found
     for dc in (-1, 0, 1):

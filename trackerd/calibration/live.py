@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import cv2
 import numpy as np
@@ -34,6 +35,10 @@ from trackerd.calibration.intrinsics import MIN_VIEWS, IntrinsicsResult, calibra
 from trackerd.calibration.stereo import StereoPair
 from trackerd.calibration.views import ViewSelector
 from trackerd.pixelformat import to_bgr
+
+if TYPE_CHECKING:
+    from trackerd.acquisition.frame import FramePair
+    from trackerd.acquisition.source import PairSource
 
 Array = NDArray[np.float64]
 
@@ -188,6 +193,7 @@ class StereoSession:
     def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]], skew_ns: int = 0) -> Event | None:
         self.frames += 1
         name = f"{self.frames:03d}"
+        reason: str | None
         if skew_ns > self.max_skew_ns:
             reason = (
                 f"out of sync: the two frames are {skew_ns / 1e6:.1f} ms apart (limit {self.max_skew_ns / 1e6:.1f} ms)"
@@ -225,7 +231,16 @@ class StereoSession:
         return "move and tip the board to new places in the area both cameras see"
 
 
-def pair_frames(pair, camera_ids: Sequence[str]) -> list[tuple[str, NDArray[np.uint8], str]]:
+class Session(Protocol):
+    """What :func:`run_session` drives: a session fed one pair's frames at a time until done."""
+
+    @property
+    def done(self) -> bool: ...
+
+    def feed(self, frames: Sequence[tuple[str, NDArray[np.uint8], str]]) -> Event | None: ...
+
+
+def pair_frames(pair: FramePair, camera_ids: Sequence[str]) -> list[tuple[str, NDArray[np.uint8], str]]:
     """A FramePair as (name, image, pixel format) per camera."""
     return [
         (f"{cam_id}-{frame.frame_id}", frame.image, frame.pixel_format)
@@ -233,7 +248,7 @@ def pair_frames(pair, camera_ids: Sequence[str]) -> list[tuple[str, NDArray[np.u
     ]
 
 
-def newest_pair(source, timeout_s: float):
+def newest_pair(source: PairSource, timeout_s: float) -> FramePair | None:
     """The newest pair available: wait up to ``timeout_s`` for one, then skip to the latest."""
     pair = source.next_pair(timeout_s)
     if pair is None:
@@ -246,8 +261,8 @@ def newest_pair(source, timeout_s: float):
 
 
 def run_session(
-    source,
-    session,
+    source: PairSource,
+    session: Session,
     camera_ids: Sequence[str],
     *,
     say: Callable[[str], None],

@@ -9,6 +9,7 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,6 +17,9 @@ from numpy.typing import NDArray
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.calibration.live import Event, save_frame
 from trackerd.calibration.wall import Pointing, Target, Touch
+
+if TYPE_CHECKING:
+    from trackerd.locator import Locator
 
 Array = NDArray[np.float64]
 
@@ -78,7 +82,7 @@ class WallSession:
 
     def __init__(
         self,
-        locator,
+        locator: Locator,
         targets: Sequence[Target],
         method: str,
         places: int = 2,
@@ -170,7 +174,7 @@ class WallSession:
                 f"  skipped '{skipped}': no capture in {self.skip_after} frames ({why}); next: {self.prompt()}",
                 finished=self.done,
             )
-        if not located:
+        if not located or fix.line is None:  # (the second says the same to the type checker)
             self.steadiness.clear()
             self.unlocated += 1
             self._unlocated_reason = fix.reason
@@ -218,7 +222,7 @@ class WallSession:
 class CheckSession:
     """Accumulates ray gaps and reprojection errors of the waved pointer."""
 
-    def __init__(self, locator, health: CalibrationHealth, wanted_fixes: int = 300) -> None:
+    def __init__(self, locator: Locator, health: CalibrationHealth, wanted_fixes: int = 300) -> None:
         self.locator = locator
         self.health = health
         self.wanted = wanted_fixes

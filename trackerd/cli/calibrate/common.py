@@ -8,17 +8,22 @@ import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardSpec
-from trackerd.calibration.live import run_session
+from trackerd.calibration.live import Session, run_session
 from trackerd.calibration.stereo import Lens
 from trackerd.calibration.store import RigContext, require_output, write_calibration
-from trackerd.config.models import CameraConfig, PoseExtrinsics, RigConfig
+from trackerd.config.models import CalibrationFile, CameraConfig, PoseExtrinsics, RigConfig
 from trackerd.config.rig_geometry import camera_model
+
+if TYPE_CHECKING:
+    from trackerd.acquisition.source import PairSource
+    from trackerd.sim.board import RenderedPairSource
 
 
 class Output:
@@ -95,7 +100,12 @@ def snapshot_dir(args: argparse.Namespace, step: str) -> Path | None:
 
 
 def write_result(
-    context: RigContext, calibration, header: str, dry_run: bool, notes: list[str], check_wall: bool = True
+    context: RigContext,
+    calibration: CalibrationFile,
+    header: str,
+    dry_run: bool,
+    notes: list[str],
+    check_wall: bool = True,
 ) -> dict[str, Any]:
     """Write the calibration file (unless a dry run); what happened is appended to ``notes``."""
     if dry_run:
@@ -113,15 +123,15 @@ def run_live(
     context: RigContext,
     rig_for_source: RigConfig,
     args: argparse.Namespace,
-    session,
+    session: Session,
     out: Output,
-    simulated: Callable[[], Any] | None,
+    simulated: Callable[[], PairSource] | None,
 ) -> None:
     """Run a session on the live source; Ctrl-C ends collection and keeps what was collected."""
     if args.recording is not None:
         from trackerd.recording.replay import ReplayPairSource
 
-        source = ReplayPairSource(args.recording, speed=None)
+        source: PairSource = ReplayPairSource(args.recording, speed=None)
         newest = False
     elif args.source == "simulated":
         if simulated is None:
@@ -156,7 +166,7 @@ def simulation_truth(context: RigContext) -> RigConfig:
     return rig
 
 
-def simulated_pointer(context: RigContext, count: int, seed: int):
+def simulated_pointer(context: RigContext, count: int, seed: int) -> RenderedPairSource:
     """The pointer waved in a figure eight over the display (trackerd.sim.motion), rendered: ``2 count`` pairs."""
     from trackerd.sim.board import RenderedPairSource
     from trackerd.sim.motion import make_motion
@@ -169,14 +179,14 @@ def simulated_pointer(context: RigContext, count: int, seed: int):
     ids = [c.id for c in truth.cameras]
     frames = count * 2
 
-    def render(k: int):
+    def render(k: int) -> list[NDArray[np.uint8]]:
         pose = motion(k * motion.period_s / frames)
         return [scene.render(i, pose, rng).image for i in range(len(ids))]
 
     return RenderedPairSource(ids, list(scene.pixel_formats), render, frames)
 
 
-def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], count: int):
+def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], count: int) -> RenderedPairSource:
     from trackerd.sim.board import BoardRenderer, board_pair_source, poses_for_camera, poses_for_pair
     from trackerd.sim.render import SceneRenderer
 
