@@ -18,7 +18,7 @@ from trackerd.calibration.board import BoardSpec
 from trackerd.calibration.live import Session, run_session
 from trackerd.calibration.stereo import Lens
 from trackerd.calibration.store import RigContext, require_output, write_calibration
-from trackerd.config.models import CalibrationFile, CameraConfig, PoseExtrinsics, RigConfig
+from trackerd.config.models import CalibrationFile, CameraConfig, PointerConfig, PoseExtrinsics, RigConfig, WallConfig
 from trackerd.config.rig_geometry import camera_model
 
 if TYPE_CHECKING:
@@ -75,6 +75,20 @@ def rig_camera(rig: RigConfig, camera_id: str) -> tuple[int, CameraConfig]:
         if cam.id == camera_id:
             return index, cam
     raise CalibrationError(f"no camera '{camera_id}' in the rig; it has {', '.join(c.id for c in rig.cameras)}")
+
+
+def rig_wall(rig: RigConfig) -> WallConfig:
+    """The rig's [wall] table, which the pointer steps need (an error naming it when missing)."""
+    if rig.wall is None:
+        raise CalibrationError("the rig has no [wall] table: give the display's size there (docs/calibration.md)")
+    return rig.wall
+
+
+def rig_pointer(rig: RigConfig) -> PointerConfig:
+    """The rig's [pointer] table, which the pointer steps need (an error naming it when missing)."""
+    if rig.pointer is None:
+        raise CalibrationError("the rig has no [pointer] table: give the pointer's balls there (docs/calibration.md)")
+    return rig.pointer
 
 
 def lens_of(cam: CameraConfig) -> Lens:
