@@ -261,9 +261,11 @@ def board_size_hint(grey: NDArray[np.uint8], spec: BoardSpec) -> str | None:
     # The largest first, the way round the user gave before the other: the first found is the
     # answer, and the failed searches are not run for the smaller ones.
     ordered = [(c, r) for _, _, c, r in sorted(candidates, reverse=True)]
+    # One search names the board in view (1-3 s); trying the largest neighbour first would save it
+    # for a board one square larger each way, and cost a failed search (several seconds) otherwise.
     shown = _board_shown(grey, max(2, cols - 1), max(2, rows - 1))
     named = [(c, r) for c, r in ordered if shown is not None and sorted((c, r)) == shown]
-    for c, r in dict.fromkeys(named[:1] + ordered):  # the named size first, searched once
+    for c, r in dict.fromkeys(named[:1] + ordered):  # the named size first, each searched once
         if _is_board_of_size(grey, c, r):
             return f"chessboard:{c + 1}x{r + 1}:{format_mm(spec.square_m)}"
     return None

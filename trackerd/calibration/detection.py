@@ -1,10 +1,10 @@
 """Looking for a board in one image: the view found, or why the image gives none.
 
 A board's search is the costly part of calibration (0.1 s to a few seconds an image), and one
-command may look at the same image more than once (a session offered a frame again, the tests'
-photos in one run): the board found in an image is kept, keyed by the image's content and the
-board, for the last :data:`FOUND_CACHE_SIZE` images searched, and judged again under the caller's
-limits each time.
+process may look at the same image more than once (a live session offered an unchanged frame
+again, a program that calibrates each camera and then the pair from the same images): the board
+found in an image is kept, keyed by the image's content and the board, for the last
+:data:`FOUND_CACHE_SIZE` images searched, and judged again under the caller's limits each time.
 """
 
 from __future__ import annotations
