@@ -108,7 +108,8 @@ def pointer_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
 @pytest.fixture(scope="session")
 def intrinsics_views(intrinsics_frames: FrameSet, simulated_rig: RigConfig) -> dict:
     """The board views detected in intrinsics_frames, per camera id."""
-    from trackerd.calibration.board import detect_board, grey_for_calibration
+    from trackerd.calibration.board import grey_for_calibration
+    from trackerd.calibration.detection import detect_board
 
     out: dict[str, list] = {cam.id: [] for cam in simulated_rig.cameras}
     for name in intrinsics_frames.names():
@@ -131,7 +132,8 @@ def calibrated_lenses(intrinsics_views: dict) -> dict:
 @pytest.fixture(scope="session")
 def stereo_pairs(stereo_frames: FrameSet, simulated_rig: RigConfig) -> list:
     """Matched StereoPairs detected in stereo_frames."""
-    from trackerd.calibration.board import detect_board, grey_for_calibration
+    from trackerd.calibration.board import grey_for_calibration
+    from trackerd.calibration.detection import detect_board
     from trackerd.calibration.stereo import match_views
 
     ids = [cam.id for cam in simulated_rig.cameras]

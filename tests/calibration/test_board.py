@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from calibration_frames import INTRINSICS_BOARD, STEREO_BOARD, FrameSet
 
-from trackerd.calibration.board import BoardSpec, detect_board, grey_for_calibration
+from trackerd.calibration.board import BoardSpec, grey_for_calibration
+from trackerd.calibration.detection import detect_board
 from trackerd.pixelformat import from_rgb
 from trackerd.sim.board import BoardRenderer, board_black, poses_for_camera, poses_for_pair
 

@@ -17,7 +17,9 @@ import cv2
 import numpy as np
 import pytest
 
-from trackerd.calibration.board import BoardSpec, BoardView, corners_are_junctions, detect_board
+from trackerd.calibration.board import BoardSpec, BoardView
+from trackerd.calibration.chessboard import corners_are_junctions
+from trackerd.calibration.detection import detect_board
 from trackerd.calibration.intrinsics import IntrinsicsResult, calibrate_intrinsics
 from trackerd.calibration.stereo import Lens, calibrate_stereo, match_views
 

@@ -23,16 +23,17 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.bench.progress import BenchProgress
 from trackerd.calibration.board import BoardSpec
-from trackerd.calibration.collect import collect_pairs, collect_views
+from trackerd.calibration.collect import Frame, collect_pairs, collect_views
 from trackerd.calibration.intrinsics import IntrinsicsResult, calibrate_intrinsics, lens_model_difference_px
 from trackerd.calibration.stereo import Lens, StereoResult, calibrate_stereo
 from trackerd.calibration.store import RigContext, render_calibration
@@ -45,7 +46,7 @@ from trackerd.config.models import CalibrationFile, RigConfig
 from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.rotation import rotation_angle_deg
 from trackerd.locator import Locator
-from trackerd.sim.board import BoardRenderer, poses_for_camera, poses_for_pair
+from trackerd.sim.board import BoardPose, BoardRenderer, poses_for_camera, poses_for_pair
 from trackerd.sim.render import SceneRenderer
 from trackerd.sim.scene import PointerPose, pose_aimed_at, pose_visible, random_pose, true_wall_hit
 
@@ -155,7 +156,7 @@ def calibrate_simulated(
     stereo_renderer = BoardRenderer(scene, stereo_board)
     pair_poses = poses_for_pair(scene, stereo_board, pairs, rng)
 
-    def frame_pairs():
+    def frame_pairs() -> Iterator[tuple[str, Frame, Frame]]:
         for k, pose in enumerate(pair_poses):
             yield (
                 f"pair-{k:02d}",
@@ -174,13 +175,18 @@ def calibrate_simulated(
     progress("the wall, by pointing")
     fit = wall_by_pointing(scene, in_camera_frame, pointing, rng)
     wall_cfg = true_rig.wall
-    display = (wall_cfg.display_width_px, wall_cfg.display_height_px) if wall_cfg.display_width_px else None
+    if wall_cfg is None:
+        raise ValueError("the true rig has no [wall] to calibrate")
+    width_px, height_px = wall_cfg.display_width_px, wall_cfg.display_height_px
+    display = (width_px, height_px) if width_px and height_px is not None else None
     calibration = apply_wall_fit(calibration, in_camera_frame, fit, "pointing (simulated)", display)
     recovered = merge_calibration(blank, calibration, Path("recovered-calibration.toml"))
     return SimulatedCalibration(scene, blank, results, stereo, fit, calibration, recovered, rejected)
 
 
-def _render(renderer: BoardRenderer, index: int, pose, rng: np.random.Generator):
+def _render(
+    renderer: BoardRenderer, index: int, pose: BoardPose, rng: np.random.Generator
+) -> tuple[NDArray[np.uint8], str]:
     view = renderer.render(index, pose, rng, blur_px=PSF_PX)
     return view.image, view.pixel_format
 
@@ -210,6 +216,9 @@ def aimed_poses(
     rig = scene.rig
     wall = scene.wall
     sim = rig.simulation
+    if rig.pointer is None:
+        raise ValueError("the simulated rig has no [pointer] to aim")
+    length_m = rig.pointer.length_m
     floor_y = float(wall.corners_m[:, 1].min()) - sim.display_height_above_floor_m
     poses: list[PointerPose] = []
     for _ in range(max_tries):
@@ -221,7 +230,7 @@ def aimed_poses(
         height = rng.uniform(*sim.hand_height_m)
         tip = wall.origin_m + along * wall.x_axis + distance * wall.normal
         tip = tip + (floor_y + height - tip[1]) * np.array([0.0, 1.0, 0.0])
-        pose = pose_aimed_at(tip, target_world_m, rig.pointer.length_m)
+        pose = pose_aimed_at(tip, target_world_m, length_m)
         if pose_visible(pose, scene.cameras, 40.0):
             poses.append(pose)
     if len(poses) < count:
@@ -239,6 +248,8 @@ def wall_by_pointing(scene: SceneRenderer, rig_now: RigConfig, per_target: int, 
     nominal = scene.wall
     pointings: list[Pointing] = []
     for target in wall_targets(nominal.width_m, nominal.height_m):
+        if target.wall_xy_m is None:  # wall_targets places every target
+            continue
         world = nominal.from_wall_m(target.wall_xy_m)
         for pose in aimed_poses(scene, world, per_target, rng):
             images = [scene.render(i, pose, rng).image for i in range(len(scene.cameras))]
@@ -246,6 +257,8 @@ def wall_by_pointing(scene: SceneRenderer, rig_now: RigConfig, per_target: int, 
             fix = locator.locate(images)
             if fix.line is not None and fix.status != "rejected":
                 pointings.append(Pointing(target, fix.line.front_m, fix.line.back_m))
+    if rig_now.pointer is None:
+        raise ValueError("the rig has no [pointer]")
     radius = rig_now.pointer.end_diameter_m / 2.0
     return fit_wall([], pointings, (nominal.width_m, nominal.height_m), radius)
 

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.calibration.board import BoardSpec, BoardView, Quality, detect_board, grey_for_calibration
+from trackerd.calibration.board import BoardSpec, BoardView, grey_for_calibration
+from trackerd.calibration.detection import Quality, detect_board
 from trackerd.calibration.stereo import StereoPair, match_views
 from trackerd.calibration.views import ViewSelector
 

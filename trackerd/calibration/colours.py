@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,11 +45,16 @@ from trackerd.config.models import (
     DetectorConfig,
     LearnedColour,
     PointerColours,
+    PointerConfig,
     RigConfig,
 )
 from trackerd.detect.colour import sample_grid
 from trackerd.detect.margin import BALL_PERCENTILE, Disc, colour_samples, unhidden
 from trackerd.geometry.camera import CameraModel
+
+if TYPE_CHECKING:
+    from trackerd.detect.detector import ColourEndDetector
+    from trackerd.locator import Locator, PointerFix
 
 COLOURS = ("red", "blue")
 
@@ -100,6 +106,17 @@ class CameraFigures:
     background_at_px: tuple[float, float] | None
 
 
+class DetectorCheck(TypedDict):
+    """How often the detector's own search finds both ends where the located pointer is."""
+
+    before: tuple[int, int]
+    """(images found in, images tried) with the rig's thresholds."""
+    after: tuple[int, int]
+    """The same with the learned thresholds."""
+    pairs: int
+    """How many pairs those images are from."""
+
+
 @dataclass(frozen=True)
 class LearnedFigures:
     """The result: what each end and the room reached, the thresholds, and what to say about them."""
@@ -111,7 +128,7 @@ class LearnedFigures:
     used: int
     """Pairs the pointer was located well enough in to learn from."""
     warnings: tuple[str, ...]
-    detector_check: dict | None = None
+    detector_check: DetectorCheck | None = None
     """'before' / 'after' -> (images where the detector's own search found both ends where the pointer
     is, images tried), and 'pairs': how many pairs those images are from (a sample of
     :data:`CHECK_FRAMES`); None when not tried."""
@@ -146,15 +163,16 @@ class ColourLearner:
     """Accumulates ball and background figures from located pairs (a live session's ``feed``)."""
 
     def __init__(self, rig: RigConfig, cameras: Sequence[CameraModel], wanted: int = 60,
-                 locator=None, seed: int = 0) -> None:
+                 locator: Locator | None = None, seed: int = 0) -> None:
         if rig.pointer is None:
             raise CalibrationError("learning the pointer's colours needs the rig's [pointer] table")
-        from trackerd.locator import Locator
+        self.pointer: PointerConfig = rig.pointer
+        from trackerd.locator import Locator as LocatorClass
 
         self.rig = rig
         self.cameras = list(cameras)
         self.wanted = wanted
-        self.locator = locator or Locator(rig, cameras=self.cameras)
+        self.locator = locator or LocatorClass(rig, cameras=self.cameras)
         self.frames = 0
         self.used = 0
         self._cameras = [_Camera() for _ in self.cameras]
@@ -178,7 +196,7 @@ class ColourLearner:
                              f" ({fix.reason or fix.status}): wave it where both cameras see it")
             return None
         self.used += 1
-        pointer = self.rig.pointer
+        pointer = self.pointer
         radius_m = pointer.end_diameter_m / 2.0
         discs_all = []
         for index, (camera, (_, image, pixel_format)) in enumerate(zip(self.cameras, frames, strict=True)):
@@ -187,7 +205,8 @@ class ColourLearner:
             if any(d is None for d in discs.values()):
                 continue
             grid = sample_grid(pixel_format, camera.width_px, camera.height_px)
-            rod_px = 0.5 * pointer.rod_diameter_m / pointer.end_diameter_m * max(d.radius_px for d in discs.values())
+            widest_px = max(d.radius_px for d in discs.values() if d is not None)
+            rod_px = 0.5 * pointer.rod_diameter_m / pointer.end_diameter_m * widest_px
             for colour in COLOURS:
                 samples = colour_samples(image, grid, colour, discs, rod_half_width_px=rod_px + 1.5)
                 seen = self._cameras[index]
@@ -209,7 +228,7 @@ class ColourLearner:
             )
         return None
 
-    def _centre_agrees(self, fix, index: int, colour: str, disc: Disc | None) -> bool:
+    def _centre_agrees(self, fix: PointerFix, index: int, colour: str, disc: Disc | None) -> bool:
         if disc is None or index >= len(fix.centroids_px):
             return False
         measured = fix.centroids_px[index].get(colour)
@@ -217,7 +236,7 @@ class ColourLearner:
             return False
         return math.hypot(measured[0] - disc.x_px, measured[1] - disc.y_px) <= CENTRE_AGREEMENT * disc.radius_px
 
-    def _keep(self, images, discs) -> None:
+    def _keep(self, images: list[tuple[NDArray[np.uint8], str]], discs: list[dict[str, Disc | None]]) -> None:
         """Reservoir of :data:`CHECK_FRAMES` pairs for the detector check."""
         if len(self._kept) < CHECK_FRAMES:
             self._kept.append((images, discs))
@@ -228,8 +247,7 @@ class ColourLearner:
 
     def _pooled(self, colour: str) -> tuple[float | None, int | None]:
         """(ball excess of the darkest camera, background excess of the most colourful camera)."""
-        balls = [_percentile(cam.ball[colour]) for cam in self._cameras]
-        balls = [b for b in balls if b is not None]
+        balls = [b for b in (_percentile(cam.ball[colour]) for cam in self._cameras) if b is not None]
         rooms = [cam.background[colour][0] for cam in self._cameras if colour in cam.background]
         return (min(balls) if balls else None, max(rooms) if rooms else None)
 
@@ -292,7 +310,7 @@ class ColourLearner:
         check = self._detector_check(colours) if check_detector and self._kept else None
         return LearnedFigures(colours, tuple(per_camera), self.frames, self.used, tuple(warnings), check)
 
-    def _detector_check(self, colours: PointerColours) -> dict[str, tuple[int, int]]:
+    def _detector_check(self, colours: PointerColours) -> DetectorCheck:
         """How often the detector's own search (no outline fit, no joint choice) finds both ends where the
         located pointer is, with the rig's thresholds and with the learned ones."""
         from trackerd.detect.detector import ColourEndDetector
@@ -303,20 +321,21 @@ class ColourLearner:
             for c in COLOURS
         })
         found = {name: self._found_with(cfg, ColourEndDetector) for name, cfg in (("before", before), ("after", after))}
-        return {**found, "pairs": len(self._kept)}
+        return {"before": found["before"], "after": found["after"], "pairs": len(self._kept)}
 
-    def _found_with(self, cfg: DetectorConfig, detector_class) -> tuple[int, int]:
+    def _found_with(self, cfg: DetectorConfig, detector_class: type[ColourEndDetector]) -> tuple[int, int]:
         found = tried = 0
         for images, discs in self._kept:
             for camera, (image, fmt), disc in zip(self.cameras, images, discs, strict=True):
-                if any(d is None for d in disc.values()):
+                ends = {c: d for c, d in disc.items() if d is not None}
+                if len(ends) < len(disc):
                     continue
                 tried += 1
-                result = detector_class(cfg, fmt, camera.width_px, camera.height_px, self.rig.pointer).detect(image)
+                result = detector_class(cfg, fmt, camera.width_px, camera.height_px, self.pointer).detect(image)
                 found += all(
                     result.end(c).found
-                    and math.hypot(result.end(c).centroid_px[0] - disc[c].x_px,
-                                   result.end(c).centroid_px[1] - disc[c].y_px) <= 0.5 * disc[c].radius_px
+                    and (at := result.end(c).centroid_px) is not None
+                    and math.hypot(at[0] - ends[c].x_px, at[1] - ends[c].y_px) <= 0.5 * ends[c].radius_px
                     for c in COLOURS
                 )
         return found, tried
@@ -337,7 +356,7 @@ def _percentile(arrays: list[NDArray[np.int16]]) -> float | None:
 def _worst_figures(per_camera: list[CameraFigures], colour: str) -> CameraFigures:
     """The camera whose room reached the most of ``colour``."""
     return max((f for f in per_camera if f.colour == colour and f.background_excess is not None),
-               key=lambda f: f.background_excess)
+               key=lambda f: -1 if f.background_excess is None else f.background_excess)
 
 
 def _worst(per_camera: list[CameraFigures], colour: str) -> str:

@@ -19,12 +19,17 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import camera_model
 from trackerd.geometry.camera import CameraModel
+
+if TYPE_CHECKING:
+    from trackerd.locator import PointerFix
 
 Array = NDArray[np.float64]
 
@@ -54,11 +59,11 @@ def ellipse_centre_px(camera: CameraModel, centre_m: Array, radius_m: float) -> 
     scale = in_cam[2] / (in_cam[2] ** 2 - radius_m**2)
     shifted_cam = np.array([in_cam[0] * scale, in_cam[1] * scale, 1.0])
     world = (shifted_cam - camera.translation_m) @ camera.rotation
-    return camera.project(world[None])[0]
+    return np.asarray(camera.project(world[None])[0], dtype=np.float64)
 
 
 def fix_figures(
-    fix,
+    fix: PointerFix,
     cameras: Sequence[CameraModel],
     radius_m: float,
     front_colour: str,
@@ -187,19 +192,24 @@ class CalibrationHealth:
         self.total = 0
 
     @classmethod
-    def for_rig(cls, rig, cameras: Sequence[CameraModel] | None = None, **kwargs) -> CalibrationHealth:
+    def for_rig(
+        cls, rig: RigConfig, cameras: Sequence[CameraModel] | None = None, **kwargs: Any
+    ) -> CalibrationHealth:
         """From a RigConfig (pointer ball size and front colour)."""
+        pointer = rig.pointer
+        if pointer is None:
+            raise ValueError("the rig has no [pointer]: its ball size and colours are needed to judge fixes")
         cams = list(cameras) if cameras is not None else [camera_model(c) for c in rig.cameras]
-        kwargs.setdefault("length_m", rig.pointer.length_m)
-        kwargs.setdefault("length_tolerance_m", rig.pointer.length_tolerance_m)
-        return cls(cams, rig.pointer.end_diameter_m / 2.0, rig.pointer.front_colour, **kwargs)
+        kwargs.setdefault("length_m", pointer.length_m)
+        kwargs.setdefault("length_tolerance_m", pointer.length_tolerance_m)
+        return cls(cams, pointer.end_diameter_m / 2.0, pointer.front_colour, **kwargs)
 
     def add(self, gap_m: float, reprojection_px: float) -> None:
         self._gaps.append(float(gap_m))
         self._reprojection.append(float(reprojection_px))
         self.total += 1
 
-    def add_fix(self, fix) -> bool:
+    def add_fix(self, fix: PointerFix) -> bool:
         """Account for one locator fix; False when it had no line to measure."""
         figures = fix_figures(
             fix, self.cameras, self.radius_m, self.front_colour, self.length_m, self.length_tolerance_m

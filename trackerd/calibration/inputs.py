@@ -173,7 +173,8 @@ def read_targets(
                 )
         except (TypeError, ValueError) as err:
             raise CalibrationError(f"{where}: not a number ({err})") from err
-        if not np.all(np.isfinite(out[label].wall_xy_m)):
+        xy_m = out[label].wall_xy_m
+        if xy_m is None or not np.all(np.isfinite(xy_m)):
             raise CalibrationError(f"{where}: not a finite number")
     return out
 

@@ -45,13 +45,13 @@ class Picture:
 
 
 def _bgr(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    return cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR) if grey.ndim == 2 else grey.copy()
+    return np.asarray(cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR), dtype=np.uint8) if grey.ndim == 2 else grey.copy()
 
 
 def _fit_width(image: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], float]:
     scale = min(1.0, MAX_WIDTH_PX / image.shape[1])
     if scale < 1.0:
-        image = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        image = np.asarray(cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA), dtype=np.uint8)
     return image, scale
 
 
@@ -207,7 +207,8 @@ def intrinsics_pictures(
             result.distortion,
         )
         title = f"{camera_id} {name}: RMS {result.per_view_rms_px[k]:.3f} px"
-        picture = view_picture(grey, view.image_points_px, reprojected.reshape(-1, 2), title)
+        projected_px = np.asarray(reprojected, dtype=np.float64).reshape(-1, 2)
+        picture = view_picture(grey, view.image_points_px, projected_px, title)
         stem = Path(name).stem
         pictures.append(Picture(_write(folder, f"{camera_id}-view-{stem}.png", picture), title))
     return pictures
@@ -235,7 +236,7 @@ def rectified_picture(
         (grey2, result.lens2, r2, p2, pair.points2_px),
     ):
         map_x, map_y = cv2.initUndistortRectifyMap(lens.matrix, lens.distortion, rect, proj, size, cv2.CV_32FC1)
-        image = _bgr(cv2.remap(grey, map_x, map_y, cv2.INTER_LINEAR))
+        image = _bgr(np.asarray(cv2.remap(grey, map_x, map_y, cv2.INTER_LINEAR), dtype=np.uint8))
         moved = cv2.undistortPoints(
             points.reshape(-1, 1, 2).astype(np.float64), lens.matrix, lens.distortion, R=rect, P=proj
         ).reshape(-1, 2)
@@ -298,9 +299,9 @@ def write_index(folder: Path, title: str, figures: Sequence[str], pictures: Sequ
         text = index.read_text()
         for block in text.split("<!-- section ")[1:]:
             name, _, rest = block.partition(" -->")
-            body, _, _ = rest.partition("<!-- /section -->")
+            kept, _, _ = rest.partition("<!-- /section -->")
             if name != html.escape(title):
-                sections.append((name, body))
+                sections.append((name, kept))
     body = [f"<h2>{html.escape(title)}</h2>", "<ul>"]
     body += [f"<li>{html.escape(line.strip())}</li>" for line in figures]
     body.append("</ul>")

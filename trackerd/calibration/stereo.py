@@ -118,7 +118,7 @@ def board_pose(pair_points: Array, object_points: Array, lens: Lens) -> tuple[Ar
     rvec, tvec = cv2.solvePnPRefineLM(
         object_points.astype(np.float64), pair_points.astype(np.float64), lens.matrix, lens.distortion, rvec, tvec
     )
-    return rotation_from_rvec(rvec.ravel()), tvec.ravel()
+    return rotation_from_rvec(np.asarray(rvec, dtype=np.float64).ravel()), np.asarray(tvec, dtype=np.float64).ravel()
 
 
 def check_sync(pairs: Sequence[StereoPair], lens1: Lens, lens2: Lens) -> SyncCheck:
@@ -301,13 +301,13 @@ def calibrate_stereo(
         )
     except cv2.error as err:
         raise CalibrationError(f"OpenCV could not solve the stereo pose: {err.err or err}") from err
-    rms, k1, d1, k2, d2, rotation, translation = out[:7]
+    rms, k1, d1, k2, d2, rotation_cv, translation_cv = out[:7]
     per_view = np.asarray(out[11], dtype=np.float64).reshape(len(kept), -1)
     per_pair = np.sqrt(np.mean(per_view**2, axis=1))
     lens1 = Lens(np.asarray(k1, dtype=np.float64), np.asarray(d1, dtype=np.float64).ravel())
     lens2 = Lens(np.asarray(k2, dtype=np.float64), np.asarray(d2, dtype=np.float64).ravel())
-    rotation = np.asarray(rotation, dtype=np.float64)
-    translation = np.asarray(translation, dtype=np.float64).ravel()
+    rotation = np.asarray(rotation_cv, dtype=np.float64)
+    translation = np.asarray(translation_cv, dtype=np.float64).ravel()
     epipolar = [epipolar_distances_px(p.points1_px, p.points2_px, lens1, lens2, rotation, translation) for p in kept]
     all_epipolar = np.concatenate(epipolar)
     return StereoResult(
@@ -346,7 +346,7 @@ def epipolar_distances_px(
     residual = np.sum(x2 * lines2, axis=1)
     d2 = np.abs(residual) / np.hypot(lines2[:, 0], lines2[:, 1]) * lens2.focal_px
     d1 = np.abs(residual) / np.hypot(lines1[:, 0], lines1[:, 1]) * lens1.focal_px
-    return (d1 + d2) / 2.0
+    return np.asarray((d1 + d2) / 2.0, dtype=np.float64)
 
 
 def _normalised_h(points_px: Array, lens: Lens) -> Array:

@@ -15,6 +15,7 @@ crash at any point leaves either the old file or the new one, never half of one.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import os
 import shutil
@@ -28,9 +29,9 @@ from typing import Any
 from pydantic import ValidationError
 
 from trackerd.calibration import CalibrationError
-from trackerd.config.tomlwrite import dumps
 from trackerd.config.loader import describe_validation_error, load_calibration, merge_calibration, parse_rig, read_toml
 from trackerd.config.models import CALIBRATION_ONLY_FORMAT, CalibrationFile, RigConfig
+from trackerd.config.tomlwrite import dumps
 from trackerd.errors import ConfigError
 
 WORLD_FRAME_KEY = "world_frame"
@@ -234,10 +235,9 @@ def _same_access(fd: int, path: Path) -> None:
         os.fchmod(fd, 0o666 & ~umask)
         return
     os.fchmod(fd, stat.S_IMODE(old.st_mode))
-    try:
+    # Not root: the file stays the calibrating user's, with the old mode.
+    with contextlib.suppress(PermissionError):
         os.fchown(fd, old.st_uid, old.st_gid)
-    except PermissionError:
-        pass  # not root: the file stays the calibrating user's, with the old mode
 
 
 def check_merged(rig: RigConfig, path: Path, check_wall: bool) -> None:

@@ -42,11 +42,9 @@ Array = NDArray[np.float64]
 
 def extrinsics_config(rotation: Array, translation_m: Array) -> OpenCVExtrinsics:
     """World-to-camera (R, t) as the calibration file stores it (a Rodrigues vector)."""
-    return OpenCVExtrinsics(
-        kind="opencv",
-        rvec=tuple(float(v) for v in rvec_from_rotation(rotation)),
-        tvec_m=tuple(float(v) for v in np.asarray(translation_m).ravel()),
-    )
+    rx, ry, rz = (float(v) for v in rvec_from_rotation(rotation))
+    tx, ty, tz = (float(v) for v in np.asarray(translation_m).ravel())
+    return OpenCVExtrinsics(kind="opencv", rvec=(rx, ry, rz), tvec_m=(tx, ty, tz))
 
 
 def camera_pose(rig: RigConfig, camera_id: str) -> tuple[Array, Array] | None:
@@ -156,7 +154,7 @@ def apply_wall_fit(
     }
     if display_px is not None:
         wall["display_width_px"], wall["display_height_px"] = display_px
-    if rig.wall.planarity_tolerance_m != 0.01:
+    if rig.wall is not None and rig.wall.planarity_tolerance_m != 0.01:
         wall["planarity_tolerance_m"] = rig.wall.planarity_tolerance_m
     return with_wall(calibration, WallConfig.model_validate(wall))
 

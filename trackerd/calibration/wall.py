@@ -21,7 +21,7 @@ wrong corner or a moved camera stands out.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -322,9 +322,10 @@ def _initial_points(
 
 def _room_side(touches: Sequence[Touch], pointings: Sequence[Pointing]) -> Array:
     """A direction from the wall into the room: from the tip toward the back ball, averaged."""
-    vectors = [np.asarray(o.back_m) - np.asarray(o.tip_m) for o in (*touches, *pointings)]
+    ends: list[Touch | Pointing] = [*touches, *pointings]
+    vectors = [np.asarray(o.back_m) - np.asarray(o.tip_m) for o in ends]
     mean = np.mean([v / np.linalg.norm(v) for v in vectors], axis=0)
-    return mean / np.linalg.norm(mean)
+    return np.asarray(mean / np.linalg.norm(mean), dtype=np.float64)
 
 
 def _initial_frame(
@@ -369,7 +370,7 @@ def _unpack(params: Array, rotation0: Array, origin0: Array) -> tuple[Array, Arr
 
 def _target_point(target: Target, rotation: Array, origin: Array, scale: Array, lift_m: float = 0.0) -> Array:
     xy = np.asarray(target.wall_xy_m, dtype=np.float64) * (scale if target.scalable else 1.0)
-    return origin + rotation @ np.array([xy[0], xy[1], lift_m])
+    return np.asarray(origin + rotation @ np.array([xy[0], xy[1], lift_m]), dtype=np.float64)
 
 
 def _touch_residual(touch: Touch, rotation: Array, origin: Array, scale: Array, tip_radius_m: float) -> Array:
@@ -403,7 +404,7 @@ def _residuals(
     return np.concatenate([w * part for w, part in zip(root_weights, parts, strict=True)])
 
 
-def _gauss_newton(func, params: Array, iterations: int = 50) -> Array:
+def _gauss_newton(func: Callable[[Array], Array], params: Array, iterations: int = 50) -> Array:
     """Minimise |func(p)|^2 by Gauss-Newton with a numerical Jacobian and step halving."""
     step = 1e-7
     current = func(params)
@@ -439,7 +440,7 @@ def _report(
     touches: Sequence[Touch],
     pointings: Sequence[Pointing],
     tip_radius_m: float,
-    used: Array,
+    used: NDArray[np.bool_],
 ) -> tuple[Residual, ...]:
     """Residuals of every observation (touches, then pointings grouped by target in first-seen order)."""
     normal = rotation[:, 2]

@@ -388,7 +388,9 @@ def poses_for_pair(
             break
         centre = rng.uniform(lo, hi)
         if facing is None:
-            towards = sum((c.centre_m - centre) / np.linalg.norm(c.centre_m - centre) for c in cams)
+            towards = np.asarray(
+                sum((c.centre_m - centre) / np.linalg.norm(c.centre_m - centre) for c in cams), dtype=np.float64
+            )
         else:
             towards = np.asarray(facing, dtype=np.float64)
         tilt_x = rng.uniform(-max_tilt_deg, max_tilt_deg)

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import argparse
 
-from trackerd.calibration.board import MAX_SHARPNESS_PX, BoardSpec
+from trackerd.calibration.board import BoardSpec
+from trackerd.calibration.detection import MAX_SHARPNESS_PX
 from trackerd.calibration.intrinsics import DISTORTION_TERMS, MIN_VIEWS, MIN_VIEWS_FLOOR
-from trackerd.calibration.live import SKIP_AFTER_FRAMES
+from trackerd.calibration.pointer_sessions import SKIP_AFTER_FRAMES
 from trackerd.calibration.stereo import MIN_PAIRS, MIN_PAIRS_FLOOR
 from trackerd.calibration.views import MIN_VIEW_CHANGE
 from trackerd.calibration.wall import DEFAULT_MAX_RMS_MM

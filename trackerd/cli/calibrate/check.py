@@ -7,7 +7,7 @@ import argparse
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.calibration.inputs import pair_files, read_pair
-from trackerd.calibration.live import CheckSession
+from trackerd.calibration.pointer_sessions import CheckSession
 from trackerd.calibration.report import health_text
 from trackerd.calibration.store import open_rig
 from trackerd.cli.calibrate.common import Output, check_source, run_live, simulated_pointer

@@ -8,17 +8,22 @@ import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardSpec
-from trackerd.calibration.live import run_session
+from trackerd.calibration.live import Session, run_session
 from trackerd.calibration.stereo import Lens
 from trackerd.calibration.store import RigContext, require_output, write_calibration
-from trackerd.config.models import CameraConfig, PoseExtrinsics, RigConfig
+from trackerd.config.models import CalibrationFile, CameraConfig, PointerConfig, PoseExtrinsics, RigConfig, WallConfig
 from trackerd.config.rig_geometry import camera_model
+
+if TYPE_CHECKING:
+    from trackerd.acquisition.source import PairSource
+    from trackerd.sim.board import RenderedPairSource
 
 
 class Output:
@@ -72,6 +77,20 @@ def rig_camera(rig: RigConfig, camera_id: str) -> tuple[int, CameraConfig]:
     raise CalibrationError(f"no camera '{camera_id}' in the rig; it has {', '.join(c.id for c in rig.cameras)}")
 
 
+def rig_wall(rig: RigConfig) -> WallConfig:
+    """The rig's [wall] table, which the pointer steps need (an error naming it when missing)."""
+    if rig.wall is None:
+        raise CalibrationError("the rig has no [wall] table: give the display's size there (docs/calibration.md)")
+    return rig.wall
+
+
+def rig_pointer(rig: RigConfig) -> PointerConfig:
+    """The rig's [pointer] table, which the pointer steps need (an error naming it when missing)."""
+    if rig.pointer is None:
+        raise CalibrationError("the rig has no [pointer] table: give the pointer's balls there (docs/calibration.md)")
+    return rig.pointer
+
+
 def lens_of(cam: CameraConfig) -> Lens:
     if cam.intrinsics is None:
         raise CalibrationError(
@@ -95,7 +114,12 @@ def snapshot_dir(args: argparse.Namespace, step: str) -> Path | None:
 
 
 def write_result(
-    context: RigContext, calibration, header: str, dry_run: bool, notes: list[str], check_wall: bool = True
+    context: RigContext,
+    calibration: CalibrationFile,
+    header: str,
+    dry_run: bool,
+    notes: list[str],
+    check_wall: bool = True,
 ) -> dict[str, Any]:
     """Write the calibration file (unless a dry run); what happened is appended to ``notes``."""
     if dry_run:
@@ -113,15 +137,15 @@ def run_live(
     context: RigContext,
     rig_for_source: RigConfig,
     args: argparse.Namespace,
-    session,
+    session: Session,
     out: Output,
-    simulated: Callable[[], Any] | None,
+    simulated: Callable[[], PairSource] | None,
 ) -> None:
     """Run a session on the live source; Ctrl-C ends collection and keeps what was collected."""
     if args.recording is not None:
         from trackerd.recording.replay import ReplayPairSource
 
-        source = ReplayPairSource(args.recording, speed=None)
+        source: PairSource = ReplayPairSource(args.recording, speed=None)
         newest = False
     elif args.source == "simulated":
         if simulated is None:
@@ -156,7 +180,7 @@ def simulation_truth(context: RigContext) -> RigConfig:
     return rig
 
 
-def simulated_pointer(context: RigContext, count: int, seed: int):
+def simulated_pointer(context: RigContext, count: int, seed: int) -> RenderedPairSource:
     """The pointer waved in a figure eight over the display (trackerd.sim.motion), rendered: ``2 count`` pairs."""
     from trackerd.sim.board import RenderedPairSource
     from trackerd.sim.motion import make_motion
@@ -169,14 +193,14 @@ def simulated_pointer(context: RigContext, count: int, seed: int):
     ids = [c.id for c in truth.cameras]
     frames = count * 2
 
-    def render(k: int):
+    def render(k: int) -> list[NDArray[np.uint8]]:
         pose = motion(k * motion.period_s / frames)
         return [scene.render(i, pose, rng).image for i in range(len(ids))]
 
     return RenderedPairSource(ids, list(scene.pixel_formats), render, frames)
 
 
-def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], count: int):
+def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], count: int) -> RenderedPairSource:
     from trackerd.sim.board import BoardRenderer, board_pair_source, poses_for_camera, poses_for_pair
     from trackerd.sim.render import SceneRenderer
 
@@ -193,7 +217,8 @@ def simulated_boards(context: RigContext, spec: BoardSpec, cameras: list[int], c
 def no_board_hint(spec: BoardSpec, frame: tuple[str, np.ndarray, str]) -> str:
     """What to say when no image showed the board: a board of a neighbouring size that one of them does
     show (the --board to give), else what else to check. Never a guess presented as the cause."""
-    from trackerd.calibration.board import board_size_hint, grey_for_calibration
+    from trackerd.calibration.board import grey_for_calibration
+    from trackerd.calibration.chessboard import board_size_hint
 
     name, image, pixel_format = frame
     other = board_size_hint(grey_for_calibration(image, pixel_format), spec)

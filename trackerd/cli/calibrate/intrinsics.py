@@ -6,8 +6,9 @@ import argparse
 from pathlib import Path
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, BoardView, Quality, grey_for_calibration
+from trackerd.calibration.board import BoardSpec, BoardView, grey_for_calibration
 from trackerd.calibration.collect import Collected, collect_views
+from trackerd.calibration.detection import Quality
 from trackerd.calibration.inputs import camera_frames, image_files
 from trackerd.calibration.intrinsics import MIN_VIEWS, MIN_VIEWS_FLOOR, IntrinsicsResult, calibrate_intrinsics
 from trackerd.calibration.live import IntrinsicsSession
@@ -106,8 +107,8 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         pictures = intrinsics_pictures(Path(args.report), cam.id, result, collected.views, images)
         lines = text.splitlines()
         figures = lines[:3] + [line for line in lines if line.strip().startswith(("not covered", "WARNING"))]
-        index = write_index(Path(args.report), f"camera {cam.id}", figures, pictures)
-        out.say(f"report: {index} ({len(pictures)} pictures)")
+        index_page = write_index(Path(args.report), f"camera {cam.id}", figures, pictures)
+        out.say(f"report: {index_page} ({len(pictures)} pictures)")
     if result.rms_px > args.max_rms:
         out.result(text, {"camera": cam.id, **report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")

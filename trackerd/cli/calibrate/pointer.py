@@ -109,7 +109,10 @@ def _json(figures: LearnedFigures) -> dict[str, Any]:
             for f in figures.per_camera
         ],
         "detector_check": (
-            {k: {"found": v[0], "views": v[1]} for k, v in figures.detector_check.items() if k != "pairs"}
+            {
+                "before": {"found": figures.detector_check["before"][0], "views": figures.detector_check["before"][1]},
+                "after": {"found": figures.detector_check["after"][0], "views": figures.detector_check["after"][1]},
+            }
             if figures.detector_check else None
         ),
         "warnings": list(figures.warnings),

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from trackerd.calibration import CalibrationError
-from trackerd.calibration.board import BoardSpec, Quality, grey_for_calibration
-from trackerd.calibration.collect import Collected, collect_pairs
+from trackerd.calibration.board import BoardSpec, grey_for_calibration
+from trackerd.calibration.collect import Collected, Frame, collect_pairs
+from trackerd.calibration.detection import Quality
 from trackerd.calibration.inputs import pair_files, read_pair
 from trackerd.calibration.live import StereoSession
 from trackerd.calibration.pictures import stereo_pictures, write_index
@@ -76,7 +78,7 @@ def stereo_command(args: argparse.Namespace) -> int:
         out.say(f"{args.pairs}: {len(found.moments)} pair(s), {found.layout}")
         moments = {moment.name: moment.files for moment in found.moments}
 
-        def frame_pairs():
+        def frame_pairs() -> Iterator[tuple[str, Frame, Frame]]:
             for moment in found.moments:
                 frames = read_pair(moment.files, [cam1, cam2], grey_ok=True)
                 yield moment.name, frames[0], frames[1]
@@ -89,8 +91,7 @@ def stereo_command(args: argparse.Namespace) -> int:
         hint = ""
         if moments and all("no whole board found" in reason for _, reason in collected.rejected):
             first = next(iter(moments.values()))
-            frame = read_pair(first, [cam1, cam2], grey_ok=True)[0]
-            hint = no_board_hint(spec, frame)
+            hint = no_board_hint(spec, read_pair(first, [cam1, cam2], grey_ok=True)[0])
         raise CalibrationError(f"no pair in {collected.frames} had the board seen by both cameras{hint}")
     result = calibrate_stereo(
         collected.pairs,

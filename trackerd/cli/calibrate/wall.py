@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.inputs import (
@@ -16,16 +17,30 @@ from trackerd.calibration.inputs import (
     read_targets,
     split_label,
 )
-from trackerd.calibration.live import WallSession
+from trackerd.calibration.pointer_sessions import WallSession
 from trackerd.calibration.report import measured_wall_text, wall_fit_json, wall_fit_text
 from trackerd.calibration.store import WORLD_FRAME_KEY, RigContext, open_rig
 from trackerd.calibration.update import apply_measured_wall, apply_wall_fit
 from trackerd.calibration.visibility import common_view_rectangle, touch_seen, view_targets
 from trackerd.calibration.wall import Pointing, Target, Touch, fit_problem, fit_wall
-from trackerd.cli.calibrate.common import Output, check_source, run_live, simulation_truth, snapshot_dir, write_result
+from trackerd.cli.calibrate.common import (
+    Output,
+    check_source,
+    rig_pointer,
+    rig_wall,
+    run_live,
+    simulation_truth,
+    snapshot_dir,
+    write_result,
+)
 from trackerd.config.models import RigConfig
 from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.locator import Locator
+
+if TYPE_CHECKING:
+    from trackerd.sim.board import RenderedPairSource
+    from trackerd.sim.render import SceneRenderer
+    from trackerd.sim.scene import PointerPose
 
 
 def wall_command(args: argparse.Namespace) -> int:
@@ -38,14 +53,14 @@ def wall_command(args: argparse.Namespace) -> int:
             raise CalibrationError(f"--points FILE is the whole input; it takes no {' or '.join(extra)}")
         return _measured_wall(context, args, out)
     rig = context.complete()
-    nominal = wall_frame(context.rig.wall or rig.wall)
+    nominal = wall_frame(context.rig.wall or rig_wall(rig))
     size = (nominal.width_m, nominal.height_m)
-    display = nominal.display_width_px, nominal.display_height_px
-    display_px = display if nominal.has_display else None
+    width_px, height_px = nominal.display_width_px, nominal.display_height_px
+    display_px = (width_px, height_px) if width_px is not None and height_px is not None else None
     targets = read_targets(args.targets, *size, display_px) if args.targets else default_targets(*size)
     mode = check_source(args, "--pairs DIR", args.pairs is not None)
     method = "touch" if args.touch else "point"
-    radius = rig.pointer.end_diameter_m / 2.0
+    radius = rig_pointer(rig).end_diameter_m / 2.0
     touches: list[Touch] = []
     pointings: list[Pointing] = []
     skipped: list[str] = []
@@ -124,7 +139,7 @@ def _touch_targets_in_view(
         )
         return labels
     cameras = [camera_model(c) for c in rig.cameras]
-    wall = wall_frame(rig.wall)
+    wall = wall_frame(rig_wall(rig))
     xy = np.array([targets[label].wall_xy_m for label in labels])
     seen = touch_seen(cameras, wall, xy, radius)
     out_of_view = [(label, row) for label, row in zip(labels, seen, strict=True) if not row.all()]
@@ -132,7 +147,7 @@ def _touch_targets_in_view(
         return labels
     ids = [c.id for c in rig.cameras]
 
-    def who(row) -> str:
+    def who(row: NDArray[np.bool_]) -> str:
         seeing = [i for i, s in zip(ids, row, strict=True) if s]
         return f"only {seeing[0]} sees it" if len(seeing) == 1 else "neither camera sees it"
 
@@ -153,6 +168,8 @@ def _touch_targets_in_view(
     targets.update(chosen)
 
     def describe(target: Target) -> str:
+        if target.wall_xy_m is None:  # view_targets places every target it makes
+            return f"  {target.label}"
         x, y = target.wall_xy_m
         pixels = ""
         if display_px is not None:
@@ -231,7 +248,7 @@ def _measured_wall(context: RigContext, args: argparse.Namespace, out: Output) -
     return 0
 
 
-def _simulated_wall(context: RigContext, session: WallSession, skip_after: int):
+def _simulated_wall(context: RigContext, session: WallSession, skip_after: int) -> RenderedPairSource:
     """Frames of a presenter following the session's prompts: the pointer held still at the target
     being asked for (touching it, or aimed at it from a place of its own), as the simulator renders it.
 
@@ -246,9 +263,9 @@ def _simulated_wall(context: RigContext, session: WallSession, skip_after: int):
     scene = SceneRenderer(truth)
     rng = np.random.default_rng(11)
     regrip = 2 * session.steadiness.frames + 2
-    poses: dict[tuple[int, int], Any] = {}
+    poses: dict[tuple[int, int], PointerPose] = {}
 
-    def pose_now():
+    def pose_now() -> PointerPose:
         current = session.current()
         if current is None:  # pragma: no cover - the driver stops when the session is done
             current = session.plan[-1]
@@ -259,7 +276,7 @@ def _simulated_wall(context: RigContext, session: WallSession, skip_after: int):
 
     ids = [c.id for c in truth.cameras]
 
-    def render(k: int):
+    def render(k: int) -> list[NDArray[np.uint8]]:
         pose = pose_now()
         return [scene.render(i, pose, rng).image for i in range(len(ids))]
 
@@ -267,21 +284,32 @@ def _simulated_wall(context: RigContext, session: WallSession, skip_after: int):
     return RenderedPairSource(ids, list(scene.pixel_formats), render, per_target * len(session.plan))
 
 
-def _presented_pose(scene, truth: RigConfig, target: Target, place: int, method: str, variant: int, rng):
+def _presented_pose(
+    scene: SceneRenderer,
+    truth: RigConfig,
+    target: Target,
+    place: int,
+    method: str,
+    variant: int,
+    rng: np.random.Generator,
+) -> PointerPose:
     """The pointer touching ``target`` (tilted into the room), or aimed at it from place ``place``."""
     from trackerd.bench.calibration import aimed_poses
     from trackerd.sim.scene import PointerPose
 
     wall = scene.wall
+    if target.wall_xy_m is None:
+        raise CalibrationError(f"target '{target.label}' has no place on the wall to present the pointer at")
     world = wall.from_wall_m(target.wall_xy_m)
     if method == "point":
         # aimed_poses spreads its places along the wall in turn; the place-th of them.
         return aimed_poses(scene, world, place + 1, rng)[-1]
-    tip = world + truth.pointer.end_diameter_m / 2.0 * wall.normal
+    pointer = rig_pointer(truth)
+    tip = world + pointer.end_diameter_m / 2.0 * wall.normal
     tilt = np.array([0.0, 0.4]) if variant == 0 else rng.uniform([-0.4, 0.0], [0.4, 0.6])
     direction = wall.normal + tilt[0] * wall.x_axis + tilt[1] * wall.y_axis
-    return PointerPose(tip, tip + truth.pointer.length_m * _unit(direction))
+    return PointerPose(tip, tip + pointer.length_m * _unit(direction))
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.asarray(v / np.linalg.norm(v), dtype=np.float64)
