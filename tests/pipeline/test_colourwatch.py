@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import pytest
-
 import logging
 import time
 
 import numpy as np
+import pytest
 
 from tests.rooms import BLANK, RED_PICTURE, room, waved
 from trackerd.acquisition.memory import MemoryPairSource
@@ -43,7 +42,7 @@ def test_a_red_picture_put_up_after_the_colours_were_learned_is_warned_of_and_th
     rig, renderer = room()
     learner = ColourLearner(rig, renderer.cameras, wanted=4)
     for images in _pairs(renderer, BLANK, 4, 0.0, seed=1):
-        learner.feed([(cam.camera_id, image, "BayerRG8") for cam, image in zip(renderer.cameras, images)])
+        learner.feed([(cam.camera_id, image, "BayerRG8") for cam, image in zip(renderer.cameras, images, strict=True)])
     learned = with_learned_colours(rig, learner.result("2026-12-02").colours)
     watch = ColourWatch(learned, renderer.cameras)
     assert watch.to_json() is None  # nothing measured yet

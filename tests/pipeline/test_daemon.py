@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import pytest
-
 import contextlib
 import itertools
 import json
@@ -12,6 +10,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 import zmq
 
 from tests.gated import GatedPairSource, wait_for_status

@@ -9,6 +9,7 @@ file, SIGTERM at the end.
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import signal
@@ -204,7 +205,7 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     # Sequence numbers go on across the reloads that reopened the cameras, and every pair between
     # the first and last received is accounted for.
     in_order = [m["sequence"] for t, m in messages if t == "pointer"]
-    assert all(b > a for a, b in zip(in_order, in_order[1:], strict=False))
+    assert all(b > a for a, b in itertools.pairwise(in_order))
     pointers = sorted(set(in_order))
     missing = (pointers[-1] - pointers[0] + 1) - len(pointers)
     fixes = statuses[-1]["fixes"]
