@@ -34,8 +34,14 @@ def run_holder(command: list[str], tmp_path: Path, stdin_text: str | None = None
     notify.bind(str(notify_path))
     notify.settimeout(30.0)
     env = dict(os.environ, NOTIFY_SOCKET=str(notify_path))
-    holder = subprocess.Popen(command, env=env, stdin=subprocess.PIPE if stdin_text is not None else None,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        command,
+        env=env,
+        stdin=subprocess.PIPE if stdin_text is not None else None,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         if stdin_text is not None:
             assert holder.stdin is not None

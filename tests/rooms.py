@@ -20,10 +20,13 @@ RED_PICTURE[40:220, 420:700] = (0.92, 0.10, 0.12)
 
 def room(look: Look | None = None, **simulation):
     """Two 720p cameras either side of the presenter, a room with nothing colourful in it."""
-    cameras = [aimed_camera("left", [-0.8, 1.3, 3.2], PRESENTER, 1280, 720, 60.0),
-               aimed_camera("right", [4.4, 1.3, 3.2], PRESENTER, 1280, 720, 60.0)]
-    rig = build_rig("room", [(cam, "BayerRG8") for cam in cameras], 3.6, 1.2, 0.9, POINTER,
-                    {"seed": 3, "clutter": 0, **simulation})
+    cameras = [
+        aimed_camera("left", [-0.8, 1.3, 3.2], PRESENTER, 1280, 720, 60.0),
+        aimed_camera("right", [4.4, 1.3, 3.2], PRESENTER, 1280, 720, 60.0),
+    ]
+    rig = build_rig(
+        "room", [(cam, "BayerRG8") for cam in cameras], 3.6, 1.2, 0.9, POINTER, {"seed": 3, "clutter": 0, **simulation}
+    )
     return rig, SceneRenderer(rig, cameras, look=Look() if look is None else look, cache_dir=False)
 
 

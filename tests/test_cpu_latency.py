@@ -65,8 +65,21 @@ def test_the_command_holds_the_request_tells_systemd_and_stops_on_sigterm(tmp_pa
     if shutil.which("setpriv") is None:
         pytest.skip("setpriv (util-linux) is not installed")
     before = _looser_than(11)
-    run = run_holder(["setpriv", "--bounding-set=-all", "--inh-caps=-all", "--no-new-privs",
-                      sys.executable, "-m", "trackerd", "cpu-latency", "--max-us", "11"], tmp_path)
+    run = run_holder(
+        [
+            "setpriv",
+            "--bounding-set=-all",
+            "--inh-caps=-all",
+            "--no-new-privs",
+            sys.executable,
+            "-m",
+            "trackerd",
+            "cpu-latency",
+            "--max-us",
+            "11",
+        ],
+        tmp_path,
+    )
     assert "READY=1" in run.ready.splitlines()
     assert "STATUS=CPU wake-up latency held at 11 µs" in run.ready
     assert run.in_force_us == 11
@@ -81,8 +94,9 @@ def test_the_command_as_an_unprivileged_user_says_why_in_one_line():
     if os.geteuid() != 0 or shutil.which("setpriv") is None or not DEVICE.exists():
         pytest.skip(f"needs root (to become another user), setpriv and {DEVICE}")
     nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
-    result = subprocess.run([*nobody, sys.executable, "-m", "trackerd", "cpu-latency"],
-                            capture_output=True, text=True, timeout=30)
+    result = subprocess.run(
+        [*nobody, sys.executable, "-m", "trackerd", "cpu-latency"], capture_output=True, text=True, timeout=30
+    )
     assert result.returncode == CpuLatencyError.exit_code == 3  # the unit's RestartPreventExitStatus
     assert result.stderr.count("\n") == 1, result.stderr
     assert "permission denied" in result.stderr

@@ -68,7 +68,10 @@ FUZZ_SCALE = 10 if os.environ.get("HYPOTHESIS_PROFILE") == "thorough" else 1
 def _fuzz(examples: int) -> settings:
     """Derandomized: CI runs the same cases every time, and a failure names an example to replay."""
     return settings(
-        max_examples=examples * FUZZ_SCALE, deadline=None, derandomize=True, database=None,
+        max_examples=examples * FUZZ_SCALE,
+        deadline=None,
+        derandomize=True,
+        database=None,
         suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
     )
 
@@ -94,9 +97,35 @@ def _summary(name: str, tally: Counter[str]) -> str:
 # =========================================================================== mutations
 
 HOSTILE_SNIPPETS = [
-    b"\x00", b"\xff\xfe", b"\xc3", b"[", b"]", b"[[", b"{", b"}", b"=", b'"', b"'", b"\\", b"#", b",",
-    b"\n", b"\r", b"\n[cameras]\n", b"\n[[cameras]]\n", b"\n[wall]\n", b"nan", b"-inf", b"1e999",
-    b"9" * 5000, b"9" * 30, b"0x", b"1979-05-27T07:32:00Z", b'"""', b"\xe2\x80\xae", "\u00e9\u4e2d".encode(),
+    b"\x00",
+    b"\xff\xfe",
+    b"\xc3",
+    b"[",
+    b"]",
+    b"[[",
+    b"{",
+    b"}",
+    b"=",
+    b'"',
+    b"'",
+    b"\\",
+    b"#",
+    b",",
+    b"\n",
+    b"\r",
+    b"\n[cameras]\n",
+    b"\n[[cameras]]\n",
+    b"\n[wall]\n",
+    b"nan",
+    b"-inf",
+    b"1e999",
+    b"9" * 5000,
+    b"9" * 30,
+    b"0x",
+    b"1979-05-27T07:32:00Z",
+    b'"""',
+    b"\xe2\x80\xae",
+    "\u00e9\u4e2d".encode(),
 ]
 """Bytes a hand, a bad editor or an attacker puts into a text file: syntax, encodings, a number too
 long to convert (5000 digits: Python refuses to parse more than 4300), a date, an RTL override."""
@@ -112,7 +141,7 @@ def byte_mutation(draw: st.DrawFn, data: bytes) -> bytes:
     at = draw(st.integers(0, len(data) - 1), label="at")
     if kind == "flip":
         mask = draw(st.integers(1, 255))
-        return data[:at] + bytes([data[at] ^ mask]) + data[at + 1:]
+        return data[:at] + bytes([data[at] ^ mask]) + data[at + 1 :]
     if kind == "truncate":
         return data[:at]
     if kind == "insert":
@@ -120,7 +149,7 @@ def byte_mutation(draw: st.DrawFn, data: bytes) -> bytes:
         return data[:at] + inserted + data[at:]
     if kind == "delete":
         length = draw(st.integers(1, 64))
-        return data[:at] + data[at + length:]
+        return data[:at] + data[at + length :]
     lines = data.split(b"\n")
     i = draw(st.integers(0, len(lines) - 1))
     j = draw(st.integers(0, len(lines) - 1))
@@ -160,9 +189,29 @@ def hostile_values(*, toml: bool) -> st.SearchStrategy[Any]:
         st.sampled_from([math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, -0.0]),
         st.booleans(),
         st.text(max_size=24),
-        st.sampled_from(["", "x" * 100_000, "Mono8", "BayerRG8", "fov", "opencv", "pose", "red", "blue",
-                         "\u202e\x00\n\t", "../../../etc/passwd", "tcp://0.0.0.0:5560", "1.0", "2.0", "0.9",
-                         "trackerd-recording", "left", "right", "camera left"]),
+        st.sampled_from(
+            [
+                "",
+                "x" * 100_000,
+                "Mono8",
+                "BayerRG8",
+                "fov",
+                "opencv",
+                "pose",
+                "red",
+                "blue",
+                "\u202e\x00\n\t",
+                "../../../etc/passwd",
+                "tcp://0.0.0.0:5560",
+                "1.0",
+                "2.0",
+                "0.9",
+                "trackerd-recording",
+                "left",
+                "right",
+                "camera left",
+            ]
+        ),
     ]
     if toml:
         scalars += [st.dates(), st.times(), st.datetimes()]
@@ -173,8 +222,11 @@ def hostile_values(*, toml: bool) -> st.SearchStrategy[Any]:
     return st.one_of(
         leaf,
         st.integers(20, 40).map(_nested_list),
-        st.recursive(leaf, lambda inner: st.lists(inner, max_size=4)
-                     | st.dictionaries(st.text(max_size=12), inner, max_size=4), max_leaves=8),
+        st.recursive(
+            leaf,
+            lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=12), inner, max_size=4),
+            max_leaves=8,
+        ),
     )
 
 
@@ -195,9 +247,34 @@ def _at(value: Any, path: tuple[Any, ...]) -> Any:
     return value
 
 
-KNOWN_KEYS = ["version", "name", "calibration", "cameras", "id", "width_px", "intrinsics", "extrinsics", "model",
-              "kind", "wall", "corners_m", "pointer", "detector", "outputs", "zmq", "endpoints", "pointer_colours",
-              "format", "format_version", "end", "pairs", "rig", "clock_offset_ns", "pixel_format", "height_px"]
+KNOWN_KEYS = [
+    "version",
+    "name",
+    "calibration",
+    "cameras",
+    "id",
+    "width_px",
+    "intrinsics",
+    "extrinsics",
+    "model",
+    "kind",
+    "wall",
+    "corners_m",
+    "pointer",
+    "detector",
+    "outputs",
+    "zmq",
+    "endpoints",
+    "pointer_colours",
+    "format",
+    "format_version",
+    "end",
+    "pairs",
+    "rig",
+    "clock_offset_ns",
+    "pixel_format",
+    "height_px",
+]
 
 
 @st.composite
@@ -427,8 +504,13 @@ def test_the_real_cli_refuses_a_few_mutated_rigs_in_one_line(tmp_path: Path) -> 
     for k, text in enumerate(cases):
         rig = tmp_path / f"rig{k}.toml"
         rig.write_bytes(text.encode("utf-8", errors="surrogateescape"))
-        run = subprocess.run([sys.executable, "-m", "trackerd", "config", "check", str(rig)], capture_output=True,
-                             text=True, timeout=60, cwd=tmp_path)  # the timeout is only a guard
+        run = subprocess.run(
+            [sys.executable, "-m", "trackerd", "config", "check", str(rig)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            cwd=tmp_path,
+        )  # the timeout is only a guard
         assert run.returncode in (0, 2), (k, run.returncode, run.stderr)
         assert "Traceback" not in run.stderr, run.stderr
         if run.returncode == 2:
@@ -464,7 +546,7 @@ def _small_recording(folder: Path) -> Path:
 
 def _crc_fixed(record: bytearray, header_bytes: int) -> None:
     """Recompute a record header's checksum (its last four bytes): a crafted header, not a damaged one."""
-    record[header_bytes - 4:header_bytes] = zlib.crc32(bytes(record[: header_bytes - 4])).to_bytes(4, "little")
+    record[header_bytes - 4 : header_bytes] = zlib.crc32(bytes(record[: header_bytes - 4])).to_bytes(4, "little")
 
 
 @st.composite
@@ -474,8 +556,21 @@ def recording_mutation(draw: st.DrawFn, small: Path) -> Callable[[Path], None]:
     with its checksum made to match again (a crafted file), sections swapped, a file missing or something
     else in its place (a directory, a FIFO, a device)."""
     layout = [(entry.offset, entry.record_bytes) for entry in _entries(small)]
-    kind = draw(st.sampled_from(["json bytes", "json value", "data bytes", "index bytes", "forged header",
-                                 "forged index", "swap", "missing"]), label="recording edit")
+    kind = draw(
+        st.sampled_from(
+            [
+                "json bytes",
+                "json value",
+                "data bytes",
+                "index bytes",
+                "forged header",
+                "forged index",
+                "swap",
+                "missing",
+            ]
+        ),
+        label="recording edit",
+    )
     if kind == "json bytes":
         data = (small / METADATA_FILE).read_bytes()
         mutated = draw(byte_mutation(data))
@@ -507,16 +602,21 @@ def recording_mutation(draw: st.DrawFn, small: Path) -> Callable[[Path], None]:
             elif edit == "insert":
                 data[at:at] = inserted
             else:
-                del data[at:at + value]
+                del data[at : at + value]
             return data
 
         return lambda folder: _rewrite(folder / name, edit_bytes)
     if kind == "forged header":
         offset, _ = draw(st.sampled_from(layout))
         fields = {  # byte offset in the record header: struct format (RECORD_FIXED, FRAME_ENTRY)
-            "header_bytes": (4, "<I"), "n_frames": (8, "<H"), "frame_entry_bytes": (10, "<H"),
-            "pair_index": (16, "<Q"), "timestamp_ns": (32, "<q"), "stored_bytes 0": (RECORD_FIXED.size + 24, "<Q"),
-            "encoding 0": (RECORD_FIXED.size + 36, "<B"), "stored_bytes 1": (RECORD_FIXED.size + 64, "<Q"),
+            "header_bytes": (4, "<I"),
+            "n_frames": (8, "<H"),
+            "frame_entry_bytes": (10, "<H"),
+            "pair_index": (16, "<Q"),
+            "timestamp_ns": (32, "<q"),
+            "stored_bytes 0": (RECORD_FIXED.size + 24, "<Q"),
+            "encoding 0": (RECORD_FIXED.size + 36, "<B"),
+            "stored_bytes 1": (RECORD_FIXED.size + 64, "<Q"),
             "encoding 1": (RECORD_FIXED.size + 76, "<B"),
         }
         field_at, fmt = fields[draw(st.sampled_from(sorted(fields)), label="field")]
@@ -524,11 +624,11 @@ def recording_mutation(draw: st.DrawFn, small: Path) -> Callable[[Path], None]:
         number = draw(st.integers(0, 2**bits - 1) | st.sampled_from([0, 1, 2, 3, 144, 145, 1 << 20])) % (1 << bits)
 
         def forge(data: bytearray) -> bytearray:
-            header = bytearray(data[offset:offset + 144])
+            header = bytearray(data[offset : offset + 144])
             if len(header) == 144:
                 struct.pack_into(fmt, header, field_at, number)
                 _crc_fixed(header, 144)
-                data[offset:offset + 144] = header
+                data[offset : offset + 144] = header
             return data
 
         return lambda folder: _rewrite(folder / DATA_FILE, forge)
@@ -545,7 +645,7 @@ def recording_mutation(draw: st.DrawFn, small: Path) -> Callable[[Path], None]:
             values[field] = number if field < 3 else number - 2**63  # sequence, timestamp_ns: signed
             entry = bytearray(INDEX_ENTRY.pack(*values))
             entry[-4:] = zlib.crc32(bytes(entry[:-4])).to_bytes(4, "little")
-            data[at:at + INDEX_ENTRY.size] = entry
+            data[at : at + INDEX_ENTRY.size] = entry
             return data
 
         return lambda folder: _rewrite(folder / INDEX_FILE, forge_index)
@@ -556,12 +656,20 @@ def recording_mutation(draw: st.DrawFn, small: Path) -> Callable[[Path], None]:
         def swap(folder: Path) -> None:
             if what == "two records":
                 (a, la), (b, lb) = sorted([layout[i], layout[j]])
-                _rewrite(folder / DATA_FILE, lambda data: data[:a] + data[b:b + lb] + data[a + la:b] + data[a:a + la]
-                         + data[b + lb:] if a != b else data)
+                _rewrite(
+                    folder / DATA_FILE,
+                    lambda data: (
+                        data[:a] + data[b : b + lb] + data[a + la : b] + data[a : a + la] + data[b + lb :]
+                        if a != b
+                        else data
+                    ),
+                )
                 return
-            first, second = {"data and index": (DATA_FILE, INDEX_FILE),
-                             "index and metadata": (INDEX_FILE, METADATA_FILE),
-                             "data and metadata": (DATA_FILE, METADATA_FILE)}[what]
+            first, second = {
+                "data and index": (DATA_FILE, INDEX_FILE),
+                "index and metadata": (INDEX_FILE, METADATA_FILE),
+                "data and metadata": (DATA_FILE, METADATA_FILE),
+            }[what]
             (folder / first).rename(folder / "swap")
             (folder / second).rename(folder / first)
             (folder / "swap").rename(folder / second)
@@ -675,8 +783,9 @@ def test_mutated_compressed_and_windowed_recordings_are_refused_in_one_line(tmp_
     with Recording.open(_small_recording(tmp_path)) as source:
         convert_recording(source, small, mode)
     with Recording.open(small) as recording:
-        assert {recording.header(i).frames[0].encoding for i in range(len(recording))} == \
-            ({2, 3} if mode == "compressed" else {2, 4}), "the pairs after the first are not keyframes"
+        assert {recording.header(i).frames[0].encoding for i in range(len(recording))} == (
+            {2, 3} if mode == "compressed" else {2, 4}
+        ), "the pairs after the first are not keyframes"
     tally: Counter[str] = Counter()
 
     @_fuzz(60)
@@ -705,10 +814,12 @@ def upstream_frames() -> st.SearchStrategy[bytes]:
     """Frames a peer may send upstream: subscriptions and unsubscriptions (\\x01 / \\x00 + a prefix),
     topics, random bytes, empty frames, forged statuses, frames up to a megabyte."""
     forged = st.integers(0, 10**6).map(
-        lambda n: json.dumps({**json.loads(status_message(n).model_dump_json()), "state": "FORGED"}).encode())
+        lambda n: json.dumps({**json.loads(status_message(n).model_dump_json()), "state": "FORGED"}).encode()
+    )
     return st.one_of(
-        st.tuples(st.sampled_from([b"\x00", b"\x01"]), st.sampled_from(TOPICS) | st.binary(max_size=12))
-        .map(lambda parts: parts[0] + parts[1]),
+        st.tuples(st.sampled_from([b"\x00", b"\x01"]), st.sampled_from(TOPICS) | st.binary(max_size=12)).map(
+            lambda parts: parts[0] + parts[1]
+        ),
         st.sampled_from(TOPICS),
         st.binary(max_size=64),
         forged,

@@ -31,8 +31,10 @@ def test_each_layout_pairs_by_name_in_natural_order(tmp_path: Path) -> None:
 
     _touch(tmp_path / "prefix", "left01.jpg", "right01.jpg", "left-02.jpg", "right-02.jpg")
     pairs, layout = _pairs(tmp_path / "prefix")
-    assert pairs == [("01", {"left": "left01.jpg", "right": "right01.jpg"}),
-                     ("02", {"left": "left-02.jpg", "right": "right-02.jpg"})]
+    assert pairs == [
+        ("01", {"left": "left01.jpg", "right": "right01.jpg"}),
+        ("02", {"left": "left-02.jpg", "right": "right-02.jpg"}),
+    ]
     assert layout == "files named <camera><name> (left, right)"
 
     _touch(tmp_path / "split", "left/left01.jpg", "right/right01.jpg", "left/02.png", "right/02.png")

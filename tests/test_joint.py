@@ -22,8 +22,9 @@ def _camera(name: str, position) -> CameraModel:
     forward /= np.linalg.norm(forward)
     right = np.cross(forward, [0.0, 1.0, 0.0])
     right /= np.linalg.norm(right)
-    return CameraModel.from_pose(name, 1920, 1080, K, np.zeros(0), position,
-                                 np.column_stack([right, np.cross(forward, right), forward]))
+    return CameraModel.from_pose(
+        name, 1920, 1080, K, np.zeros(0), position, np.column_stack([right, np.cross(forward, right), forward])
+    )
 
 
 CAMERAS = [_camera("left", [-1.2, 1.6, 3.2]), _camera("right", [4.8, 1.6, 3.2]), _camera("back", [1.9, 2.2, 5.8])]
@@ -117,8 +118,10 @@ def test_a_ball_is_looked_for_even_where_a_side_on_cameras_ray_misses_the_length
 
 
 def test_no_pointer_is_a_reason() -> None:
-    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + np.array([1.0, 0.0, 0.0]), "blue")]}
-                  for cam in CAMERAS]
+    candidates = [
+        {"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + np.array([1.0, 0.0, 0.0]), "blue")]}
+        for cam in CAMERAS
+    ]
     reason = _choose(candidates)
     assert isinstance(reason, str) and "length apart" in reason
     assert "no red" in _choose([{"red": [], "blue": []} for _ in CAMERAS])

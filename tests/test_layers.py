@@ -26,8 +26,18 @@ ARCHITECTURE_DOC = REPO / "docs" / "architecture.md"
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # Lowest first. A module is in the layer of the longest prefix that names it (trackerd.pipeline.tap
     # is in "stages", the rest of trackerd.pipeline in "daemon").
-    ("foundation", ("trackerd", "trackerd.errors", "trackerd.pixelformat", "trackerd.files", "trackerd.logs",
-                    "trackerd.sdnotify", "trackerd.cpu_latency")),
+    (
+        "foundation",
+        (
+            "trackerd",
+            "trackerd.errors",
+            "trackerd.pixelformat",
+            "trackerd.files",
+            "trackerd.logs",
+            "trackerd.sdnotify",
+            "trackerd.cpu_latency",
+        ),
+    ),
     # Pure math on NumPy arrays; knows nothing of the rig file.
     ("geometry", ("trackerd.geometry",)),
     # The rig file: models, loader, and the adapter that builds the geometry from it (rig_geometry.py).
@@ -38,10 +48,20 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("locator", ("trackerd.locator", "trackerd.ends", "trackerd.joint", "trackerd.refine")),
     # What the daemon is built from: sources, calibration and its health, the wire messages and the
     # publisher, and the pipeline's own parts (queues, figures, the extension interface, the tap).
-    ("stages", ("trackerd.acquisition", "trackerd.calibration", "trackerd.publish", "trackerd.pipeline.queues",
-                "trackerd.pipeline.stats", "trackerd.pipeline.threadtime", "trackerd.pipeline.extensions",
-                "trackerd.pipeline.events",
-                "trackerd.pipeline.tap")),
+    (
+        "stages",
+        (
+            "trackerd.acquisition",
+            "trackerd.calibration",
+            "trackerd.publish",
+            "trackerd.pipeline.queues",
+            "trackerd.pipeline.stats",
+            "trackerd.pipeline.threadtime",
+            "trackerd.pipeline.extensions",
+            "trackerd.pipeline.events",
+            "trackerd.pipeline.tap",
+        ),
+    ),
     # Beside the pipeline, attached through its extension interface or its tap.
     ("beside the pipeline", ("trackerd.recording", "trackerd.interaction", "trackerd.console")),
     # The daemon: the threads that wire the stages together.
@@ -55,10 +75,14 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
 KNOWN_EXCEPTIONS: dict[tuple[str, str], str] = {
     # (importing module, imported module or private name): why it stays for now. The list only
     # shrinks: an exception whose import has gone fails test_known_exceptions_are_still_needed.
-    ("trackerd.detect.margin", "trackerd.detect.colour._plane"):
-        "the detector's hot path, rewritten by the robustness issue; not touched by the layers change",
-    ("trackerd.detect.search", "trackerd.detect.colour._plane"):
-        "the detector's hot path, rewritten by the robustness issue; not touched by the layers change",
+    (
+        "trackerd.detect.margin",
+        "trackerd.detect.colour._plane",
+    ): "the detector's hot path, rewritten by the robustness issue; not touched by the layers change",
+    (
+        "trackerd.detect.search",
+        "trackerd.detect.colour._plane",
+    ): "the detector's hot path, rewritten by the robustness issue; not touched by the layers change",
 }
 
 
@@ -86,8 +110,7 @@ def is_module(name: str, root: Path = REPO) -> bool:
     return base.with_suffix(".py").is_file() or (base / "__init__.py").is_file()
 
 
-def imports_in(source: str, importer: str, path: Path, *, is_package: bool = False, root: Path = REPO
-               ) -> list[Import]:
+def imports_in(source: str, importer: str, path: Path, *, is_package: bool = False, root: Path = REPO) -> list[Import]:
     """Every trackerd module that ``source`` imports, wherever the statement stands.
 
     ``from A import b`` imports the module A.b when there is one, else the name b of A.
@@ -118,8 +141,13 @@ def all_imports(root: Path = REPO) -> list[Import]:
     """Every import in trackerd/ (read once per test session)."""
     out = []
     for path in sorted((root / "trackerd").rglob("*.py")):
-        out += imports_in(path.read_text(encoding="utf-8"), module_name(path, root), path,
-                          is_package=path.name == "__init__.py", root=root)
+        out += imports_in(
+            path.read_text(encoding="utf-8"),
+            module_name(path, root),
+            path,
+            is_package=path.name == "__init__.py",
+            root=root,
+        )
     return out
 
 
@@ -169,17 +197,20 @@ def test_every_module_has_a_layer() -> None:
 
 def test_no_layer_imports_a_higher_one() -> None:
     violations = upward(all_imports())
-    assert violations == [], "\n".join([
-        "imports pointing up (LAYERS in tests/test_layers.py, docs/architecture.md 'Layers'): move the code to"
-        " the layer that may import it, or hand the lower layer what it needs (arrays, a callable)",
-        *violations,
-    ])
+    assert violations == [], "\n".join(
+        [
+            "imports pointing up (LAYERS in tests/test_layers.py, docs/architecture.md 'Layers'): move the code to"
+            " the layer that may import it, or hand the lower layer what it needs (arrays, a callable)",
+            *violations,
+        ]
+    )
 
 
 def test_private_names_and_modules_stay_private() -> None:
     violations = private_reached(all_imports())
-    assert violations == [], "\n".join(["private names used elsewhere (make them public or keep them home):",
-                                        *violations])
+    assert violations == [], "\n".join(
+        ["private names used elsewhere (make them public or keep them home):", *violations]
+    )
 
 
 def test_known_exceptions_are_still_needed() -> None:
@@ -197,8 +228,11 @@ def test_the_architecture_doc_draws_these_layers() -> None:
     section = text.split("\n## Layers\n", 1)[1].split("\n## ", 1)[0]
     drawing = section.split("```", 2)[1]
     names = {name for name, _ in LAYERS}
-    drawn = [match for line in drawing.splitlines()
-             if (match := re.match(r"\s*(\w[\w ]*?)\s{2,}", line)) and match.group(1) in names]
+    drawn = [
+        match
+        for line in drawing.splitlines()
+        if (match := re.match(r"\s*(\w[\w ]*?)\s{2,}", line)) and match.group(1) in names
+    ]
     assert [m.group(1) for m in drawn] == [name for name, _ in reversed(LAYERS)]
     assert "tests/test_layers.py" in section
 
@@ -211,14 +245,18 @@ def test_an_upward_import_inside_a_function_is_caught() -> None:
     source = "def handler():\n    from trackerd.cli.replay import replay_rig\n    from trackerd import errors\n"
     found = imports_in(source, "trackerd.bench.replay", REPO / "trackerd/bench/replay.py")
     assert [(i.imported, i.names, i.line) for i in found] == [
-        ("trackerd.cli.replay", ("replay_rig",), 2), ("trackerd.errors", (), 3)]
+        ("trackerd.cli.replay", ("replay_rig",), 2),
+        ("trackerd.errors", (), 3),
+    ]
     [line] = upward(found)
     assert line.startswith("trackerd/bench/replay.py:2: ") and "'tools' may not import layer 'commands'" in line
 
 
 def test_type_checking_and_relative_imports_count() -> None:
-    source = ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from . import camera\n"
-              "    from ..config.models import WallConfig\n")
+    source = (
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from . import camera\n"
+        "    from ..config.models import WallConfig\n"
+    )
     found = imports_in(source, "trackerd.geometry.wall", REPO / "trackerd/geometry/wall.py")
     assert [i.imported for i in found] == ["trackerd.geometry.camera", "trackerd.config.models"]
     [line] = upward(found)
@@ -232,18 +270,25 @@ def test_private_names_from_another_module_are_caught() -> None:
         "trackerd.sim.board imports trackerd.sim.render: the private name _quantise",
         "trackerd.sim.board imports trackerd.cli._args: a private module of trackerd.cli",
     ]
-    own = imports_in("from trackerd.cli._args import positive_int\n", "trackerd.cli.calibrate",
-                     REPO / "trackerd/cli/calibrate/__init__.py", is_package=True)
+    own = imports_in(
+        "from trackerd.cli._args import positive_int\n",
+        "trackerd.cli.calibrate",
+        REPO / "trackerd/cli/calibrate/__init__.py",
+        is_package=True,
+    )
     assert private_reached(own) == []
 
 
-@pytest.mark.parametrize(("module", "layer"), [
-    ("trackerd.pipeline.daemon", "daemon"),
-    ("trackerd.pipeline.tap", "stages"),
-    ("trackerd.config.rig_geometry", "config"),
-    ("trackerd", "foundation"),
-    ("trackerd.cli.calibrate.wall", "commands"),
-])
+@pytest.mark.parametrize(
+    ("module", "layer"),
+    [
+        ("trackerd.pipeline.daemon", "daemon"),
+        ("trackerd.pipeline.tap", "stages"),
+        ("trackerd.config.rig_geometry", "config"),
+        ("trackerd", "foundation"),
+        ("trackerd.cli.calibrate.wall", "commands"),
+    ],
+)
 def test_the_longest_prefix_decides(module: str, layer: str) -> None:
     index = layer_of(module)
     assert index is not None and LAYERS[index][0] == layer

@@ -59,10 +59,12 @@ def test_planes_beat_two_points_when_the_rod_hides_part_of_a_ball(simulated_rig,
         fix = locator.locate_centroids(centroids)
         planes.append(np.linalg.norm(fix.hit.wall_xy_m - truth))
         rays = [
-            np.array([
-                cam.pixel_to_ray(np.asarray(c[colour])[None])[1][0]
-                for cam, c in zip(locator.cameras, centroids, strict=True)
-            ])
+            np.array(
+                [
+                    cam.pixel_to_ray(np.asarray(c[colour])[None])[1][0]
+                    for cam, c in zip(locator.cameras, centroids, strict=True)
+                ]
+            )
             for colour in ("red", "blue")
         ]
         line = pointer_from_points(locator._centres, rays[0], rays[1])
@@ -100,10 +102,12 @@ def test_two_camera_uncertainty_is_the_numpy_reference_in_plain_floats(simulated
     for _, centroids in rendered_poses:
         for _ in range(10):
             moved = tuple({k: v + rng.normal(0, 2.0, 2) for k, v in c.items()} for c in centroids)
-            normalised = np.stack([
-                cam.normalized_from_pixels(np.array([c[locator.front_colour], c[locator.back_colour]]))
-                for cam, c in zip(locator.cameras, moved, strict=True)
-            ])
+            normalised = np.stack(
+                [
+                    cam.normalized_from_pixels(np.array([c[locator.front_colour], c[locator.back_colour]]))
+                    for cam, c in zip(locator.cameras, moved, strict=True)
+                ]
+            )
             fast = hit_uncertainty_two_m(normalised, view, sigma, locator.wall_scalars)
             reference = hit_uncertainty_reference_m(normalised, view, sigma, locator.wall)
             assert fast == pytest.approx(reference, rel=1e-9, abs=1e-12)
@@ -147,16 +151,19 @@ def test_a_third_camera_needs_no_new_math(simulated_rig, renderer, rendered_pose
     pose, centroids = rendered_poses[2]
     base = renderer.cameras[0]
     third = CameraModel.from_pose(
-        "top", base.width_px, base.height_px, base.matrix, np.zeros(0),
-        np.array([1.8, 2.0, 0.3]), world_from_camera_ypr(180.0, -45.0, 0.0),
+        "top",
+        base.width_px,
+        base.height_px,
+        base.matrix,
+        np.zeros(0),
+        np.array([1.8, 2.0, 0.3]),
+        world_from_camera_ypr(180.0, -45.0, 0.0),
     )
     cameras = [*renderer.cameras, third]
     top = simulated_rig.cameras[0].model_copy(update={"id": "top"})
     rig = simulated_rig.model_copy(update={"cameras": (*simulated_rig.cameras, top)})
     locator = Locator(rig, cameras=cameras)
-    third_centroids = {
-        colour: third.project(pose.centre_of(colour, "red")[None])[0] for colour in ("red", "blue")
-    }
+    third_centroids = {colour: third.project(pose.centre_of(colour, "red")[None])[0] for colour in ("red", "blue")}
     fix = locator.locate_centroids((*centroids, third_centroids))
     truth = true_wall_hit(pose, locator.wall).wall_xy_m
     assert fix.status in ("hit", "off_wall")

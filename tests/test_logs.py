@@ -123,8 +123,13 @@ def test_priorities_follow_sd_daemon():
 def _stderr_of_a_config_error(pipe: Pipe, journal_stream: str) -> str:
     """stderr of `trackerd listen --topic hits` (a configuration error, exit 2) written into the pipe."""
     env = {**os.environ, "JOURNAL_STREAM": journal_stream}
-    result = subprocess.run([sys.executable, "-m", "trackerd", "listen", "--topic", "hits"],
-                            stdout=subprocess.PIPE, stderr=pipe.write_fd, env=env, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "trackerd", "listen", "--topic", "hits"],
+        stdout=subprocess.PIPE,
+        stderr=pipe.write_fd,
+        env=env,
+        timeout=60,
+    )
     assert result.returncode == 2 and result.stdout == b""
     return pipe.text()
 

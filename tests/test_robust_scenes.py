@@ -27,8 +27,15 @@ PRESENTER = np.array([1.8, 0.5, 1.8])  # the middle of where the presenter stand
 
 
 def _scene(cameras, look: Look | None = None, **simulation):
-    rig = build_rig("scene", [(cam, "BayerRG8") for cam in cameras], WALL_W, WALL_H, ABOVE_FLOOR, POINTER,
-                    {"seed": 11, "clutter": 6, **simulation})
+    rig = build_rig(
+        "scene",
+        [(cam, "BayerRG8") for cam in cameras],
+        WALL_W,
+        WALL_H,
+        ABOVE_FLOOR,
+        POINTER,
+        {"seed": 11, "clutter": 6, **simulation},
+    )
     renderer = SceneRenderer(rig, list(cameras), look=look or Look(), cache_dir=False)
     return rig, renderer
 
@@ -43,15 +50,19 @@ def _locate(rig, renderer, pose: PointerPose, rng, *, content=None, occluders=()
 
 
 def _side_cameras():
-    return [aimed_camera("left", [-0.8, 1.3, 3.2], PRESENTER, 1920, 1080, 60.0),
-            aimed_camera("right", [4.4, 1.3, 3.2], PRESENTER, 1920, 1080, 60.0)]
+    return [
+        aimed_camera("left", [-0.8, 1.3, 3.2], PRESENTER, 1920, 1080, 60.0),
+        aimed_camera("right", [4.4, 1.3, 3.2], PRESENTER, 1920, 1080, 60.0),
+    ]
 
 
 def _behind_cameras():
     """High at the back of the room, either side of the presenter, looking at the wall past them."""
     target = PRESENTER + np.array([0.0, 0.0, -0.4])
-    return [aimed_camera("back-left", [0.9, 1.9, 5.6], target, 1920, 1080, 42.0),
-            aimed_camera("back-right", [2.7, 1.9, 5.6], target, 1920, 1080, 42.0)]
+    return [
+        aimed_camera("back-left", [0.9, 1.9, 5.6], target, 1920, 1080, 42.0),
+        aimed_camera("back-right", [2.7, 1.9, 5.6], target, 1920, 1080, 42.0),
+    ]
 
 
 def test_a_red_ball_in_front_of_a_magenta_picture_is_found() -> None:
@@ -111,8 +122,14 @@ def test_an_end_hidden_from_one_camera_of_three_by_the_presenters_arm() -> None:
     pose = pose_aimed_at([1.7, 0.55, 1.6], [1.5, 0.6, 0.0], POINTER["length_m"])
     left = cameras[0]
     on_line = pose.back_m + 0.3 * (left.centre_m - pose.back_m)
-    arm = Occluder("cylinder", (float(on_line[0]), float(on_line[1]), float(on_line[2])), 0.06, (0.15, 0.15, 0.2),
-                   height_m=0.4, label="body")
+    arm = Occluder(
+        "cylinder",
+        (float(on_line[0]), float(on_line[1]), float(on_line[2])),
+        0.06,
+        (0.15, 0.15, 0.2),
+        height_m=0.4,
+        label="body",
+    )
     decoy = Occluder("sphere", (0.9, 0.9, 2.2), 0.02, (0.10, 0.20, 0.86), label="decoy")
     fix, error, views = _locate(rig, renderer, pose, rng, occluders=(arm, decoy))
     assert views[0].truth.visible_fraction("blue") == 0.0 and views[0].truth.visible_fraction("red") > 0.8

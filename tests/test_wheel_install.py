@@ -38,8 +38,9 @@ def _run(*command: str | Path, timeout_s: float, cwd: Path | None = None) -> sub
     """``command`` without the test session's PYTHONPATH (which puts the checkout first), caches shared."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env["TRACKERD_SIMRIG_CACHE"] = str(REPO / ".cache" / "simrig")
-    return subprocess.run([str(c) for c in command], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout_s)
+    return subprocess.run(
+        [str(c) for c in command], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout_s
+    )
 
 
 @pytest.fixture(scope="module")
@@ -54,8 +55,7 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     assert made.returncode == 0, made.stderr
     (site_packages,) = venv.glob("lib/python*/site-packages")
     (site_packages / "project-dependencies.pth").write_text(sysconfig.get_path("purelib") + "\n")
-    setup = _run(*pip, "--python", venv / "bin" / "python", "install", "--no-deps", "--no-index", wheel,
-                 timeout_s=120)
+    setup = _run(*pip, "--python", venv / "bin" / "python", "install", "--no-deps", "--no-index", wheel, timeout_s=120)
     assert setup.returncode == 0, setup.stderr
     return venv
 
@@ -69,15 +69,18 @@ def elsewhere(tmp_path: Path) -> Path:
 
 
 def test_the_installed_package_is_the_one_that_runs(venv: Path, elsewhere: Path) -> None:
-    where = _run(venv / "bin" / "python", "-c", "import trackerd; print(trackerd.__file__)", cwd=elsewhere,
-                 timeout_s=30)
+    where = _run(
+        venv / "bin" / "python", "-c", "import trackerd; print(trackerd.__file__)", cwd=elsewhere, timeout_s=30
+    )
     assert Path(where.stdout.strip()).is_relative_to(venv / "lib"), where.stderr
 
 
 def test_the_console_page_is_installed(venv: Path, elsewhere: Path) -> None:
     # The console serves its page from package data: a wheel without it answers every browser with 404.
-    code = ("from importlib import resources; s = resources.files('trackerd.console') / 'static';"
-            " print(sorted(p.name for p in s.iterdir()))")
+    code = (
+        "from importlib import resources; s = resources.files('trackerd.console') / 'static';"
+        " print(sorted(p.name for p in s.iterdir()))"
+    )
     listed = _run(venv / "bin" / "python", "-c", code, cwd=elsewhere, timeout_s=30)
     assert listed.returncode == 0, listed.stderr
     for name in ("index.html", "console.js", "console.css"):
@@ -86,8 +89,17 @@ def test_the_console_page_is_installed(venv: Path, elsewhere: Path) -> None:
 
 def test_bench_accuracy_runs_from_another_directory(venv: Path, elsewhere: Path) -> None:
     # One group of the three keeps it short; the default --config is the same for all.
-    run = _run(venv / "bin" / "trackerd", "bench", "accuracy", "--poses", "5", "--groups", "placements",
-               cwd=elsewhere, timeout_s=120)
+    run = _run(
+        venv / "bin" / "trackerd",
+        "bench",
+        "accuracy",
+        "--poses",
+        "5",
+        "--groups",
+        "placements",
+        cwd=elsewhere,
+        timeout_s=120,
+    )
     assert run.returncode == 0, run.stderr
     assert "trackerd median" in run.stdout
 
@@ -95,7 +107,19 @@ def test_bench_accuracy_runs_from_another_directory(venv: Path, elsewhere: Path)
 @pytest.mark.aravis
 @pytest.mark.skipif(ARAVIS_MISSING is not None, reason=f"needs Aravis: {ARAVIS_MISSING}")
 def test_demo_runs_from_another_directory(venv: Path, elsewhere: Path) -> None:
-    run = _run(venv / "bin" / "trackerd", "demo", "--seconds", "5", "--prefix", PREFIX, "--subnet", SUBNET,
-               "--endpoint", ENDPOINT, cwd=elsewhere, timeout_s=180)
+    run = _run(
+        venv / "bin" / "trackerd",
+        "demo",
+        "--seconds",
+        "5",
+        "--prefix",
+        PREFIX,
+        "--subnet",
+        SUBNET,
+        "--endpoint",
+        ENDPOINT,
+        cwd=elsewhere,
+        timeout_s=180,
+    )
     assert run.returncode == 0, run.stderr
     assert "hit " in run.stdout, run.stderr

@@ -9,8 +9,18 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 NOT_SOURCE = shutil.ignore_patterns(
-    ".git", ".venv", ".cache", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".ruff_cache", ".mypy_cache",
-    ".hypothesis", "simrig-out", "tests",
+    ".git",
+    ".venv",
+    ".cache",
+    "build",
+    "*.egg-info",
+    "__pycache__",
+    ".pytest_cache",
+    ".ruff_cache",
+    ".mypy_cache",
+    ".hypothesis",
+    "simrig-out",
+    "tests",
 )
 """What a build does not need from the checkout: VCS, caches, earlier builds' leftovers, the tests."""
 
@@ -25,9 +35,23 @@ def build_wheel(work: Path) -> Path:
     source = work / "source"
     shutil.copytree(REPO, source, symlinks=True, ignore=NOT_SOURCE)
     built = subprocess.run(
-        [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", "wheel", "--no-deps",
-         "--no-build-isolation", "--no-index", "-w", str(work / "wheels"), str(source)],
-        capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--disable-pip-version-check",
+            "-q",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "--no-index",
+            "-w",
+            str(work / "wheels"),
+            str(source),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert built.returncode == 0, built.stderr
     (wheel,) = (work / "wheels").glob("trackerd-*.whl")

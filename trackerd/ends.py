@@ -106,22 +106,46 @@ def measure_end(
             return None
         normalised = camera.normalized_from_pixels(np.asarray(centroid_px)[None])[0]
         sigma = max(FALLBACK_SIGMA_PX, FALLBACK_SIGMA_SHARE * radius_px) / camera.focal_px
-        return EndMeasurement(camera_index, colour, np.asarray(centroid_px, dtype=np.float64), normalised,
-                              np.eye(2) * sigma * sigma, radius_px, "centroid", 0.0, fit)
+        return EndMeasurement(
+            camera_index,
+            colour,
+            np.asarray(centroid_px, dtype=np.float64),
+            normalised,
+            np.eye(2) * sigma * sigma,
+            radius_px,
+            "centroid",
+            0.0,
+            fit,
+        )
     measurement = from_fit(camera, camera_index, colour, fit)
     if measurement is None or centroid_px is None or across_px is None:
         return measurement
-    combined = _with_centroid(camera, measurement.normalised, measurement.covariance,
-                              np.asarray(centroid_px, dtype=np.float64), np.asarray(across_px, dtype=np.float64),
-                              centroid_sigma_px, fit.radius_px)
+    combined = _with_centroid(
+        camera,
+        measurement.normalised,
+        measurement.covariance,
+        np.asarray(centroid_px, dtype=np.float64),
+        np.asarray(across_px, dtype=np.float64),
+        centroid_sigma_px,
+        fit.radius_px,
+    )
     if combined is None:
         return measurement
     normalised, covariance = combined
     # The centroid sharpens the measurement across the pointer; part of the model's own error stays.
     floor_px = COMBINED_FLOOR_SHARE * max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
     covariance = covariance + np.eye(2) * (floor_px / camera.focal_px) ** 2
-    return EndMeasurement(camera_index, colour, fit.centre_px, normalised, covariance, fit.radius_px,
-                          "outline+centroid", fit.rim_fraction, fit)
+    return EndMeasurement(
+        camera_index,
+        colour,
+        fit.centre_px,
+        normalised,
+        covariance,
+        fit.radius_px,
+        "outline+centroid",
+        fit.rim_fraction,
+        fit,
+    )
 
 
 def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) -> EndMeasurement | None:
@@ -133,12 +157,28 @@ def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) 
         return None
     floor_px = max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
     covariance = cone.covariance + np.eye(2) * (floor_px / focal) ** 2
-    return EndMeasurement(camera_index, colour, fit.centre_px, cone.normalised, covariance, fit.radius_px,
-                          "outline", fit.rim_fraction, fit)
+    return EndMeasurement(
+        camera_index,
+        colour,
+        fit.centre_px,
+        cone.normalised,
+        covariance,
+        fit.radius_px,
+        "outline",
+        fit.rim_fraction,
+        fit,
+    )
 
 
-def _with_centroid(camera: CameraModel, normalised: Array, covariance: Array, centroid_px: Array,
-                   across_px: Array, centroid_sigma_px: float, radius_px: float) -> tuple[Array, Array] | None:
+def _with_centroid(
+    camera: CameraModel,
+    normalised: Array,
+    covariance: Array,
+    centroid_px: Array,
+    across_px: Array,
+    centroid_sigma_px: float,
+    radius_px: float,
+) -> tuple[Array, Array] | None:
     """The outline's measurement with the centroid's across-the-pointer information added, when they
     agree across the pointer; None when they do not (the centroid is pulled by something)."""
     focal = camera.focal_px

@@ -104,18 +104,33 @@ def choose_jointly(
     # colour where the pointer's length puts it from the other colour's best points.
     for colour, other in (("red", "blue"), ("blue", "red")):
         if points[other]:
-            points[colour] = points[colour] + _guided(cameras, candidates, colour, points[other][:GUIDED_POINTS],
-                                                      ball_radius_m, length_m, length_tolerance_m, room_side, look)
+            points[colour] = points[colour] + _guided(
+                cameras,
+                candidates,
+                colour,
+                points[other][:GUIDED_POINTS],
+                ball_radius_m,
+                length_m,
+                length_tolerance_m,
+                room_side,
+                look,
+            )
     return _pair(points, candidates, length_m, length_tolerance_m)
 
 
-def _pair(points: dict[str, list[_Point]], candidates: list[dict[str, list[Candidate]]], length_m: float,
-          length_tolerance_m: float) -> JointChoice | str:
+def _pair(
+    points: dict[str, list[_Point]],
+    candidates: list[dict[str, list[Candidate]]],
+    length_m: float,
+    length_tolerance_m: float,
+) -> JointChoice | str:
     """The best red and blue points the pointer's length apart, or why there are none."""
     if not points["red"] or not points["blue"]:
         missing = [c for c in ("red", "blue") if not points[c]]
-        return (f"no {' or '.join(missing)} ball seen consistently by two cameras"
-                " (rays that meet, of a ball's size at that distance)")
+        return (
+            f"no {' or '.join(missing)} ball seen consistently by two cameras"
+            " (rays that meet, of a ball's size at that distance)"
+        )
     best: tuple[float, _Point, _Point] | None = None
     consistent = 0
     for red in points["red"]:
@@ -125,16 +140,22 @@ def _pair(points: dict[str, list[_Point]], candidates: list[dict[str, list[Candi
             if error > length_tolerance_m:
                 continue
             # One candidate cannot be both balls.
-            if any(blue.members.get(c) is not None and red.members[c] is not None and
-                   _same(candidates[c], red.members[c], blue.members[c]) for c in red.members):
+            if any(
+                blue.members.get(c) is not None
+                and red.members[c] is not None
+                and _same(candidates[c], red.members[c], blue.members[c])
+                for c in red.members
+            ):
                 continue
             consistent += 1
             score = red.score + blue.score + (error / LENGTH_SCALE_M) ** 2
             if best is None or score < best[0]:
                 best = (score, red, blue)
     if best is None:
-        return (f"no red and blue balls the pointer's length apart ({len(points['red'])} red and"
-                f" {len(points['blue'])} blue points triangulated)")
+        return (
+            f"no red and blue balls the pointer's length apart ({len(points['red'])} red and"
+            f" {len(points['blue'])} blue points triangulated)"
+        )
     score, red, blue = best
     chosen: list[dict[str, Candidate | None]] = []
     for index, per_camera in enumerate(candidates):
@@ -162,9 +183,17 @@ def _rays(cam: CameraModel, per_camera: dict[str, list[Candidate]]) -> dict[str,
     return entry
 
 
-def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidate]]], colour: str,
-            partners: list[_Point], ball_radius_m: float, length_m: float, length_tolerance_m: float,
-            room_side: tuple[Array, float] | None, look: Look) -> list[_Point]:
+def _guided(
+    cameras: list[CameraModel],
+    candidates: list[dict[str, list[Candidate]]],
+    colour: str,
+    partners: list[_Point],
+    ball_radius_m: float,
+    length_m: float,
+    length_tolerance_m: float,
+    room_side: tuple[Array, float] | None,
+    look: Look,
+) -> list[_Point]:
     """Points of ``colour`` found by looking where the pointer's length puts them: for each candidate ray
     of ``colour`` in one camera, where it meets the sphere of the pointer's length around a partner
     point, the other cameras are looked into (``look``).
@@ -188,8 +217,7 @@ def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidat
                     closest = math.sqrt(max(float(offset @ offset) - b * b, 0.0))
                     if closest > length_m + length_tolerance_m:
                         continue
-                    reach = math.sqrt(max(b * b - (float(offset @ offset) - (length_m + length_tolerance_m) ** 2),
-                                          0.0))
+                    reach = math.sqrt(max(b * b - (float(offset @ offset) - (length_m + length_tolerance_m) ** 2), 0.0))
                     roots: tuple[tuple[float, float], ...] = ((-b, reach),)
                 else:
                     roots = ((-b - math.sqrt(disc), 0.0), (-b + math.sqrt(disc), 0.0))
@@ -215,13 +243,27 @@ def _guided(cameras: list[CameraModel], candidates: list[dict[str, list[Candidat
                         expected = other.focal_px * ball_radius_m / float(np.linalg.norm(point - other.centre_m))
                         partner_px = other.project(partner.point_m[None])[0]
                         axis = (float(partner_px[0] - px[0]), float(partner_px[1] - px[1]))
-                        seen = look(c, colour, float(px[0]), float(px[1]), expected,
-                                    axis if np.all(np.isfinite(partner_px)) else None)
+                        seen = look(
+                            c,
+                            colour,
+                            float(px[0]),
+                            float(px[1]),
+                            expected,
+                            axis if np.all(np.isfinite(partner_px)) else None,
+                        )
                         if seen is None:
                             continue
-                        miss = _miss_px(seen.fit.centre_px, px, other, cam.centre_m + (s - reach) * d,
-                                        cam.centre_m + (s + reach) * d) if reach > 0 else float(
-                            np.hypot(*(seen.fit.centre_px - px)))
+                        miss = (
+                            _miss_px(
+                                seen.fit.centre_px,
+                                px,
+                                other,
+                                cam.centre_m + (s - reach) * d,
+                                cam.centre_m + (s + reach) * d,
+                            )
+                            if reach > 0
+                            else float(np.hypot(*(seen.fit.centre_px - px)))
+                        )
                         size = seen.fit.radius_px / expected
                         if miss < max(3.0, 0.5 * expected) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
                             candidates[c][colour].append(seen)
@@ -252,8 +294,14 @@ def _same(per_camera: dict[str, list[Candidate]], red_index: int, blue_index: in
     return float(np.hypot(*(red.centre_px - blue.centre_px))) < 0.5 * min(red.radius_px, blue.radius_px)
 
 
-def _points(cameras: list[CameraModel], rays: list[dict], colour: str, ball_radius_m: float, max_gap_m: float,
-            room_side: tuple[Array, float] | None) -> list[_Point]:
+def _points(
+    cameras: list[CameraModel],
+    rays: list[dict],
+    colour: str,
+    ball_radius_m: float,
+    max_gap_m: float,
+    room_side: tuple[Array, float] | None,
+) -> list[_Point]:
     """Triangulated points of one colour from every pair of cameras' candidates, extended to the other
     cameras, best first (at most MAX_HYPOTHESES)."""
     found: list[_Point] = []
@@ -288,8 +336,11 @@ def _points(cameras: list[CameraModel], rays: list[dict], colour: str, ball_radi
                 normal, offset = room_side
                 good &= (point @ normal + offset) > 0.0
             for i, j in zip(*np.nonzero(good), strict=True):
-                score = ((gap[i, j] / GAP_SCALE_M) ** 2 + (math.log(size_a[i, j]) / SIZE_SCALE) ** 2
-                         + (math.log(size_b[i, j]) / SIZE_SCALE) ** 2)
+                score = (
+                    (gap[i, j] / GAP_SCALE_M) ** 2
+                    + (math.log(size_a[i, j]) / SIZE_SCALE) ** 2
+                    + (math.log(size_b[i, j]) / SIZE_SCALE) ** 2
+                )
                 members = {a: int(i), b: int(j)}
                 found.append(_extend(cameras, rays, colour, point[i, j], members, score, ball_radius_m))
     found.sort(key=lambda p: p.score)
@@ -302,8 +353,15 @@ def _points(cameras: list[CameraModel], rays: list[dict], colour: str, ball_radi
     return distinct
 
 
-def _extend(cameras: list[CameraModel], rays: list[dict], colour: str, point: Array, members: dict[int, int],
-            score: float, ball_radius_m: float) -> _Point:
+def _extend(
+    cameras: list[CameraModel],
+    rays: list[dict],
+    colour: str,
+    point: Array,
+    members: dict[int, int],
+    score: float,
+    ball_radius_m: float,
+) -> _Point:
     """Add the other cameras whose candidate of this colour lies where ``point`` projects."""
     members = dict(members)
     for c, cam in enumerate(cameras):

@@ -56,7 +56,6 @@ TIGHT_LENGTH_M = 0.012
 length is off by more than TIGHT_LENGTH_M is refined: a good one is within a millimetre or two of both."""
 
 
-
 PARALLEL_ANGLE_DEG = 0.5
 """A pointer within this angle of the wall's plane is reported as parallel: its line would meet
 the plane more than a hundred times further away than the tip is from the wall, and which way
@@ -100,7 +99,6 @@ class PointerFix:
     def found(self) -> bool:
         """Both ends were seen and triangulated to a plausible pointer."""
         return self.line is not None and self.status != "rejected"
-
 
 
 def _finite_point(point_px: Array | None) -> bool:
@@ -197,8 +195,7 @@ class Locator:
         """Whether a fix from the detector's centroids holds together as a good one does."""
         line = fix.line
         assert line is not None
-        return (line.gap_m <= TIGHT_GAP_M
-                and abs(line.length_m - self.pointer.length_m) <= TIGHT_LENGTH_M)
+        return line.gap_m <= TIGHT_GAP_M and abs(line.length_m - self.pointer.length_m) <= TIGHT_LENGTH_M
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""
@@ -211,8 +208,16 @@ class Locator:
         if seeing < 2:
             return PointerFix("not_found", "; ".join(missing), centroids, detections=detections)
         fix = self.locate_centroids(centroids)
-        return PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
-                          dict(fix.timings_ns), detections)
+        return PointerFix(
+            fix.status,
+            fix.reason,
+            fix.centroids_px,
+            fix.line,
+            fix.hit,
+            fix.uncertainty_m,
+            dict(fix.timings_ns),
+            detections,
+        )
 
     def _missing(self, detections: tuple) -> list[str]:
         return [
@@ -230,8 +235,10 @@ class Locator:
         if self._grids is None:
             from trackerd.detect.colour import sample_grid
 
-            self._grids = [sample_grid(fmt, cfg.width_px, cfg.height_px)
-                           for cfg, fmt in zip(self.rig.cameras, self.pixel_formats, strict=True)]
+            self._grids = [
+                sample_grid(fmt, cfg.width_px, cfg.height_px)
+                for cfg, fmt in zip(self.rig.cameras, self.pixel_formats, strict=True)
+            ]
         return self._grids
 
     def _locate_refined(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix:
@@ -259,12 +266,14 @@ class Locator:
         # Cameras that saw both ends; with three or more cameras one may miss an end.
         view = self.camera_set.subset(used)
         # Undistort once: (C, 2, 2) normalised image coordinates, [camera, front/back, xy].
-        normalised = np.stack([
-            view.cameras[k].normalized_from_pixels(
-                np.array([centroids[i][self.front_colour], centroids[i][self.back_colour]], dtype=np.float64)
-            )
-            for k, i in enumerate(used)
-        ])
+        normalised = np.stack(
+            [
+                view.cameras[k].normalized_from_pixels(
+                    np.array([centroids[i][self.front_colour], centroids[i][self.back_colour]], dtype=np.float64)
+                )
+                for k, i in enumerate(used)
+            ]
+        )
         try:
             line = self._estimate(normalised, self.rig.locator.sphere_correction, view)
         except GeometryError as err:
@@ -295,20 +304,27 @@ class Locator:
                 "rejected",
                 f"ends are {line.length_m * 1000:.0f} mm apart, the pointer is {pointer.length_m * 1000:.0f}"
                 f" +- {pointer.length_tolerance_m * 1000:.0f} mm",
-                centroids, line, timings_ns={},
+                centroids,
+                line,
+                timings_ns={},
             )
         if line.gap_m > self.rig.locator.max_ray_gap_m:
             return PointerFix(
                 "rejected",
                 f"rays miss by {line.gap_m * 1000:.0f} mm (limit {self.rig.locator.max_ray_gap_m * 1000:.0f} mm):"
                 " the cameras do not agree on an end",
-                centroids, line, timings_ns={},
+                centroids,
+                line,
+                timings_ns={},
             )
         back, front = line.back_floats, line.front_floats
         if self.wall_scalars.direction_sin(back, front) < self._parallel_sin:
             return PointerFix(
-                "parallel", f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
-                centroids, line, timings_ns={},
+                "parallel",
+                f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
+                centroids,
+                line,
+                timings_ns={},
             )
         try:
             intersection = self.wall_scalars.hit(back, front)  # eq. 26-28, and the wall's frame
@@ -330,5 +346,4 @@ class Locator:
     def _uncertainty(self, normalised: Array, view: CameraSet) -> float | None:
         """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer
         (:func:`~trackerd.geometry.camera_set.hit_uncertainty_m`)."""
-        return hit_uncertainty_m(normalised, view, self.rig.locator.centroid_sigma_px, self.wall,
-                                 self.wall_scalars)
+        return hit_uncertainty_m(normalised, view, self.rig.locator.centroid_sigma_px, self.wall, self.wall_scalars)

@@ -88,8 +88,9 @@ def frame_nbytes(pixel_format: str, width_px: int, height_px: int) -> int:
     return width_px * height_px * bytes_per_pixel(pixel_format)
 
 
-def image_from_payload(payload: bytes | memoryview | NDArray[np.uint8], pixel_format: str,
-                       width_px: int, height_px: int) -> Image | None:
+def image_from_payload(
+    payload: bytes | memoryview | NDArray[np.uint8], pixel_format: str, width_px: int, height_px: int
+) -> Image | None:
     """A buffer's payload as the frame's image: a read-only view, no copy (None if the payload is short).
 
     The payload is the image's rows top to bottom, each row's pixels left to right, one byte per
@@ -142,8 +143,6 @@ def from_rgb(rgb: Image, pixel_format: str) -> Image:
         raise ValueError(f"unsupported pixel format {pixel_format!r}")
     height, width = rgb.shape[:2]
     mosaic = np.empty((height, width), dtype=np.uint8)
-    for (row, col), channel in (
-        (layout.red, 0), (layout.green_a, 1), (layout.green_b, 1), (layout.blue, 2)
-    ):
+    for (row, col), channel in ((layout.red, 0), (layout.green_a, 1), (layout.green_b, 1), (layout.blue, 2)):
         mosaic[row::2, col::2] = rgb[row::2, col::2, channel]
     return mosaic

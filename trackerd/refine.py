@@ -93,8 +93,18 @@ class RefinedPath:
             # A camera that sees one end only (the other hidden) still measures that one, by its outline.
             for colour, end in (("red", red), ("blue", blue)):
                 if end.found:
-                    ends[colour] = measure_end(image, self.loc.grids[index], cam, index, colour, end.centroid_px,
-                                               blob_radius_px(end), end.centroid_px, across, sigma_px)
+                    ends[colour] = measure_end(
+                        image,
+                        self.loc.grids[index],
+                        cam,
+                        index,
+                        colour,
+                        end.centroid_px,
+                        blob_radius_px(end),
+                        end.centroid_px,
+                        across,
+                        sigma_px,
+                    )
         fix = self._fix_from_measurements(per_camera, None, detections, start, images)
         if fix.found:
             self._after_refined(fix)
@@ -123,8 +133,7 @@ class RefinedPath:
         self._since_search = 0
         if self.loc._detectors is None:
             return
-        for detector, detection, per_camera in zip(self.loc._detectors, fix.detections, fix.measurements,
-                                                    strict=True):
+        for detector, detection, per_camera in zip(self.loc._detectors, fix.detections, fix.measurements, strict=True):
             red, blue = per_camera.get("red"), per_camera.get("blue")
             if red is None or blue is None or _tracks(detection, red, blue):
                 continue  # the detector already follows these balls (with its own motion estimate)
@@ -137,27 +146,53 @@ class RefinedPath:
         from trackerd.ends import from_fit
         from trackerd.joint import choose_jointly
 
-        candidates = [search_candidates(image, self.loc.grids[index], self._radius_range_px(index))
-                      for index, image in enumerate(images)]
+        candidates = [
+            search_candidates(image, self.loc.grids[index], self._radius_range_px(index))
+            for index, image in enumerate(images)
+        ]
         pointer = self.loc.pointer
         room = self._room_side()
-        def look(camera: int, colour: str, x_px: float, y_px: float, radius_px: float,
-                 axis: tuple[float, float] | None) -> Candidate | None:
+
+        def look(
+            camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
+        ) -> Candidate | None:
             # The geometry knows the ball's size to a few percent and where the rod meets it.
-            fit = fit_ball(images[camera], self.loc.grids[camera], colour, x_px, y_px, radius_px, axis=axis,
-                           radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE), rising_rims=True)
+            fit = fit_ball(
+                images[camera],
+                self.loc.grids[camera],
+                colour,
+                x_px,
+                y_px,
+                radius_px,
+                axis=axis,
+                radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
+                rising_rims=True,
+            )
             if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
                 return None
             return Candidate(colour, fit, (x_px, y_px), radius_px)
 
-        choice = choose_jointly(self.loc.cameras, candidates, pointer.end_diameter_m / 2.0, pointer.length_m,
-                                pointer.length_tolerance_m, self.loc.rig.locator.max_ray_gap_m, room, look)
+        choice = choose_jointly(
+            self.loc.cameras,
+            candidates,
+            pointer.end_diameter_m / 2.0,
+            pointer.length_m,
+            pointer.length_tolerance_m,
+            self.loc.rig.locator.max_ray_gap_m,
+            room,
+            look,
+        )
         if isinstance(choice, str):
             missing = self.loc._missing(detections)
             reason = "; ".join([choice, *missing]) if missing else choice
             empty: tuple[dict[str, Array | None], ...] = tuple({c: None for c in COLOURS} for _ in self.loc.cameras)
-            return PointerFix("not_found", reason, empty, timings_ns={"triangulate_ns": time.perf_counter_ns() - start},
-                              detections=detections)
+            return PointerFix(
+                "not_found",
+                reason,
+                empty,
+                timings_ns={"triangulate_ns": time.perf_counter_ns() - start},
+                detections=detections,
+            )
         per_camera = []
         for index, (cam, picks) in enumerate(zip(self.loc.cameras, choice.chosen, strict=True)):
             ends = {}
@@ -169,8 +204,15 @@ class RefinedPath:
         init = (points[self.loc.front_colour], points[self.loc.back_colour])
         return self._fix_from_measurements(per_camera, init, detections, start, images)
 
-    def _look_again(self, images: Sequence[NDArray[np.uint8]], camera_index: int, colour: str, point_m: Array,
-                    partner_m: Array, expected_px: float) -> Any:
+    def _look_again(
+        self,
+        images: Sequence[NDArray[np.uint8]],
+        camera_index: int,
+        colour: str,
+        point_m: Array,
+        partner_m: Array,
+        expected_px: float,
+    ) -> Any:
         """The ball looked for where ``point_m`` projects, told its image radius and where the rod meets it
         (towards ``partner_m``); its measurement, or None."""
         from trackerd.detect.ballfit import fit_ball
@@ -180,9 +222,16 @@ class RefinedPath:
         at, partner = camera.project(np.stack([point_m, partner_m]))
         if not (np.all(np.isfinite(at)) and np.all(np.isfinite(partner))):
             return None
-        fit = fit_ball(images[camera_index], self.loc.grids[camera_index], colour, float(at[0]), float(at[1]),
-                       expected_px, axis=(float(partner[0] - at[0]), float(partner[1] - at[1])),
-                       radius_range_px=(expected_px / GUIDED_SIZE, expected_px * GUIDED_SIZE))
+        fit = fit_ball(
+            images[camera_index],
+            self.loc.grids[camera_index],
+            colour,
+            float(at[0]),
+            float(at[1]),
+            expected_px,
+            axis=(float(partner[0] - at[0]), float(partner[1] - at[1])),
+            radius_range_px=(expected_px / GUIDED_SIZE, expected_px * GUIDED_SIZE),
+        )
         if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
             return None
         if float(np.hypot(*(fit.centre_px - at))) > max(3.0, 0.5 * expected_px):
@@ -203,12 +252,17 @@ class RefinedPath:
         sign = 1.0 if float(np.mean(plane.signed_distance_m(self.loc._centres))) >= 0 else -1.0
         return sign * plane.normal, sign * plane.offset_m
 
-    def _fix_from_measurements(self, per_camera: list[dict[str, Any]], init: tuple[Array, Array] | None,
-                               detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]) -> PointerFix:
+    def _fix_from_measurements(
+        self,
+        per_camera: list[dict[str, Any]],
+        init: tuple[Array, Array] | None,
+        detections: tuple,
+        start: int,
+        images: Sequence[NDArray[np.uint8]],
+    ) -> PointerFix:
         """The pointer fit on each camera's end measurements (None where a camera does not see an end)."""
         front, back = self.loc.front_colour, self.loc.back_colour
-        centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS}
-                          for ends in per_camera)
+        centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS} for ends in per_camera)
         used = [i for i, ends in enumerate(per_camera) if ends[front] is not None or ends[back] is not None]
         seeing = {end: sum(1 for ends in per_camera if ends[end] is not None) for end in (front, back)}
         timings = {"triangulate_ns": 0}
@@ -221,20 +275,35 @@ class RefinedPath:
         pointer = self.loc.pointer
         if init is None:
             if len(both) < 2:
-                return PointerFix("not_found", "fewer than two cameras measured both ends", centroids,
-                                  timings_ns=timings, detections=detections)
+                return PointerFix(
+                    "not_found",
+                    "fewer than two cameras measured both ends",
+                    centroids,
+                    timings_ns=timings,
+                    detections=detections,
+                )
             sub = self.loc.camera_set.subset([used[k] for k in both])
-            normalised_both = np.stack([np.stack([per_camera[used[k]][front].normalised,
-                                                  per_camera[used[k]][back].normalised]) for k in both])
+            normalised_both = np.stack(
+                [np.stack([per_camera[used[k]][front].normalised, per_camera[used[k]][back].normalised]) for k in both]
+            )
             try:
                 first = self.loc._estimate(normalised_both, False, sub)
             except GeometryError as err:
                 return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
             if abs(first.length_m - pointer.length_m) > pointer.length_tolerance_m or (
-                    first.gap_m > self.loc.rig.locator.max_ray_gap_m):
+                first.gap_m > self.loc.rig.locator.max_ray_gap_m
+            ):
                 fix = self.loc._judge(first, centroids, normalised_both, sub)
-                return PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
-                                  {"triangulate_ns": time.perf_counter_ns() - start}, detections)
+                return PointerFix(
+                    fix.status,
+                    fix.reason,
+                    fix.centroids_px,
+                    fix.line,
+                    fix.hit,
+                    fix.uncertainty_m,
+                    {"triangulate_ns": time.perf_counter_ns() - start},
+                    detections,
+                )
             init = (first.front_m, first.back_m)
             gaps = (first.front_gap_m, first.back_gap_m, first.plane_angle_sin)
         else:
@@ -288,8 +357,9 @@ class RefinedPath:
                     wrong = abs(m.radius_px - expected) / camera.focal_px
                     covariances[k, e] = covariances[k, e] + np.eye(2) * wrong * wrong
         try:
-            views = EndViews.of(rotations, translations, measured, covariances, pointer.length_m,
-                                self.loc.rig.locator.length_sigma_m)
+            views = EndViews.of(
+                rotations, translations, measured, covariances, pointer.length_m, self.loc.rig.locator.length_sigma_m
+            )
             fitted = fit_pointer_robust(views, start_points[0], start_points[1])
         except GeometryError as err:
             return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
@@ -297,13 +367,26 @@ class RefinedPath:
         uncertainty = None
         try:
             wall = self.loc.wall_scalars
-            covariance = hit_covariance(fitted.front_m, fitted.back_m, fitted.covariance, np.array(wall.normal),
-                                        wall.offset_m, np.array([wall.x_axis, wall.y_axis]))
+            covariance = hit_covariance(
+                fitted.front_m,
+                fitted.back_m,
+                fitted.covariance,
+                np.array(wall.normal),
+                wall.offset_m,
+                np.array([wall.x_axis, wall.y_axis]),
+            )
             uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))
         except GeometryError:
             pass
         fix = self.loc._judge(line, centroids, measured, view, uncertainty)
-        return PointerFix(fix.status, fix.reason, fix.centroids_px, fix.line, fix.hit, fix.uncertainty_m,
-                          {"triangulate_ns": time.perf_counter_ns() - start}, detections,
-                          tuple(dict(ends) for ends in per_camera))
-
+        return PointerFix(
+            fix.status,
+            fix.reason,
+            fix.centroids_px,
+            fix.line,
+            fix.hit,
+            fix.uncertainty_m,
+            {"triangulate_ns": time.perf_counter_ns() - start},
+            detections,
+            tuple(dict(ends) for ends in per_camera),
+        )

@@ -37,16 +37,31 @@ class Features:
 
 def test_a_full_node_map_reads_into_every_field() -> None:
     features = Features(
-        values={"SensorWidth": 1936, "SensorHeight": 1216, "PixelFormat": "BayerRG8", "GevSCPSPacketSize": 8192,
-                "GevIEEE1588": False, "GevSCPD": 0},
+        values={
+            "SensorWidth": 1936,
+            "SensorHeight": 1216,
+            "PixelFormat": "BayerRG8",
+            "GevSCPSPacketSize": 8192,
+            "GevIEEE1588": False,
+            "GevSCPD": 0,
+        },
         spans={"AcquisitionFrameRate": (1.0, 120.0), "ExposureTime": (20.0, 1e6), "Gain": (0.0, 24.0)},
-        enums={"PixelFormat": ("Mono8", "BayerRG8"), "TriggerSelector": ("FrameStart",),
-               "TriggerSource": ("Line1", "Software"), "TriggerActivation": ("RisingEdge", "FallingEdge")},
+        enums={
+            "PixelFormat": ("Mono8", "BayerRG8"),
+            "TriggerSelector": ("FrameStart",),
+            "TriggerSource": ("Line1", "Software"),
+            "TriggerActivation": ("RisingEdge", "FallingEdge"),
+        },
         sizes={"Width": (16, 1936, 4), "Height": (16, 1216, 2)},
     )
     details = details_from_features(DEVICE, features)
     assert (details.device_id, details.vendor, details.model, details.serial, details.protocol) == (
-        "dev-1", "Vendor", "Model 7", "S123", "CoaXPress")
+        "dev-1",
+        "Vendor",
+        "Model 7",
+        "S123",
+        "CoaXPress",
+    )
     assert details.sensor_px == (1936, 1216)
     assert (details.width_px, details.height_px) == ((16, 1936, 4), (16, 1216, 2))
     assert details.pixel_format == "BayerRG8" and details.pixel_formats == ("Mono8", "BayerRG8")

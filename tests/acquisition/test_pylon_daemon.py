@@ -36,8 +36,9 @@ EMULATION = dict(os.environ, PYLON_CAMEMU="2")
 
 
 def trackerd(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "trackerd", *args], capture_output=True, text=True, timeout=60,
-                          env=env or EMULATION)
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", *args], capture_output=True, text=True, timeout=60, env=env or EMULATION
+    )
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +77,13 @@ def test_the_daemon_tracks_the_pointer_on_two_emulated_cameras(simulated_rig, st
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"")
     sub.connect(ENDPOINT)
-    daemon = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)], env=EMULATION,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    daemon = subprocess.Popen(
+        [sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
+        env=EMULATION,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     messages: list[tuple[str, dict]] = []
     try:
         deadline = time.monotonic() + 90.0
@@ -126,14 +132,17 @@ def test_cameras_lists_the_emulated_cameras_with_their_backend() -> None:
     assert "BayerRG8" in detail.stdout and "software trigger supported" in detail.stdout
 
 
-def test_without_pypylon_the_pylon_backend_names_the_extra_to_install(
-    simulated_rig, tmp_path: Path
-) -> None:
+def test_without_pypylon_the_pylon_backend_names_the_extra_to_install(simulated_rig, tmp_path: Path) -> None:
     """A real process in which pypylon cannot be imported (as on a machine without the extra)."""
     rig_file = daemon_rig(simulated_rig, [tmp_path / "left", tmp_path / "right"], tmp_path)
     without = "import sys; sys.modules['pypylon'] = None; from trackerd.cli.main import main; sys.exit(main())"
-    result = subprocess.run([sys.executable, "-c", without, "run", "--config", str(rig_file)], capture_output=True,
-                            text=True, timeout=60, env=EMULATION)
+    result = subprocess.run(
+        [sys.executable, "-c", without, "run", "--config", str(rig_file)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=EMULATION,
+    )
     assert result.returncode != 0
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr

@@ -57,8 +57,15 @@ def small_rig(rig: RigConfig, image_dirs: list[Path] | None, **acquisition: obje
     """The simulated rig on two emulated cameras at 640x480 (uncalibrated: nothing here tracks)."""
     emulated = emulated_rig(rig, image_dirs, **acquisition)
     cameras = tuple(
-        cam.model_copy(update={"width_px": WIDTH, "height_px": HEIGHT, "intrinsics": None, "extrinsics": None,
-                               "acquisition": cam.acquisition.model_copy(update={"exposure_us": 1000.0})})
+        cam.model_copy(
+            update={
+                "width_px": WIDTH,
+                "height_px": HEIGHT,
+                "intrinsics": None,
+                "extrinsics": None,
+                "acquisition": cam.acquisition.model_copy(update={"exposure_us": 1000.0}),
+            }
+        )
         for cam in emulated.cameras
     )
     return RigConfig.model_validate({**emulated.model_dump(), "cameras": [c.model_dump() for c in cameras]})
@@ -178,12 +185,16 @@ def test_failed_buffers_are_counted_and_a_silent_camera_is_lost_and_reopened(
 @pytest.mark.parametrize(
     ("change", "expected"),
     [
-        ({"acquisition": {"exposure_us": 5e7}},
-         r"acquisition\.exposure_us = 5e\+07 is refused by the camera, which allows 1 to 1e\+07 us"),
+        (
+            {"acquisition": {"exposure_us": 5e7}},
+            r"acquisition\.exposure_us = 5e\+07 is refused by the camera, which allows 1 to 1e\+07 us",
+        ),
         ({"width_px": 5000}, r"width_px = 5000 is refused by the camera, which allows 1 to 4096 px"),
         ({"features": {"NoSuchFeature": 3}}, r"features\.NoSuchFeature = 3: the camera has no feature NoSuchFeature"),
-        ({"features": {"TestImageSelector": "Testimage9"}},
-         r"features\.TestImageSelector = 'Testimage9' is refused by the camera, which allows one of Off, Testimage1"),
+        (
+            {"features": {"TestImageSelector": "Testimage9"}},
+            r"features\.TestImageSelector = 'Testimage9' is refused by the camera, which allows one of Off, Testimage1",
+        ),
     ],
 )
 def test_a_refused_setting_names_the_camera_the_setting_and_what_it_allows(

@@ -155,7 +155,9 @@ def test_trackerd_run_exits_2_with_one_line_for_a_refused_value(loopback_rig, tm
     path.write_text(dump_rig(rig))
     result = subprocess.run(
         [sys.executable, "-m", "trackerd", "run", "--config", str(path), "--seconds", "30"],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()

@@ -38,7 +38,8 @@ def test_stopping_does_not_wait_for_the_search_for_a_missing_camera(simulated_ri
 def test_the_daemon_says_which_cameras_it_waits_for_and_stops_at_once_without_them() -> None:
     run = subprocess.Popen(
         [sys.executable, "-m", "trackerd", "run", "--config", str(RIG)],
-        stderr=subprocess.PIPE, text=True,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
         time.sleep(3.5)

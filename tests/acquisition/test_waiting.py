@@ -48,8 +48,10 @@ def test_the_daemons_source_waits_for_a_camera_switched_on_after_it(simulated_ri
 
             virtual.restart_camera(1)  # switched on
             pairs = []
-            assert wait_until(lambda: (pair := source.next_pair(0.1)) is not None and pairs.append(pair) is None
-                              and len(pairs) >= 10, 10.0), source.status().to_json()
+            assert wait_until(
+                lambda: (pair := source.next_pair(0.1)) is not None and pairs.append(pair) is None and len(pairs) >= 10,
+                10.0,
+            ), source.status().to_json()
             waited_s = time.monotonic() - waiting_since
             status = source.status()
     assert [c.state for c in status.cameras] == ["streaming", "streaming"]
@@ -94,8 +96,12 @@ def test_a_connection_that_delivers_no_frame_is_never_streaming(simulated_rig, o
 
             assert wait_until(lost_once, 10.0), source.status().to_json()
             # ... and reconnected, connected again, still without a frame.
-            assert wait_until(lambda: lost_once() and all(
-                c.state == "connected" and c.reconnects >= 1 for c in source.status().cameras), 10.0)
+            assert wait_until(
+                lambda: (
+                    lost_once() and all(c.state == "connected" and c.reconnects >= 1 for c in source.status().cameras)
+                ),
+                10.0,
+            )
             status = source.status()
     assert "connected" in seen and "streaming" not in seen
     assert all(c.frames == 0 for c in status.cameras)

@@ -19,13 +19,21 @@ from trackerd.pipeline.threadtime import OffCpu
 MS = 1_000_000
 
 
-def _trace(received_ms: float, latency_ms: float, off_ms: float = 0.0, runqueue_ms: float = 0.0,
-           slept: bool = False) -> PairTrace:
-    processing = OffCpu(wall_ns=int(2 * MS + off_ms * MS), off_cpu_ns=int(off_ms * MS),
-                        runqueue_ns=int(runqueue_ms * MS), slept=slept)
+def _trace(
+    received_ms: float, latency_ms: float, off_ms: float = 0.0, runqueue_ms: float = 0.0, slept: bool = False
+) -> PairTrace:
+    processing = OffCpu(
+        wall_ns=int(2 * MS + off_ms * MS), off_cpu_ns=int(off_ms * MS), runqueue_ns=int(runqueue_ms * MS), slept=slept
+    )
     publishing = OffCpu(wall_ns=int(0.2 * MS), off_cpu_ns=0, runqueue_ns=0, slept=False)
-    return PairTrace(received_ns=int(received_ms * MS), latency_ns=int(latency_ms * MS), waiting_ns=int(0.1 * MS),
-                     processing=processing, handoff_ns=int(0.1 * MS), publishing=publishing)
+    return PairTrace(
+        received_ns=int(received_ms * MS),
+        latency_ns=int(latency_ms * MS),
+        waiting_ns=int(0.1 * MS),
+        processing=processing,
+        handoff_ns=int(0.1 * MS),
+        publishing=publishing,
+    )
 
 
 def test_off_cpu_time_is_split_by_where_it_went():
@@ -56,11 +64,23 @@ def test_pairs_are_told_apart_by_whether_the_hypervisor_stole_cpu_while_they_wer
         return {"steal": steal, "total": total}
 
     # Four periods of 200 ms; CPU is stolen only in the second.
-    machine = [(0, ticks(5, 100)), (200 * MS, ticks(5, 140)), (400 * MS, ticks(7, 180)),
-               (600 * MS, ticks(7, 220)), (800 * MS, ticks(7, 260)), (900 * MS, None)]
-    trace = [_trace(50, 2.0), _trace(250, 9.0), _trace(390, 8.0), _trace(450, 2.5), _trace(750, 3.0),
-             _trace(198, 4.0),  # arrived in a quiet period, published in the stolen one
-             _trace(850, 99.0)]  # arrived after the last sample: in no period
+    machine = [
+        (0, ticks(5, 100)),
+        (200 * MS, ticks(5, 140)),
+        (400 * MS, ticks(7, 180)),
+        (600 * MS, ticks(7, 220)),
+        (800 * MS, ticks(7, 260)),
+        (900 * MS, None),
+    ]
+    trace = [
+        _trace(50, 2.0),
+        _trace(250, 9.0),
+        _trace(390, 8.0),
+        _trace(450, 2.5),
+        _trace(750, 3.0),
+        _trace(198, 4.0),  # arrived in a quiet period, published in the stolen one
+        _trace(850, 99.0),
+    ]  # arrived after the last sample: in no period
     figures = latency_by_steal(trace, machine)
     assert figures["periods"] == 4 and figures["periods_with_steal"] == 1
     assert figures["quiet"]["pairs"] == 3 and figures["quiet"]["max_ms"] == 3.0
@@ -76,11 +96,21 @@ def test_pairs_and_stolen_cpu_are_told_apart_by_whether_the_cpus_were_held_awake
     # Not held from 0, held from 400 ms, not held again from 800 ms; as in the bench, each switch is
     # recorded just after the /proc/stat sample taken at that moment.
     turns = [(0, False), (401 * MS, True), (801 * MS, False)]
-    machine = [(0, ticks(0, 100)), (200 * MS, ticks(6, 200)), (400 * MS, ticks(8, 300)), (600 * MS, ticks(8, 400)),
-               (800 * MS, ticks(9, 500)), (1000 * MS, ticks(13, 600))]
-    trace = [_trace(50, 9.0), _trace(390, 7.0),  # not held (the second published after the turn: its arrival counts)
-             _trace(450, 2.5), _trace(790, 3.0),  # held
-             _trace(850, 8.0)]  # not held
+    machine = [
+        (0, ticks(0, 100)),
+        (200 * MS, ticks(6, 200)),
+        (400 * MS, ticks(8, 300)),
+        (600 * MS, ticks(8, 400)),
+        (800 * MS, ticks(9, 500)),
+        (1000 * MS, ticks(13, 600)),
+    ]
+    trace = [
+        _trace(50, 9.0),
+        _trace(390, 7.0),  # not held (the second published after the turn: its arrival counts)
+        _trace(450, 2.5),
+        _trace(790, 3.0),  # held
+        _trace(850, 8.0),
+    ]  # not held
     figures = latency_by_wakeup(trace, turns, machine)
     assert figures["held"]["pairs"] == 2 and figures["held"]["max_ms"] == 3.0
     assert figures["not_held"]["pairs"] == 3 and figures["not_held"]["max_ms"] == 9.0
@@ -96,9 +126,27 @@ def test_pairs_and_stolen_cpu_are_told_apart_by_whether_the_cpus_were_held_awake
 def test_a_short_run_reports_every_figure_consistently():
     request_before = cpu_latency.current_us()
     run = subprocess.run(
-        [sys.executable, "-m", "trackerd", "bench", "pipeline", "--seconds", "1", "--json",
-         "--endpoint", "tcp://127.0.0.1:5598", "--turn-seconds", "0.4", "--paced-pairs", "20", "--console", "viewer"],
-        capture_output=True, text=True, timeout=180,
+        [
+            sys.executable,
+            "-m",
+            "trackerd",
+            "bench",
+            "pipeline",
+            "--seconds",
+            "1",
+            "--json",
+            "--endpoint",
+            "tcp://127.0.0.1:5598",
+            "--turn-seconds",
+            "0.4",
+            "--paced-pairs",
+            "20",
+            "--console",
+            "viewer",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=180,
     )
     assert run.returncode == 0, run.stderr
     figures = json.loads(run.stdout)
@@ -139,7 +187,11 @@ def test_a_short_run_reports_every_figure_consistently():
 
 
 def test_a_turn_of_no_length_is_refused_in_one_line():
-    run = subprocess.run([sys.executable, "-m", "trackerd", "bench", "pipeline", "--turn-seconds", "0"],
-                         capture_output=True, text=True, timeout=60)
+    run = subprocess.run(
+        [sys.executable, "-m", "trackerd", "bench", "pipeline", "--turn-seconds", "0"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and "--turn-seconds" in run.stderr, run.stderr

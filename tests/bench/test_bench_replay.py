@@ -10,9 +10,25 @@ import sys
 def test_a_short_run_completes_with_every_row(tmp_path) -> None:
     """It crashed once, unnoticed, when the locator's detection changed under its baseline locator."""
     run = subprocess.run(
-        [sys.executable, "-m", "trackerd", "bench", "replay", "--record-seconds", "1", "--pairs", "30",
-         "--reference-pairs", "10", "--dir", str(tmp_path), "--json"],
-        capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            "-m",
+            "trackerd",
+            "bench",
+            "replay",
+            "--record-seconds",
+            "1",
+            "--pairs",
+            "30",
+            "--reference-pairs",
+            "10",
+            "--dir",
+            str(tmp_path),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert run.returncode == 0, run.stderr
     figures = json.loads(run.stdout)

@@ -16,17 +16,43 @@ from trackerd.bench.robustness import FACTORS, figures, floor_hit, format_summar
 def test_a_small_run_reports_trackerd_and_the_naive_method_per_factor(tmp_path) -> None:
     records = tmp_path / "frames.jsonl"
     run = subprocess.run(
-        [sys.executable, "-m", "trackerd", "bench", "robustness", "--rigs", "1", "--poses", "3", "--workers", "1",
-         "--seed", "3", "--json", "--records", str(records)],
-        capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            "-m",
+            "trackerd",
+            "bench",
+            "robustness",
+            "--rigs",
+            "1",
+            "--poses",
+            "3",
+            "--workers",
+            "1",
+            "--seed",
+            "3",
+            "--json",
+            "--records",
+            str(records),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert run.returncode == 0, run.stderr
     assert "robustness: 1/1 installations" in run.stderr  # progress on stderr
     summary = json.loads(run.stdout)
     overall = summary["overall"]
     assert overall["frames"] == 3
-    for key in ("found_percent", "median_mm", "p95_mm", "worst_mm", "over_3_sigma_percent", "over_5_sigma_percent",
-                "within_1_sigma_percent", "within_2_sigma_percent"):
+    for key in (
+        "found_percent",
+        "median_mm",
+        "p95_mm",
+        "worst_mm",
+        "over_3_sigma_percent",
+        "over_5_sigma_percent",
+        "within_1_sigma_percent",
+        "within_2_sigma_percent",
+    ):
         assert key in overall["trackerd"]
     assert set(overall["naive"]) == {"found_percent", "median_mm", "p95_mm", "worst_mm"}
     assert set(overall["floor"]) == {"median_mm", "p95_mm"}
@@ -38,11 +64,24 @@ def test_a_small_run_reports_trackerd_and_the_naive_method_per_factor(tmp_path) 
 
 def test_figures_count_confident_wrong_answers_and_sigma_coverage() -> None:
     def record(error, sigma, eligible=True):
-        return {"eligible": eligible, "error_m": error, "sigma_m": sigma, "naive_error_m": None,
-                "factors": dict.fromkeys(FACTORS, "x"), "reason": None, "seconds": 0.01}
+        return {
+            "eligible": eligible,
+            "error_m": error,
+            "sigma_m": sigma,
+            "naive_error_m": None,
+            "factors": dict.fromkeys(FACTORS, "x"),
+            "reason": None,
+            "seconds": 0.01,
+        }
 
-    records = [record(0.001, 0.002), record(0.003, 0.002), record(0.05, 0.002), record(None, None),
-               record(0.04, 0.001, eligible=False), record(0.001, 0.002, eligible=False)]
+    records = [
+        record(0.001, 0.002),
+        record(0.003, 0.002),
+        record(0.05, 0.002),
+        record(None, None),
+        record(0.04, 0.001, eligible=False),
+        record(0.001, 0.002, eligible=False),
+    ]
     f = figures(records)
     assert f["eligible"] == 4 and f["trackerd"]["found_percent"] == 75.0
     assert f["trackerd"]["within_1_sigma_percent"] == round(100 / 3, 1)

@@ -10,8 +10,9 @@ import sys
 
 
 def _bench(*args: str) -> dict:
-    run = subprocess.run([sys.executable, "-m", "trackerd", "bench", *args, "--json"], capture_output=True,
-                         text=True, timeout=600)
+    run = subprocess.run(
+        [sys.executable, "-m", "trackerd", "bench", *args, "--json"], capture_output=True, text=True, timeout=600
+    )
     assert run.returncode == 0, run.stderr
     assert "Traceback" not in run.stderr
     return json.loads(run.stdout)
@@ -37,8 +38,9 @@ def test_bench_calibration_with_the_fewest_views() -> None:
 
 
 def test_bench_interaction_with_a_few_of_each() -> None:
-    figures = _bench("interaction", "--rendered-pairs", "4", "--sessions", "1", "--pointing-minutes", "0.1",
-                     "--hands", "2")
+    figures = _bench(
+        "interaction", "--rendered-pairs", "4", "--sessions", "1", "--pointing-minutes", "0.1", "--hands", "2"
+    )
     assert {"smoothing", "gestures", "hands", "cost"} <= set(figures)
     assert figures["smoothing"]["scripted"] and figures["hands"]["hands"] == 2
     assert figures["cost"]["engine_per_pair_us"] and figures["cost"]["hand_look_ms"] is not None

@@ -12,8 +12,9 @@ MS = 1_000_000
 
 
 def _times() -> PairTimes:
-    return PairTimes(received_ns=100 * MS, taken_ns=101 * MS, queued_ns=104 * MS, sending_ns=104 * MS + MS // 2,
-                     sent_ns=105 * MS)
+    return PairTimes(
+        received_ns=100 * MS, taken_ns=101 * MS, queued_ns=104 * MS, sending_ns=104 * MS + MS // 2, sent_ns=105 * MS
+    )
 
 
 def test_a_pair_is_taken_apart_from_its_moments_and_marks():
@@ -30,10 +31,12 @@ def test_a_pair_is_taken_apart_from_its_moments_and_marks():
     finally:
         observer.thread_stopped()
     [trace] = observer.trace()
-    assert (trace.received_ns, trace.latency_ns, trace.waiting_ns, trace.handoff_ns) == (100 * MS, 5 * MS, MS,
-                                                                                          MS // 2)
+    assert (trace.received_ns, trace.latency_ns, trace.waiting_ns, trace.handoff_ns) == (100 * MS, 5 * MS, MS, MS // 2)
     assert (trace.processing.wall_ns, trace.processing.off_cpu_ns, trace.processing.runqueue_ns) == (
-        3 * MS, MS, MS // 2)
+        3 * MS,
+        MS,
+        MS // 2,
+    )
     assert not trace.processing.slept
     # The publishing thread's interval is real: from the mark to the end of published().
     assert 0 <= trace.publishing.off_cpu_ns <= trace.publishing.wall_ns

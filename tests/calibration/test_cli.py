@@ -89,8 +89,9 @@ def images(folder: Path) -> list[str]:
 
 def calibrate_intrinsics(workspace: Path, cam: str) -> subprocess.CompletedProcess[str]:
     """`trackerd calibrate intrinsics` for one camera from its images in the workspace; it must succeed."""
-    run = trackerd(*INTRINSICS, cam, "--board", "chessboard:10x7:60", *images(workspace / f"intrinsics-{cam}"),
-                   cwd=workspace)
+    run = trackerd(
+        *INTRINSICS, cam, "--board", "chessboard:10x7:60", *images(workspace / f"intrinsics-{cam}"), cwd=workspace
+    )
     assert run.returncode == 0, run.stderr
     return run
 
@@ -177,14 +178,30 @@ def test_a_new_installation_end_to_end(both_lenses: Calibrated, tmp_path: Path) 
     # A dry run from it writes nothing at all: no calibration file, no snapshots.
     before = calibration.read_bytes()
     run = trackerd(
-        "calibrate", "stereo", "--config", "rig.toml", "--board", "chessboard:10x7:100",
-        "--recording", "board.trec", "--dry-run", cwd=workspace,
+        "calibrate",
+        "stereo",
+        "--config",
+        "rig.toml",
+        "--board",
+        "chessboard:10x7:100",
+        "--recording",
+        "board.trec",
+        "--dry-run",
+        cwd=workspace,
     )
     assert run.returncode == 0, run.stderr
     assert calibration.read_bytes() == before and not (workspace / "calibration-snapshots").exists()
     run = trackerd(
-        "calibrate", "stereo", "--config", "rig.toml", "--board", "chessboard:10x7:100",
-        "--recording", "board.trec", "--json", cwd=workspace,
+        "calibrate",
+        "stereo",
+        "--config",
+        "rig.toml",
+        "--board",
+        "chessboard:10x7:100",
+        "--recording",
+        "board.trec",
+        "--json",
+        cwd=workspace,
     )
     assert run.returncode == 0, run.stderr
     from_recording = json.loads(run.stdout)
@@ -242,8 +259,13 @@ def test_bad_input_gives_one_clear_line_and_overwrites_nothing(calibrated: Path)
 
     # No board in any image: pointer scenes. Nothing says the size is wrong.
     run = trackerd(*base, "--board", "chessboard:10x7:60", *images(ws / "waving")[:6], cwd=ws)
-    line = one_line_error(run, "no usable view of the board in 6 image(s)", "no detector found 9 x 6 inner corners",
-                          "nor a neighbouring size", "in view, lit and in focus")
+    line = one_line_error(
+        run,
+        "no usable view of the board in 6 image(s)",
+        "no detector found 9 x 6 inner corners",
+        "nor a neighbouring size",
+        "in view, lit and in focus",
+    )
     assert "--board" not in line
     # The board is there, but described wrongly (inner corners instead of squares): the size it has is named.
     run = trackerd(*base, "--board", "chessboard:9x6:60", *images(ws / "intrinsics-left")[:3], cwd=ws)
@@ -416,7 +438,16 @@ def test_live_touch_on_the_simulated_rig_touches_targets_both_cameras_see(tmp_pa
     view, so the step says so and touches the corners and centre of the strip both see instead."""
     rig = simulated_rig_with_calibration_file(tmp_path)
     run = trackerd(
-        "calibrate", "wall", "--config", rig, "--touch", "--live", "--source", "simulated", "--dry-run", "--json",
+        "calibrate",
+        "wall",
+        "--config",
+        rig,
+        "--touch",
+        "--live",
+        "--source",
+        "simulated",
+        "--dry-run",
+        "--json",
         cwd=tmp_path,
     )
     assert run.returncode == 0, run.stderr
@@ -431,7 +462,16 @@ def test_live_touch_on_the_simulated_rig_touches_targets_both_cameras_see(tmp_pa
     assert not (tmp_path / "calibration-snapshots").exists()  # a dry run writes nothing
     # Targets named explicitly that a camera cannot see are refused up front, saying where to touch.
     run = trackerd(
-        "calibrate", "wall", "--config", rig, "--touch", "--live", "--source", "simulated", "--use", "bl,centre,tr",
+        "calibrate",
+        "wall",
+        "--config",
+        rig,
+        "--touch",
+        "--live",
+        "--source",
+        "simulated",
+        "--use",
+        "bl,centre,tr",
         cwd=tmp_path,
     )
     one_line_error(
@@ -444,7 +484,16 @@ def test_live_pointing_on_the_simulated_rig_files_each_capture_under_its_target(
     hides a ball from one camera): those are retried for the same target, never shifted onto the next."""
     rig = simulated_rig_with_calibration_file(tmp_path)
     run = trackerd(
-        "calibrate", "wall", "--config", rig, "--point", "--live", "--source", "simulated", "--dry-run", "--json",
+        "calibrate",
+        "wall",
+        "--config",
+        rig,
+        "--point",
+        "--live",
+        "--source",
+        "simulated",
+        "--dry-run",
+        "--json",
         cwd=tmp_path,
     )
     assert run.returncode == 0, run.stderr
@@ -471,8 +520,9 @@ def test_each_step_names_its_own_inputs_and_a_missing_input_file_is_a_bad_input(
     (tmp_path / "bad.toml").write_text("[wall\n")
     run = trackerd("calibrate", "wall", "--config", rig, "--points", "bad.toml", cwd=tmp_path)
     one_line_error(run, "bad.toml: not valid TOML")
-    run = trackerd("calibrate", "wall", "--config", rig, "--touch", "--pairs", ".", "--targets", "missing.toml",
-                   cwd=tmp_path)
+    run = trackerd(
+        "calibrate", "wall", "--config", rig, "--touch", "--pairs", ".", "--targets", "missing.toml", cwd=tmp_path
+    )
     one_line_error(run, "missing.toml: no such file")
     # The rig itself stays a configuration problem.
     run = trackerd("calibrate", "check", "--config", "missing-rig.toml", "--live", cwd=tmp_path)

@@ -25,8 +25,12 @@ def _learn(rig, renderer, *, content=None, count: int = 8):
     rng = np.random.default_rng(5)
     learner = ColourLearner(rig, renderer.cameras, wanted=count)
     for pose in waved(count):
-        learner.feed([(cam.camera_id, renderer.render(i, pose, rng, content=content).image, "BayerRG8")
-                      for i, cam in enumerate(renderer.cameras)])
+        learner.feed(
+            [
+                (cam.camera_id, renderer.render(i, pose, rng, content=content).image, "BayerRG8")
+                for i, cam in enumerate(renderer.cameras)
+            ]
+        )
     return learner.result("2026-12-02")
 
 
@@ -47,10 +51,14 @@ def test_dark_paint_in_dim_light_gets_thresholds_the_detector_finds_it_with():
     assert before <= tried // 4 and after >= tried - 1, figures.detector_check
     # A pose not learned from, in both cameras: the detector's own search with the learned thresholds
     # finds both ends where they are; with the defaults it does not.
-    learned = rig.detector.model_copy(update={
-        c: rig.detector.red.model_copy(update={"min_excess": figures.colours.of(c).min_excess,
-                                               "min_value": figures.colours.of(c).min_value})
-        for c in ("red", "blue")})
+    learned = rig.detector.model_copy(
+        update={
+            c: rig.detector.red.model_copy(
+                update={"min_excess": figures.colours.of(c).min_excess, "min_value": figures.colours.of(c).min_value}
+            )
+            for c in ("red", "blue")
+        }
+    )
     pose = next(waved(1, offset=0.37))
     rng = np.random.default_rng(9)
     for index, cam in enumerate(renderer.cameras):
@@ -83,15 +91,17 @@ def test_no_pointer_in_view_teaches_nothing():
     rng = np.random.default_rng(1)
     learner = ColourLearner(rig, renderer.cameras)
     for _ in range(3):
-        learner.feed([(cam.camera_id, renderer.render(i, None, rng).image, "BayerRG8")
-                      for i, cam in enumerate(renderer.cameras)])
+        learner.feed(
+            [(cam.camera_id, renderer.render(i, None, rng).image, "BayerRG8") for i, cam in enumerate(renderer.cameras)]
+        )
     with pytest.raises(CalibrationError, match="not located well in any of 3 pair"):
         learner.result("2026-12-02")
 
 
 def _trackerd(*args, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "trackerd", *map(str, args)], cwd=cwd, capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=300
+    )
 
 
 def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_overrides(tmp_path: Path):
@@ -99,8 +109,9 @@ def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_o
     rng = np.random.default_rng(2)
     for k, pose in enumerate(waved(6)):
         for index, cam in enumerate(renderer.cameras):
-            save_frame(tmp_path / "waving", f"{k:02d}-{cam.camera_id}", renderer.render(index, pose, rng).image,
-                       "BayerRG8")
+            save_frame(
+                tmp_path / "waving", f"{k:02d}-{cam.camera_id}", renderer.render(index, pose, rng).image, "BayerRG8"
+            )
     rig_text = dump_rig(rig.model_copy(update={"calibration": Path("cal.toml")}))
     (tmp_path / "rig.toml").write_text(rig_text)
     run = _trackerd("calibrate", "pointer", "--config", "rig.toml", "--pairs", "waving", "--json", cwd=tmp_path)
@@ -121,8 +132,9 @@ def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_o
     assert loaded.config.detector.red.min_excess == 90
     assert loaded.config.detector.blue.min_excess == written["blue"]["min_excess"]
     assert loaded.threshold_sources == {"red": "rig file", "blue": "learned"}
-    run = _trackerd("calibrate", "pointer", "--config", "rig.toml", "--pairs", "waving", "--dry-run", "--json",
-                    cwd=tmp_path)
+    run = _trackerd(
+        "calibrate", "pointer", "--config", "rig.toml", "--pairs", "waving", "--dry-run", "--json", cwd=tmp_path
+    )
     assert run.returncode == 0, run.stderr
     again = json.loads(run.stdout)
     assert any("the rig file sets [detector.red], which stays in force" in note for note in again["notes"])
@@ -157,8 +169,11 @@ def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_o
     run = _trackerd("calibrate", "pointer", "--config", inline, "--live", "--source", "simulated", cwd=tmp_path)
     assert run.returncode == 1 and "the rig file gives [pointer_colours] itself" in run.stderr, run.stderr
     # A hand-edited threshold above what the ball reaches is refused where the file is read.
-    edited = (tmp_path / "cal.toml").read_text().replace(
-        f"min_excess = {written['red']['min_excess']}", "min_excess = 250", 1)
+    edited = (
+        (tmp_path / "cal.toml")
+        .read_text()
+        .replace(f"min_excess = {written['red']['min_excess']}", "min_excess = 250", 1)
+    )
     (tmp_path / "cal.toml").write_text(edited)
     run = _trackerd("config", "check", "rig.toml", cwd=tmp_path)
     assert run.returncode == 2 and "would never pass the colour test" in run.stderr, run.stderr

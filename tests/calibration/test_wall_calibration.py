@@ -173,8 +173,10 @@ def test_a_fit_above_the_limit_is_refused_naming_the_observations_that_are_off()
 
     rng = np.random.default_rng(5)
     rotation, o = true_frame((0.1, 0.2, -0.1), (0.5, -0.3, 3.0))
-    marks = {k: Target(k, np.array(xy), False) for k, xy in
-             {"m1": (1.6, 0.15), "m2": (2.1, 0.15), "m3": (2.1, 0.75), "m4": (1.6, 0.75)}.items()}
+    marks = {
+        k: Target(k, np.array(xy), False)
+        for k, xy in {"m1": (1.6, 0.15), "m2": (2.1, 0.15), "m3": (2.1, 0.75), "m4": (1.6, 0.75)}.items()
+    }
     good = touches(rotation, o, marks.values(), rng, noise_m=0.0005)
     fit = fit_wall(good, [], (WIDTH, HEIGHT), RADIUS)
     assert fit.rms_mm < 2.0 and fit_problem(fit, DEFAULT_MAX_RMS_MM) is None

@@ -17,9 +17,7 @@ DOC = REPO_ROOT / "docs" / "configuration.md"
 
 
 def load_generator() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "gen_config_docs", REPO_ROOT / "scripts" / "gen_config_docs.py"
-    )
+    spec = importlib.util.spec_from_file_location("gen_config_docs", REPO_ROOT / "scripts" / "gen_config_docs.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules.setdefault(spec.name, module)  # its dataclasses look their module up there
@@ -61,9 +59,7 @@ def test_calibration_example_loads_with_the_datawall_rig(tmp_path: Path) -> None
     assert example is not None
     (tmp_path / "datawall-calibration.toml").write_text(example.group(1), encoding="utf-8")
     rig = (REPO_ROOT / "config" / "datawall.toml").read_text(encoding="utf-8")
-    rig = rig.replace(
-        '# calibration = "datawall-calibration.toml"', 'calibration = "datawall-calibration.toml"'
-    )
+    rig = rig.replace('# calibration = "datawall-calibration.toml"', 'calibration = "datawall-calibration.toml"')
     (tmp_path / "datawall.toml").write_text(rig, encoding="utf-8")
     loaded = load_rig(tmp_path / "datawall.toml")
     assert loaded.sources == {

@@ -18,8 +18,9 @@ REPO = Path(__file__).resolve().parents[2]
 
 def _trackerd(*args: str | Path) -> subprocess.CompletedProcess[str]:
     # The timeout is a guard only: every case answers at once.
-    return subprocess.run([sys.executable, "-m", "trackerd", *map(str, args)], capture_output=True, text=True,
-                          timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", *map(str, args)], capture_output=True, text=True, timeout=60
+    )
 
 
 def _one_line(run: subprocess.CompletedProcess[str], command: str, *fragments: str) -> None:
@@ -66,9 +67,15 @@ def test_a_hostile_calibration_file_is_named_as_the_calibration(tmp_path: Path) 
         _one_line(_trackerd("config", "check", rig_file), "config", str(path), says)
 
 
-@pytest.mark.parametrize(("value", "depth"), [
-    (1, 0), ({}, 1), ([[1], {"a": [2]}], 3), ({"a": {"b": {"c": [[[]]]}}}, 6),
-])
+@pytest.mark.parametrize(
+    ("value", "depth"),
+    [
+        (1, 0),
+        ({}, 1),
+        ([[1], {"a": [2]}], 3),
+        ({"a": {"b": {"c": [[[]]]}}}, 6),
+    ],
+)
 def test_nesting_depth_counts_tables_and_arrays(value, depth) -> None:
     assert nesting_depth(value) == depth
 
@@ -97,15 +104,20 @@ def test_keys_and_tags_with_line_breaks_are_quoted_on_one_line(tmp_path: Path) -
     from trackerd.errors import ConfigError
 
     rig = tmp_path / "rig.toml"
-    rig.write_text((REPO / "config" / "simulated.toml").read_text().replace(
-        'name = "simulated-datawall"', 'name = "x"\ncalibration = "cal.toml"'))
+    rig.write_text(
+        (REPO / "config" / "simulated.toml")
+        .read_text()
+        .replace('name = "simulated-datawall"', 'name = "x"\ncalibration = "cal.toml"')
+    )
     calibration = tmp_path / "cal.toml"
     cases = [
         ('"bad\\nkey" = 1', 'unknown key "bad\\nkey"'),
         ('"\\u001e" = 0', 'unknown key "\\u001e"'),
         ('[cameras."left\\u2028right"]', 'cameras."left\\u2028right": no camera with this id'),
-        ('[cameras.right]\nextrinsics = { kind = "\\r", position_m = [1.0, 2.0, 3.0] }',
-         'cameras.right.extrinsics: tag "\\r" in key \'kind\''),
+        (
+            '[cameras.right]\nextrinsics = { kind = "\\r", position_m = [1.0, 2.0, 3.0] }',
+            "cameras.right.extrinsics: tag \"\\r\" in key 'kind'",
+        ),
     ]
     for text, says in cases:
         calibration.write_text(f"version = 1\n{text}\n")
@@ -113,5 +125,5 @@ def test_keys_and_tags_with_line_breaks_are_quoted_on_one_line(tmp_path: Path) -
             load_rig(rig)
         assert len(str(raised.value).splitlines()) == 1 and says in str(raised.value), str(raised.value)
     calibration.write_text('version = 1\n"it\'s" = 1\n')
-    with pytest.raises(ConfigError, match="unknown key \"it's\""):
+    with pytest.raises(ConfigError, match='unknown key "it\'s"'):
         load_calibration(calibration)

@@ -47,9 +47,7 @@ def test_example_rigs_load_with_everything_inline(name: str) -> None:
     loaded = load_rig(str(path))
     assert loaded.path == path
     assert loaded.calibration_path is None
-    assert loaded.config == RigConfig.model_validate(
-        tomllib.loads(path.read_text(encoding="utf-8"))
-    )
+    assert loaded.config == RigConfig.model_validate(tomllib.loads(path.read_text(encoding="utf-8")))
     assert loaded.sources == {
         **{cam.id: f"inline in {name}.toml" for cam in loaded.config.cameras},
         "wall": f"inline in {name}.toml",
@@ -71,9 +69,9 @@ def test_calibration_replaces_the_rigs_values_and_keeps_the_rest(
     assert left.intrinsics == expected.intrinsics
     assert isinstance(left.intrinsics, OpenCVIntrinsics) and left.intrinsics.fx_px == 550.0
     assert left.extrinsics == expected.extrinsics and isinstance(left.extrinsics, OpenCVExtrinsics)
-    assert left.model_copy(update={"intrinsics": None, "extrinsics": None}) == plain.cameras[
-        0
-    ].model_copy(update={"intrinsics": None, "extrinsics": None})
+    assert left.model_copy(update={"intrinsics": None, "extrinsics": None}) == plain.cameras[0].model_copy(
+        update={"intrinsics": None, "extrinsics": None}
+    )
     assert right == plain.cameras[1]
     assert loaded.config.wall == plain.wall
     assert loaded.calibration_path == cal_path.resolve()
@@ -100,9 +98,7 @@ def test_calibration_path_is_relative_to_the_rig_file_not_the_working_directory(
     assert loaded.calibration_path == (rigs / "cal.toml").resolve()
 
 
-def test_partial_calibration_names_each_parts_source(
-    write: Write, edit: Edit, minimal_rig: str
-) -> None:
+def test_partial_calibration_names_each_parts_source(write: Write, edit: Edit, minimal_rig: str) -> None:
     # Regression: a calibration entry with only intrinsics was reported as the source of
     # the camera's whole geometry, and an entry with only provenance as the source too.
     write(
@@ -122,9 +118,7 @@ def test_calibration_can_supply_what_the_rig_leaves_out(
 ) -> None:
     text = edit(minimal_rig, *WITH_CALIBRATION)
     text = edit(text, 'intrinsics = { model = "fov", horizontal_fov_deg = 60.0 }\n', "")
-    text = edit(
-        text, 'extrinsics = { kind = "pose", position_m = [-0.5, 1.0, 1.5], yaw_deg = 30.0 }\n', ""
-    )
+    text = edit(text, 'extrinsics = { kind = "pose", position_m = [-0.5, 1.0, 1.5], yaw_deg = 30.0 }\n', "")
     write("cal.toml", left_calibration)
     loaded = load_rig(write("rig.toml", text))
     assert loaded.sources["left"] == "from cal.toml"
@@ -134,9 +128,7 @@ def test_camera_missing_geometry_names_the_calibration_file_too(
     write: Write, edit: Edit, minimal_rig: str, left_calibration: str
 ) -> None:
     text = edit(minimal_rig, *WITH_CALIBRATION)
-    text = edit(
-        text, 'extrinsics = { kind = "pose", position_m = [2.5, 1.0, 1.5], yaw_deg = -30.0 }\n', ""
-    )
+    text = edit(text, 'extrinsics = { kind = "pose", position_m = [2.5, 1.0, 1.5], yaw_deg = -30.0 }\n', "")
     cal = write("cal.toml", left_calibration)
     rig = write("rig.toml", text)
     with pytest.raises(ConfigError) as err:
@@ -153,7 +145,7 @@ def test_cameras_left_in_camera_1s_frame_name_the_wall_step_as_next(
 ) -> None:
     # What `calibrate stereo` writes for a rig without poses: both cameras in camera 1's frame, no wall.
     stereo = (
-        left_calibration.replace('info = { date', 'info = { world_frame = "camera left", date')
+        left_calibration.replace("info = { date", 'info = { world_frame = "camera left", date')
         + '\n[cameras.right]\nextrinsics = { kind = "opencv", rvec = [0.0, 0.2, 0.0], tvec_m = [-1.0, 0.0, 0.1] }\n'
         + 'info = { world_frame = "camera left" }\n'
     )
@@ -190,15 +182,9 @@ def test_wall_from_the_calibration_file(write: Write, edit: Edit, minimal_rig: s
     assert loaded.sources["wall"] == "from cal.toml"
 
 
-def test_impossible_wall_in_the_calibration_file_names_that_file(
-    write: Write, edit: Edit, minimal_rig: str
-) -> None:
-    cal = write(
-        "cal.toml", "[wall]\ncorners_m = [[0, 0, 0], [3, 0, 0], [3, 1.5, 0], [0, 1.5, 0.5]]\n"
-    )
-    with pytest.raises(
-        ConfigError, match="^" + str(cal.resolve()) + ": wall: corners_m are not coplanar"
-    ):
+def test_impossible_wall_in_the_calibration_file_names_that_file(write: Write, edit: Edit, minimal_rig: str) -> None:
+    cal = write("cal.toml", "[wall]\ncorners_m = [[0, 0, 0], [3, 0, 0], [3, 1.5, 0], [0, 1.5, 0.5]]\n")
+    with pytest.raises(ConfigError, match="^" + str(cal.resolve()) + ": wall: corners_m are not coplanar"):
         load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
 
 
@@ -215,8 +201,7 @@ def test_lens_that_folds_before_the_image_corners_is_refused(
     with pytest.raises(ConfigError) as err:
         load_rig(rig)
     assert str(err.value).startswith(
-        f"{cal.resolve()}: cameras.left.intrinsics.distortion:"
-        " the lens model folds over near the image edge"
+        f"{cal.resolve()}: cameras.left.intrinsics.distortion: the lens model folds over near the image edge"
     )
     # With a larger k2 the same lens does not fold: accepted, though it moves its corners
     # by about 75 px.
@@ -224,9 +209,7 @@ def test_lens_that_folds_before_the_image_corners_is_refused(
     assert load_rig(rig).sources["left"] == "from cal.toml"
 
 
-def test_calibration_with_an_unknown_camera(
-    write: Write, edit: Edit, minimal_rig: str, left_calibration: str
-) -> None:
+def test_calibration_with_an_unknown_camera(write: Write, edit: Edit, minimal_rig: str, left_calibration: str) -> None:
     cal = write("cal.toml", edit(left_calibration, "[cameras.left]", "[cameras.centre]"))
     cal = write(
         "cal.toml",
@@ -235,8 +218,7 @@ def test_calibration_with_an_unknown_camera(
     with pytest.raises(ConfigError) as err:
         load_rig(write("rig.toml", edit(minimal_rig, *WITH_CALIBRATION)))
     assert str(err.value) == (
-        f"{cal.resolve()}: cameras.centre: no camera with this id in the rig"
-        " (the rig has left, right)"
+        f"{cal.resolve()}: cameras.centre: no camera with this id in the rig (the rig has left, right)"
     )
 
 
@@ -333,9 +315,7 @@ def test_format_location(loc: tuple, text: str) -> None:
 
 def test_unknown_key_lists_the_allowed_keys_and_a_near_miss() -> None:
     message = rig_error({"cameras": [], "wall": {}, "pointer": {}, "detectr": {}})
-    assert message.startswith(
-        "detectr: unknown key 'detectr' (did you mean 'detector'?); allowed keys here: "
-    )
+    assert message.startswith("detectr: unknown key 'detectr' (did you mean 'detector'?); allowed keys here: ")
     assert "version, name, calibration, cameras, wall, pointer" in message
 
 
@@ -362,11 +342,7 @@ def test_the_same_misspelling_in_two_cameras_is_two_problems() -> None:
 
 
 def test_unknown_key_inside_a_tagged_union_lists_that_forms_keys() -> None:
-    data = {
-        "cameras": {
-            "left": {"extrinsics": {"kind": "opencv", "rvec": [0, 0, 0], "tvec": [0, 0, 0]}}
-        }
-    }
+    data = {"cameras": {"left": {"extrinsics": {"kind": "opencv", "rvec": [0, 0, 0], "tvec": [0, 0, 0]}}}}
     message = rig_error(data, CalibrationFile)
     assert message.startswith(
         "cameras.left.extrinsics.tvec: unknown key 'tvec' (did you mean 'tvec_m'?);"
@@ -385,10 +361,7 @@ def test_failed_items_are_not_counted_twice() -> None:
             "pointer": {"length_m": 0.45, "end_diameter_m": 0.04},
         }
     )
-    assert (
-        message
-        == "cameras[0].width_px: Input should be greater than 0 (got 0) (and 1 more problem)"
-    )
+    assert message == "cameras[0].width_px: Input should be greater than 0 (got 0) (and 1 more problem)"
 
 
 def test_too_few_cameras_is_still_reported() -> None:
@@ -405,10 +378,7 @@ def test_too_few_cameras_is_still_reported() -> None:
 def test_short_vector_says_how_many_values() -> None:
     # Regression: this read "position_m[2]: required key is missing".
     data = {"cameras": {"left": {"extrinsics": {"kind": "pose", "position_m": [1.0, 2.0]}}}}
-    assert (
-        rig_error(data, CalibrationFile)
-        == "cameras.left.extrinsics.position_m: needs 3 values, got 2"
-    )
+    assert rig_error(data, CalibrationFile) == "cameras.left.extrinsics.position_m: needs 3 values, got 2"
     data = {"wall": {"corners_m": [[0, 0, 0], [1, 0, 0]]}}
     assert rig_error(data, CalibrationFile) == "wall.corners_m: needs 4 values, got 2"
 
@@ -417,13 +387,11 @@ def test_missing_form_tag_says_which_forms_exist() -> None:
     # Regression: this read "Unable to extract tag using discriminator 'kind'".
     data = {"cameras": {"left": {"extrinsics": {"position_m": [1.0, 2.0, 3.0]}}}}
     assert rig_error(data, CalibrationFile) == (
-        "cameras.left.extrinsics: required key 'kind' is missing;"
-        " it selects the form (one of 'pose', 'opencv')"
+        "cameras.left.extrinsics: required key 'kind' is missing; it selects the form (one of 'pose', 'opencv')"
     )
     data = {"cameras": {"left": {"intrinsics": {"model": "pinhole"}}}}
     assert rig_error(data, CalibrationFile) == (
-        "cameras.left.intrinsics: tag 'pinhole' in key 'model' does not match any of the"
-        " expected tags: 'fov', 'opencv'"
+        "cameras.left.intrinsics: tag 'pinhole' in key 'model' does not match any of the expected tags: 'fov', 'opencv'"
     )
 
 

@@ -76,9 +76,7 @@ def reachable_models(root: type[BaseModel]) -> set[type[BaseModel]]:
     return found
 
 
-ALL_MODELS = sorted(
-    reachable_models(RigConfig) | reachable_models(CalibrationFile), key=lambda m: m.__name__
-)
+ALL_MODELS = sorted(reachable_models(RigConfig) | reachable_models(CalibrationFile), key=lambda m: m.__name__)
 
 
 def float_like(annotation: Any) -> bool:
@@ -141,9 +139,7 @@ def test_every_model_is_closed_frozen_and_documented(model: type[BaseModel]) -> 
     assert model.model_config.get("extra") == "forbid"
     assert model.model_config.get("frozen") is True
     assert model.__doc__ and model.__doc__.strip()
-    undocumented = [
-        name for name, f in model.model_fields.items() if not (f.description or "").strip()
-    ]
+    undocumented = [name for name, f in model.model_fields.items() if not (f.description or "").strip()]
     assert not undocumented, f"{model.__name__}: fields without a docstring: {undocumented}"
 
 
@@ -152,16 +148,12 @@ def test_every_quantity_has_its_unit_in_its_name(model: type[BaseModel]) -> None
     unnamed = [
         name
         for name, f in model.model_fields.items()
-        if float_like(f.annotation)
-        and not name.endswith(UNIT_SUFFIXES)
-        and name not in DIMENSIONLESS
+        if float_like(f.annotation) and not name.endswith(UNIT_SUFFIXES) and name not in DIMENSIONLESS
     ]
     assert not unnamed, f"{model.__name__}: float fields without a unit suffix: {unnamed}"
 
 
-@pytest.mark.parametrize(
-    "model", [m for m in ALL_MODELS if m.__module__ == models.__name__], ids=lambda m: m.__name__
-)
+@pytest.mark.parametrize("model", [m for m in ALL_MODELS if m.__module__ == models.__name__], ids=lambda m: m.__name__)
 def test_every_rig_model_refuses_nan_and_infinity(model: type[BaseModel]) -> None:
     # Regression: TOML spells nan and inf, and position_m = [nan, 1, 2] used to pass.
     # (The acquisition models live in their own module and base class.)
@@ -196,29 +188,21 @@ def test_horizontal_focal_px_inverts_eq_14() -> None:
 
 @pytest.mark.parametrize("length", [0, 4, 5, 8, 12, 14])
 def test_opencv_distortion_lengths_accepted(length: int) -> None:
-    lens = OpenCVIntrinsics(
-        model="opencv", fx_px=1, fy_px=1, cx_px=0, cy_px=0, distortion=(0.01,) * length
-    )
+    lens = OpenCVIntrinsics(model="opencv", fx_px=1, fy_px=1, cx_px=0, cy_px=0, distortion=(0.01,) * length)
     assert len(lens.distortion) == length
 
 
 @pytest.mark.parametrize("length", [1, 3, 6, 7, 9, 13, 15])
 def test_opencv_distortion_lengths_rejected(length: int) -> None:
-    with pytest.raises(
-        ValidationError, match=f"has {length} coefficients; OpenCV takes 0, 4, 5, 8, 12, 14"
-    ):
-        OpenCVIntrinsics(
-            model="opencv", fx_px=1, fy_px=1, cx_px=0, cy_px=0, distortion=(0.01,) * length
-        )
+    with pytest.raises(ValidationError, match=f"has {length} coefficients; OpenCV takes 0, 4, 5, 8, 12, 14"):
+        OpenCVIntrinsics(model="opencv", fx_px=1, fy_px=1, cx_px=0, cy_px=0, distortion=(0.01,) * length)
 
 
 def test_principal_point_must_lie_in_the_image() -> None:
     lens = {"model": "opencv", "fx_px": 500.0, "fy_px": 500.0, "cx_px": 639.9, "cy_px": 0.0}
     CameraConfig.model_validate(camera(intrinsics=lens))
     for cx, cy in ((640.0, 240.0), (-0.1, 240.0), (320.0, 480.0)):
-        with pytest.raises(
-            ValidationError, match=r"principal point .* lies outside the 640x480 image"
-        ):
+        with pytest.raises(ValidationError, match=r"principal point .* lies outside the 640x480 image"):
             CameraConfig.model_validate(camera(intrinsics={**lens, "cx_px": cx, "cy_px": cy}))
 
 
@@ -277,9 +261,7 @@ def test_forms_are_chosen_by_their_tag() -> None:
 
 @pytest.mark.parametrize("pixel_format", COLOUR_PIXEL_FORMATS)
 def test_colour_pixel_formats_accepted(pixel_format: str) -> None:
-    assert (
-        CameraConfig.model_validate(camera(pixel_format=pixel_format)).pixel_format == pixel_format
-    )
+    assert CameraConfig.model_validate(camera(pixel_format=pixel_format)).pixel_format == pixel_format
 
 
 @pytest.mark.parametrize("pixel_format", [f for f in MONO_PIXEL_FORMATS if f != "Mono8"])
@@ -365,9 +347,7 @@ def test_wall_descriptions(wall: dict[str, Any], message: str) -> None:
 
 
 def test_wall_by_points_and_display() -> None:
-    wall = WallConfig.model_validate(
-        {**POINTS_FRAME, "display_width_px": 1920, "display_height_px": 960}
-    )
+    wall = WallConfig.model_validate({**POINTS_FRAME, "display_width_px": 1920, "display_height_px": 960})
     assert wall.planarity_tolerance_m == 0.01
     assert len(wall.points_m) == 3
 

@@ -23,9 +23,7 @@ from trackerd.geometry.camera import report_pixel_pitch
 from trackerd.geometry.rotation import rvec_from_rotation, world_from_camera_ypr
 
 WIDTH_PX, HEIGHT_PX = 1920, 1080
-POSE = PoseExtrinsics(
-    kind="pose", position_m=(-0.8, 1.5, 0.5), yaw_deg=119.7, pitch_deg=-19.1, roll_deg=0.5
-)
+POSE = PoseExtrinsics(kind="pose", position_m=(-0.8, 1.5, 0.5), yaw_deg=119.7, pitch_deg=-19.1, roll_deg=0.5)
 SIM_LENS = OpenCVIntrinsics(
     model="opencv",
     fx_px=1660.0,
@@ -86,20 +84,12 @@ def test_fov_model_edges_of_the_image_are_half_the_field_of_view_off_axis() -> N
             ]
         )
     )
-    assert [angle_deg(d, axis) for d in dirs] == pytest.approx(
-        [30.0, 30.0, 20.0, 20.0, 0.0], abs=1e-9
-    )
+    assert [angle_deg(d, axis) for d in dirs] == pytest.approx([30.0, 30.0, 20.0, 20.0, 0.0], abs=1e-9)
 
 
 def test_focal_length_does_not_change_any_ray() -> None:
-    near = camera_model(
-        camera_config(FovIntrinsics(model="fov", horizontal_fov_deg=50.0), POSE)
-    )
-    far = camera_model(
-        camera_config(
-            FovIntrinsics(model="fov", horizontal_fov_deg=50.0, focal_length_mm=35.0), POSE
-        )
-    )
+    near = camera_model(camera_config(FovIntrinsics(model="fov", horizontal_fov_deg=50.0), POSE))
+    far = camera_model(camera_config(FovIntrinsics(model="fov", horizontal_fov_deg=50.0, focal_length_mm=35.0), POSE))
     np.testing.assert_array_equal(near.matrix, far.matrix)
 
 
@@ -109,9 +99,7 @@ def test_focal_length_does_not_change_any_ray() -> None:
 def test_pose_form_puts_the_optical_centre_at_position_m() -> None:
     cam = camera_model(camera_config(SIM_LENS, POSE))
     np.testing.assert_allclose(cam.centre_m, POSE.position_m, atol=1e-15)
-    np.testing.assert_allclose(
-        cam.world_from_camera, world_from_camera_ypr(119.7, -19.1, 0.5), atol=1e-15
-    )
+    np.testing.assert_allclose(cam.world_from_camera, world_from_camera_ypr(119.7, -19.1, 0.5), atol=1e-15)
 
 
 def test_rodrigues_and_matrix_forms_agree_with_the_pose_form() -> None:
@@ -120,9 +108,7 @@ def test_rodrigues_and_matrix_forms_agree_with_the_pose_form() -> None:
     by_rvec = camera_model(
         camera_config(
             SIM_LENS,
-            OpenCVExtrinsics(
-                kind="opencv", rvec=tuple(rvec_from_rotation(rotation)), tvec_m=tuple(translation)
-            ),
+            OpenCVExtrinsics(kind="opencv", rvec=tuple(rvec_from_rotation(rotation)), tvec_m=tuple(translation)),
         )
     )
     by_matrix = camera_model(
@@ -150,14 +136,10 @@ def test_opencv_form_is_world_to_camera() -> None:
     cam = camera_model(
         camera_config(
             SIM_LENS,
-            OpenCVExtrinsics(
-                kind="opencv", rvec=(math.pi, 0.0, 0.0), tvec_m=tuple(-rotation @ centre)
-            ),
+            OpenCVExtrinsics(kind="opencv", rvec=(math.pi, 0.0, 0.0), tvec_m=tuple(-rotation @ centre)),
         )
     )
-    rest = camera_model(
-        camera_config(SIM_LENS, PoseExtrinsics(kind="pose", position_m=(1.0, 2.0, 3.0)))
-    )
+    rest = camera_model(camera_config(SIM_LENS, PoseExtrinsics(kind="pose", position_m=(1.0, 2.0, 3.0))))
     np.testing.assert_allclose(cam.rotation, rest.rotation, atol=1e-15)
     np.testing.assert_allclose(cam.centre_m, centre, atol=1e-15)
 

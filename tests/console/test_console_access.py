@@ -38,14 +38,19 @@ def console(simulated_rig, tmp_path):
     (tmp_path / "token").write_text("s3cret-token\n")
     listen = f"127.0.0.1:{_free_port()}"
     zmq_cfg = simulated_rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})
-    rig = simulated_rig.model_copy(update={
-        "outputs": simulated_rig.outputs.model_copy(update={"zmq": zmq_cfg}),
-        "console": ConsoleConfig(listen=listen, token_file=tmp_path / "token", snapshot_directory=tmp_path / "snaps"),
-    })
+    rig = simulated_rig.model_copy(
+        update={
+            "outputs": simulated_rig.outputs.model_copy(update={"zmq": zmq_cfg}),
+            "console": ConsoleConfig(
+                listen=listen, token_file=tmp_path / "token", snapshot_directory=tmp_path / "snaps"
+            ),
+        }
+    )
     frames = [[np.full((c.height_px, c.width_px), 20, np.uint8) for c in rig.cameras]]
     tap = ConsoleTap()
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, frames, rate_hz=30.0), lambda r: Publisher(r.outputs.zmq),
-                        tap=tap)
+    pipeline = Pipeline(
+        rig, lambda r: MemoryPairSource(r, frames, rate_hz=30.0), lambda r: Publisher(r.outputs.zmq), tap=tap
+    )
     pipeline.start()
     server = ConsoleServer(pipeline, tap)
     server.start()
@@ -127,8 +132,8 @@ def test_nothing_is_handed_over_until_a_page_watches_and_images_then_come(consol
                 message = await ws.receive(timeout=30)
                 if message.type == aiohttp.WSMsgType.BINARY:
                     (length,) = struct.unpack(">I", message.data[:4])
-                    header = json.loads(message.data[4:4 + length])
-                    assert message.data[4 + length:4 + length + 2] == b"\xff\xd8"  # a JPEG
+                    header = json.loads(message.data[4 : 4 + length])
+                    assert message.data[4 + length : 4 + length + 2] == b"\xff\xd8"  # a JPEG
                     headers_seen.append(header)
         return headers_seen
 

@@ -49,8 +49,9 @@ def _playwright_missing() -> str | None:
 pytestmark = [
     pytest.mark.serial,  # a daemon on the virtual rig and a browser
     pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
-    pytest.mark.skipif(netns_missing_reason() is not None,
-                       reason=f"needs network namespaces (root): {netns_missing_reason()}"),
+    pytest.mark.skipif(
+        netns_missing_reason() is not None, reason=f"needs network namespaces (root): {netns_missing_reason()}"
+    ),
     pytest.mark.skipif(_playwright_missing() is not None, reason=str(_playwright_missing())),
 ]
 
@@ -116,17 +117,21 @@ def daemon(simulated_rig, tmp_path_factory):
     with VirtualRig(simulated_rig, motion="figure8", prefix=PREFIX, subnet=SUBNET, out_dir=tmp / "simrig") as virtual:
         rig = virtual.daemon_rig
         zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 250.0})
-        rig = rig.model_copy(update={
-            "outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg}),
-            "console": ConsoleConfig(listen=listen, snapshot_directory=tmp / "snapshots"),
-            "recording": RecordingConfig(directory=tmp / "recordings"),
-        })
+        rig = rig.model_copy(
+            update={
+                "outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg}),
+                "console": ConsoleConfig(listen=listen, snapshot_directory=tmp / "snapshots"),
+                "recording": RecordingConfig(directory=tmp / "recordings"),
+            }
+        )
         rig_file = tmp / "rig.toml"
         rig_file.write_text(dump_rig(rig))
         subscriber = Subscriber(endpoint)
         process = subprocess.Popen(
             [sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
         )
         try:
             url = f"http://{listen}/"
@@ -139,8 +144,16 @@ def daemon(simulated_rig, tmp_path_factory):
                     pass
                 time.sleep(0.1)
             assert process.poll() is None, process.communicate()[1]
-            yield {"url": url, "listen": listen, "rig_file": rig_file, "rig": rig, "tmp": tmp,
-                   "virtual": virtual, "process": process, "subscriber": subscriber}
+            yield {
+                "url": url,
+                "listen": listen,
+                "rig_file": rig_file,
+                "rig": rig,
+                "tmp": tmp,
+                "virtual": virtual,
+                "process": process,
+                "subscriber": subscriber,
+            }
         finally:
             if process.poll() is None:
                 process.kill()
@@ -175,23 +188,32 @@ def test_the_page_shows_both_cameras_live(page, daemon) -> None:
     for cam in ("left", "right"):
         # The cards are made once the page has the rig's cameras: until then there is no card.
         page.wait_for_function(
-            f'Number(document.querySelector(\'.camera[data-camera="{cam}"]\')?.dataset.frames ?? 0) >= 2',
-            timeout=DEADLINE_MS)
+            f"Number(document.querySelector('.camera[data-camera=\"{cam}\"]')?.dataset.frames ?? 0) >= 2",
+            timeout=DEADLINE_MS,
+        )
     print(f"\npage loaded in {page.loaded_s:.2f} s; both cameras' second image {time.monotonic() - start:.2f} s later")
     # The frame rate the page shows (a figure for the docs, not asserted).
     counted, since = _frames(page, "left"), time.monotonic()
-    left = 'document.querySelector(\'.camera[data-camera="left"]\')'
+    left = "document.querySelector('.camera[data-camera=\"left\"]')"
     page.wait_for_function(f"Number({left}.dataset.frames) >= {counted + 8}", timeout=DEADLINE_MS)
     print(f"images per camera and second: {8 / (time.monotonic() - since):.1f}")
-    first = {cam: (page.get_attribute(f'.camera[data-camera="{cam}"] img', "src"),
-                   page.get_attribute(f'.camera[data-camera="{cam}"]', "data-seq")) for cam in ("left", "right")}
+    first = {
+        cam: (
+            page.get_attribute(f'.camera[data-camera="{cam}"] img', "src"),
+            page.get_attribute(f'.camera[data-camera="{cam}"]', "data-seq"),
+        )
+        for cam in ("left", "right")
+    }
     for cam, (src, seq) in first.items():
         page.wait_for_function(
-            f'(() => {{ const c = document.querySelector(\'.camera[data-camera="{cam}"]\');'
+            f"(() => {{ const c = document.querySelector('.camera[data-camera=\"{cam}\"]');"
             f' return c.dataset.seq !== "{seq}" && c.querySelector("img").src !== "{src}"; }})()',
-            timeout=DEADLINE_MS)
-        size = page.evaluate(f'(() => {{ const i = document.querySelector(\'.camera[data-camera="{cam}"] img\');'
-                             f' return [i.naturalWidth, i.naturalHeight]; }})()')
+            timeout=DEADLINE_MS,
+        )
+        size = page.evaluate(
+            f"(() => {{ const i = document.querySelector('.camera[data-camera=\"{cam}\"] img');"
+            f" return [i.naturalWidth, i.naturalHeight]; }})()"
+        )
         assert size == [640, 360]  # the rig's 1920x1080 scaled to the console's image_width_px
     assert page.text_content("#rig") == daemon["rig"].name
     assert page.get_attribute("#state", "data-state") in ("running", "starting")
@@ -237,16 +259,19 @@ def test_end_markers_sit_where_the_published_ends_project(page, daemon) -> None:
 
 def test_the_wall_map_follows_the_hits(page, daemon) -> None:
     hits = daemon["subscriber"].hits
-    page.wait_for_function("document.querySelector('#hit') && document.querySelector('#hit').dataset.seq",
-                           timeout=DEADLINE_MS)
+    page.wait_for_function(
+        "document.querySelector('#hit') && document.querySelector('#hit').dataset.seq", timeout=DEADLINE_MS
+    )
     seen = []
     for _ in range(3):
         before = page.get_attribute("#hit", "data-seq")
         page.wait_for_function(f"document.querySelector('#hit').dataset.seq !== '{before}'", timeout=DEADLINE_MS)
         # One read: the page moves the marker between two.
-        seq, x, y = page.evaluate("(() => { const h = document.querySelector('#hit');"
-                                  " return [Number(h.dataset.seq), Number(h.getAttribute('cx')),"
-                                  " Number(h.getAttribute('cy'))]; })()")
+        seq, x, y = page.evaluate(
+            "(() => { const h = document.querySelector('#hit');"
+            " return [Number(h.dataset.seq), Number(h.getAttribute('cx')),"
+            " Number(h.getAttribute('cy'))]; })()"
+        )
         deadline = time.monotonic() + 10.0
         while seq not in hits and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -281,8 +306,9 @@ def test_the_recording_buttons_start_and_finish_a_recording(page, daemon) -> Non
     page.wait_for_selector('body[data-recording="recording"]', timeout=DEADLINE_MS)
     page.wait_for_selector("#record-stop:enabled", timeout=DEADLINE_MS)
     page.click("#record-stop")
-    page.wait_for_function("document.querySelector('#action').textContent.startsWith('finishing ')",
-                           timeout=DEADLINE_MS)
+    page.wait_for_function(
+        "document.querySelector('#action').textContent.startsWith('finishing ')", timeout=DEADLINE_MS
+    )
     page.wait_for_selector("#record-start:enabled", timeout=DEADLINE_MS)
     (path,) = (daemon["tmp"] / "recordings").glob("*.trec")
     deadline = time.monotonic() + 30.0
@@ -306,7 +332,12 @@ def test_snap_and_ctl_on_the_command_line_talk_to_the_daemon(daemon, tmp_path) -
     assert run.returncode == 0, run.stderr
     assert "taking the snapshot from it" in run.stderr
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
-        "aim-left-view.png", "aim-left.png", "aim-right-view.png", "aim-right.png", "aim.json"]
+        "aim-left-view.png",
+        "aim-left.png",
+        "aim-right-view.png",
+        "aim-right.png",
+        "aim.json",
+    ]
     check = trackerd("ctl", "--config", rig_file, "--console", daemon["listen"], "check", "--fixes", "20")
     assert check.returncode == 0, check.stdout + check.stderr
     assert check.stdout.startswith("check: 20 pointer fixes") and ": OK" in check.stdout
@@ -360,4 +391,3 @@ def test_sigterm_with_the_page_open_stops_the_daemon(page, daemon) -> None:
     assert process.returncode == 0, stderr
     assert "Traceback" not in stderr
     page.wait_for_function("document.body.dataset.connected === 'no'", timeout=DEADLINE_MS)
-

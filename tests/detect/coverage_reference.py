@@ -16,9 +16,7 @@ from trackerd.detect.colour import SampleGrid
 from trackerd.detect.coverage import BESIDE_SLOPE, DARK_FRACTION, MIN_CONTRAST, MIX_SLACK, Rim
 
 
-def rim_centre(
-    frame: NDArray[np.uint8], grid: SampleGrid, end: Rim
-) -> tuple[float, float, float] | None:
+def rim_centre(frame: NDArray[np.uint8], grid: SampleGrid, end: Rim) -> tuple[float, float, float] | None:
     """Centre (x, y) and area of an end from the coverage of every pixel, full-resolution pixels.
 
     ``end.strong`` should hold every thresholded sample of the end with a cell

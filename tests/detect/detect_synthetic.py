@@ -38,9 +38,7 @@ class Shape:
     def coverage(self, xs: NDArray[np.float64], ys: NDArray[np.float64]) -> NDArray[np.bool_]:
         if self.radius > 0:
             return (xs - self.x) ** 2 + (ys - self.y) ** 2 <= self.radius**2
-        return (np.abs(xs - self.x) <= self.half_size[0]) & (
-            np.abs(ys - self.y) <= self.half_size[1]
-        )
+        return (np.abs(xs - self.x) <= self.half_size[0]) & (np.abs(ys - self.y) <= self.half_size[1])
 
     def extent(self) -> float:
         return self.radius if self.radius > 0 else max(self.half_size)

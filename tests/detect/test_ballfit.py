@@ -57,8 +57,9 @@ def test_a_dim_shaded_ball_is_measured_whole_where_the_thresholds_take_only_its_
     keeps only its lit part (or nothing); the outline is found from the ball's own contrast."""
     x, y, r = 96.7, 70.1, 12.0
     dim = tuple(0.35 * c for c in RED)
-    frame, _ = Scene(background=tuple(0.35 * c for c in WALL),
-                     shapes=[Shape(x, y, dim, radius=r, shading=0.4)]).render("BayerRG8", detect_rng, noise=1.5)
+    frame, _ = Scene(background=tuple(0.35 * c for c in WALL), shapes=[Shape(x, y, dim, radius=r, shading=0.4)]).render(
+        "BayerRG8", detect_rng, noise=1.5
+    )
     detector = ColourEndDetector(DetectorConfig(), "BayerRG8", frame.shape[1], frame.shape[0])
     red = detector.detect(frame).red
     assert not red.found or red.area_px < 0.6 * np.pi * r * r
@@ -89,8 +90,13 @@ def test_a_size_range_finds_the_ball_beside_a_larger_disc_of_its_colour(detect_r
     """A ball overlapping a larger disc of its own paint (a sticker, a slide's dot): told the ball's
     size, the fit takes the ball's arc; without it, it may take either."""
     x, y = 95.3, 72.8
-    frame, _ = Scene(shapes=[Shape(x + 22.0, y + 6.0, RED, radius=20.0), Shape(x, y, ROD, radius=10.5),
-                             Shape(x, y, RED, radius=10.0)]).render("BayerRG8", detect_rng)
+    frame, _ = Scene(
+        shapes=[
+            Shape(x + 22.0, y + 6.0, RED, radius=20.0),
+            Shape(x, y, ROD, radius=10.5),
+            Shape(x, y, RED, radius=10.0),
+        ]
+    ).render("BayerRG8", detect_rng)
     fit = _fit(frame, "BayerRG8", x, y, 10.0, radius_range_px=(8.0, 12.5))
     assert fit.found, fit.reason
     assert np.hypot(*(fit.centre_px - [x, y])) < 0.3 and abs(fit.radius_px - 10.0) < 0.8

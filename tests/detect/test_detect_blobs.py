@@ -27,21 +27,14 @@ def flood_labels(mask: np.ndarray) -> tuple[np.ndarray, int]:
             for dy in (-1, 0, 1):
                 for dx in (-1, 0, 1):
                     ny, nx = cy + dy, cx + dx
-                    if (
-                        0 <= ny < mask.shape[0]
-                        and 0 <= nx < mask.shape[1]
-                        and mask[ny, nx]
-                        and labels[ny, nx] < 0
-                    ):
+                    if 0 <= ny < mask.shape[0] and 0 <= nx < mask.shape[1] and mask[ny, nx] and labels[ny, nx] < 0:
                         labels[ny, nx] = n
                         queue.append((ny, nx))
         n += 1
     return labels, n
 
 
-masks = st.integers(1, 40).flatmap(
-    lambda h: st.integers(1, 40).flatmap(lambda w: arrays(np.bool_, (h, w)))
-)
+masks = st.integers(1, 40).flatmap(lambda h: st.integers(1, 40).flatmap(lambda w: arrays(np.bool_, (h, w))))
 
 
 @settings(max_examples=150, deadline=None)

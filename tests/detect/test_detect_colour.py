@@ -66,9 +66,7 @@ def test_excess_of_a_flat_colour(pixel_format: str) -> None:
     blue, _ = excess_window(frame, grid, "blue", grid.interior())
     assert np.all(red == EXCESS_SCALE * (200 - 80))
     assert np.all(blue == EXCESS_SCALE * (80 - 200))
-    r_mask, b_mask = coarse_masks(
-        frame, grid, Threshold(100, 150), Threshold(1, 0), grid.interior(), 2
-    )
+    r_mask, b_mask = coarse_masks(frame, grid, Threshold(100, 150), Threshold(1, 0), grid.interior(), 2)
     assert r_mask is not None and b_mask is not None
     assert r_mask.all() and not b_mask.any()
     r_mask, _ = coarse_masks(frame, grid, Threshold(121, 0), None, grid.interior(), 2)

@@ -69,9 +69,7 @@ def reference(frame, grid, colour: str, region) -> tuple[float, float, float]:
 
 
 @pytest.mark.parametrize("pixel_format", BAYER)
-def test_flat_arrays_compute_what_the_plain_reference_computes(
-    pixel_format: str, detect_rng
-) -> None:
+def test_flat_arrays_compute_what_the_plain_reference_computes(pixel_format: str, detect_rng) -> None:
     for scene in scenes(detect_rng):
         frame, _ = scene.render(pixel_format, detect_rng)
         grid = sample_grid(pixel_format, scene.width, scene.height)
@@ -95,9 +93,7 @@ def test_flat_arrays_compute_what_the_plain_reference_computes(
             assert abs(m.area_px - area) < 1e-3 * area
 
         # The own samples' centre alone (rim_pixels=False), both ends at once.
-        own = measure_windows(
-            frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, cache, every_pixel=False
-        )
+        own = measure_windows(frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, cache, every_pixel=False)
         assert own is not None
         for m, (colour, *_), region in zip(own, ends, regions, strict=True):
             expected_own = measure(sample(frame, grid, colour, THRESHOLDS[colour], region), True)

@@ -99,9 +99,7 @@ def test_the_rod_decides_between_two_candidates_within_reach(detect_rng) -> None
         decoy = Shape(200.5, 70.2, RED, radius=7.0)
         blue = Shape(160.2, 130.4, BLUE, radius=7.0)
         shapes = [decoy, real, blue] if decoy_first else [real, decoy, blue]
-        scene = Scene(
-            width=300, height=200, shapes=shapes, rods=[(120.3, 100.6, 160.2, 130.4, 2.0)]
-        )
+        scene = Scene(width=300, height=200, shapes=shapes, rods=[(120.3, 100.6, 160.2, 130.4, 2.0)])
         frame, truth = scene.render("BayerRG8", detect_rng)
         true_red = truth[shapes.index(real)]
         result = detector("BayerRG8", scene).detect(frame)
@@ -220,9 +218,7 @@ def test_a_ball_beside_a_large_poster_of_its_colour(gap_px: float, detect_rng) -
 
 
 @pytest.mark.parametrize("pixel_format", ["BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8"])
-def test_centroid_follows_sub_pixel_offsets_without_error_at_the_bayer_period(
-    pixel_format: str, detect_rng
-) -> None:
+def test_centroid_follows_sub_pixel_offsets_without_error_at_the_bayer_period(pixel_format: str, detect_rng) -> None:
     """Regression: the centre measured from own-colour samples only had a periodic error.
 
     Those samples are one pixel in four, on a lattice of period 2 px, so as a ball

@@ -16,9 +16,7 @@ pytestmark = pytest.mark.slow
 def detector(rig: RigConfig, camera: int, **options) -> ColourEndDetector:
     """A detector for one camera of the rig, with the rig's thresholds (tuned to the room)."""
     cam = rig.cameras[camera]
-    return ColourEndDetector(
-        rig.detector, cam.pixel_format, cam.width_px, cam.height_px, rig.pointer, **options
-    )
+    return ColourEndDetector(rig.detector, cam.pixel_format, cam.width_px, cam.height_px, rig.pointer, **options)
 
 
 def _errors(frames, results):

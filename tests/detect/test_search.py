@@ -20,8 +20,10 @@ def _nearest(cands, x: float, y: float) -> float:
 
 def test_dark_paint_in_dim_light_is_a_candidate_where_the_thresholds_find_nothing(detect_rng) -> None:
     dim = 0.4
-    shapes = [Shape(70.2, 80.3, tuple(dim * 0.6 * c for c in RED), radius=10.0),
-              Shape(140.6, 60.1, tuple(dim * 0.55 * c for c in BLUE), radius=10.0)]
+    shapes = [
+        Shape(70.2, 80.3, tuple(dim * 0.6 * c for c in RED), radius=10.0),
+        Shape(140.6, 60.1, tuple(dim * 0.55 * c for c in BLUE), radius=10.0),
+    ]
     frame, _ = Scene(background=tuple(dim * c for c in WALL), shapes=shapes).render("BayerRG8", detect_rng, noise=1.5)
     detector = ColourEndDetector(DetectorConfig(), "BayerRG8", frame.shape[1], frame.shape[0])
     result = detector.detect(frame)

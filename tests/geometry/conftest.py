@@ -19,10 +19,7 @@ CONFIG_DIR = REPO_ROOT / "config"
 def example_rig_cameras() -> dict[str, list[CameraModel]]:
     """Rig name ('simulated', 'datawall') -> the CameraModels of config/<name>.toml."""
     return {
-        name: [
-            camera_model(cam)
-            for cam in load_rig(CONFIG_DIR / f"{name}.toml").config.cameras
-        ]
+        name: [camera_model(cam) for cam in load_rig(CONFIG_DIR / f"{name}.toml").config.cameras]
         for name in ("simulated", "datawall")
     }
 

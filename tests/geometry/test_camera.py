@@ -61,9 +61,7 @@ LENSES = {
 }
 
 
-def lens_camera(
-    name: str, yaw_deg: float = 20.0, pitch_deg: float = -10.0, roll_deg: float = 3.0
-) -> CameraModel:
+def lens_camera(name: str, yaw_deg: float = 20.0, pitch_deg: float = -10.0, roll_deg: float = 3.0) -> CameraModel:
     matrix, distortion = LENSES[name]
     return CameraModel.from_pose(
         name,
@@ -78,9 +76,7 @@ def lens_camera(
 
 def image_grid(width_px: int, height_px: int, steps: int) -> np.ndarray:
     """(N, 2) pixels on a grid that includes the image's outermost edges and exact corners."""
-    uu, vv = np.meshgrid(
-        np.linspace(-0.5, width_px - 0.5, steps), np.linspace(-0.5, height_px - 0.5, steps)
-    )
+    uu, vv = np.meshgrid(np.linspace(-0.5, width_px - 0.5, steps), np.linspace(-0.5, height_px - 0.5, steps))
     return np.column_stack([uu.ravel(), vv.ravel()])
 
 
@@ -91,12 +87,11 @@ def test_pixel_axes_run_right_and_down() -> None:
     # A camera at rest at the origin looks at the wall (-z): a point to the world's right
     # lands right of the principal point, a point above lands above it (smaller y).
     matrix = np.array([[1000.0, 0.0, 960.0], [0.0, 1000.0, 540.0], [0.0, 0.0, 1.0]])
-    cam = CameraModel.from_pose("cam", WIDTH_PX, HEIGHT_PX, matrix, np.zeros(0), np.zeros(3),
-                                world_from_camera_ypr(0.0, 0.0, 0.0))
-    pixels = cam.project(np.array([[0.0, 0.0, -2.0], [0.5, 0.0, -2.0], [0.0, 0.5, -2.0]]))
-    np.testing.assert_allclose(
-        pixels, [[960.0, 540.0], [1210.0, 540.0], [960.0, 290.0]], atol=1e-12
+    cam = CameraModel.from_pose(
+        "cam", WIDTH_PX, HEIGHT_PX, matrix, np.zeros(0), np.zeros(3), world_from_camera_ypr(0.0, 0.0, 0.0)
     )
+    pixels = cam.project(np.array([[0.0, 0.0, -2.0], [0.5, 0.0, -2.0], [0.0, 0.5, -2.0]]))
+    np.testing.assert_allclose(pixels, [[960.0, 540.0], [1210.0, 540.0], [960.0, 290.0]], atol=1e-12)
 
 
 def test_points_behind_or_on_the_camera_plane_project_to_nan() -> None:
@@ -111,9 +106,7 @@ def test_points_behind_or_on_the_camera_plane_project_to_nan() -> None:
 
 def test_contains_counts_the_outer_pixel_edges_as_inside() -> None:
     cam = lens_camera("pinhole")
-    inside = cam.contains(
-        np.array([[-0.5, -0.5], [1919.5, 1079.5], [-0.51, 10.0], [10.0, 1079.51], [5.0, 5.0]])
-    )
+    inside = cam.contains(np.array([[-0.5, -0.5], [1919.5, 1079.5], [-0.51, 10.0], [10.0, 1079.51], [5.0, 5.0]]))
     assert inside.tolist() == [True, True, False, False, True]
     assert cam.contains(np.array([[5.0, 5.0], [6.0, 6.0]]), margin_px=6.0).tolist() == [False, True]
 

@@ -144,7 +144,8 @@ def test_a_balls_outline_gives_its_centres_direction_exactly(distortion) -> None
     e2 = np.cross(u, e1)
     angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     ring = (centre - radius**2 / d * u) + radius * np.sqrt(1 - (radius / d) ** 2) * (
-        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2)
+        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2
+    )
     rim_px = cam.project(ring)
     cone = fit_sphere_direction(cam.normalized_from_pixels(rim_px))
     assert cone is not None
@@ -167,8 +168,10 @@ def test_near_parallel_interpretation_planes_a_good_line_and_an_honest_uncertain
     front, back = np.array([1.72, 0.6, 1.6]), np.array([1.78, 0.605, 2.02])
     # Both cameras 5.5 m from the wall, close to the plane that holds the pointer and the wall's x axis.
     at_back = back + (5.5 - back[2]) / (back[2] - front[2]) * (back - front)
-    cameras = [_camera("a", at_back + np.array([-1.3, 0.012, 0.0]), [1.75, 0.6, 1.0]),
-               _camera("b", at_back + np.array([0.6, 0.02, 0.0]), [1.75, 0.6, 1.0])]
+    cameras = [
+        _camera("a", at_back + np.array([-1.3, 0.012, 0.0]), [1.75, 0.6, 1.0]),
+        _camera("b", at_back + np.array([0.6, 0.02, 0.0]), [1.75, 0.6, 1.0]),
+    ]
     rot, trans = _arrays(cameras)
     truth = predict(rot, trans, front, back)
     wall = Plane(np.array([0.0, 0.0, 1.0]), 0.0)

@@ -73,9 +73,7 @@ def test_yaw_is_applied_before_pitch() -> None:
 
 def test_roll_is_applied_last_about_the_optical_axis() -> None:
     for roll in (-120.0, 35.0, 90.0):
-        np.testing.assert_allclose(
-            optical_axis(40.0, 25.0, roll), optical_axis(40.0, 25.0, 0.0), atol=1e-15
-        )
+        np.testing.assert_allclose(optical_axis(40.0, 25.0, roll), optical_axis(40.0, 25.0, 0.0), atol=1e-15)
 
 
 def test_elementary_rotations_are_right_handed() -> None:
@@ -115,9 +113,7 @@ def test_worked_example_in_docs_geometry() -> None:
     cam = camera_model(config)
     in_camera = cam.to_camera_frame(np.array([1.8288, 0.4572, 0.0]))[0]
     np.testing.assert_allclose(in_camera, [-1.9067, -0.2296, 3.9987], atol=5e-5)
-    np.testing.assert_allclose(
-        cam.project(np.array([1.8288, 0.4572, 0.0]))[0], [166.6, 444.0], atol=0.05
-    )
+    np.testing.assert_allclose(cam.project(np.array([1.8288, 0.4572, 0.0]))[0], [166.6, 444.0], atol=0.05)
 
 
 angles = st.floats(-179.0, 179.0)
@@ -155,13 +151,9 @@ def test_rodrigues_round_trip_and_angle(axis: tuple[float, float, float], angle_
     rvec = np.asarray(axis) / np.linalg.norm(axis) * np.radians(angle_deg)
     rotation = rotation_from_rvec(rvec)
     assert rotation_angle_deg(rotation) == pytest.approx(angle_deg, abs=1e-6)
-    np.testing.assert_allclose(
-        rotation_from_rvec(rvec_from_rotation(rotation)), rotation, atol=1e-12
-    )
+    np.testing.assert_allclose(rotation_from_rvec(rvec_from_rotation(rotation)), rotation, atol=1e-12)
 
 
 def test_rodrigues_vector_about_world_x_is_a_right_handed_rotation() -> None:
-    np.testing.assert_allclose(
-        rotation_from_rvec(np.array([np.pi / 2, 0, 0])), rotation_about_x(np.pi / 2), atol=1e-15
-    )
+    np.testing.assert_allclose(rotation_from_rvec(np.array([np.pi / 2, 0, 0])), rotation_about_x(np.pi / 2), atol=1e-15)
     assert rotation_angle_deg(np.eye(3)) == 0.0

@@ -71,9 +71,7 @@ def test_parallel_or_degenerate_rays_raise(direction_b: list[float]) -> None:
 
 def test_one_bad_pair_in_a_batch_raises() -> None:
     with pytest.raises(GeometryError):
-        closest_approach(
-            np.zeros((2, 3)), [[1, 0, 0], [1, 0, 0]], [[0, 1, 0], [0, 1, 0]], [[0, 1, 0], [1, 0, 0]]
-        )
+        closest_approach(np.zeros((2, 3)), [[1, 0, 0], [1, 0, 0]], [[0, 1, 0], [0, 1, 0]], [[0, 1, 0], [1, 0, 0]])
 
 
 def test_least_squares_with_three_cameras_hand_computed() -> None:
@@ -90,9 +88,7 @@ def test_least_squares_with_three_cameras_hand_computed() -> None:
     x, y, z = expected
     np.testing.assert_allclose(
         distances,
-        np.sqrt(
-            [(y - a) ** 2 + (z - b) ** 2, (x - c) ** 2 + (z - d) ** 2, (x - e) ** 2 + (y - f) ** 2]
-        ),
+        np.sqrt([(y - a) ** 2 + (z - b) ** 2, (x - c) ** 2 + (z - d) ** 2, (x - e) ** 2 + (y - f) ** 2]),
         atol=1e-14,
     )
 
@@ -115,9 +111,7 @@ def test_least_squares_ignores_cameras_that_did_not_see_the_point() -> None:
 
 def test_least_squares_rejects_parallel_rays() -> None:
     with pytest.raises(GeometryError, match="parallel"):
-        triangulate_least_squares(
-            [[0, 0, 0], [0, 1, 0], [0, 2, 0]], [[1, 0, 0], [1, 0, 0], [-1, 0, 0]]
-        )
+        triangulate_least_squares([[0, 0, 0], [0, 1, 0], [0, 2, 0]], [[1, 0, 0], [1, 0, 0], [-1, 0, 0]])
 
 
 def test_rays_without_a_direction_or_with_nan_are_geometry_errors() -> None:
@@ -139,9 +133,7 @@ def three_cameras() -> list[CameraModel]:
         ((1.8, 2.4, 5.0), 0.0, -15.0),
     ]
     return [
-        CameraModel.from_pose(
-            f"c{i}", 1920, 1080, matrix, distortion, np.array(pos), world_from_camera_ypr(y, p, 0)
-        )
+        CameraModel.from_pose(f"c{i}", 1920, 1080, matrix, distortion, np.array(pos), world_from_camera_ypr(y, p, 0))
         for i, (pos, y, p) in enumerate(poses)
     ]
 

@@ -34,8 +34,15 @@ def test_the_pointer_line_matches_the_numpy_reference() -> None:
     for _ in range(400):
         centres, front_dirs, back_dirs = _scene(rng)
         reference = estimate_pointer_line(centres, front_dirs, back_dirs)
-        fast = two_cameras.pointer_line(_t(centres[0]), _t(centres[1]), _t(front_dirs[0]), _t(back_dirs[0]),
-                                        _t(front_dirs[1]), _t(back_dirs[1]), MIN_PLANE_ANGLE_SIN)
+        fast = two_cameras.pointer_line(
+            _t(centres[0]),
+            _t(centres[1]),
+            _t(front_dirs[0]),
+            _t(back_dirs[0]),
+            _t(front_dirs[1]),
+            _t(back_dirs[1]),
+            MIN_PLANE_ANGLE_SIN,
+        )
         if reference.method == "points":
             assert fast is None  # the caller then takes the reference's two-point line
             fallbacks += 1
@@ -64,8 +71,9 @@ def test_wall_hits_of_the_planes_line_match_the_numpy_reference() -> None:
     t = (points @ wall_normal + wall_offset) / (directions @ wall_normal)
     reference = points - t[:, None] * directions
     rows = tuple(tuple(tuple(r) for r in rotation.tolist()) for rotation in rotations)
-    fast = two_cameras.plane_line_hits(_t(centres[0]), _t(centres[1]), rows, variants.reshape(50, 8).tolist(),
-                                       _t(wall_normal), wall_offset)
+    fast = two_cameras.plane_line_hits(
+        _t(centres[0]), _t(centres[1]), rows, variants.reshape(50, 8).tolist(), _t(wall_normal), wall_offset
+    )
     np.testing.assert_allclose(np.array(fast), reference, atol=1e-9)
 
 
@@ -74,10 +82,18 @@ def test_degenerate_views_are_refused_as_the_reference_refuses_them() -> None:
     with pytest.raises(GeometryError, match="end-on"):
         two_cameras.pointer_line(c0, c1, (0.0, 0.0, 1.0), (0.0, 0.0, 2.0), (0.0, 0.1, 1.0), (0.1, 0.0, 1.0), 0.08)
     # Both planes the same plane (the pointer in the plane of the baseline): no line, the caller falls back.
-    assert two_cameras.pointer_line(c0, c1, (0.2, 0.0, 1.0), (0.4, 0.0, 1.0), (-0.2, 0.0, 1.0), (0.1, 0.0, 1.0),
-                                    0.08) is None
+    assert (
+        two_cameras.pointer_line(c0, c1, (0.2, 0.0, 1.0), (0.4, 0.0, 1.0), (-0.2, 0.0, 1.0), (0.1, 0.0, 1.0), 0.08)
+        is None
+    )
     identity = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     with pytest.raises(GeometryError, match="parallel to the wall"):
         # A line along x, the wall's normal along z.
-        two_cameras.plane_line_hits(c0, (0.0, 1.0, 0.0), (identity, identity),
-                                    [(0.0, 0.0, 0.5, 0.0, 0.0, -1.0, 0.5, -1.0)], (0.0, 0.0, 1.0), 0.0)
+        two_cameras.plane_line_hits(
+            c0,
+            (0.0, 1.0, 0.0),
+            (identity, identity),
+            [(0.0, 0.0, 0.5, 0.0, 0.0, -1.0, 0.5, -1.0)],
+            (0.0, 0.0, 1.0),
+            0.0,
+        )

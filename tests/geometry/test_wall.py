@@ -46,16 +46,12 @@ def test_plane_from_three_points_hand_case() -> None:
     assert plane.offset_m == pytest.approx(-2.0)
     np.testing.assert_allclose(plane.coefficients, [0, 0, 1, -2], atol=1e-15)
     # Section 3.7: positive on the normal's side, negative on the other, zero on it.
-    np.testing.assert_allclose(
-        plane.signed_distance_m([[5, 5, 5], [0, 0, -1], [3, -4, 2]]), [3, -3, 0], atol=1e-15
-    )
+    np.testing.assert_allclose(plane.signed_distance_m([[5, 5, 5], [0, 0, -1], [3, -4, 2]]), [3, -3, 0], atol=1e-15)
 
 
 @settings(max_examples=200, deadline=None)
 @given(p1=points3, p2=points3, p3=points3)
-def test_property_three_point_plane_matches_the_least_squares_plane(
-    p1: Vec3, p2: Vec3, p3: Vec3
-) -> None:
+def test_property_three_point_plane_matches_the_least_squares_plane(p1: Vec3, p2: Vec3, p3: Vec3) -> None:
     pts = np.array([p1, p2, p3])
     cross = np.cross(pts[1] - pts[0], pts[2] - pts[0])
     assume(np.linalg.norm(cross) > 1e-3)  # clearly not colinear
@@ -147,9 +143,7 @@ def test_u_is_eq_28_for_an_unnormalised_plane() -> None:
         ([1, 1, 1], [1, 1, 1], "coincide"),
     ],
 )
-def test_parallel_or_degenerate_lines_are_rejected(
-    start: list[float], through: list[float], message: str
-) -> None:
+def test_parallel_or_degenerate_lines_are_rejected(start: list[float], through: list[float], message: str) -> None:
     with pytest.raises(GeometryError, match=message):
         intersect_line_plane(start, through, WALL_Z0)
 
@@ -296,18 +290,14 @@ def test_frame_from_corners_and_from_points_agree() -> None:
         np.testing.assert_allclose(frame.x_axis, by_corners.x_axis, atol=1e-12)
         np.testing.assert_allclose(frame.y_axis, by_corners.y_axis, atol=1e-12)
         np.testing.assert_allclose(frame.corners_m, corners, atol=1e-12)
-        assert (frame.width_m, frame.height_m) == pytest.approx(
-            (by_corners.width_m, by_corners.height_m)
-        )
+        assert (frame.width_m, frame.height_m) == pytest.approx((by_corners.width_m, by_corners.height_m))
     assert (by_corners.width_m, by_corners.height_m) == pytest.approx((2.0, 1.0))
 
 
 def test_from_points_makes_rough_axis_hints_exact() -> None:
     # An origin 5 cm off the plane, an x hint with a component out of the wall and a
     # y hint leaning along x: the frame projects and orthogonalises them.
-    frame = WallFrame.from_points(
-        DATAWALL_CORNERS[:3], [0, 0, 0.05], [1, 0, 0.2], [0.3, 1, 0], WIDTH_M, HEIGHT_M
-    )
+    frame = WallFrame.from_points(DATAWALL_CORNERS[:3], [0, 0, 0.05], [1, 0, 0.2], [0.3, 1, 0], WIDTH_M, HEIGHT_M)
     np.testing.assert_allclose(frame.origin_m, [0, 0, 0], atol=1e-15)
     np.testing.assert_allclose(frame.x_axis, [1, 0, 0], atol=1e-15)
     np.testing.assert_allclose(frame.y_axis, [0, 1, 0], atol=1e-15)
@@ -316,9 +306,7 @@ def test_from_points_makes_rough_axis_hints_exact() -> None:
 def test_frame_from_nearly_coplanar_corners_keeps_its_origin_on_the_plane() -> None:
     # Corners measured with a few millimetres of error (within the 10 mm tolerance):
     # the frame's origin must lie on the plane it reports, as from_points makes it.
-    corners = DATAWALL_CORNERS + np.array(
-        [[0, 0, 0.004], [0, 0, -0.004], [0, 0, 0.004], [0, 0, -0.004]]
-    )
+    corners = DATAWALL_CORNERS + np.array([[0, 0, 0.004], [0, 0, -0.004], [0, 0, 0.004], [0, 0, -0.004]])
     # Regression: from_corners took corner 0 as the origin as measured, 4 mm off the
     # fitted plane, so the frame's plane was that far from the best fit.
     frame = WallFrame.from_corners(corners)
@@ -366,18 +354,14 @@ def test_axis_hints_nearly_along_the_normal_or_each_other_are_rejected() -> None
 
 def test_display_pixels_of_the_wall_corners(datawall_wall: WallFrame) -> None:
     wall_xy = datawall_wall.to_wall_m(datawall_wall.corners_m)
-    np.testing.assert_allclose(
-        wall_xy, [[0, 0], [WIDTH_M, 0], [WIDTH_M, HEIGHT_M], [0, HEIGHT_M]], atol=1e-15
-    )
+    np.testing.assert_allclose(wall_xy, [[0, 0], [WIDTH_M, 0], [WIDTH_M, HEIGHT_M], [0, HEIGHT_M]], atol=1e-15)
     # bottom-left, bottom-right, top-right, top-left -> the display's own corners, y down
     np.testing.assert_allclose(
         datawall_wall.to_display_px(wall_xy),
         [[0, 1920], [7680, 1920], [7680, 0], [0, 0]],
         atol=1e-9,
     )
-    np.testing.assert_allclose(
-        datawall_wall.to_display_px([WIDTH_M / 2, HEIGHT_M / 2]), [3840, 960], atol=1e-9
-    )
+    np.testing.assert_allclose(datawall_wall.to_display_px([WIDTH_M / 2, HEIGHT_M / 2]), [3840, 960], atol=1e-9)
 
 
 def test_display_pixels_need_a_display_size() -> None:
@@ -429,9 +413,7 @@ def test_property_pointer_seen_by_both_cameras_hits_where_it_points(
     for end in (back_m, front_m):
         pixels = [cam.project(end) for cam in simulated_cameras]
         assume(all(cam.contains(px)[0] for cam, px in zip(simulated_cameras, pixels, strict=True)))
-        (o1, d1), (o2, d2) = (
-            cam.pixel_to_ray(px) for cam, px in zip(simulated_cameras, pixels, strict=True)
-        )
+        (o1, d1), (o2, d2) = (cam.pixel_to_ray(px) for cam, px in zip(simulated_cameras, pixels, strict=True))
         ends.append(closest_approach(o1[0], d1[0], o2[0], d2[0]).midpoint_m)
     hit = intersect_line_plane(ends[0], ends[1], datawall_wall.plane)
     assert hit.u > 1.0  # beyond the front end, ahead of the pointer

@@ -18,8 +18,9 @@ def run_track(
     track: Track, config: InteractionConfig | None = None, templates=None
 ) -> tuple[InteractionEngine, list[Event]]:
     """Feed a whole track to a fresh engine; every event, in order."""
-    engine = InteractionEngine(config or InteractionConfig(), WIDTH_M, HEIGHT_M,
-                               load_templates() if templates is None else templates)
+    engine = InteractionEngine(
+        config or InteractionConfig(), WIDTH_M, HEIGHT_M, load_templates() if templates is None else templates
+    )
     events: list[Event] = []
     for time_ns, point in zip(track.times_ns, track.points_m, strict=True):
         events += engine.step(int(time_ns), None if np.isnan(point[0]) else point).events

@@ -26,8 +26,9 @@ def _rig_file(tmp_path: Path, extra: str) -> Path:
 
 
 def _check(path: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "trackerd", "config", "check", str(path)], capture_output=True,
-                          text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", "config", "check", str(path)], capture_output=True, text=True, timeout=60
+    )
 
 
 def _malformed(tmp_path: Path) -> str:
@@ -36,12 +37,16 @@ def _malformed(tmp_path: Path) -> str:
     return '[interaction.gestures]\ntemplate_dir = "gestures"\n'
 
 
-@pytest.mark.parametrize(("make", "text"), [
-    (lambda tmp: '[interaction.commands]\nbogus_trigger = "x"\n', "no gesture or event called bogus_trigger"),
-    (lambda tmp: '[interaction.gestures]\ntemplate_dir = "nowhere"\n', "gesture template directory does not exist"),
-    (_malformed, "zigzag.json: not JSON"),
-    (lambda tmp: '[interaction.hand]\nenabled = true\ncamera = "middle"\n', "no camera 'middle'"),
-], ids=["unknown trigger", "missing template_dir", "malformed template", "unknown hand camera"])
+@pytest.mark.parametrize(
+    ("make", "text"),
+    [
+        (lambda tmp: '[interaction.commands]\nbogus_trigger = "x"\n', "no gesture or event called bogus_trigger"),
+        (lambda tmp: '[interaction.gestures]\ntemplate_dir = "nowhere"\n', "gesture template directory does not exist"),
+        (_malformed, "zigzag.json: not JSON"),
+        (lambda tmp: '[interaction.hand]\nenabled = true\ncamera = "middle"\n', "no camera 'middle'"),
+    ],
+    ids=["unknown trigger", "missing template_dir", "malformed template", "unknown hand camera"],
+)
 def test_config_check_refuses_what_the_daemon_refuses(tmp_path, make, text):
     path = _rig_file(tmp_path, make(tmp_path))
     loaded = load_rig(path)
@@ -56,8 +61,10 @@ def test_config_check_refuses_what_the_daemon_refuses(tmp_path, make, text):
 
 def test_config_check_accepts_what_the_daemon_accepts(tmp_path):
     (tmp_path / "gestures").mkdir()
-    path = _rig_file(tmp_path, '[interaction.gestures]\ntemplate_dir = "gestures"\n'
-                               '[interaction.commands]\nswipe_left = "previous_slide"\n')
+    path = _rig_file(
+        tmp_path,
+        '[interaction.gestures]\ntemplate_dir = "gestures"\n[interaction.commands]\nswipe_left = "previous_slide"\n',
+    )
     assert create(load_rig(path).config) is not None
     done = _check(path)
     assert done.returncode == 0 and ": OK, rig" in done.stdout, done.stderr

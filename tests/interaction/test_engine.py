@@ -106,8 +106,9 @@ def _replayed_twice(points: np.ndarray, reset: bool):
             ending = engine.reset()
         start_ns = 10**12 + index * len(points) * 1e9 / RATE_HZ
         times = (start_ns + np.arange(len(points)) * 1e9 / RATE_HZ).astype(np.int64)
-        passes.append([(e, int(t - times[0])) for t, p in zip(times, points, strict=True)
-                       for e in engine.step(int(t), p).events])
+        passes.append(
+            [(e, int(t - times[0])) for t, p in zip(times, points, strict=True) for e in engine.step(int(t), p).events]
+        )
     return passes, ending
 
 
@@ -121,7 +122,7 @@ def test_after_a_reset_the_same_hits_give_the_same_events_and_the_jump_is_no_ges
     assert _kinds(e for e, _ in first) == ["enter", "dwell", "gesture", "gesture"]
     assert [e.detail["name"] for e, _ in first if e.kind == "gesture"] == ["swipe_right", "circle_ccw"]
     # The session in progress ends with a leave at the last pair; the next one has the next id.
-    leave, = ending
+    (leave,) = ending
     assert leave.kind == "leave" and leave.cursor_id == 1 and leave.detail["reason"] == "lost"
     assert leave.time_ns == 10**12 + int((len(points) - 1) * 1e9 / RATE_HZ)
     assert np.allclose(leave.position_m, points[-1], atol=0.01)

@@ -24,8 +24,9 @@ def _zigzag(rng) -> np.ndarray:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "trackerd", "gesture", *args], capture_output=True, text=True,
-                          timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", "gesture", *args], capture_output=True, text=True, timeout=60
+    )
 
 
 def test_record_a_gesture_from_hits_and_list_it(tmp_path, rng):
@@ -81,7 +82,7 @@ def test_an_example_unlike_the_others_is_refused(tmp_path, rng):
     _hits_file(hits, [swipe, loop, swipe + np.array([0.3, 0.05])], rng)
     done = _cli("record", "flick", "--examples", "2", "--dir", str(tmp_path / "g"), "--from", str(hits))
     assert done.returncode == 0, done.stderr
-    refused, = [line for line in done.stdout.splitlines() if "refused" in line]
+    (refused,) = [line for line in done.stdout.splitlines() if "refused" in line]
     assert refused.startswith("example 2/2:") and "against the other examples of flick" in refused
     template = load_template(tmp_path / "g" / "flick.json")
     assert len(template.examples) == 2
@@ -103,13 +104,17 @@ def test_an_unwritable_directory_is_refused_before_recording(tmp_path, rng):
     _hits_file(hits, [swipe_path("swipe_right", np.array([1.0, 0.5]), 0.6, 0.3, rng)], rng)
     afile = tmp_path / "afile"
     afile.write_text("x\n")
-    for directory, reason in ((afile / "sub", "Not a directory"), (afile, "not a directory"),
-                              (Path("/proc/nope"), "No such file or directory")):
+    for directory, reason in (
+        (afile / "sub", "Not a directory"),
+        (afile, "not a directory"),
+        (Path("/proc/nope"), "No such file or directory"),
+    ):
         done = _cli("record", "flick", "--examples", "1", "--dir", str(directory), "--from", str(hits))
         assert done.returncode == 1 and "Traceback" not in done.stderr
         # One line, and before recording: no stroke was cut.
         assert done.stderr == f"trackerd gesture: --dir {directory}: " + (
-            "not a directory\n" if directory == afile else f"cannot write gesture templates there: {reason}\n")
+            "not a directory\n" if directory == afile else f"cannot write gesture templates there: {reason}\n"
+        )
     # A directory made for a recording that gave nothing is removed again.
     empty = tmp_path / "empty.jsonl"
     empty.write_text("")

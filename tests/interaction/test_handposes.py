@@ -75,7 +75,12 @@ def test_the_look_thread_gives_the_events_of_looks_made_inline(simulated_rig, pa
     expected += inline.end_session(pairs[-1].sequence, pairs[-1].timestamp_ns + EPOCH_NS)
     # The hand counted (twice in a row), its command, and its going.
     assert [(e.kind, getattr(e, "present", None)) for e in expected] == [
-        ("hand", True), ("command", None), ("hand", True), ("hand", True), ("hand", False)]
+        ("hand", True),
+        ("command", None),
+        ("hand", True),
+        ("hand", True),
+        ("hand", False),
+    ]
     assert isinstance(expected[1], CommandIssued) and expected[1].command == "two"
 
     threaded = _poses(simulated_rig, threaded=True)

@@ -37,15 +37,23 @@ RATE_HZ = 30.0
 
 def _rig(rig, endpoint: str, tuio_port: int):
     zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 300.0})
-    interaction = rig.interaction.model_validate({
-        "dwell": {"time_ms": 400.0},
-        "commands": {"swipe_right": "next_slide", "dwell": "select", "hand_2": "two", "enter": "hello",
-                     "leave": "bye"},
-        "hand": {"enabled": True, "every_n_pairs": 1, "debounce_pairs": 2},
-        "tuio": {"enabled": True, "port": tuio_port},
-    })
-    return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg}),
-                                  "interaction": interaction})
+    interaction = rig.interaction.model_validate(
+        {
+            "dwell": {"time_ms": 400.0},
+            "commands": {
+                "swipe_right": "next_slide",
+                "dwell": "select",
+                "hand_2": "two",
+                "enter": "hello",
+                "leave": "bye",
+            },
+            "hand": {"enabled": True, "every_n_pairs": 1, "debounce_pairs": 2},
+            "tuio": {"enabled": True, "port": tuio_port},
+        }
+    )
+    return rig.model_copy(
+        update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg}), "interaction": interaction}
+    )
 
 
 @pytest.fixture(scope="module")
@@ -55,8 +63,9 @@ def session(simulated_rig, renderer):
     stage = Stage.from_rig(simulated_rig)
 
     def pointer_at(x_m: float, y_m: float):
-        pose = pose_aimed_at(stage.hand_m, renderer.wall.from_wall_m(np.array([x_m, y_m])),
-                             simulated_rig.pointer.length_m)
+        pose = pose_aimed_at(
+            stage.hand_m, renderer.wall.from_wall_m(np.array([x_m, y_m])), simulated_rig.pointer.length_m
+        )
         return [renderer.render(i, pose, rng).image for i in range(2)]
 
     empty = [renderer.render(i, None, rng).image for i in range(2)]
@@ -65,8 +74,9 @@ def session(simulated_rig, renderer):
     hand = [hands.render(pose, rng).image, empty[1]]
     start_x, end_x, y = 1.2, 1.9, 0.5
     rest_a = pointer_at(start_x, y)
-    swipe = [pointer_at(start_x + (end_x - start_x) * s, y)
-             for s in minimum_jerk(np.arange(1, 7) / 7.0)]  # 0.23 s at 30 pairs/s
+    swipe = [
+        pointer_at(start_x + (end_x - start_x) * s, y) for s in minimum_jerk(np.arange(1, 7) / 7.0)
+    ]  # 0.23 s at 30 pairs/s
     rest_b = pointer_at(end_x, y)
     # The hand stays for 8 pairs; debouncing needs two in a row before the first hand message.
     sets = [empty] * 3 + [hand] * 8 + [empty] * 2 + [rest_a] * 24 + swipe + [rest_b] * 12 + [empty] * 10
@@ -127,9 +137,7 @@ def test_every_event_reaches_a_subscriber_and_tuio(simulated_rig, session, tmp_p
         # Then until a status built after that: the publisher sends in order, so every pair's
         # messages are in by then (and the TUIO bundles, sent as the pairs were processed).
         done_s = time.monotonic() - started
-        while time.monotonic() < guard and not any(
-            t == "status" and d["uptime_s"] > done_s for t, d, _ in messages
-        ):
+        while time.monotonic() < guard and not any(t == "status" and d["uptime_s"] > done_s for t, d, _ in messages):
             receive(10)
         receive(0)
     finally:
@@ -147,24 +155,28 @@ def test_every_event_reaches_a_subscriber_and_tuio(simulated_rig, session, tmp_p
     first_pointer = min(d["sequence"] for d in by_topic["pointer"])
     shown = [h for h in by_topic["hand"] if h["present"] and h["sequence"] < first_pointer]
     assert len(shown) >= 3 and {h["fingers"] for h in shown} == {2}
-    assert all(abs(h["image_x_px"] - hand_centre[0]) < 40 and abs(h["image_y_px"] - hand_centre[1]) < 40
-               for h in shown)
+    assert all(abs(h["image_x_px"] - hand_centre[0]) < 40 and abs(h["image_y_px"] - hand_centre[1]) < 40 for h in shown)
     assert not by_topic["hand"][-1]["present"]
 
-    enter, = by_topic["enter"]
-    leave, = by_topic["leave"]
+    (enter,) = by_topic["enter"]
+    (leave,) = by_topic["leave"]
     assert leave["reason"] == "lost" and leave["cursor_id"] == enter["cursor_id"]
     assert abs(enter["wall_x_m"] - start_x) < 0.02
     dwells = by_topic["dwell"]
     assert len(dwells) == 1, "one dwell per rest: the rest after the gesture is no click"
     assert abs(dwells[0]["wall_x_m"] - start_x) < 0.01 and dwells[0]["dwell_ms"] >= 400.0
-    gesture, = by_topic["gesture"]
+    (gesture,) = by_topic["gesture"]
     assert gesture["name"] == "swipe_right" and gesture["score"] > 0.9
     assert abs(gesture["start_wall_x_m"] - start_x) < 0.05 and abs(gesture["wall_x_m"] - end_x) < 0.05
     assert gesture["start_ns"] < gesture["end_ns"] <= gesture["capture_ns"]
     commands = [(c["command"], c["trigger"]) for c in by_topic["command"]]
-    assert commands == [("two", "hand_2"), ("hello", "enter"), ("select", "dwell"), ("next_slide", "swipe_right"),
-                        ("bye", "leave")]
+    assert commands == [
+        ("two", "hand_2"),
+        ("hello", "enter"),
+        ("select", "dwell"),
+        ("next_slide", "swipe_right"),
+        ("bye", "leave"),
+    ]
 
     # Hits are smoothed, with the raw position alongside and the pointing session's id.
     hits = by_topic["hit"]

@@ -80,13 +80,15 @@ def test_recorded_template_round_trips_with_gates_from_its_examples(tmp_path, rn
     assert load_templates(tmp_path, builtin=False, only=("loop",)).keys() == {"loop"}
 
 
-@pytest.mark.parametrize(("text", "message"), [
-    ("not json", "not JSON"),
-    ('{"format": "x"}', "not a trackerd gesture template"),
-    ('{"format": "trackerd-gesture-template", "version": 9}', "version 9"),
-    ('{"format": "trackerd-gesture-template", "version": 1, "name": "bad", "examples": [[[0, 0]]]}',
-     "64 finite"),
-])
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("not json", "not JSON"),
+        ('{"format": "x"}', "not a trackerd gesture template"),
+        ('{"format": "trackerd-gesture-template", "version": 9}', "version 9"),
+        ('{"format": "trackerd-gesture-template", "version": 1, "name": "bad", "examples": [[[0, 0]]]}', "64 finite"),
+    ],
+)
 def test_bad_template_files_get_one_clear_line(tmp_path, text, message):
     path = tmp_path / "bad.json"
     path.write_text(text)

@@ -74,10 +74,12 @@ def _fseq(bundle) -> int:
 
 
 def _rig(simulated_rig, tuio_port: int | None, **commands: str):
-    interaction = simulated_rig.interaction.model_validate({
-        "commands": commands,
-        "tuio": {"enabled": tuio_port is not None, "port": tuio_port or 3333},
-    })
+    interaction = simulated_rig.interaction.model_validate(
+        {
+            "commands": commands,
+            "tuio": {"enabled": tuio_port is not None, "port": tuio_port or 3333},
+        }
+    )
     return simulated_rig.model_copy(update={"interaction": interaction})
 
 
@@ -97,8 +99,11 @@ class Feeder:
             frames = tuple(Frame(camera, self.sequence, 0, time_ns, "Mono8", IMAGE) for camera in ("left", "right"))
             fix = _fix_at(point)
             events = self.extension.on_located(Located(FramePair(frames, time_ns, 0, self.sequence), fix, capture_ns))
-            out += [m for m in pair_messages(fix, "red", sequence=self.sequence, capture_ns=capture_ns, events=events)
-                    if m.topic != "pointer"]
+            out += [
+                m
+                for m in pair_messages(fix, "red", sequence=self.sequence, capture_ns=capture_ns, events=events)
+                if m.topic != "pointer"
+            ]
             self.sequence += 1
         return out
 
@@ -214,14 +219,20 @@ def test_finish_returns_the_leave_and_close_removes_the_cursor(simulated_rig, ud
 
 
 def test_stopping_the_pipeline_with_the_pointer_on_the_display_removes_the_tuio_cursor(
-        simulated_rig, renderer, udp, tmp_path):
+    simulated_rig, renderer, udp, tmp_path
+):
     rng = np.random.default_rng(8)
     stage = Stage.from_rig(simulated_rig)
     pose = pose_aimed_at(stage.hand_m, renderer.wall.from_wall_m(np.array([1.5, 0.5])), simulated_rig.pointer.length_m)
     pointing = [renderer.render(i, pose, rng).image for i in range(2)]
     rig = _rig(simulated_rig, udp.getsockname()[1])
-    rig = rig.model_copy(update={"outputs": rig.outputs.model_copy(update={
-        "zmq": rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})})})
+    rig = rig.model_copy(
+        update={
+            "outputs": rig.outputs.model_copy(
+                update={"zmq": rig.outputs.zmq.model_copy(update={"endpoints": (f"ipc://{tmp_path}/pub.sock",)})}
+            )
+        }
+    )
     extension = create(rig)
     assert extension is not None
     # Half a second of the empty room first, then the pointer, served once the subscriber is connected.

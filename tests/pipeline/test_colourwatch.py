@@ -89,8 +89,11 @@ def test_the_watch_measures_a_located_pair_every_few_seconds_only():
 def test_the_daemons_status_carries_the_colour_watch(simulated_rig, rendered_sweep):
     image_sets, _ = rendered_sweep
     count = len(image_sets)
-    pipeline = Pipeline(simulated_rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=None, count=count),
-                        lambda r: Publisher(r.outputs.zmq.model_copy(update={"endpoints": ("tcp://127.0.0.1:*",)})))
+    pipeline = Pipeline(
+        simulated_rig,
+        lambda r: MemoryPairSource(r, image_sets, rate_hz=None, count=count),
+        lambda r: Publisher(r.outputs.zmq.model_copy(update={"endpoints": ("tcp://127.0.0.1:*",)})),
+    )
     try:
         pipeline.start()
         deadline = time.monotonic() + 60.0  # a guard only: the loop ends when every pair is published

@@ -185,8 +185,9 @@ def test_a_subscriber_that_never_reads_does_not_slow_the_pipeline(simulated_rig,
     stalled.setsockopt(zmq.RCVHWM, 10)
     stalled.connect(endpoint)
     # As fast as it can, 300 pairs: the publisher must never block on the stalled subscriber.
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=None, count=300),
-                        lambda r: Publisher(r.outputs.zmq))
+    pipeline = Pipeline(
+        rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=None, count=300), lambda r: Publisher(r.outputs.zmq)
+    )
     try:
         pipeline.start()
         deadline = time.monotonic() + 60
@@ -253,8 +254,13 @@ def test_watchdog_and_ready_reach_systemd_only_when_pairs_flow(simulated_rig, re
     stop = threading.Event()
     listener = threading.Thread(target=listen, args=(stop,))
     listener.start()
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=20, drop_late=False),
-                        lambda r: Publisher(r.outputs.zmq), notifier)
+    pipeline = Pipeline(
+        rig,
+        lambda r: MemoryPairSource(r, image_sets, rate_hz=20.0, count=20, drop_late=False),
+        lambda r: Publisher(r.outputs.zmq),
+        notifier,
+    )
+
     def read_so_far() -> list[str]:
         """Every notification sent until now (a marker of our own, sent last, is read last)."""
         marker = f"TEST_MARKER={time.monotonic_ns()}"
@@ -292,11 +298,12 @@ def test_watchdog_and_ready_reach_systemd_only_when_pairs_flow(simulated_rig, re
     # STOPPING is sent once, at stop; only the last status lines may follow it.
     stopping = [i for i, m in enumerate(notifications) if "STOPPING=1" in m]
     assert len(stopping) == 1 and stopping[0] > first_ready
-    assert all(m.startswith("STATUS=") for m in notifications[stopping[0] + 1:]), notifications
+    assert all(m.startswith("STATUS=") for m in notifications[stopping[0] + 1 :]), notifications
 
 
 def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_interval(
-        simulated_rig, rendered_sweep, tmp_path):
+    simulated_rig, rendered_sweep, tmp_path
+):
     """SIGHUP with the same outputs: a client key added is let in and one removed is shut out, on
     their next connection, and a new status_interval_ms takes effect (both were read only at start)."""
     import zmq.auth
@@ -315,8 +322,9 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
 
     def rig_with(status_ms: float):
         rig = _rig_on(simulated_rig, "tcp://127.0.0.1:5579", status_ms)
-        zmq_cfg = rig.outputs.zmq.model_copy(update={
-            "curve_secret_key_file": server_secret, "curve_authorized_keys_dir": clients})
+        zmq_cfg = rig.outputs.zmq.model_copy(
+            update={"curve_secret_key_file": server_secret, "curve_authorized_keys_dir": clients}
+        )
         return rig.model_copy(update={"outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg})})
 
     def reload(status_ms: float) -> None:
@@ -351,8 +359,9 @@ def test_a_reload_reads_the_curve_client_keys_again_and_applies_the_status_inter
         return float(np.median(np.diff(times))) / 1e9
 
     rig = rig_with(1000.0)
-    pipeline = Pipeline(rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=30.0),
-                        lambda r: Publisher(r.outputs.zmq))
+    pipeline = Pipeline(
+        rig, lambda r: MemoryPairSource(r, image_sets, rate_hz=30.0), lambda r: Publisher(r.outputs.zmq)
+    )
     pipeline.start()
     try:
         assert statuses_seen(1.5) == 0  # not authorized
@@ -390,8 +399,9 @@ def test_sequences_go_on_across_a_reload_that_reopens_the_cameras(simulated_rig,
     def with_exposure(exposure_us: float):
         left = rig.cameras[0]
         acquisition = left.acquisition.model_copy(update={"exposure_us": exposure_us})
-        return rig.model_copy(update={"cameras": (left.model_copy(update={"acquisition": acquisition}),
-                                                  *rig.cameras[1:])})
+        return rig.model_copy(
+            update={"cameras": (left.model_copy(update={"acquisition": acquisition}), *rig.cameras[1:])}
+        )
 
     refused = with_exposure(5e7)
     sources: list[MemoryPairSource] = []

@@ -22,15 +22,17 @@ def test_a_rig_goes_to_the_processing_thread_then_to_the_publishing_thread(simul
 
 def test_a_new_calibration_does_not_reopen_the_cameras_but_a_new_exposure_does(simulated_rig):
     left = simulated_rig.cameras[0]
-    turned = left.model_copy(update={"extrinsics": left.extrinsics.model_copy(
-        update={"yaw_deg": left.extrinsics.yaw_deg + 1.0})})
+    turned = left.model_copy(
+        update={"extrinsics": left.extrinsics.model_copy(update={"yaw_deg": left.extrinsics.yaw_deg + 1.0})}
+    )
     recalibrated = simulated_rig.model_copy(update={"cameras": (turned, *simulated_rig.cameras[1:])})
     assert source_settings(recalibrated) == source_settings(simulated_rig)
     assert changes_calibration(recalibrated, simulated_rig) and changes_colours(recalibrated, simulated_rig)
 
     exposure = left.acquisition.model_copy(update={"exposure_us": 2000.0})
     reexposed = simulated_rig.model_copy(
-        update={"cameras": (left.model_copy(update={"acquisition": exposure}), *simulated_rig.cameras[1:])})
+        update={"cameras": (left.model_copy(update={"acquisition": exposure}), *simulated_rig.cameras[1:])}
+    )
     assert source_settings(reexposed) != source_settings(simulated_rig)
 
     renamed = simulated_rig.model_copy(update={"name": "another"})

@@ -32,8 +32,9 @@ from trackerd.sim.rig import loop_truth
 pytestmark = [
     pytest.mark.serial,  # a daemon under a stand-in for systemd, on the virtual rig
     pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
-    pytest.mark.skipif(netns_missing_reason() is not None,
-                       reason=f"needs network namespaces (root): {netns_missing_reason()}"),
+    pytest.mark.skipif(
+        netns_missing_reason() is not None, reason=f"needs network namespaces (root): {netns_missing_reason()}"
+    ),
 ]
 
 ENDPOINT = "tcp://127.0.0.1:5577"
@@ -75,18 +76,23 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"")
     sub.connect(ENDPOINT)
-    with VirtualRig(rig, motion="figure8", prefix="trkdr", subnet="10.213.210.0/24",
-                    out_dir=tmp_path / "simrig") as virtual:
+    with VirtualRig(
+        rig, motion="figure8", prefix="trkdr", subnet="10.213.210.0/24", out_dir=tmp_path / "simrig"
+    ) as virtual:
         rig_file = tmp_path / "rig.toml"
         rig_file.write_text(dump_rig(virtual.daemon_rig))
         env = dict(os.environ, NOTIFY_SOCKET=str(notify_path), WATCHDOG_USEC="2000000")
         daemon = subprocess.Popen(
             [sys.executable, "-m", "trackerd", "--log-level", "info", "run", "--config", str(rig_file)],
-            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
         )
         messages: list[tuple[str, dict]] = []
         notes: list[str] = []
         try:
+
             def collect(seconds: float, until=None) -> None:
                 """Messages for ``seconds``, or until ``until(messages)`` holds."""
                 end = time.monotonic() + seconds
@@ -182,10 +188,19 @@ def test_daemon_under_a_stand_in_for_systemd(simulated_rig, tmp_path: Path) -> N
     assert "reload failed, keeping the previous configuration" in err and "exposure_us" in err
 
     # Hits lie on the rendered figure eight (the motion's true wall hits), to within the accuracy budget.
-    truth = np.array([f["wall_xy_m"] for f in loop_truth(virtual.rig, "figure8", virtual.period_s,
-                                                           virtual.content_fps) if f.get("wall_xy_m")])
-    dense = np.concatenate([truth[i] + np.linspace(0, 1, 20)[:, None] * (truth[(i + 1) % len(truth)] - truth[i])
-                            for i in range(len(truth))])
+    truth = np.array(
+        [
+            f["wall_xy_m"]
+            for f in loop_truth(virtual.rig, "figure8", virtual.period_s, virtual.content_fps)
+            if f.get("wall_xy_m")
+        ]
+    )
+    dense = np.concatenate(
+        [
+            truth[i] + np.linspace(0, 1, 20)[:, None] * (truth[(i + 1) % len(truth)] - truth[i])
+            for i in range(len(truth))
+        ]
+    )
     hits = np.array([[m["wall_x_m"], m["wall_y_m"]] for t, m in messages if t == "hit"])
     # Every pair whose pointer was seen gave a hit (the figure eight stays on the wall); how many pairs there
     # were depends on how fast this machine renders, so the floor is loose.

@@ -49,8 +49,14 @@ class _Source:
 
     def status(self) -> SourceStatus:
         camera = CameraStatus(camera_id="left", state=self.camera_state, device="fake")
-        return SourceStatus(running=True, trigger="free", pairing="timestamp", pairs=10 * self.started,
-                            dropped_pairs=self.started, cameras=(camera,))
+        return SourceStatus(
+            running=True,
+            trigger="free",
+            pairing="timestamp",
+            pairs=10 * self.started,
+            dropped_pairs=self.started,
+            cameras=(camera,),
+        )
 
 
 def _drain(slot: SourceSlot) -> list[int]:

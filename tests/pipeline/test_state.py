@@ -11,7 +11,9 @@ def test_it_starts_until_every_camera_streams_then_runs():
     machine = DaemonStateMachine()
     assert machine.observe([], reloading=False) == ("starting", "waiting for cameras")
     assert machine.observe([("left", "streaming"), ("right", "connecting")], reloading=False) == (
-        "starting", "waiting for right")
+        "starting",
+        "waiting for right",
+    )
     assert machine.observe(BOTH_STREAMING, reloading=False) == ("running", None)
     assert machine.state == "running" and machine.detail is None
 
@@ -26,7 +28,9 @@ def test_a_camera_lost_before_ready_is_still_starting_and_after_ready_degraded()
     assert machine.announce_ready()
     assert machine.observe(lost, reloading=False) == ("degraded", "camera left not streaming")
     assert machine.observe([("left", "lost"), ("right", "reconnecting")], reloading=False) == (
-        "degraded", "camera left, right not streaming")
+        "degraded",
+        "camera left, right not streaming",
+    )
     assert machine.observe(BOTH_STREAMING, reloading=False) == ("running", None)
 
 

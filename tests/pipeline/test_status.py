@@ -14,13 +14,31 @@ MS = 1_000_000
 
 def _source() -> SourceStatus:
     cameras = (
-        CameraStatus(camera_id="left", state="streaming", device="sim-left", frames=600, frame_rate_hz=60.0,
-                     failed_buffers={"timeout": 2}, losses=1, reconnects=1, last_error="was lost"),
+        CameraStatus(
+            camera_id="left",
+            state="streaming",
+            device="sim-left",
+            frames=600,
+            frame_rate_hz=60.0,
+            failed_buffers={"timeout": 2},
+            losses=1,
+            reconnects=1,
+            last_error="was lost",
+        ),
         CameraStatus(camera_id="right", state="lost", device="sim-right", frames=590, frame_rate_hz=0.0),
     )
-    return SourceStatus(running=True, trigger="free", pairing="timestamp", pairs=580, pair_rate_hz=59.5,
-                        dropped_frames={"left": 3}, dropped_pairs=7, skew_p50_us=12.0, skew_p99_us=40.0,
-                        cameras=cameras)
+    return SourceStatus(
+        running=True,
+        trigger="free",
+        pairing="timestamp",
+        pairs=580,
+        pair_rate_hz=59.5,
+        dropped_frames={"left": 3},
+        dropped_pairs=7,
+        skew_p50_us=12.0,
+        skew_p99_us=40.0,
+        cameras=cameras,
+    )
 
 
 def _figures(**changes) -> StatusFigures:
@@ -31,10 +49,21 @@ def _figures(**changes) -> StatusFigures:
         "triangulate": np.zeros(0, dtype=np.int64),
         "publish": np.array([0], dtype=np.int64),
     }
-    base = dict(sequence=5, capture_ns=1_795_000_000_000_000_000, uptime_s=12.5, state="degraded",
-                detail="camera right not streaming", rig_name="wall", source=_source(), latency_ns=latency,
-                retired_pairs=100, retired_dropped_pairs=4, queue_dropped_pairs=2, fixes={"hit": 500, "not_found": 80},
-                extensions={"interaction": None, "recording": None})
+    base = dict(
+        sequence=5,
+        capture_ns=1_795_000_000_000_000_000,
+        uptime_s=12.5,
+        state="degraded",
+        detail="camera right not streaming",
+        rig_name="wall",
+        source=_source(),
+        latency_ns=latency,
+        retired_pairs=100,
+        retired_dropped_pairs=4,
+        queue_dropped_pairs=2,
+        fixes={"hit": 500, "not_found": 80},
+        extensions={"interaction": None, "recording": None},
+    )
     return StatusFigures(**{**base, **changes})
 
 
@@ -73,8 +102,9 @@ def test_latencies_become_percentiles_in_ms_and_each_stage_its_own():
 
 def test_the_stages_a_drain_gives_are_the_stages_a_status_lists():
     figures = PipelineFigures()
-    figures.add_published({"detect": 2 * MS, "triangulate": MS}, publish_ns=MS // 10, processing_ns=3 * MS,
-                          latency_ns=4 * MS)
+    figures.add_published(
+        {"detect": 2 * MS, "triangulate": MS}, publish_ns=MS // 10, processing_ns=3 * MS, latency_ns=4 * MS
+    )
     drained = figures.drain()
     message = status_message(_figures(latency_ns=drained))
     assert set(message.stages) == {"detect", "triangulate", "publish"}
@@ -85,11 +115,22 @@ def test_the_stages_a_drain_gives_are_the_stages_a_status_lists():
 
 
 def test_calibration_colours_and_extensions_are_given_when_there_are_any():
-    calibration = {"fixes": 24, "ray_gap_mm": {"p50": 0.9, "p95": 2.0, "max": 2.1},
-                   "reprojection_px": {"p50": 0.3, "p95": 0.7, "max": 0.7}, "suspect": False, "reason": None,
-                   "total_fixes": 24}
-    interaction = {"smoothing": True, "events": {"enter": 1}, "gestures": {}, "templates": 6, "hand": False,
-                   "pointing": False}
+    calibration = {
+        "fixes": 24,
+        "ray_gap_mm": {"p50": 0.9, "p95": 2.0, "max": 2.1},
+        "reprojection_px": {"p50": 0.3, "p95": 0.7, "max": 0.7},
+        "suspect": False,
+        "reason": None,
+        "total_fixes": 24,
+    }
+    interaction = {
+        "smoothing": True,
+        "events": {"enter": 1},
+        "gestures": {},
+        "templates": 6,
+        "hand": False,
+        "pointing": False,
+    }
     message = status_message(_figures(calibration=calibration, extensions={"interaction": interaction}))
     assert message.calibration is not None and message.calibration.total_fixes == 24
     assert message.calibration.ray_gap_mm.p50 == 0.9

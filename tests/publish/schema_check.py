@@ -45,10 +45,27 @@ def _is_type(value: Any, kind: str) -> bool:
 
 
 def _check(value: Any, schema: dict[str, Any], root: dict[str, Any], where: str) -> None:
-    unknown = set(schema) - _ANNOTATIONS - {
-        "type", "properties", "required", "additionalProperties", "items", "prefixItems", "minItems",
-        "maxItems", "anyOf", "enum", "const", "minimum", "maximum", "exclusiveMinimum", "$ref",
-    }
+    unknown = (
+        set(schema)
+        - _ANNOTATIONS
+        - {
+            "type",
+            "properties",
+            "required",
+            "additionalProperties",
+            "items",
+            "prefixItems",
+            "minItems",
+            "maxItems",
+            "anyOf",
+            "enum",
+            "const",
+            "minimum",
+            "maximum",
+            "exclusiveMinimum",
+            "$ref",
+        }
+    )
     if unknown:
         raise NotImplementedError(f"{where}: schema keywords {sorted(unknown)} are not supported here")
     if "$ref" in schema:

@@ -81,8 +81,9 @@ def test_only_authorized_clients_may_subscribe_and_reload_reads_new_keys(server_
     elsewhere.mkdir()
     _, known_secret = write_key_pair(clients, "wall-app", "client")
     stranger_public, stranger_secret = write_key_pair(elsewhere, "stranger", "client")
-    config = ZmqOutput(endpoints=("tcp://127.0.0.1:*",), curve_secret_key_file=secret_file,
-                       curve_authorized_keys_dir=clients)
+    config = ZmqOutput(
+        endpoints=("tcp://127.0.0.1:*",), curve_secret_key_file=secret_file, curve_authorized_keys_dir=clients
+    )
     with Publisher(config) as publisher:
         endpoint = publisher.endpoints[0]
         known = _curve_subscriber(context, endpoint, public, zmq.auth.load_certificate(str(known_secret)))
@@ -116,8 +117,11 @@ def test_unusable_key_files_are_refused_before_binding(server_keys, tmp_path):
     empty = tmp_path / "no-clients"
     empty.mkdir()
     with pytest.raises(ConfigError, match="no client public keys"):
-        Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",), curve_secret_key_file=secret_file,
-                            curve_authorized_keys_dir=empty))
+        Publisher(
+            ZmqOutput(
+                endpoints=("tcp://127.0.0.1:*",), curve_secret_key_file=secret_file, curve_authorized_keys_dir=empty
+            )
+        )
 
 
 def test_curve_allows_a_network_endpoint_in_the_config(server_keys):
@@ -128,8 +132,7 @@ def test_curve_allows_a_network_endpoint_in_the_config(server_keys):
 
 
 def _keys(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "trackerd", "keys", *args], capture_output=True, text=True,
-                          timeout=60)
+    return subprocess.run([sys.executable, "-m", "trackerd", "keys", *args], capture_output=True, text=True, timeout=60)
 
 
 def test_keys_command_writes_a_private_secret_and_refuses_to_overwrite(tmp_path, capsys):

@@ -18,8 +18,9 @@ from trackerd.publish import Publisher
 
 
 def _listen(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "trackerd", "listen", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "trackerd", "listen", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
 
 
 def _serve_until_done(publisher: Publisher, process: subprocess.Popen, messages, timeout_s: float = 20.0) -> None:
@@ -107,8 +108,9 @@ def test_listen_says_what_it_waits_for_and_what_to_check_when_nothing_comes():
         out, rest = process.communicate(timeout=10)
     assert lines[0] == f"trackerd listen: listening to {endpoint} for hit, status; Ctrl-C to stop"
     hint = lines[1]
-    assert hint.startswith(f"trackerd listen: nothing from {endpoint} in 5 s, though a running trackerd"
-                           " publishes a status every 1 s:"), hint
+    assert hint.startswith(
+        f"trackerd listen: nothing from {endpoint} in 5 s, though a running trackerd publishes a status every 1 s:"
+    ), hint
     assert f"is {endpoint} the endpoint in the rig's [outputs.zmq]?" in hint
     assert "systemctl status trackerd" in hint and "--server-key" in hint
     assert len(lines) == 2 and rest == ""
@@ -161,8 +163,9 @@ def test_listen_over_ipv6_loopback():
 def test_listen_exits_0_on_ctrl_c(publisher):
     process = _listen("--endpoint", publisher.endpoints[0])
     stop = threading.Event()
-    feeder = threading.Thread(target=lambda: [publisher.publish(hit_message()) or time.sleep(0.02)
-                                              for _ in iter(lambda: stop.is_set(), True)])
+    feeder = threading.Thread(
+        target=lambda: [publisher.publish(hit_message()) or time.sleep(0.02) for _ in iter(lambda: stop.is_set(), True)]
+    )
     feeder.start()
     first = process.stdout.readline()
     stop.set()
@@ -178,11 +181,14 @@ def test_listen_reads_endpoint_and_server_key_from_the_rig(tmp_path):
 
     write_key_pair(tmp_path, "server", "server")
     rig = (__import__("pathlib").Path(__file__).resolve().parents[2] / "config" / "datawall.toml").read_text()
-    with Publisher(ZmqOutput(endpoints=("tcp://127.0.0.1:*",),
-                             curve_secret_key_file=tmp_path / "server.key_secret")) as pub:
+    with Publisher(
+        ZmqOutput(endpoints=("tcp://127.0.0.1:*",), curve_secret_key_file=tmp_path / "server.key_secret")
+    ) as pub:
         port = pub.endpoints[0].rsplit(":", 1)[1]
-        text = rig.replace('endpoints = ["tcp://127.0.0.1:5560"]',
-                           f'endpoints = ["tcp://*:{port}"]\ncurve_secret_key_file = "{tmp_path}/server.key_secret"')
+        text = rig.replace(
+            'endpoints = ["tcp://127.0.0.1:5560"]',
+            f'endpoints = ["tcp://*:{port}"]\ncurve_secret_key_file = "{tmp_path}/server.key_secret"',
+        )
         assert text != rig
         (tmp_path / "rig.toml").write_text(text)
         process = _listen("--config", str(tmp_path / "rig.toml"), "--count", "1")
@@ -194,7 +200,8 @@ def test_listen_reads_endpoint_and_server_key_from_the_rig(tmp_path):
 
 def test_format_tolerates_unknown_topics_and_missing_fields():
     assert format_message("gesture", {"sequence": 3, "topic": "gesture", "kind": "swipe"}) == (
-        'gesture  #3  {"kind":"swipe"}')
+        'gesture  #3  {"kind":"swipe"}'
+    )
     line = format_message("hit", {"sequence": 1, "wall_x_m": 1.0, "on_wall": False, "extra": 1})
     assert line == "hit      #1  x 1.000 m  y ?  off wall  gap ?"
     status = format_message("status", json.loads(status_message().model_dump_json()))

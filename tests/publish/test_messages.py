@@ -89,8 +89,9 @@ def test_messages_refuse_non_finite_numbers_and_unknown_fields():
 def test_decode_keeps_a_status_s_stages():
     """Regression: decode read the values of ``stages`` (a dict of LatencyPart by stage name) as
     one LatencyPart, dropped the stage names as unknown fields and returned ``stages == {}``."""
-    status = status_message().model_copy(update={"stages": {
-        "detect": LatencyPart(samples=3, p50_ms=2.5), "publish": LatencyPart(samples=3, p50_ms=0.2)}})
+    status = status_message().model_copy(
+        update={"stages": {"detect": LatencyPart(samples=3, p50_ms=2.5), "publish": LatencyPart(samples=3, p50_ms=0.2)}}
+    )
     topic, payload = encode(status)
     newer = json.loads(payload)
     newer["stages"]["detect"]["p95_ms"] = 3.0  # a newer MINOR's field inside a part is still ignored

@@ -63,8 +63,12 @@ def test_the_schema_check_rejects_broken_payloads(schemas):
     """The validation above can fail."""
     good = json.loads(hit_message().model_dump_json())
     validate(good, schemas["hit"])
-    for broken in ({**good, "on_wall": "yes"}, {k: v for k, v in good.items() if k != "wall_x_m"},
-                   {**good, "front_m": [1.0, 2.0]}, {**good, "sequence": -1}):
+    for broken in (
+        {**good, "on_wall": "yes"},
+        {k: v for k, v in good.items() if k != "wall_x_m"},
+        {**good, "front_m": [1.0, 2.0]},
+        {**good, "sequence": -1},
+    ):
         with pytest.raises(SchemaError):
             validate(broken, schemas["hit"])
     validate({**good, "smoothed_x_m": 1.0}, schemas["hit"])  # unknown fields are allowed (a newer MINOR)
@@ -220,8 +224,17 @@ def test_an_ipv6_loopback_endpoint_binds_and_delivers(context):
         sub.close()
 
 
-@pytest.mark.parametrize("endpoint", ["tcp://0.0.0.0:5560", "tcp://10.20.30.40:5560", "tcp://*:5560",
-                                      "tcp://eth0:5560", "tcp://[::]:5560", "tcp://wall-host:5560"])
+@pytest.mark.parametrize(
+    "endpoint",
+    [
+        "tcp://0.0.0.0:5560",
+        "tcp://10.20.30.40:5560",
+        "tcp://*:5560",
+        "tcp://eth0:5560",
+        "tcp://[::]:5560",
+        "tcp://wall-host:5560",
+    ],
+)
 def test_network_endpoints_are_refused_without_curve_or_permission(endpoint):
     with pytest.raises(ValidationError, match="reachable from the network"):
         ZmqOutput(endpoints=(endpoint,))
@@ -231,19 +244,30 @@ def test_network_endpoints_are_refused_without_curve_or_permission(endpoint):
         Publisher(ZmqOutput.model_construct(**{**ZmqOutput().__dict__, "endpoints": (endpoint,)}))
 
 
-@pytest.mark.parametrize("endpoint", ["tcp://127.0.0.1:5560", "tcp://127.8.9.10:1", "tcp://localhost:5560",
-                                      "tcp://[::1]:5560", "ipc:///run/trackerd/trackerd.sock",
-                                      "tcp://127.0.0.1:*"])
+@pytest.mark.parametrize(
+    "endpoint",
+    [
+        "tcp://127.0.0.1:5560",
+        "tcp://127.8.9.10:1",
+        "tcp://localhost:5560",
+        "tcp://[::1]:5560",
+        "ipc:///run/trackerd/trackerd.sock",
+        "tcp://127.0.0.1:*",
+    ],
+)
 def test_local_endpoints_need_nothing(endpoint):
     ZmqOutput(endpoints=(endpoint,))
 
 
-@pytest.mark.parametrize(("endpoint", "message"), [
-    ("udp://127.0.0.1:5560", "not a tcp://HOST:PORT"),
-    ("tcp://127.0.0.1", "needs HOST:PORT"),
-    ("tcp://127.0.0.1:70000", "not a number from 1 to 65535"),
-    ("ipc://", "names no path"),
-])
+@pytest.mark.parametrize(
+    ("endpoint", "message"),
+    [
+        ("udp://127.0.0.1:5560", "not a tcp://HOST:PORT"),
+        ("tcp://127.0.0.1", "needs HOST:PORT"),
+        ("tcp://127.0.0.1:70000", "not a number from 1 to 65535"),
+        ("ipc://", "names no path"),
+    ],
+)
 def test_malformed_endpoints(endpoint, message):
     with pytest.raises(ValidationError, match=message):
         ZmqOutput(endpoints=(endpoint,))

@@ -18,8 +18,9 @@ BUNDLE = DATA / "figure8-leave.trec"
 
 def trackerd(*args: str | Path, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
     """Run the CLI as a process, as an operator would."""
-    return subprocess.run([sys.executable, "-m", "trackerd", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", *map(str, args)], capture_output=True, text=True, timeout=timeout
+    )
 
 
 def one_line_error(run: subprocess.CompletedProcess[str], command: str, *fragments: str) -> str:
@@ -33,8 +34,9 @@ def one_line_error(run: subprocess.CompletedProcess[str], command: str, *fragmen
     return errors[0]
 
 
-def replay_and_listen(*args: str | Path, endpoint: str, timeout: float = 120.0
-                      ) -> tuple[subprocess.CompletedProcess[str], list[tuple[str, dict[str, Any]]]]:
+def replay_and_listen(
+    *args: str | Path, endpoint: str, timeout: float = 120.0
+) -> tuple[subprocess.CompletedProcess[str], list[tuple[str, dict[str, Any]]]]:
     """Run `trackerd replay ... --endpoint E` as a process and collect everything it publishes.
 
     The subscriber connects before the replay binds; replay's --delay (1 s by default) lets the
@@ -46,8 +48,13 @@ def replay_and_listen(*args: str | Path, endpoint: str, timeout: float = 120.0
     sub.setsockopt(zmq.RCVHWM, 0)
     sub.connect(endpoint)
     messages: list[tuple[str, dict[str, Any]]] = []
-    process = subprocess.Popen([sys.executable, "-m", "trackerd", "replay", *map(str, args), "--endpoint", endpoint],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "trackerd", "replay", *map(str, args), "--endpoint", endpoint],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
     def stopped() -> bool:
         return bool(messages) and messages[-1][0] == "status" and messages[-1][1].get("state") == "stopping"
 
@@ -103,5 +110,8 @@ def interaction_events(messages: list[tuple[str, dict[str, Any]]], shift: int = 
     differs between a live run and its replay or between loop passes (times and ``cursor_id``,
     which counts sessions since the process started)."""
     strip = {"publish_ns", "capture_ns", "cursor_id", "sequence"}
-    return [(topic, m["sequence"] - shift, json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
-            for topic, m in messages if topic in INTERACTION_TOPICS]
+    return [
+        (topic, m["sequence"] - shift, json.dumps({k: v for k, v in m.items() if k not in strip}, sort_keys=True))
+        for topic, m in messages
+        if topic in INTERACTION_TOPICS
+    ]

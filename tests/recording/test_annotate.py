@@ -24,7 +24,7 @@ def test_the_text_lies_on_its_background_box_and_nothing_drifts_beside_it() -> N
     assert 0 < text_cols.min() - left <= 10 and 0 < right - text_cols.max() <= 10
     # Nothing is drawn outside the box.
     outside = np.ones(dark.shape, bool)
-    outside[top:bottom + 1, left:right + 1] = False
+    outside[top : bottom + 1, left : right + 1] = False
     assert np.all(image[outside] == 128)
     # The box is solid: its pixels are darkened or text (an antialiased text edge may pass through 128).
-    assert np.mean(image[top:bottom + 1, left:right + 1] == 128) < 0.01
+    assert np.mean(image[top : bottom + 1, left : right + 1] == 128) < 0.01

@@ -35,8 +35,12 @@ def bundle_pairs(bundle):
 
 def test_a_writer_that_falls_behind_drops_the_oldest_pairs_and_counts_them(bundle_pairs, tmp_path) -> None:
     rig, pairs = bundle_pairs
-    recorder = Recorder(tmp_path / "burst.trec", rig, producer="test",
-                        config=RecordingConfig(queue_pairs=2, compression="deflate", compression_level=9)).start()
+    recorder = Recorder(
+        tmp_path / "burst.trec",
+        rig,
+        producer="test",
+        config=RecordingConfig(queue_pairs=2, compression="deflate", compression_level=9),
+    ).start()
     for pair in pairs:  # all at once: far faster than deflate at level 9 can write them
         recorder.put(pair)
     assert recorder.stop(30.0)
@@ -74,8 +78,9 @@ def test_a_full_disk_stops_the_recording_cleanly_and_what_was_written_stays_read
 
 def test_the_free_space_limit_stops_before_the_disk_is_full(bundle_pairs, small_disk) -> None:
     rig, pairs = bundle_pairs
-    recorder = Recorder(small_disk / "limited.trec", rig, producer="test",
-                        config=RecordingConfig(min_free_space_mb=6)).start()
+    recorder = Recorder(
+        small_disk / "limited.trec", rig, producer="test", config=RecordingConfig(min_free_space_mb=6)
+    ).start()
     for pair in pairs[:3]:
         recorder.put(pair)
     recorder.stop(10.0)
@@ -110,8 +115,12 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
     off = rig.model_copy(update={"outputs": outputs, "recording": RecordingConfig(directory=directory)})
     on = off.model_copy(update={"recording": RecordingConfig(directory=directory, enabled=True)})
     images = [pair.images for pair in pairs]
-    pipeline = Pipeline(off, lambda r: MemoryPairSource(r, images, rate_hz=60.0), lambda r: Publisher(r.outputs.zmq),
-                        extensions=build_extensions(off, ExtensionContext()))
+    pipeline = Pipeline(
+        off,
+        lambda r: MemoryPairSource(r, images, rate_hz=60.0),
+        lambda r: Publisher(r.outputs.zmq),
+        extensions=build_extensions(off, ExtensionContext()),
+    )
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)
     sub.setsockopt(zmq.SUBSCRIBE, b"status")

@@ -58,8 +58,9 @@ def test_pairs_written_but_not_yet_indexed_are_recovered(bundle, tmp_path) -> No
     index.write_bytes(index.read_bytes()[: 16 + 13 * INDEX_ENTRY.size + 20])  # 13 entries and a torn one
     with Recording.open(copy) as recording:
         assert (len(recording), recording.indexed) == (16, 13)
-        assert any("3 complete pair(s) past the end of the index (pairs 13-15), recovered" in p
-                   for p in recording.problems)
+        assert any(
+            "3 complete pair(s) past the end of the index (pairs 13-15), recovered" in p for p in recording.problems
+        )
         assert any("partial entry (20 bytes)" in p for p in recording.problems)
     index.unlink()
     check = trackerd("recording", "check", copy, "--json")
@@ -117,8 +118,12 @@ def test_a_wrong_version_or_a_foreign_folder_is_one_clear_line(bundle, tmp_path)
     (copy / "recording.json").write_text(json.dumps({**meta, "format_version": "3.1"}))
     one_line_error(trackerd("replay", copy), "replay", "recording.json", "format 3.x is newer than this trackerd")
     (copy / "recording.json").write_text(json.dumps({**meta, "format": "something-else"}))
-    one_line_error(trackerd("recording", "export", copy, tmp_path / "out"), "recording",
-                   "format is 'something-else'", "not a trackerd recording")
+    one_line_error(
+        trackerd("recording", "export", copy, tmp_path / "out"),
+        "recording",
+        "format is 'something-else'",
+        "not a trackerd recording",
+    )
     (copy / "recording.json").write_text(json.dumps(meta))
     (copy / "pairs.dat").write_bytes(b"GIF89a" + bytes(100))
     one_line_error(trackerd("replay", copy), "replay", "pairs.dat: does not begin with TRKDDATA")
@@ -149,8 +154,9 @@ def test_an_integer_too_long_for_python_in_the_metadata_is_one_line(bundle, tmp_
     digits with a plain ValueError (not a JSONDecodeError), and that escaped read_metadata."""
     copy = _copy(bundle, tmp_path)
     meta = (copy / "recording.json").read_text()
-    (copy / "recording.json").write_text(meta.replace('"clock_offset_ns": 1795000000000000000',
-                                                      '"clock_offset_ns": ' + "9" * 5000, 1))
+    (copy / "recording.json").write_text(
+        meta.replace('"clock_offset_ns": 1795000000000000000', '"clock_offset_ns": ' + "9" * 5000, 1)
+    )
     one_line_error(trackerd("recording", "check", copy), "recording", "not readable JSON", "4300 digits")
 
 
@@ -162,8 +168,9 @@ def test_a_fifo_directory_or_device_in_place_of_the_data_or_index_is_never_read(
     data = copy / "pairs.dat"
     data.unlink()
     os.mkfifo(data)
-    one_line_error(trackerd("recording", "check", copy, timeout=60), "recording",
-                   "pairs.dat: not a regular file (a FIFO)")
+    one_line_error(
+        trackerd("recording", "check", copy, timeout=60), "recording", "pairs.dat: not a regular file (a FIFO)"
+    )
     data.unlink()
     data.mkdir()
     one_line_error(trackerd("replay", copy, timeout=60), "replay", "pairs.dat: a directory")

@@ -31,8 +31,15 @@ from trackerd.recording.writer import RecordingWriter
 u63 = st.integers(min_value=0, max_value=2**63 - 1)
 i63 = st.integers(min_value=-(2**63), max_value=2**63 - 1)
 frame_entries = st.builds(FrameEntry, u63, u63, i63, u63, st.integers(0, 2**32 - 1), st.integers(0, 1))
-headers = st.builds(RecordHeader, u63, u63, i63, i63, st.integers(0, 2**32 - 1),
-                    st.lists(frame_entries, min_size=1, max_size=4).map(tuple))
+headers = st.builds(
+    RecordHeader,
+    u63,
+    u63,
+    i63,
+    i63,
+    st.integers(0, 2**32 - 1),
+    st.lists(frame_entries, min_size=1, max_size=4).map(tuple),
+)
 
 
 def test_the_layout_is_the_documented_one() -> None:
@@ -72,8 +79,9 @@ def test_frames_timestamps_and_ids_come_back_exactly(bundle, tmp_path, compressi
     recording survives being written again, raw or deflated."""
     with Recording.open(bundle) as source:
         pairs = [source.pair(i) for i in range(len(source))]
-        writer = RecordingWriter(tmp_path / "copy.trec", source.metadata.model_copy(update={"end": None}),
-                                 compression=compression)
+        writer = RecordingWriter(
+            tmp_path / "copy.trec", source.metadata.model_copy(update={"end": None}), compression=compression
+        )
         for pair in pairs:
             writer.write(pair)
         writer.close()
@@ -85,10 +93,18 @@ def test_frames_timestamps_and_ids_come_back_exactly(bundle, tmp_path, compressi
             for i, original in enumerate(pairs):
                 again = copy.pair(i)
                 assert (again.timestamp_ns, again.skew_ns, again.sequence) == (
-                    original.timestamp_ns, original.skew_ns, original.sequence)
+                    original.timestamp_ns,
+                    original.skew_ns,
+                    original.sequence,
+                )
                 for a, b in zip(again.frames, original.frames, strict=True):
                     assert (a.camera_id, a.frame_id, a.device_timestamp_ns, a.host_timestamp_ns, a.pixel_format) == (
-                        b.camera_id, b.frame_id, b.device_timestamp_ns, b.host_timestamp_ns, b.pixel_format)
+                        b.camera_id,
+                        b.frame_id,
+                        b.device_timestamp_ns,
+                        b.host_timestamp_ns,
+                        b.pixel_format,
+                    )
                     assert a.image.dtype == np.uint8 and a.image.shape == (1080, 1920)
                     assert np.array_equal(a.image, b.image)
     raw_size = (tmp_path / "copy.trec" / "pairs.dat").stat().st_size
@@ -104,16 +120,16 @@ def test_the_data_file_can_be_read_with_nothing_but_the_spec(bundle) -> None:
     assert index[:8] == b"TRKDINDX" and data[:8] == b"TRKDDATA"
     entry_bytes = struct.unpack_from("<I", index, 12)[0]
     offset, length, pair_index, sequence, timestamp_ns, _, crc = struct.unpack_from("<QQQqqII", index, 16 + entry_bytes)
-    assert zlib.crc32(index[16 + entry_bytes:16 + entry_bytes + 44]) == crc
+    assert zlib.crc32(index[16 + entry_bytes : 16 + entry_bytes + 44]) == crc
     assert (pair_index, sequence) == (1, 2) and timestamp_ns > 0
-    assert data[offset:offset + 4] == b"PAIR"
+    assert data[offset : offset + 4] == b"PAIR"
     header_bytes, n_frames = struct.unpack_from("<IH", data, offset + 4)
     assert n_frames == len(meta["cameras"])
     payload = offset + header_bytes
     for k, cam in enumerate(meta["cameras"]):
         frame_id, _dev, _host, stored, payload_crc, encoding = struct.unpack_from("<QQqQIB", data, offset + 56 + 40 * k)
         assert frame_id == 2
-        pixels = data[payload:payload + stored]
+        pixels = data[payload : payload + stored]
         assert zlib.crc32(pixels) == payload_crc
         raw = zlib.decompress(pixels) if encoding == 1 else pixels
         assert len(raw) == cam["width_px"] * cam["height_px"]
@@ -150,16 +166,19 @@ def _as_newer_minor(bundle, folder, frame_entry_bytes: int, index_entry_bytes: i
     for k in range((len(index) - 16) // INDEX_ENTRY.size):
         offset, length, pair_index, sequence, timestamp_ns, _, _ = INDEX_ENTRY.unpack_from(index, 16 + 48 * k)
         header_bytes, n_frames, entry_bytes = struct.unpack_from("<IHH", data, offset + 4)
-        fixed = bytearray(data[offset:offset + RECORD_FIXED.size])
+        fixed = bytearray(data[offset : offset + RECORD_FIXED.size])
         new_header_bytes = RECORD_FIXED.size + n_frames * frame_entry_bytes + 8
         struct.pack_into("<IHHI", fixed, 4, new_header_bytes, n_frames, frame_entry_bytes, 0x4)
-        entries = b"".join(data[offset + 56 + i * entry_bytes:offset + 56 + (i + 1) * entry_bytes]
-                           + b"\xAA" * (frame_entry_bytes - entry_bytes) for i in range(n_frames))
+        entries = b"".join(
+            data[offset + 56 + i * entry_bytes : offset + 56 + (i + 1) * entry_bytes]
+            + b"\xaa" * (frame_entry_bytes - entry_bytes)
+            for i in range(n_frames)
+        )
         body = bytes(fixed) + entries + struct.pack("<I", 0)
-        payloads = data[offset + header_bytes:offset + length]
+        payloads = data[offset + header_bytes : offset + length]
         record = body + struct.pack("<I", zlib.crc32(body)) + payloads
         entry = struct.pack("<QQQqqI", len(out), len(record), pair_index, sequence, timestamp_ns, 0)
-        entry += b"\xBB" * (index_entry_bytes - 4 - len(entry))
+        entry += b"\xbb" * (index_entry_bytes - 4 - len(entry))
         idx += entry + struct.pack("<I", zlib.crc32(entry))
         out += record
     meta.update(format_version="1.1", lens_model={"left": "unknown"})
@@ -182,7 +201,10 @@ def test_a_newer_minor_with_longer_entries_reads_the_fields_it_knows(bundle, tmp
             assert (a.timestamp_ns, a.skew_ns, a.sequence) == (b.timestamp_ns, b.skew_ns, b.sequence)
             for fa, fb in zip(a.frames, b.frames, strict=True):
                 assert (fa.frame_id, fa.device_timestamp_ns, fa.host_timestamp_ns) == (
-                    fb.frame_id, fb.device_timestamp_ns, fb.host_timestamp_ns)
+                    fb.frame_id,
+                    fb.device_timestamp_ns,
+                    fb.host_timestamp_ns,
+                )
                 assert np.array_equal(fa.image, fb.image)
     # Without an index, the scan past it finds the same pairs from the record headers alone.
     (newer / "pairs.idx").unlink()

@@ -30,8 +30,9 @@ from trackerd.sim.netns import netns_missing_reason
 
 pytestmark = [
     pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}"),
-    pytest.mark.skipif(netns_missing_reason() is not None,
-                       reason=f"needs network namespaces (root): {netns_missing_reason()}"),
+    pytest.mark.skipif(
+        netns_missing_reason() is not None, reason=f"needs network namespaces (root): {netns_missing_reason()}"
+    ),
     pytest.mark.root,
     pytest.mark.aravis,
 ]
@@ -43,16 +44,20 @@ PREFIX, SUBNET = "trkdrec", "10.213.220.0/24"
 def virtual(simulated_rig, tmp_path_factory):
     from trackerd.sim.rig import VirtualRig
 
-    with VirtualRig(simulated_rig, motion="figure8", prefix=PREFIX, subnet=SUBNET,
-                    out_dir=tmp_path_factory.mktemp("simrig")) as rig:
+    with VirtualRig(
+        simulated_rig, motion="figure8", prefix=PREFIX, subnet=SUBNET, out_dir=tmp_path_factory.mktemp("simrig")
+    ) as rig:
         yield rig
 
 
 def _rig_file(virtual, path: Path, endpoint: str, recording: RecordingConfig) -> Path:
     zmq_cfg = virtual.daemon_rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 250.0})
-    rig = virtual.daemon_rig.model_copy(update={
-        "outputs": virtual.daemon_rig.outputs.model_copy(update={"zmq": zmq_cfg}), "recording": recording,
-    })
+    rig = virtual.daemon_rig.model_copy(
+        update={
+            "outputs": virtual.daemon_rig.outputs.model_copy(update={"zmq": zmq_cfg}),
+            "recording": recording,
+        }
+    )
     path.write_text(dump_rig(rig))
     return path
 
@@ -77,8 +82,9 @@ def _errors_to_truth_mm(virtual, recording_path: Path, hits: list[dict[str, Any]
             views = [truth[f.device_timestamp_ns] for f in recording.header(i).frames]
             if len({v["loop_index"] for v in views}) == 1:
                 shown[entry.sequence] = views[0]["wall_xy_m"]
-    errors = [1000 * np.hypot(*np.subtract(unsmoothed_xy(h), shown[h["sequence"]]))
-              for h in hits if h["sequence"] in shown]
+    errors = [
+        1000 * np.hypot(*np.subtract(unsmoothed_xy(h), shown[h["sequence"]])) for h in hits if h["sequence"] in shown
+    ]
     assert len(errors) > 0.25 * len(hits)
     return np.array(errors)
 
@@ -88,8 +94,7 @@ def _interaction(messages: list[tuple[str, dict[str, Any]]], sequences: set[int]
 
 
 @pytest.mark.parametrize("mode", ["raw", "windowed"])
-def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path,
-                                                                                       mode) -> None:
+def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published_live(virtual, tmp_path, mode) -> None:
     """Raw, and windowed (only the tracker's windows over keyframes): the replay publishes the live hits."""
     directory = tmp_path / "recordings"
     endpoint = f"ipc://{tmp_path}/live.sock"
@@ -111,12 +116,19 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
             if sub.poll(50):
                 topic, payload = sub.recv_multipart()
                 live.append((topic.decode(), json.loads(payload)))
-                if (until is not None and live[-1][0] == "status"
-                        and (live[-1][1].get("recording") or {}).get("state") == until):
+                if (
+                    until is not None
+                    and live[-1][0] == "status"
+                    and (live[-1][1].get("recording") or {}).get("state") == until
+                ):
                     return
 
-    daemon = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    daemon = subprocess.Popen(
+        [sys.executable, "-m", "trackerd", "run", "--config", str(rig_file)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         collect(30.0, until="idle")
         collect(1.0)  # live hits before the recording, too
@@ -166,7 +178,8 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
         assert again["capture_ns"] == live_pointer["capture_ns"]
         strip = ("publish_ns",)
         assert {k: v for k, v in again.items() if k not in strip} == {
-            k: v for k, v in live_pointer.items() if k not in strip}
+            k: v for k, v in live_pointer.items() if k not in strip
+        }
     live_hits = {m["sequence"]: unsmoothed_xy(m) for t, m in live if t == "hit" and m["sequence"] in recorded}
     replay_hits = [m for t, m in replayed if t == "hit"]
     assert {m["sequence"]: unsmoothed_xy(m) for m in replay_hits} == live_hits  # the same hits, bit for bit
@@ -183,8 +196,12 @@ def test_the_daemon_records_on_demand_and_its_replay_publishes_what_it_published
 def test_a_recorder_killed_mid_write_leaves_a_recording_that_replays(virtual, tmp_path) -> None:
     rig_file = _rig_file(virtual, tmp_path / "rig.toml", "tcp://127.0.0.1:*", RecordingConfig())
     out = tmp_path / "killed.trec"
-    recorder = subprocess.Popen([sys.executable, "-m", "trackerd", "record", "--config", str(rig_file), str(out)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "trackerd", "record", "--config", str(rig_file), str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     index = out / "pairs.idx"
     try:
         deadline = time.monotonic() + 30
@@ -285,7 +302,19 @@ def test_record_and_snap_run_their_own_virtual_rig_beside_another(virtual, tmp_p
     run = trackerd("snap", "--config", "config/simulated.toml", tmp_path / "snaps", "--name", "beside", *own)
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "snaps" / "beside.json").exists()
-    held = trackerd("record", "--config", "config/simulated.toml", tmp_path / "held.trec", "--pairs", "3",
-                    "--virtual", "figure8", "--prefix", PREFIX, "--subnet", "10.213.222.0/24")
+    held = trackerd(
+        "record",
+        "--config",
+        "config/simulated.toml",
+        tmp_path / "held.trec",
+        "--pairs",
+        "3",
+        "--virtual",
+        "figure8",
+        "--prefix",
+        PREFIX,
+        "--subnet",
+        "10.213.222.0/24",
+    )
     assert held.returncode == 1 and "Traceback" not in held.stderr
     assert f"trackerd-{PREFIX}.lock" in held.stderr and not (tmp_path / "held.trec").exists()

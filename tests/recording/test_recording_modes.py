@@ -54,8 +54,14 @@ def noisy(bundle, tmp_path_factory) -> Path:
         for index in range(len(source)):
             pair = source.pair(index)
             frames = tuple(
-                Frame(f.camera_id, f.frame_id, f.device_timestamp_ns, f.host_timestamp_ns, f.pixel_format,
-                      np.clip(f.image + rng.normal(0.0, NOISE_DN, f.image.shape), 0, 255).astype(np.uint8))
+                Frame(
+                    f.camera_id,
+                    f.frame_id,
+                    f.device_timestamp_ns,
+                    f.host_timestamp_ns,
+                    f.pixel_format,
+                    np.clip(f.image + rng.normal(0.0, NOISE_DN, f.image.shape), 0, 255).astype(np.uint8),
+                )
                 for f in pair.frames
             )
             noisy_pair = FramePair(frames, pair.timestamp_ns, pair.skew_ns, pair.sequence)
@@ -88,12 +94,17 @@ def test_compressed_is_lossless_and_converts_back_to_the_same_frames(noisy, tmp_
         original = _frames(noisy)
         for i in (13, 2, 9, 3):
             assert all(np.array_equal(a, b) for a, b in zip(recording.images(i), original[i], strict=True)), i
-    assert all(np.array_equal(a, b) for got, want in zip(_frames(compressed), original, strict=True)
-               for a, b in zip(got, want, strict=True))
+    assert all(
+        np.array_equal(a, b)
+        for got, want in zip(_frames(compressed), original, strict=True)
+        for a, b in zip(got, want, strict=True)
+    )
     run = trackerd("recording", "convert", compressed, back, "--mode", "raw")
     assert run.returncode == 0, run.stderr
     # Raw again: the pairs.dat of the source byte for byte (headers, timestamps, frames) after the file header.
-    assert (back / "pairs.dat").read_bytes()[FILE_HEADER.size:] == (noisy / "pairs.dat").read_bytes()[FILE_HEADER.size:]
+    assert (back / "pairs.dat").read_bytes()[FILE_HEADER.size :] == (noisy / "pairs.dat").read_bytes()[
+        FILE_HEADER.size :
+    ]
     assert os.path.getsize(compressed / "pairs.dat") < 0.75 * os.path.getsize(noisy / "pairs.dat")
 
 
@@ -140,8 +151,12 @@ for n in itertools.count():
 @pytest.mark.parametrize("mode", ["compressed", "windowed"])
 def test_a_recording_process_killed_mid_write_keeps_every_complete_pair(noisy, tmp_path, mode) -> None:
     out = tmp_path / f"killed-{mode}.trec"
-    process = subprocess.Popen([sys.executable, "-c", _KILLED_WRITER, str(noisy), str(out), mode],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-c", _KILLED_WRITER, str(noisy), str(out), mode],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     index = out / "pairs.idx"
     try:
         deadline = time.monotonic() + 60
@@ -173,8 +188,10 @@ def _append_record(folder: Path, payloads: list[bytes], encodings: list[int], fl
         last = recording.header(len(recording) - 1)
         entry = recording.entries[-1]
         pairs = len(recording)
-    frames = tuple(FrameEntry(f.frame_id + 1, f.device_timestamp_ns, f.host_timestamp_ns, len(p), zlib.crc32(p), e)
-                   for f, p, e in zip(last.frames, payloads, encodings, strict=True))
+    frames = tuple(
+        FrameEntry(f.frame_id + 1, f.device_timestamp_ns, f.host_timestamp_ns, len(p), zlib.crc32(p), e)
+        for f, p, e in zip(last.frames, payloads, encodings, strict=True)
+    )
     header = RecordHeader(pairs, last.sequence + 1, last.timestamp_ns + 66_666_667, 0, 0, frames, flags)
     record = pack_record_header(header) + b"".join(payloads)
     with open(folder / "pairs.dat", "ab") as data:
@@ -246,8 +263,12 @@ def test_a_reader_refuses_a_mode_it_does_not_know_in_one_line(bundle, tmp_path, 
     # A mode newer than this trackerd's, in a MAJOR it reads.
     meta = json.loads((compressed / "recording.json").read_text())
     (compressed / "recording.json").write_text(json.dumps({**meta, "mode": "holographic"}))
-    one_line_error(trackerd("replay", compressed, "--speed", "max"), "replay", "recording mode 'holographic'",
-                   "newer than this trackerd reads (raw, compressed, windowed)")
+    one_line_error(
+        trackerd("replay", compressed, "--speed", "max"),
+        "replay",
+        "recording mode 'holographic'",
+        "newer than this trackerd reads (raw, compressed, windowed)",
+    )
 
 
 def test_a_rebuilt_frame_never_changes_while_someone_holds_it() -> None:
@@ -283,8 +304,9 @@ def test_windows_too_small_for_the_tracker_become_keyframes_and_the_hits_stay_th
     small = tmp_path / "small-windows.trec"
     with Recording.open(noisy) as source:
         planner = WindowPlanner.for_metadata(source.metadata, margin_px=-12)
-        writer = RecordingWriter(small, source.metadata.model_copy(update={"end": None}), mode="windowed",
-                                 planner=planner)
+        writer = RecordingWriter(
+            small, source.metadata.model_copy(update={"end": None}), mode="windowed", planner=planner
+        )
         for index in range(len(source)):
             writer.write(source.pair(index))
         writer.close("test")

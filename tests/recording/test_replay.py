@@ -63,7 +63,8 @@ def test_hits_lie_on_the_true_hits(bundle_truth, first_replay) -> None:
     truth = {t["sequence"]: t for t in bundle_truth}
     errors_mm = [
         1000 * np.hypot(*np.subtract(unsmoothed_xy(m), truth[m["sequence"]]["wall_xy_m"]))
-        for t, m in messages if t == "hit"
+        for t, m in messages
+        if t == "hit"
     ]
     assert len(errors_mm) == sum(t["present"] for t in bundle_truth)
     assert np.median(errors_mm) < 5.0 and max(errors_mm) < 15.0, errors_mm
@@ -175,8 +176,7 @@ def imported(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("imported")
     stamps = folder / "times.csv"
     stamps.write_text("name,timestamp_ms\n01,1000\n02,1100\n03,1250\n")
-    run = trackerd("recording", "import", STILLS, folder / "bayer.trec", "--config", SIMULATED,
-                   "--timestamps", stamps)
+    run = trackerd("recording", "import", STILLS, folder / "bayer.trec", "--config", SIMULATED, "--timestamps", stamps)
     assert run.returncode == 0, run.stderr
     assert "3 pairs imported" in run.stdout
     colour = folder / "colour"
@@ -185,8 +185,9 @@ def imported(tmp_path_factory) -> Path:
         name, camera = path.stem.split("-")
         bayer = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         cv2.imwrite(str(colour / f"{camera}_{name}.png"), cv2.cvtColor(bayer, cv2.COLOR_BayerRGGB2BGR))
-    run = trackerd("recording", "import", colour, folder / "colour.trec", "--config", SIMULATED,
-                   "--compression", "deflate")
+    run = trackerd(
+        "recording", "import", colour, folder / "colour.trec", "--config", SIMULATED, "--compression", "deflate"
+    )
     assert run.returncode == 0, run.stderr
     return folder
 
@@ -204,8 +205,18 @@ def test_image_pairs_from_elsewhere_import_losslessly_with_their_timestamps(impo
 @pytest.mark.parametrize("name", ["bayer", "colour"])
 def test_each_imported_still_replays_to_its_true_hit(imported, name: str) -> None:
     for index, still in enumerate(("01", "02", "03")):
-        run, messages = replay_and_listen(imported / f"{name}.trec", "--speed", "max", "--first", str(index),
-                                          "--count", "1", "--delay", "0.5", endpoint=f"ipc://{imported}/{name}.sock")
+        run, messages = replay_and_listen(
+            imported / f"{name}.trec",
+            "--speed",
+            "max",
+            "--first",
+            str(index),
+            "--count",
+            "1",
+            "--delay",
+            "0.5",
+            endpoint=f"ipc://{imported}/{name}.sock",
+        )
         assert run.returncode == 0, run.stderr
         (hit,) = [m for t, m in messages if t == "hit"]
         truth = json.loads((STILLS / f"{still}-truth.json").read_text())["wall_xy_m"]
@@ -242,11 +253,11 @@ def test_stills_without_timestamps_are_spaced_so_each_is_smoothed_on_its_own(imp
 def test_timestamps_that_go_backwards_are_refused_naming_the_row(tmp_path) -> None:
     stamps = tmp_path / "times.csv"
     stamps.write_text("name,timestamp_ms\n01,5\n02,2\n03,9\n")
-    run = trackerd("recording", "import", STILLS, tmp_path / "back.trec", "--config", SIMULATED,
-                   "--timestamps", stamps)
+    run = trackerd("recording", "import", STILLS, tmp_path / "back.trec", "--config", SIMULATED, "--timestamps", stamps)
     one_line_error(run, "recording", f"{stamps}:3:", "'02'", "is not after '01'", "must increase")
     assert not (tmp_path / "back.trec").exists()
-    stamps.write_text("name,camera,timestamp_us\n01,left,10\n01,right,11\n02,left,20\n02,right,11\n03,left,30\n03,right,31\n")
-    run = trackerd("recording", "import", STILLS, tmp_path / "back.trec", "--config", SIMULATED,
-                   "--timestamps", stamps)
+    stamps.write_text(
+        "name,camera,timestamp_us\n01,left,10\n01,right,11\n02,left,20\n02,right,11\n03,left,30\n03,right,31\n"
+    )
+    run = trackerd("recording", "import", STILLS, tmp_path / "back.trec", "--config", SIMULATED, "--timestamps", stamps)
     one_line_error(run, "recording", f"{stamps}:5:", "'02' (right)")

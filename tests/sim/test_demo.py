@@ -18,8 +18,11 @@ def test_demo_runs_the_rig_on_jumbo_frames_under_its_own_prefix_if_asked() -> No
 
 
 def _status(samples: int, p50: float | None, p99: float | None, uptime: float) -> dict:
-    return {"uptime_s": uptime, "fixes": {"hit": 40, "not_found": 2},
-            "processing": {"samples": samples, "p50_ms": p50, "p99_ms": p99}}
+    return {
+        "uptime_s": uptime,
+        "fixes": {"hit": 40, "not_found": 2},
+        "processing": {"samples": samples, "p50_ms": p50, "p99_ms": p99},
+    }
 
 
 def test_the_summary_quotes_the_last_status_period_that_processed_pairs() -> None:

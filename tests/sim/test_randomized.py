@@ -15,8 +15,10 @@ from trackerd.sim.scene import pose_aimed_at
 def test_a_seed_gives_the_same_installation_and_shot() -> None:
     a, b = random_rig(np.random.default_rng([1, 2])), random_rig(np.random.default_rng([1, 2]))
     assert a.factors == b.factors and a.look == b.look
-    assert all(np.array_equal(x.matrix, y.matrix) and np.array_equal(x.rotation, y.rotation)
-               for x, y in zip(a.cameras, b.cameras, strict=True))
+    assert all(
+        np.array_equal(x.matrix, y.matrix) and np.array_equal(x.rotation, y.rotation)
+        for x, y in zip(a.cameras, b.cameras, strict=True)
+    )
     shots = [random_shot(a, np.random.default_rng(5)), random_shot(b, np.random.default_rng(5))]
     assert np.array_equal(shots[0].pose.front_m, shots[1].pose.front_m) and shots[0].factors == shots[1].factors
 
@@ -41,10 +43,19 @@ def test_the_draws_cover_every_level_and_keep_the_presenter_in_view() -> None:
 
 def _two_cameras():
     target = np.array([1.8, 0.5, 1.8])
-    cams = [aimed_camera("left", [-0.8, 1.3, 3.2], target, 640, 480, 60.0),
-            aimed_camera("right", [4.4, 1.3, 3.2], target, 640, 480, 60.0)]
-    rig = build_rig("t", [(c, "BayerRG8") for c in cams], 3.6, 1.2, 0.9,
-                    {"length_m": 0.42, "end_diameter_m": 0.04, "rod_diameter_m": 0.012}, {"seed": 1, "clutter": 0})
+    cams = [
+        aimed_camera("left", [-0.8, 1.3, 3.2], target, 640, 480, 60.0),
+        aimed_camera("right", [4.4, 1.3, 3.2], target, 640, 480, 60.0),
+    ]
+    rig = build_rig(
+        "t",
+        [(c, "BayerRG8") for c in cams],
+        3.6,
+        1.2,
+        0.9,
+        {"length_m": 0.42, "end_diameter_m": 0.04, "rod_diameter_m": 0.012},
+        {"seed": 1, "clutter": 0},
+    )
     return rig, cams
 
 

@@ -83,9 +83,7 @@ def test_visible_centroids_lie_on_the_pointers_image_line(renderer: SceneRendere
         pose = random_pose(simulated_rig, rng)
         for index, cam in enumerate(renderer.cameras):
             view = renderer.render(index, pose, rng, noise=False)
-            norm = cam.normalized_from_pixels(
-                np.array([view.truth.centroid_px["red"], view.truth.centroid_px["blue"]])
-            )
+            norm = cam.normalized_from_pixels(np.array([view.truth.centroid_px["red"], view.truth.centroid_px["blue"]]))
             ends = cam.to_camera_frame(np.array([pose.front_m, pose.back_m]))
             projected = ends[:, :2] / ends[:, 2:3]
             for point in norm:
@@ -161,8 +159,9 @@ def test_motion_blur_spreads_the_ball_between_its_end_positions(renderer: SceneR
 
 def test_background_cache_round_trip(tmp_path, simulated_rig) -> None:
     """A second renderer reads the cached room instead of rendering it, and gets the same image."""
-    rig = simulated_rig.model_copy(update={"simulation": simulated_rig.simulation.model_copy(
-        update={"background_supersampling": 1})})
+    rig = simulated_rig.model_copy(
+        update={"simulation": simulated_rig.simulation.model_copy(update={"background_supersampling": 1})}
+    )
     first = SceneRenderer(rig, cache_dir=tmp_path)
     background = first.background_rgb(0)
     files = list(tmp_path.glob("bg-*.npy"))

@@ -200,8 +200,17 @@ def test_the_cameras_leave_ctrl_c_to_the_rig_and_never_outlive_it(tmp_path: Path
     import time
 
     repo = Path(__file__).resolve().parents[2]
-    args = ["--config", str(repo / "config" / "simulated.toml"), "--synthetic", "--prefix", PREFIX,
-            "--subnet", SUBNET, "--out", str(tmp_path / "out")]
+    args = [
+        "--config",
+        str(repo / "config" / "simulated.toml"),
+        "--synthetic",
+        "--prefix",
+        PREFIX,
+        "--subnet",
+        SUBNET,
+        "--out",
+        str(tmp_path / "out"),
+    ]
     serving = _simrig(*args, start_new_session=True)  # its own process group, as in a terminal
     try:
         assert "ground truth" in "".join(serving.stdout.readline() for _ in range(5))
@@ -242,8 +251,14 @@ def test_a_second_rig_with_the_same_prefix_is_turned_away_and_the_first_keeps_it
         # A rendered (not synthetic) second rig: it must be turned away before rendering anything.
         cache = tmp_path / "cache"
         second = VirtualRig(
-            simulated_rig, network="netns", prefix=PREFIX, subnet="10.213.202.0/24", out_dir=out,
-            cache_dir=cache, period_s=0.5, content_fps=2.0,
+            simulated_rig,
+            network="netns",
+            prefix=PREFIX,
+            subnet="10.213.202.0/24",
+            out_dir=out,
+            cache_dir=cache,
+            period_s=0.5,
+            content_fps=2.0,
         )
         with pytest.raises(netns.NetnsError, match="another virtual rig uses the namespace prefix"):
             second.start()
@@ -255,10 +270,26 @@ def test_a_second_rig_with_the_same_prefix_is_turned_away_and_the_first_keeps_it
 
         # The same through the command line: one line, exit 1, and the first rig unharmed.
         refused = subprocess.run(
-            [sys.executable, "-m", "trackerd", "simrig", "--config", str(repo / "config" / "simulated.toml"),
-             "--synthetic", "--prefix", PREFIX, "--subnet", "10.213.202.0/24", "--seconds", "2",
-             "--out", str(tmp_path / "out2")],
-            capture_output=True, text=True, timeout=60,
+            [
+                sys.executable,
+                "-m",
+                "trackerd",
+                "simrig",
+                "--config",
+                str(repo / "config" / "simulated.toml"),
+                "--synthetic",
+                "--prefix",
+                PREFIX,
+                "--subnet",
+                "10.213.202.0/24",
+                "--seconds",
+                "2",
+                "--out",
+                str(tmp_path / "out2"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
         )
         assert refused.returncode == 1, refused.stderr
         assert refused.stderr.startswith("trackerd simrig: another virtual rig uses the namespace prefix")

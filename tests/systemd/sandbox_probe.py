@@ -41,8 +41,13 @@ def load_seccomp():
     lib = ctypes.CDLL(ctypes.util.find_library("seccomp") or "libseccomp.so.2", use_errno=True)
     lib.seccomp_init.restype = ctypes.c_void_p
     lib.seccomp_init.argtypes = [ctypes.c_uint32]
-    lib.seccomp_rule_add_array.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_int, ctypes.c_uint,
-                                           ctypes.POINTER(ArgCmp)]
+    lib.seccomp_rule_add_array.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_uint32,
+        ctypes.c_int,
+        ctypes.c_uint,
+        ctypes.POINTER(ArgCmp),
+    ]
     lib.seccomp_load.argtypes = [ctypes.c_void_p]
     lib.seccomp_release.argtypes = [ctypes.c_void_p]
     lib.seccomp_syscall_resolve_name.argtypes = [ctypes.c_char_p]
@@ -214,10 +219,20 @@ def main() -> int:
         fd = os.open(key_file, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         os.write(fd, f'curve\n    public-key = "{public.decode()}"\n    secret-key = "{secret.decode()}"\n'.encode())
         os.close(fd)
-        config = ZmqOutput(endpoints=("tcp://127.0.0.1:*", "ipc:///run/trackerd/trackerd.sock"),
-                           curve_secret_key_file=key_file)
-        hit = HitMessage(sequence=1, capture_ns=1, wall_x_m=1.0, wall_y_m=0.5, on_wall=True, distance_m=1.0,
-                         front_m=(1.0, 0.5, 1.0), back_m=(1.0, 0.5, 1.5), ray_gap_mm=1.0)
+        config = ZmqOutput(
+            endpoints=("tcp://127.0.0.1:*", "ipc:///run/trackerd/trackerd.sock"), curve_secret_key_file=key_file
+        )
+        hit = HitMessage(
+            sequence=1,
+            capture_ns=1,
+            wall_x_m=1.0,
+            wall_y_m=0.5,
+            on_wall=True,
+            distance_m=1.0,
+            front_m=(1.0, 0.5, 1.0),
+            back_m=(1.0, 0.5, 1.5),
+            ray_gap_mm=1.0,
+        )
         got = []
         with Publisher(config) as publisher:
             context = zmq.Context()

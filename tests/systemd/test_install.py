@@ -46,8 +46,12 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _install(root: Path, wheel: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(INSTALL), "--root", str(root), "--no-deps", "--wheel", str(wheel)],
-                          capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [str(INSTALL), "--root", str(root), "--no-deps", "--wheel", str(wheel)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -83,8 +87,12 @@ mount -o remount,bind,ro "$root/usr"
 exec systemd-analyze verify --root="$root" "$@"
 """
     paths = [f"/etc/systemd/system/{unit}" for unit in units]
-    return subprocess.run(["unshare", "--mount", "--propagation", "private", "sh", "-c", script, "sh", str(root),
-                           *paths], capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        ["unshare", "--mount", "--propagation", "private", "sh", "-c", script, "sh", str(root), *paths],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 @pytest.mark.parametrize("unit", UNITS)
@@ -120,8 +128,9 @@ def test_install_puts_everything_where_the_docs_say(root: Path):
         installed = root / "etc/systemd/system" / unit
         assert installed.read_text() == (REPO / "systemd" / unit).read_text()
         # Documentation= names the docs the install copied.
-        docs = [line.split("=", 1)[1] for line in installed.read_text().splitlines()
-                if line.startswith("Documentation=")]
+        docs = [
+            line.split("=", 1)[1] for line in installed.read_text().splitlines() if line.startswith("Documentation=")
+        ]
         assert docs, unit
         for url in docs:
             assert url.startswith("file:///"), url

@@ -35,9 +35,20 @@ def _no_journal() -> str | None:
 
 def _run_in_unit(unit: str, *command: str) -> None:
     """Run ``command`` in the transient service ``unit`` and wait for it to finish."""
-    subprocess.run(["systemd-run", "--quiet", "--wait", "--collect", f"--unit={unit}",
-                    f"--setenv=PYTHONPATH={REPO}", "--property=SyslogIdentifier=trackerd-journal-test",
-                    *command], check=False, timeout=120)
+    subprocess.run(
+        [
+            "systemd-run",
+            "--quiet",
+            "--wait",
+            "--collect",
+            f"--unit={unit}",
+            f"--setenv=PYTHONPATH={REPO}",
+            "--property=SyslogIdentifier=trackerd-journal-test",
+            *command,
+        ],
+        check=False,
+        timeout=120,
+    )
 
 
 def _journal_lines(unit: str, priority: str, wanted: str, timeout_s: float = 30.0) -> list[str]:
@@ -45,8 +56,12 @@ def _journal_lines(unit: str, priority: str, wanted: str, timeout_s: float = 30.
     (journald may store a stream's lines after the unit has exited)."""
     deadline = time.monotonic() + timeout_s
     while True:
-        out = subprocess.run(["journalctl", "--no-pager", "-o", "cat", "-u", unit, "-p", priority],
-                             capture_output=True, text=True, timeout=30).stdout
+        out = subprocess.run(
+            ["journalctl", "--no-pager", "-o", "cat", "-u", unit, "-p", priority],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        ).stdout
         lines = out.splitlines()
         if any(wanted in line for line in lines) or time.monotonic() > deadline:
             return lines
@@ -73,5 +88,6 @@ def test_journalctl_sees_trackerds_warnings_and_errors_at_their_priority():
     # The CLI's own one-line error (a configuration error, exit 2) is an error in the journal.
     _run_in_unit(f"{unit}-cli", sys.executable, "-m", "trackerd", "listen", "--topic", f"hits{token}")
     errors = _journal_lines(f"{unit}-cli", "err", f"--topic hits{token}")
-    assert any(line.startswith(f"trackerd listen: --topic hits{token}: trackerd publishes no such topic")
-               for line in errors), errors
+    assert any(
+        line.startswith(f"trackerd listen: --topic hits{token}: trackerd publishes no such topic") for line in errors
+    ), errors

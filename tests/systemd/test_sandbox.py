@@ -106,18 +106,41 @@ def test_daemon_stack_works_under_the_units_sandbox(unit_path: Path, tmp_path: P
     listener.bind(str(notify_dir / "notify"))
     (notify_dir / "notify").chmod(0o777)
     listener.settimeout(0)
-    env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "PYTHONPATH": str(HERE.parents[1]), "HOME": "/nonexistent",
-           "SANDBOX_NOTIFY_DIR": str(notify_dir), "SANDBOX_FAKE_CAMERA": "SANDBOX1"}
+    env = {
+        "PATH": "/usr/sbin:/usr/bin:/sbin:/bin",
+        "PYTHONPATH": str(HERE.parents[1]),
+        "HOME": "/nonexistent",
+        "SANDBOX_NOTIFY_DIR": str(notify_dir),
+        "SANDBOX_FAKE_CAMERA": "SANDBOX1",
+    }
     command = [
         # A private network namespace: the fake camera's GVCP port cannot clash with other tests.
-        "unshare", "--net", "--mount", "--pid", "--fork", "--propagation", "private",
-        str(HERE / "sandbox.sh"), str(NOBODY), str(NOBODY),
-        "setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups", "--inh-caps=-all",
-        "--bounding-set=-all", "--no-new-privs",
-        sys.executable, str(HERE / "sandbox_probe.py"), str(unit_path), "127.0.0.1", "/run/notify/notify",
+        "unshare",
+        "--net",
+        "--mount",
+        "--pid",
+        "--fork",
+        "--propagation",
+        "private",
+        str(HERE / "sandbox.sh"),
+        str(NOBODY),
+        str(NOBODY),
+        "setpriv",
+        f"--reuid={NOBODY}",
+        f"--regid={NOBODY}",
+        "--clear-groups",
+        "--inh-caps=-all",
+        "--bounding-set=-all",
+        "--no-new-privs",
+        sys.executable,
+        str(HERE / "sandbox_probe.py"),
+        str(unit_path),
+        "127.0.0.1",
+        "/run/notify/notify",
     ]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=60, env=env,
-                            input=json.dumps(_syscall_lists(unit_path)))
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=60, env=env, input=json.dumps(_syscall_lists(unit_path))
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     report = json.loads(result.stdout.strip().splitlines()[-1])
     print("sandbox probe:", json.dumps(report, indent=1))
@@ -146,9 +169,21 @@ def test_cpu_latency_command_works_under_its_units_restrictions(tmp_path: Path):
     before = current_us()
     if before is None or before <= 13:
         pytest.skip(f"a request of {before} µs is already in force here")
-    command = ["setpriv", "--inh-caps=-all", "--bounding-set=-all", "--no-new-privs",
-               sys.executable, str(HERE / "filtered_exec.py"), str(CPU_LATENCY_UNIT),
-               sys.executable, "-m", "trackerd", "cpu-latency", "--max-us", "13"]
+    command = [
+        "setpriv",
+        "--inh-caps=-all",
+        "--bounding-set=-all",
+        "--no-new-privs",
+        sys.executable,
+        str(HERE / "filtered_exec.py"),
+        str(CPU_LATENCY_UNIT),
+        sys.executable,
+        "-m",
+        "trackerd",
+        "cpu-latency",
+        "--max-us",
+        "13",
+    ]
     run = run_holder(command, tmp_path, stdin_text=json.dumps(_syscall_lists(CPU_LATENCY_UNIT)))
     assert "READY=1" in run.ready.splitlines()
     assert run.in_force_us == 13

@@ -19,8 +19,9 @@ CPU_LATENCY_UNIT = REPO / "systemd" / "trackerd-cpu-latency.service"
 GIGE_HEARTBEAT_TIMEOUT_S = 3.0
 """GigE Vision's default GevHeartbeatTimeout: a camera stays bound to a dead controller this long."""
 
-needs_analyze = pytest.mark.skipif(shutil.which("systemd-analyze") is None,
-                                   reason="systemd-analyze is not installed (Debian package systemd)")
+needs_analyze = pytest.mark.skipif(
+    shutil.which("systemd-analyze") is None, reason="systemd-analyze is not installed (Debian package systemd)"
+)
 
 
 def _settings(path: Path) -> dict[str, list[str]]:
@@ -59,8 +60,12 @@ def test_verify_catches_a_broken_unit(tmp_path: Path, unit_path: Path):
 @needs_analyze
 @pytest.mark.parametrize("unit", ["trackerd.service", "trackerd-cpu-latency.service"])
 def test_security_exposure_score(unit: str):
-    result = subprocess.run(["systemd-analyze", "security", "--offline=true", "--no-pager",
-                             str(REPO / "systemd" / unit)], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        ["systemd-analyze", "security", "--offline=true", "--no-pager", str(REPO / "systemd" / unit)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     match = re.search(r"Overall exposure level for \S+: ([0-9.]+) (\w+)", result.stdout)
     assert match, result.stdout[-2000:] + result.stderr
     score = float(match.group(1))

@@ -35,7 +35,6 @@ _REFUSED = {
 answer" (timeouts, transfer errors, another controller), which reopening may cure."""
 
 
-
 def configure(session: CameraSession, cam: CameraConfig, rig: RigAcquisition, aravis: Any, glib: Any) -> None:
     camera = session.camera
     acq = cam.acquisition

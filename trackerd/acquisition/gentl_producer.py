@@ -19,6 +19,7 @@ from trackerd.errors import CameraError
 GENTL_EXTRA = "trackerd[gentl]"
 """The optional extra that installs harvesters (and pypylon)."""
 
+
 def load_harvesters() -> Any:
     """harvesters' ``Harvester`` class; CameraError naming the extra to install if it is missing."""
     try:

@@ -46,6 +46,8 @@ SEARCH_JOIN_S = 0.1
 discovery, which takes a second and cannot be interrupted, and it holds nothing to release."""
 TRIGGER_LEAD_NS = 50_000_000
 """The first software trigger tick is this far after start, once every camera is open."""
+
+
 class Releaser:
     """Drops connections to lost cameras, each on a thread of its own.
 
@@ -118,8 +120,9 @@ class LivePairSource(PairSource):
         self._pairs: deque[FramePair] = deque()
         self._pairer = Pairer(self._n, self._tolerance_ns, acq.frame_queue_length, acq.trigger == "software")
         self._workers: list[CameraWorker] = []
-        self._clocks = RigClocks(self._n, int(acq.clock_window_s * 1e9), acq.ptp,
-                                 lambda: [w.figures.ptp_state for w in self._workers])
+        self._clocks = RigClocks(
+            self._n, int(acq.clock_window_s * 1e9), acq.ptp, lambda: [w.figures.ptp_state for w in self._workers]
+        )
         self.abandoned_threads: list[str] = []
         """Cameras whose thread was still searching for them when stop() returned (see SEARCH_JOIN_S)."""
         self._releaser = Releaser()

@@ -24,8 +24,7 @@ capture time, and let frames captured tens of milliseconds apart through."""
 class RigClocks:
     """Maps each camera's device timestamps to the host's monotonic clock."""
 
-    def __init__(self, cameras: int, window_ns: int, ptp: bool,
-                 ptp_states: Callable[[], Sequence[str | None]]) -> None:
+    def __init__(self, cameras: int, window_ns: int, ptp: bool, ptp_states: Callable[[], Sequence[str | None]]) -> None:
         """``ptp_states()`` gives every camera's IEEE 1588 port state now (empty before the cameras
         are there); the shared mapping is used only while each is locked."""
         self._per_camera = [DeviceClock(window_ns) for _ in range(cameras)]

@@ -41,8 +41,12 @@ def write_modes(raw_path: Path, workdir: Path, keyframe_interval_s: float) -> di
             path = workdir / f"{mode}.trec"
             if path.exists():
                 shutil.rmtree(path)
-            writer = RecordingWriter(path, source.metadata.model_copy(update={"end": None}), mode=mode,
-                                     keyframe_interval_s=keyframe_interval_s)
+            writer = RecordingWriter(
+                path,
+                source.metadata.model_copy(update={"end": None}),
+                mode=mode,
+                keyframe_interval_s=keyframe_interval_s,
+            )
             cpu = 0.0
             for index in range(n):
                 pair = source.pair(index, verify=False)
@@ -69,18 +73,24 @@ def write_modes(raw_path: Path, workdir: Path, keyframe_interval_s: float) -> di
     return out
 
 
-def replay_modes(written: dict[str, dict[str, Any]], rig_path: str | None, truth: list[dict] | None
-                 ) -> dict[str, dict[str, Any]]:
+def replay_modes(
+    written: dict[str, dict[str, Any]], rig_path: str | None, truth: list[dict] | None
+) -> dict[str, dict[str, Any]]:
     """Each recording replayed at max speed through the pipeline; hits compared with the raw replay's."""
     from trackerd.bench.replay import replay_once
     from trackerd.recording.reader import Recording
     from trackerd.recording.replay_rig import replay_rig
 
     # "before": pairs handed from the reader thread one at a time, as before batching (old vs new, one run).
-    runs = [("raw, before", "raw", True, False), ("raw", "raw", True, True),
-            ("raw --no-verify, before", "raw", False, False), ("raw --no-verify", "raw", False, True),
-            ("compressed", "compressed", True, True),
-            ("windowed, before", "windowed", True, False), ("windowed", "windowed", True, True)]
+    runs = [
+        ("raw, before", "raw", True, False),
+        ("raw", "raw", True, True),
+        ("raw --no-verify, before", "raw", False, False),
+        ("raw --no-verify", "raw", False, True),
+        ("compressed", "compressed", True, True),
+        ("windowed, before", "windowed", True, False),
+        ("windowed", "windowed", True, True),
+    ]
     out: dict[str, dict[str, Any]] = {}
     reference: dict[int, dict] | None = None
     progress = BenchProgress("replay", len(runs), "replays")
@@ -103,18 +113,24 @@ def replay_modes(written: dict[str, dict[str, Any]], rig_path: str | None, truth
 
 
 def format_modes(written: dict[str, dict[str, Any]], replays: dict[str, dict[str, Any]]) -> str:
-    lines = ["mode        bytes/pair  ratio to raw  keyframes  writer CPU/pair  CPU share at"
-             f" {written['raw']['rate_hz']:g} pairs/s"]
+    lines = [
+        "mode        bytes/pair  ratio to raw  keyframes  writer CPU/pair  CPU share at"
+        f" {written['raw']['rate_hz']:g} pairs/s"
+    ]
     for mode, f in written.items():
         reasons = ", ".join(f"{k} {v}" for k, v in f["keyframe_reasons"].items())
-        lines.append(f"{mode:<11} {f['bytes_per_pair']:>10}  {f['ratio_to_raw']:>11}x  {f['keyframes']:>9}"
-                     f"  {f['writer_cpu_ms_per_pair']:>12} ms  {100 * f['cpu_share_at_rate']:>5.1f} % of a core"
-                     + (f"  ({reasons})" if reasons else ""))
+        lines.append(
+            f"{mode:<11} {f['bytes_per_pair']:>10}  {f['ratio_to_raw']:>11}x  {f['keyframes']:>9}"
+            f"  {f['writer_cpu_ms_per_pair']:>12} ms  {100 * f['cpu_share_at_rate']:>5.1f} % of a core"
+            + (f"  ({reasons})" if reasons else "")
+        )
     lines.append("replay, max speed, through the pipeline:")
     for name, f in replays.items():
         same = "identical to raw's" if f["hits_identical_to_raw"] else "DIFFER from raw's"
         dropped = f["dropped_before_publishing"]
         note = f"; {dropped} pairs dropped before publishing (load)" if dropped else ""
-        lines.append(f"  {name:<26} {f['pair_rate_hz']:>7} pairs/s, {f['cpu_ms_per_pair']:>5} ms CPU/pair over"
-                     f" {f['pairs']} pairs, {f['hits']} hits ({same}{note})")
+        lines.append(
+            f"  {name:<26} {f['pair_rate_hz']:>7} pairs/s, {f['cpu_ms_per_pair']:>5} ms CPU/pair over"
+            f" {f['pairs']} pairs, {f['hits']} hits ({same}{note})"
+        )
     return "\n".join(lines)

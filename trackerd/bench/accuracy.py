@@ -67,14 +67,21 @@ class Variant:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default=str(example_rig("simulated")),
-                        help="rig to start from (default: the bundled config/simulated.toml)")
+    parser.add_argument(
+        "--config",
+        default=str(example_rig("simulated")),
+        help="rig to start from (default: the bundled config/simulated.toml)",
+    )
     parser.add_argument("--poses", type=int, default=250, help="random poses per group (default 250)")
     parser.add_argument("--seed", type=int, default=2007, help="seed for poses and noise")
-    parser.add_argument("--workers", type=int, default=min(2, multiprocessing.cpu_count()),
-                        help="rendering processes (default: 2)")
-    parser.add_argument("--groups", default="placements,rotations,lengths",
-                        help="comma-separated subset of placements,rotations,lengths")
+    parser.add_argument(
+        "--workers", type=int, default=min(2, multiprocessing.cpu_count()), help="rendering processes (default: 2)"
+    )
+    parser.add_argument(
+        "--groups",
+        default="placements,rotations,lengths",
+        help="comma-separated subset of placements,rotations,lengths",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -124,9 +131,7 @@ def build_variants(base: RigConfig) -> list[Variant]:
         "further back (z +0.8 m)": (0.0, 0.0, 0.8),
     }
     for label, (dx, dy, dz) in shifts.items():
-        cameras = tuple(
-            _moved(cam, np.array([dx if i == 0 else -dx, dy, dz])) for i, cam in enumerate(nominal)
-        )
+        cameras = tuple(_moved(cam, np.array([dx if i == 0 else -dx, dy, dz])) for i, cam in enumerate(nominal))
         variants.append(Variant("placements", label, base, cameras))
     # (yaw, pitch, roll) in degrees added to each camera's orientation, about its own axes.
     rotations = {
@@ -149,16 +154,33 @@ def build_variants(base: RigConfig) -> list[Variant]:
 
 
 def _moved(cam: CameraModel, shift: np.ndarray) -> CameraModel:
-    return CameraModel.from_pose(cam.camera_id, cam.width_px, cam.height_px, cam.matrix, cam.distortion,
-                                 cam.centre_m + shift, cam.world_from_camera)
+    return CameraModel.from_pose(
+        cam.camera_id,
+        cam.width_px,
+        cam.height_px,
+        cam.matrix,
+        cam.distortion,
+        cam.centre_m + shift,
+        cam.world_from_camera,
+    )
 
 
 def _rotated(cam: CameraModel, yaw_deg: float, pitch_deg: float, roll_deg: float) -> CameraModel:
     """Turn a camera about its own axes (eq. 18-21) by extra yaw, pitch and roll."""
-    extra = (rotation_about_y(math.radians(yaw_deg)) @ rotation_about_x(math.radians(pitch_deg))
-             @ rotation_about_z(math.radians(roll_deg)))
-    return CameraModel.from_pose(cam.camera_id, cam.width_px, cam.height_px, cam.matrix, cam.distortion,
-                                 cam.centre_m, cam.world_from_camera @ extra)
+    extra = (
+        rotation_about_y(math.radians(yaw_deg))
+        @ rotation_about_x(math.radians(pitch_deg))
+        @ rotation_about_z(math.radians(roll_deg))
+    )
+    return CameraModel.from_pose(
+        cam.camera_id,
+        cam.width_px,
+        cam.height_px,
+        cam.matrix,
+        cam.distortion,
+        cam.centre_m,
+        cam.world_from_camera @ extra,
+    )
 
 
 def report_camera(cam: CameraModel) -> CameraModel:
@@ -169,10 +191,10 @@ def report_camera(cam: CameraModel) -> CameraModel:
     """
     hfov = 2.0 * math.atan((cam.width_px / 2.0) / cam.matrix[0, 0])
     focal = (cam.width_px / 2.0) / math.tan(hfov / 2.0)
-    matrix = np.array([[focal, 0.0, (cam.width_px - 1) / 2.0], [0.0, focal, (cam.height_px - 1) / 2.0],
-                       [0.0, 0.0, 1.0]])
-    return CameraModel(cam.camera_id, cam.width_px, cam.height_px, matrix, np.zeros(0), cam.rotation,
-                       cam.translation_m)
+    matrix = np.array(
+        [[focal, 0.0, (cam.width_px - 1) / 2.0], [0.0, focal, (cam.height_px - 1) / 2.0], [0.0, 0.0, 1.0]]
+    )
+    return CameraModel(cam.camera_id, cam.width_px, cam.height_px, matrix, np.zeros(0), cam.rotation, cam.translation_m)
 
 
 # --------------------------------------------------------------------------- running
@@ -184,10 +206,12 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
     renderer = SceneRenderer(variant.rig, list(variant.cameras))
     ours = Locator(variant.rig, cameras=variant.cameras)
     # The report's method: bounding-box centres through its own camera model and line, never trackerd's fit.
-    bbox_rig = variant.rig.model_copy(update={
-        "detector": variant.rig.detector.model_copy(update={"centroid": "bbox"}),
-        "locator": variant.rig.locator.model_copy(update={"refine": "never"}),
-    })
+    bbox_rig = variant.rig.model_copy(
+        update={
+            "detector": variant.rig.detector.model_copy(update={"centroid": "bbox"}),
+            "locator": variant.rig.locator.model_copy(update={"refine": "never"}),
+        }
+    )
     report = Locator(bbox_rig, cameras=[report_camera(c) for c in variant.cameras])
     errors: dict[str, list[float]] = {m: [] for m in METHODS}
     failures: dict[str, int] = {m: 0 for m in METHODS}
@@ -211,8 +235,13 @@ def _run_variant(task: tuple[Variant, int, int]) -> dict[str, Any]:
         if fix.hit is not None and fix.uncertainty_m is not None:
             exact = ours.locate_centroids(tuple({c: v.truth.centroid_px[c] for c in ("red", "blue")} for v in views))
             if exact.hit is not None:
-                anatomy.append((errors["trackerd"][-1], float(np.linalg.norm(exact.hit.wall_xy_m - truth.wall_xy_m)),
-                                float(fix.uncertainty_m)))
+                anatomy.append(
+                    (
+                        errors["trackerd"][-1],
+                        float(np.linalg.norm(exact.hit.wall_xy_m - truth.wall_xy_m)),
+                        float(fix.uncertainty_m),
+                    )
+                )
         if fix.found:
             centroids = [_both(c) for c in fix.centroids_px]
             _record(errors, failures, "two_points", _two_point_hit(ours, centroids), truth)
@@ -236,8 +265,13 @@ def _both(centroids: dict[str, NDArray[np.float64] | None]) -> tuple[NDArray[np.
     return red, blue
 
 
-def _record(errors: dict[str, list[float]], failures: dict[str, int], method: str,
-            hit_xy: NDArray[np.float64] | None, truth: WallHitTruth) -> None:
+def _record(
+    errors: dict[str, list[float]],
+    failures: dict[str, int],
+    method: str,
+    hit_xy: NDArray[np.float64] | None,
+    truth: WallHitTruth,
+) -> None:
     if hit_xy is None or truth.wall_xy_m is None:
         failures[method] += 1
     else:
@@ -247,10 +281,18 @@ def _record(errors: dict[str, list[float]], failures: dict[str, int], method: st
 def _two_point_hit(locator: Locator, centroids: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray | None:
     """Triangulate each end and join them (the report's eq. 15-17, 26-28), on given centroids."""
     front_index = 0 if locator.front_colour == "red" else 1
-    front = np.array([cam.pixel_to_ray(np.asarray(c[front_index])[None])[1][0]
-                      for cam, c in zip(locator.cameras, centroids, strict=True)])
-    back = np.array([cam.pixel_to_ray(np.asarray(c[1 - front_index])[None])[1][0]
-                     for cam, c in zip(locator.cameras, centroids, strict=True)])
+    front = np.array(
+        [
+            cam.pixel_to_ray(np.asarray(c[front_index])[None])[1][0]
+            for cam, c in zip(locator.cameras, centroids, strict=True)
+        ]
+    )
+    back = np.array(
+        [
+            cam.pixel_to_ray(np.asarray(c[1 - front_index])[None])[1][0]
+            for cam, c in zip(locator.cameras, centroids, strict=True)
+        ]
+    )
     try:
         line = pointer_from_points(locator._centres, front, back)
         hit = intersect_line_plane(line.back_m, line.front_m, locator.wall.plane)
@@ -259,8 +301,7 @@ def _two_point_hit(locator: Locator, centroids: list[tuple[np.ndarray, np.ndarra
     return locator.wall.to_wall_m(hit.point_m) if float(hit.u) > 0 else None
 
 
-def _collect_bias(variant: Variant, pose: PointerPose, views: list[RenderedView],
-                  bias: dict[str, list[float]]) -> None:
+def _collect_bias(variant: Variant, pose: PointerPose, views: list[RenderedView], bias: dict[str, list[float]]) -> None:
     """Measure the two known centroid error terms on the rendered truth.
 
     perspective: distance between a ball's projected centre and the centre of
@@ -321,15 +362,24 @@ def _worst(anatomy: list[tuple[float, float, float]]) -> dict[str, float] | None
 def summarise(variants: list[Variant], results: list[dict[str, Any]]) -> dict[str, Any]:
     groups: dict[str, Any] = {}
     for variant, result in zip(variants, results, strict=True):
-        group = groups.setdefault(variant.group, {"variants": [], "errors": {m: [] for m in METHODS},
-                                                  "failures": {m: 0 for m in METHODS}, "poses": 0,
-                                                  "bias": {"perspective_px": [], "occlusion_px": []}})
-        group["variants"].append({
-            "label": variant.label,
-            "poses": result["poses"],
-            **{m: _stats(result["errors_m"][m]) for m in METHODS},
-            "worst": _worst(result["anatomy"]),
-        })
+        group = groups.setdefault(
+            variant.group,
+            {
+                "variants": [],
+                "errors": {m: [] for m in METHODS},
+                "failures": {m: 0 for m in METHODS},
+                "poses": 0,
+                "bias": {"perspective_px": [], "occlusion_px": []},
+            },
+        )
+        group["variants"].append(
+            {
+                "label": variant.label,
+                "poses": result["poses"],
+                **{m: _stats(result["errors_m"][m]) for m in METHODS},
+                "worst": _worst(result["anatomy"]),
+            }
+        )
         for m in METHODS:
             group["errors"][m].extend(result["errors_m"][m])
             group["failures"][m] += result["failures"][m]
@@ -344,12 +394,17 @@ def summarise(variants: list[Variant], results: list[dict[str, Any]]) -> dict[st
             "poses": group["poses"],
             "methods": stats,
             "failures": group["failures"],
-            "target_met": (ours["median_mm"] is not None and ours["median_mm"] <= 2.0
-                           and ours["p95_mm"] is not None and ours["p95_mm"] <= 5.0),
+            "target_met": (
+                ours["median_mm"] is not None
+                and ours["median_mm"] <= 2.0
+                and ours["p95_mm"] is not None
+                and ours["p95_mm"] <= 5.0
+            ),
             "variants": group["variants"],
             "centroid_bias_px": {
                 k: {"median": round(float(np.median(v)), 4), "max": round(float(np.max(v)), 4)}
-                for k, v in group["bias"].items() if v
+                for k, v in group["bias"].items()
+                if v
             },
         }
     return out
@@ -367,8 +422,10 @@ def format_summary(summary: dict[str, Any]) -> str:
         "report": "report (eq. 12 + 14)",
     }
     for group_name, group in summary["groups"].items():
-        lines.append(f"{group_name}: {group['poses']} poses, target (median <= 2, p95 <= 5 mm)"
-                     f" {'MET' if group['target_met'] else 'NOT MET'}")
+        lines.append(
+            f"{group_name}: {group['poses']} poses, target (median <= 2, p95 <= 5 mm)"
+            f" {'MET' if group['target_met'] else 'NOT MET'}"
+        )
         lines.append(f"  {'method':<28}{'median':>16}{'p95':>16}{'max':>16}{'failed':>8}")
         for m in METHODS:
             s = group["methods"][m]
@@ -379,13 +436,17 @@ def format_summary(summary: dict[str, Any]) -> str:
             lines.append(f"  {names[m]:<28}{cells[0]:>16}{cells[1]:>16}{cells[2]:>16}{group['failures'][m]:>8}")
         for v in group["variants"]:
             t, r = v["trackerd"], v["report"]
-            lines.append(f"    {v['label']:<30} n={v['poses']:<4} trackerd median {t['median_mm']} p95 {t['p95_mm']}"
-                         f" | report median {r['median_mm']} p95 {r['p95_mm']}")
+            lines.append(
+                f"    {v['label']:<30} n={v['poses']:<4} trackerd median {t['median_mm']} p95 {t['p95_mm']}"
+                f" | report median {r['median_mm']} p95 {r['p95_mm']}"
+            )
             w = v.get("worst")
             if w:
-                lines.append(f"      worst tenth ({w['poses']} poses): {w['error_mm']} mm; from exact centroids"
-                             f" {w['exact_centroids_mm']} mm; locator's sigma {w['sigma_mm']} mm"
-                             f" (all poses {w['sigma_all_mm']})")
+                lines.append(
+                    f"      worst tenth ({w['poses']} poses): {w['error_mm']} mm; from exact centroids"
+                    f" {w['exact_centroids_mm']} mm; locator's sigma {w['sigma_mm']} mm"
+                    f" (all poses {w['sigma_all_mm']})"
+                )
         bias = group["centroid_bias_px"]
         if bias:
             lines.append(

@@ -56,8 +56,11 @@ and a perfectly box-filtered edge makes gradient corner finders lock to pixel ce
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default=str(example_rig("simulated")),
-                        help="the true rig to render (default: the bundled config/simulated.toml)")
+    parser.add_argument(
+        "--config",
+        default=str(example_rig("simulated")),
+        help="the true rig to render (default: the bundled config/simulated.toml)",
+    )
     parser.add_argument("--board", default="chessboard:10x7:60", help="board for intrinsics")
     parser.add_argument("--stereo-board", default="chessboard:10x7:100", help="board for stereo pairs")
     parser.add_argument("--views", type=int, default=20, help="board views per camera (default 20)")

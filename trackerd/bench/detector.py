@@ -59,21 +59,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=example_rig("simulated"),
         help="rig to render (default: the bundled config/simulated.toml)",
     )
-    parser.add_argument(
-        "--frames", type=int, default=24, help="distinct trajectory frames per camera (default: 24)"
-    )
+    parser.add_argument("--frames", type=int, default=24, help="distinct trajectory frames per camera (default: 24)")
     parser.add_argument(
         "--poses",
         type=int,
         default=24,
         help="extra independent random poses per camera, for accuracy (default: 24)",
     )
-    parser.add_argument(
-        "--repeats", type=int, default=10, help="timed passes over the frames (default: 10)"
-    )
-    parser.add_argument(
-        "--seed", type=int, default=1, help="random seed of poses and noise (default: 1)"
-    )
+    parser.add_argument("--repeats", type=int, default=10, help="timed passes over the frames (default: 10)")
+    parser.add_argument("--seed", type=int, default=1, help="random seed of poses and noise (default: 1)")
     parser.add_argument(
         "--min-excess",
         type=int,
@@ -103,9 +97,7 @@ class Frame:
     area: dict[str, float]
 
 
-def trajectory(
-    rig: RigConfig, rng: np.random.Generator, n: int, step_m: float, cameras: list
-) -> list[PointerPose]:
+def trajectory(rig: RigConfig, rng: np.random.Generator, n: int, step_m: float, cameras: list) -> list[PointerPose]:
     """n poses of a pointer moving smoothly (step_m per frame) between random visible poses."""
     if rig.pointer is None:
         raise ValueError(f"rig '{rig.name}' has no [pointer]: the bench cannot render one")
@@ -152,9 +144,7 @@ def render_frames(
 
 def run(args: argparse.Namespace) -> int:
     if args.frames < 2 or args.poses < 0 or args.repeats < 1:
-        raise ConfigError(
-            "--frames must be at least 2, --poses at least 0 and --repeats at least 1"
-        )
+        raise ConfigError("--frames must be at least 2, --poses at least 0 and --repeats at least 1")
     if args.min_excess and not all(1 <= v <= 255 for v in args.min_excess):
         red, blue = args.min_excess
         raise ConfigError(f"--min-excess {red} {blue}: each must be between 1 and 255")
@@ -189,12 +179,8 @@ def run(args: argparse.Namespace) -> int:
         detectors[cam] = {
             "full": ColourEndDetector(cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer),
             "tracked": ColourEndDetector(cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer),
-            "bbox": ColourEndDetector(
-                bbox_cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer
-            ),
-            "full_own": ColourEndDetector(
-                cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer, rim_pixels=False
-            ),
+            "bbox": ColourEndDetector(bbox_cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer),
+            "full_own": ColourEndDetector(cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer, rim_pixels=False),
             "tracked_own": ColourEndDetector(
                 cfg, c.pixel_format, c.width_px, c.height_px, rig.pointer, rim_pixels=False
             ),
@@ -202,11 +188,7 @@ def run(args: argparse.Namespace) -> int:
     formats = [rig.cameras[cam].pixel_format for cam in range(n_cams)]
 
     # Ping-pong through each camera's trajectory so the tracked detector never jumps.
-    order = [
-        (cam, i)
-        for cam in range(n_cams)
-        for i in list(range(args.frames)) + list(range(args.frames - 2, 0, -1))
-    ]
+    order = [(cam, i) for cam in range(n_cams) for i in list(range(args.frames)) + list(range(args.frames - 2, 0, -1))]
     times: dict[str, list[float]] = {"full": [], "tracked": [], "opencv": [], "floor": []}
     if args.own_samples:
         times.update({"full_own": [], "tracked_own": []})
@@ -389,19 +371,11 @@ def _print_table(r: dict) -> None:
             f"  (a')/(d) = {ratios['full_own_over_floor']:.2f}x, (b')/(d) ="
             f" {ratios['tracked_own_over_floor']:.2f}x   (centres from own samples only)"
         )
-    print(
-        "  tracked frames answered by the window search:"
-        f" {100 * r['tracked_window_fraction']:.1f} %"
-    )
+    print(f"  tracked frames answered by the window search: {100 * r['tracked_window_fraction']:.1f} %")
     print()
-    print(
-        "  detection error (px, to the true centroid of the visible ball; 'wrong': another"
-        " blob taken,"
-    )
+    print("  detection error (px, to the true centroid of the visible ball; 'wrong': another blob taken,")
     print("  left out of median/p95/max but kept in 'all')")
-    header = (
-        f"  {'method':<30}{'ends':>6}{'missed':>8}{'wrong':>7}{'median':>9}{'p95':>8}{'max':>8}"
-    )
+    header = f"  {'method':<30}{'ends':>6}{'missed':>8}{'wrong':>7}{'median':>9}{'p95':>8}{'max':>8}"
     print(header + f"{'all':>9}{'across sd':>11}{'p95':>8}")
     for name, a in r["accuracy_px"].items():
         every = f"{a['median_all']:>9.3f}" if a["median_all"] is not None else f"{'-':>9}"

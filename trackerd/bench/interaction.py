@@ -41,13 +41,22 @@ from trackerd.interaction.templates import load_templates
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default=str(example_rig("simulated")),
-                        help="rig (default: the bundled config/simulated.toml)")
-    parser.add_argument("--rendered-pairs", type=int, default=60,
-                        help="rendered pairs for the still and the moving pointer each (default 60; 0: none)")
+    parser.add_argument(
+        "--config", default=str(example_rig("simulated")), help="rig (default: the bundled config/simulated.toml)"
+    )
+    parser.add_argument(
+        "--rendered-pairs",
+        type=int,
+        default=60,
+        help="rendered pairs for the still and the moving pointer each (default 60; 0: none)",
+    )
     parser.add_argument("--sessions", type=int, default=25, help="gesture sessions of six gestures (default 25)")
-    parser.add_argument("--pointing-minutes", type=float, default=20.0,
-                        help="minutes of random pointing for false positives (default 20)")
+    parser.add_argument(
+        "--pointing-minutes",
+        type=float,
+        default=20.0,
+        help="minutes of random pointing for false positives (default 20)",
+    )
     parser.add_argument("--noise-mm", type=float, default=1.5, help="hit noise of the scripted tracks (default 1.5)")
     parser.add_argument("--hands", type=int, default=120, help="rendered hands, 0-5 fingers in turn (default 120)")
     parser.add_argument("--seed", type=int, default=11)
@@ -80,8 +89,11 @@ def run(args: argparse.Namespace) -> int:
 def _jitter(points_m: np.ndarray) -> dict[str, float]:
     centred = points_m - points_m.mean(axis=0)
     sd = centred.std(axis=0) * 1000.0
-    return {"x_mm": round(float(sd[0]), 3), "y_mm": round(float(sd[1]), 3),
-            "rms_radius_mm": round(float(np.sqrt(np.mean(np.sum(centred**2, axis=1)))) * 1000.0, 3)}
+    return {
+        "x_mm": round(float(sd[0]), 3),
+        "y_mm": round(float(sd[1]), 3),
+        "rms_radius_mm": round(float(np.sqrt(np.mean(np.sum(centred**2, axis=1)))) * 1000.0, 3),
+    }
 
 
 def _lag_mm(times_ns: np.ndarray, raw_m: np.ndarray, smoothed_m: np.ndarray, from_index: int) -> float:
@@ -105,11 +117,16 @@ def smoothing_figures(rig: RigConfig, args: argparse.Namespace, rng: np.random.G
         moving = truth + rng.normal(0.0, noise_mm / 1000.0, (n, 2))
         lag = _lag_mm(times, truth, smooth_track(cfg, times, moving), 300)
         raw_j, smooth_j = _jitter(still[120:]), _jitter(smoothed)
-        out["scripted"].append({
-            "noise_mm": noise_mm, "raw": raw_j, "smoothed": smooth_j,
-            "reduction": round(raw_j["rms_radius_mm"] / smooth_j["rms_radius_mm"], 2),
-            "lag_at_1_m_s_mm": round(lag, 2), "lag_frames": round(lag / frame_mm_at_1m_s, 2),
-        })
+        out["scripted"].append(
+            {
+                "noise_mm": noise_mm,
+                "raw": raw_j,
+                "smoothed": smooth_j,
+                "reduction": round(raw_j["rms_radius_mm"] / smooth_j["rms_radius_mm"], 2),
+                "lag_at_1_m_s_mm": round(lag, 2),
+                "lag_frames": round(lag / frame_mm_at_1m_s, 2),
+            }
+        )
     if args.rendered_pairs:
         out["rendered"] = _rendered_smoothing(rig, args.rendered_pairs, rate_hz, rng)
     return out
@@ -148,9 +165,14 @@ def _rendered_smoothing(rig: RigConfig, pairs: int, rate_hz: float, rng: np.rand
     path = centre + np.column_stack([np.arange(pairs) / rate_hz - pairs / rate_hz / 2, np.zeros(pairs)])
     moving = hits(path)
     lag = _lag_mm(times, moving, smooth_track(cfg, times, moving), settle)
-    return {"pairs": pairs, "raw": raw_j, "smoothed": smooth_j,
-            "reduction": round(raw_j["rms_radius_mm"] / max(smooth_j["rms_radius_mm"], 1e-9), 2),
-            "lag_at_1_m_s_mm": round(lag, 2), "lag_frames": round(lag / (1000.0 / rate_hz), 2)}
+    return {
+        "pairs": pairs,
+        "raw": raw_j,
+        "smoothed": smooth_j,
+        "reduction": round(raw_j["rms_radius_mm"] / max(smooth_j["rms_radius_mm"], 1e-9), 2),
+        "lag_at_1_m_s_mm": round(lag, 2),
+        "lag_frames": round(lag / (1000.0 / rate_hz), 2),
+    }
 
 
 # ----------------------------------------------------------------------------- gestures
@@ -171,8 +193,12 @@ class _Recognition:
     confused: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        return {"performed": self.performed, "recognised": self.recognised, "confused": self.confused,
-                "rate": round(self.recognised / max(self.performed, 1), 3)}
+        return {
+            "performed": self.performed,
+            "recognised": self.recognised,
+            "confused": self.confused,
+            "rate": round(self.recognised / max(self.performed, 1), 3),
+        }
 
 
 def _run(engine: InteractionEngine, track: Track) -> list[Event]:
@@ -204,11 +230,17 @@ def gesture_figures(rig: RigConfig, args: argparse.Namespace, rng: np.random.Gen
     by_name: dict[str, int] = {}
     for g in false:
         by_name[g.detail["name"]] = by_name.get(g.detail["name"], 0) + 1
-    return {"noise_mm": args.noise_mm, "per_gesture": {name: f.to_json() for name, f in per.items()},
-            "overall_rate": round(sum(f.recognised for f in per.values())
-                                  / max(sum(f.performed for f in per.values()), 1), 3),
-            "random_pointing_minutes": args.pointing_minutes, "false_gestures": len(false),
-            "false_per_minute": round(len(false) / args.pointing_minutes, 3), "false_by_name": by_name}
+    return {
+        "noise_mm": args.noise_mm,
+        "per_gesture": {name: f.to_json() for name, f in per.items()},
+        "overall_rate": round(
+            sum(f.recognised for f in per.values()) / max(sum(f.performed for f in per.values()), 1), 3
+        ),
+        "random_pointing_minutes": args.pointing_minutes,
+        "false_gestures": len(false),
+        "false_per_minute": round(len(false) / args.pointing_minutes, 3),
+        "false_by_name": by_name,
+    }
 
 
 # ----------------------------------------------------------------------------- hands
@@ -234,10 +266,13 @@ def hand_figures(rig: RigConfig, count: int, rng: np.random.Generator) -> dict[s
         band = f"{pose.distance_m:.1f}"[:3]
         by_distance.setdefault(f"{float(band):.1f}", []).append(int(got == pose.fingers))
     correct = int(np.trace(confusion[:, :6]))
-    return {"hands": count, "accuracy": round(correct / count, 3),
-            "per_count": {str(f): round(float(confusion[f, f] / max(confusion[f].sum(), 1)), 3) for f in range(6)},
-            "confusion_rows_true_cols_found_then_none": confusion.tolist(),
-            "accuracy_by_distance_m": {k: round(float(np.mean(v)), 3) for k, v in sorted(by_distance.items())}}
+    return {
+        "hands": count,
+        "accuracy": round(correct / count, 3),
+        "per_count": {str(f): round(float(confusion[f, f] / max(confusion[f].sum(), 1)), 3) for f in range(6)},
+        "confusion_rows_true_cols_found_then_none": confusion.tolist(),
+        "accuracy_by_distance_m": {k: round(float(np.mean(v)), 3) for k, v in sorted(by_distance.items())},
+    }
 
 
 # ----------------------------------------------------------------------------- cost
@@ -263,41 +298,59 @@ def cost_figures(rig: RigConfig, rng: np.random.Generator) -> dict[str, Any]:
         start = time.perf_counter_ns()
         detector.look(image, cam.pixel_format)
         looks.append(time.perf_counter_ns() - start)
-    return {"engine_per_pair_us": {"p50": round(float(np.percentile(costs_us, 50)), 1),
-                                   "p99": round(float(np.percentile(costs_us, 99)), 1),
-                                   "max": round(float(costs_us.max()), 1)},
-            "hand_look_ms": {"p50": round(float(np.percentile(looks, 50)) / 1e6, 2),
-                             "max": round(float(np.max(looks)) / 1e6, 2)},
-            "hand_every_n_pairs": rig.interaction.hand.every_n_pairs}
+    return {
+        "engine_per_pair_us": {
+            "p50": round(float(np.percentile(costs_us, 50)), 1),
+            "p99": round(float(np.percentile(costs_us, 99)), 1),
+            "max": round(float(costs_us.max()), 1),
+        },
+        "hand_look_ms": {
+            "p50": round(float(np.percentile(looks, 50)) / 1e6, 2),
+            "max": round(float(np.max(looks)) / 1e6, 2),
+        },
+        "hand_every_n_pairs": rig.interaction.hand.every_n_pairs,
+    }
 
 
 def _print(f: dict[str, Any]) -> None:
     s = f["smoothing"]
-    print(f"smoothing (One Euro: min_cutoff {s['config']['min_cutoff_hz']} Hz, beta {s['config']['beta_per_m']}/m,"
-          f" derivative cutoff {s['config']['derivative_cutoff_hz']} Hz), {s['rate_hz']:.0f} pairs/s")
+    print(
+        f"smoothing (One Euro: min_cutoff {s['config']['min_cutoff_hz']} Hz, beta {s['config']['beta_per_m']}/m,"
+        f" derivative cutoff {s['config']['derivative_cutoff_hz']} Hz), {s['rate_hz']:.0f} pairs/s"
+    )
     for row in s["scripted"]:
-        print(f"  scripted noise {row['noise_mm']} mm: jitter {row['raw']['rms_radius_mm']:.2f} -> "
-              f"{row['smoothed']['rms_radius_mm']:.2f} mm RMS ({row['reduction']:.1f}x); lag at 1 m/s "
-              f"{row['lag_at_1_m_s_mm']:.1f} mm = {row['lag_frames']:.2f} frame")
+        print(
+            f"  scripted noise {row['noise_mm']} mm: jitter {row['raw']['rms_radius_mm']:.2f} -> "
+            f"{row['smoothed']['rms_radius_mm']:.2f} mm RMS ({row['reduction']:.1f}x); lag at 1 m/s "
+            f"{row['lag_at_1_m_s_mm']:.1f} mm = {row['lag_frames']:.2f} frame"
+        )
     if "rendered" in s:
         r = s["rendered"]
-        print(f"  rendered ({r['pairs']} pairs each): jitter x {r['raw']['x_mm']:.3f} y {r['raw']['y_mm']:.3f} -> "
-              f"x {r['smoothed']['x_mm']:.3f} y {r['smoothed']['y_mm']:.3f} mm ({r['reduction']:.1f}x RMS);"
-              f" lag at 1 m/s {r['lag_at_1_m_s_mm']:.1f} mm = {r['lag_frames']:.2f} frame")
+        print(
+            f"  rendered ({r['pairs']} pairs each): jitter x {r['raw']['x_mm']:.3f} y {r['raw']['y_mm']:.3f} -> "
+            f"x {r['smoothed']['x_mm']:.3f} y {r['smoothed']['y_mm']:.3f} mm ({r['reduction']:.1f}x RMS);"
+            f" lag at 1 m/s {r['lag_at_1_m_s_mm']:.1f} mm = {r['lag_frames']:.2f} frame"
+        )
     g = f["gestures"]
     print(f"gestures (noise {g['noise_mm']} mm): overall {100 * g['overall_rate']:.1f} %")
     for name, row in g["per_gesture"].items():
         confused = ", ".join(f"{k} {v}" for k, v in row["confused"].items())
         print(f"  {name:<12} {row['recognised']}/{row['performed']}" + (f"  (else: {confused})" if confused else ""))
-    print(f"  random pointing: {g['false_gestures']} false gestures in {g['random_pointing_minutes']:g} min"
-          f" ({g['false_per_minute']:.2f}/min) {g['false_by_name']}")
+    print(
+        f"  random pointing: {g['false_gestures']} false gestures in {g['random_pointing_minutes']:g} min"
+        f" ({g['false_per_minute']:.2f}/min) {g['false_by_name']}"
+    )
     if "hands" in f:
         h = f["hands"]
-        print(f"hands: {100 * h['accuracy']:.1f} % of {h['hands']} counted right; per count {h['per_count']};"
-              f" by distance {h['accuracy_by_distance_m']}")
+        print(
+            f"hands: {100 * h['accuracy']:.1f} % of {h['hands']} counted right; per count {h['per_count']};"
+            f" by distance {h['accuracy_by_distance_m']}"
+        )
         confusion = h["confusion_rows_true_cols_found_then_none"]
         print(f"  confusion (rows: true 0-5; columns: found 0-5, none): {confusion}")
     c = f["cost"]
-    print(f"cost: engine per pair p50 {c['engine_per_pair_us']['p50']} us, p99 {c['engine_per_pair_us']['p99']} us,"
-          f" max {c['engine_per_pair_us']['max']} us; hand look p50 {c['hand_look_ms']['p50']} ms"
-          f" (one pair in {c['hand_every_n_pairs']})")
+    print(
+        f"cost: engine per pair p50 {c['engine_per_pair_us']['p50']} us, p99 {c['engine_per_pair_us']['p99']} us,"
+        f" max {c['engine_per_pair_us']['max']} us; hand look p50 {c['hand_look_ms']['p50']} ms"
+        f" (one pair in {c['hand_every_n_pairs']})"
+    )

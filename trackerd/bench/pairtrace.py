@@ -80,11 +80,16 @@ class TraceObserver:
         taken, handed_over = processing
         assert isinstance(taken, ThreadTimes) and isinstance(handed_over, ThreadTimes)
         assert isinstance(sending, ThreadTimes)
-        trace.append(PairTrace(
-            received_ns=times.received_ns, latency_ns=times.sent_ns - times.received_ns,
-            waiting_ns=times.taken_ns - times.received_ns, processing=off_cpu(taken, handed_over),
-            handoff_ns=times.sending_ns - times.queued_ns, publishing=off_cpu(sending, self.mark()),
-        ))
+        trace.append(
+            PairTrace(
+                received_ns=times.received_ns,
+                latency_ns=times.sent_ns - times.received_ns,
+                waiting_ns=times.taken_ns - times.received_ns,
+                processing=off_cpu(taken, handed_over),
+                handoff_ns=times.sending_ns - times.queued_ns,
+                publishing=off_cpu(sending, self.mark()),
+            )
+        )
 
 
 def off_cpu_figures(trace: list[PairTrace]) -> dict[str, Any]:
@@ -192,6 +197,10 @@ def latency_by_wakeup(
             continue
         chosen = pair_known & (pair_held == condition)
         steal = round(100.0 * stolen[condition] / total[condition], 2) if total[condition] > 0 else None
-        out[name] = {"pairs": int(chosen.sum()), **percentiles_ms(latency[chosen]),
-                     "waiting_ms": percentiles_ms(waiting[chosen]), "steal_percent": steal}
+        out[name] = {
+            "pairs": int(chosen.sum()),
+            **percentiles_ms(latency[chosen]),
+            "waiting_ms": percentiles_ms(waiting[chosen]),
+            "steal_percent": steal,
+        }
     return out

@@ -68,26 +68,38 @@ WAKEUP_MODES = ("auto", "alternate", "held", "off")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default=str(example_rig("simulated")),
-                        help="rig (default: the bundled config/simulated.toml)")
+    parser.add_argument(
+        "--config", default=str(example_rig("simulated")), help="rig (default: the bundled config/simulated.toml)"
+    )
     parser.add_argument("--seconds", type=float, default=60.0, help="length of the run (default 60)")
     parser.add_argument("--rate", type=float, default=60.0, help="pairs per second served (memory source)")
     parser.add_argument("--motion", default="figure8", help="rendered motion (default figure8)")
     parser.add_argument("--source", choices=["memory", "virtual"], default="memory", help="see above")
     parser.add_argument("--endpoint", default="tcp://127.0.0.1:5599", help="publisher endpoint for the run")
     parser.add_argument(
-        "--cpu-wakeup", choices=WAKEUP_MODES, default="auto",
+        "--cpu-wakeup",
+        choices=WAKEUP_MODES,
+        default="auto",
         help="hold the CPUs awake (PM QoS 0 µs, as root): alternate (held and not, in turns), held (the whole"
-             " run), off (never); auto (default): alternate where this process may, else off",
+        " run), off (never); auto (default): alternate where this process may, else off",
     )
-    parser.add_argument("--turn-seconds", type=float, default=5.0,
-                        help="length of each turn with --cpu-wakeup alternate (default 5)")
-    parser.add_argument("--console", choices=["off", "idle", "viewer"], default="off",
-                        help="the operator's console: off (default), idle (served, nobody connected) or viewer"
-                             " (one page connected for the whole run)")
-    parser.add_argument("--paced-pairs", type=int, default=240,
-                        help="pairs detected after a pause before the run, half with both cameras together and"
-                             " half one at a time, in turns (memory source; default 240)")
+    parser.add_argument(
+        "--turn-seconds", type=float, default=5.0, help="length of each turn with --cpu-wakeup alternate (default 5)"
+    )
+    parser.add_argument(
+        "--console",
+        choices=["off", "idle", "viewer"],
+        default="off",
+        help="the operator's console: off (default), idle (served, nobody connected) or viewer"
+        " (one page connected for the whole run)",
+    )
+    parser.add_argument(
+        "--paced-pairs",
+        type=int,
+        default=240,
+        help="pairs detected after a pause before the run, half with both cameras together and"
+        " half one at a time, in turns (memory source; default 240)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -241,8 +253,12 @@ def run(args: argparse.Namespace) -> int:
         "machine_interrupt_percent": _share_percent(machine0, machine1, "interrupts"),
         "off_cpu": off_cpu_figures(trace),
         "latency_by_steal": latency_by_steal(trace, machine),
-        "cpu_wakeup": {"mode": wakeup, "turn_s": args.turn_seconds if wakeup == "alternate" else None,
-                       "other_request_us": other_request, **latency_by_wakeup(trace, turns, machine)},
+        "cpu_wakeup": {
+            "mode": wakeup,
+            "turn_s": args.turn_seconds if wakeup == "alternate" else None,
+            "other_request_us": other_request,
+            **latency_by_wakeup(trace, turns, machine),
+        },
         "cpu_cores": round(cpu_s / elapsed, 3),
         "cpu_ms_per_pair": round(cpu_s / max(pairs, 1) * 1000, 3),
         "dropped_pairs_source": status1.dropped_pairs - status0.dropped_pairs,
@@ -293,8 +309,9 @@ def _paced_detection_ms(rig: Any, image_sets: list[list[np.ndarray]], pairs: int
         return None
 
     def detectors() -> list[ColourEndDetector]:
-        return [ColourEndDetector(rig.detector, c.pixel_format, c.width_px, c.height_px, rig.pointer)
-                for c in rig.cameras]
+        return [
+            ColourEndDetector(rig.detector, c.pixel_format, c.width_px, c.height_px, rig.pointer) for c in rig.cameras
+        ]
 
     ways = {"together": detectors(), "one_at_a_time": detectors()}
     times: dict[str, list[int]] = {name: [] for name in ways}
@@ -422,9 +439,7 @@ def _format(f: dict[str, Any]) -> str:
     )
     warm = f["back_to_back_cpu_ms"]
     if warm is not None:
-        lines.append(
-            f"  the same work back to back (warm caches): median {warm['p50_ms']} ms, p99 {warm['p99_ms']} ms"
-        )
+        lines.append(f"  the same work back to back (warm caches): median {warm['p50_ms']} ms, p99 {warm['p99_ms']} ms")
     paced = f["paced_detection_ms"]
     if paced is not None:
         lines.append(
@@ -472,12 +487,18 @@ def _format(f: dict[str, Any]) -> str:
         if name in wakeup:
             turn = wakeup[name]
             steal = "unknown" if turn["steal_percent"] is None else f"{turn['steal_percent']} %"
-            latency = (f"latency {_spread(turn)}, max {turn['max_ms']} ms; wait to be taken"
-                       f" p99 {turn['waiting_ms']['p99_ms']} ms" if turn["pairs"] else "no latency")
+            latency = (
+                f"latency {_spread(turn)}, max {turn['max_ms']} ms; wait to be taken"
+                f" p99 {turn['waiting_ms']['p99_ms']} ms"
+                if turn["pairs"]
+                else "no latency"
+            )
             lines.append(f"  {names[name]}: {turn['pairs']} pairs, {latency}; CPU stolen {steal}")
     if wakeup["other_request_us"] is not None:
-        lines.append(f"  NOTE: another process holds a CPU wake-up latency request of {wakeup['other_request_us']} µs"
-                     " (trackerd-cpu-latency, tuned?): the CPUs were never free to halt")
+        lines.append(
+            f"  NOTE: another process holds a CPU wake-up latency request of {wakeup['other_request_us']} µs"
+            " (trackerd-cpu-latency, tuned?): the CPUs were never free to halt"
+        )
     lines.append(
         f"drops: {f['dropped_pairs_source']} pairs not taken in time by processing,"
         f" {f['dropped_pairs_queue']} at the publisher queue   (target 0 caused by processing)"
@@ -486,8 +507,10 @@ def _format(f: dict[str, Any]) -> str:
     lines.append(f"received by a subscriber (the warm-up included): {received or 'nothing'}")
     console = f.get("console") or {"mode": "off"}
     if console["mode"] == "viewer":
-        lines.append(f"console: one page connected, {console.get('images', 0)} camera images"
-                     f" ({console.get('image_bytes', 0) / 1e6:.1f} MB) and {console.get('texts', 0)} other messages")
+        lines.append(
+            f"console: one page connected, {console.get('images', 0)} camera images"
+            f" ({console.get('image_bytes', 0) / 1e6:.1f} MB) and {console.get('texts', 0)} other messages"
+        )
     else:
         lines.append(f"console: {console['mode']}")
     if f["failure"]:

@@ -51,8 +51,9 @@ REFERENCE_PAIRS = 300
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", default=str(example_rig("simulated")),
-                        help="rig (default: the bundled config/simulated.toml)")
+    parser.add_argument(
+        "--config", default=str(example_rig("simulated")), help="rig (default: the bundled config/simulated.toml)"
+    )
     parser.add_argument("--motion", default="figure8", help="rendered motion to record (default figure8)")
     parser.add_argument("--record-seconds", type=float, default=30.0, help="length of the recording (default 30)")
     parser.add_argument("--rate", type=float, default=60.0, help="pairs per second recorded (default 60)")
@@ -61,15 +62,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--keep", action="store_true", help="keep the recording")
     parser.add_argument("--recording", help="replay this recording instead of recording one")
     parser.add_argument("--pairs", type=int, help="pairs replayed by trackerd's detector (default: all)")
-    parser.add_argument("--reference-pairs", type=int, default=REFERENCE_PAIRS,
-                        help=f"pairs replayed by the baselines (default {REFERENCE_PAIRS})")
-    parser.add_argument("--modes", action="store_true",
-                        help="instead of the baselines: the recording rewritten compressed and windowed, each"
-                             " mode's size, writer CPU and replay rate side by side (trackerd/bench/_modes.py)")
-    parser.add_argument("--keyframe-interval", type=float, default=1.0, metavar="S",
-                        help="with --modes: keyframe interval of the compressed and windowed modes (default 1)")
-    parser.add_argument("--cold", action="store_true",
-                        help="drop the page cache before each replay (root): read from the disk, not memory")
+    parser.add_argument(
+        "--reference-pairs",
+        type=int,
+        default=REFERENCE_PAIRS,
+        help=f"pairs replayed by the baselines (default {REFERENCE_PAIRS})",
+    )
+    parser.add_argument(
+        "--modes",
+        action="store_true",
+        help="instead of the baselines: the recording rewritten compressed and windowed, each"
+        " mode's size, writer CPU and replay rate side by side (trackerd/bench/_modes.py)",
+    )
+    parser.add_argument(
+        "--keyframe-interval",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="with --modes: keyframe interval of the compressed and windowed modes (default 1)",
+    )
+    parser.add_argument(
+        "--cold",
+        action="store_true",
+        help="drop the page cache before each replay (root): read from the disk, not memory",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -93,19 +109,25 @@ def run(args: argparse.Namespace) -> int:
             mode_dir = Path(tempfile.mkdtemp(prefix="trackerd-bench-modes-", dir=args.dir))
             try:
                 figures["modes"] = write_modes(path, mode_dir, args.keyframe_interval)
-                figures["mode_replays"] = replay_modes(figures["modes"], args.config if not args.recording else None,
-                                                       truth)
+                figures["mode_replays"] = replay_modes(
+                    figures["modes"], args.config if not args.recording else None, truth
+                )
             finally:
                 if not args.keep:
                     shutil.rmtree(mode_dir, ignore_errors=True)
             for f in figures["modes"].values():
                 f["path"] = str(f["path"])
-            print(json.dumps(figures, indent=2, default=str) if args.json
-                  else format_modes(figures["modes"], figures["mode_replays"]))
+            print(
+                json.dumps(figures, indent=2, default=str)
+                if args.json
+                else format_modes(figures["modes"], figures["mode_replays"])
+            )
             return 0
         with Recording.open(path) as recording:
             figures["recording"] = {
-                "path": str(path), "pairs": len(recording), "mb": round(recording.data_size / 1e6, 1),
+                "path": str(path),
+                "pairs": len(recording),
+                "mb": round(recording.data_size / 1e6, 1),
                 "cameras": [f"{c.id} {c.pixel_format} {c.width_px}x{c.height_px}" for c in recording.cameras],
             }
             figures["replay"] = _replays(recording, args, truth)
@@ -153,8 +175,12 @@ def _record(rig: RigConfig, args: argparse.Namespace, workdir: Path) -> tuple[Pa
         extension = recording_extension(bench_rig)
         assert extension is not None  # the bench rig gives it a directory
         interaction = interaction_extension(bench_rig)
-        pipeline = Pipeline(bench_rig, lambda r: source, lambda r: Publisher(r.outputs.zmq),
-                            extensions=[extension, *([interaction] if interaction is not None else [])])
+        pipeline = Pipeline(
+            bench_rig,
+            lambda r: source,
+            lambda r: Publisher(r.outputs.zmq),
+            extensions=[extension, *([interaction] if interaction is not None else [])],
+        )
         pipeline.start()
         try:
             while source.status().running and pipeline.failure is None:
@@ -184,8 +210,9 @@ def _record(rig: RigConfig, args: argparse.Namespace, workdir: Path) -> tuple[Pa
     return path, _record_figures(path, args, processing_drops, samples), loop.truth()
 
 
-def _record_figures(path: Path, args: argparse.Namespace, late: int, samples: list[tuple[float, float]]
-                    ) -> dict[str, Any]:
+def _record_figures(
+    path: Path, args: argparse.Namespace, late: int, samples: list[tuple[float, float]]
+) -> dict[str, Any]:
     from trackerd.recording.reader import Recording
 
     with Recording.open(path) as recording:
@@ -283,8 +310,17 @@ def _replays(recording: Any, args: argparse.Namespace, truth: list[dict] | None)
     return out
 
 
-def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, count: int,
-                 truth: list[dict] | None, *, keep_hits: bool = False, batch: bool = True) -> dict[str, Any]:
+def replay_once(
+    recording: Any,
+    rig: RigConfig,
+    baseline: Any,
+    verify: bool,
+    count: int,
+    truth: list[dict] | None,
+    *,
+    keep_hits: bool = False,
+    batch: bool = True,
+) -> dict[str, Any]:
     """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
     from trackerd.interaction.extension import create as interaction_extension
     from trackerd.pipeline.daemon import Pipeline
@@ -302,9 +338,15 @@ def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, cou
     # As `trackerd replay` builds them (trackerd/cli/run.py).
     context = ExtensionContext(replay=True)
     extensions: list[PipelineExtension] = [
-        e for e in (recording_extension(rig, context), interaction_extension(rig, context)) if e is not None]
-    pipeline = Pipeline(rig, lambda r: source, publisher_factory, extensions=extensions,
-                        clock_offset_ns=source.pipeline_clock_offset_ns())
+        e for e in (recording_extension(rig, context), interaction_extension(rig, context)) if e is not None
+    ]
+    pipeline = Pipeline(
+        rig,
+        lambda r: source,
+        publisher_factory,
+        extensions=extensions,
+        clock_offset_ns=source.pipeline_clock_offset_ns(),
+    )
     if baseline is not None:
         pipeline.locator = _BaselineLocator(rig, baseline)
     done = threading.Event()
@@ -348,8 +390,10 @@ def replay_once(recording: Any, rig: RigConfig, baseline: Any, verify: bool, cou
             if true_xy is not None:
                 errors.append(1000 * float(np.hypot(x - true_xy[0], y - true_xy[1])))
         if errors:
-            figures["hit_error_mm"] = {"p50": round(float(np.median(errors)), 2),
-                                       "p95": round(float(np.percentile(errors, 95)), 2)}
+            figures["hit_error_mm"] = {
+                "p50": round(float(np.median(errors)), 2),
+                "p95": round(float(np.percentile(errors, 95)), 2),
+            }
     return figures
 
 

@@ -65,17 +65,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rigs", type=_positive_int, default=30, help="randomized installations (default 30)")
     parser.add_argument("--poses", type=_positive_int, default=40, help="frames per installation (default 40)")
     parser.add_argument("--seed", type=int, default=2026, help="seed of the whole run (default 2026)")
-    parser.add_argument("--refine", choices=("auto", "always", "never"), default=None,
-                        help="override [locator] refine for trackerd (default: the rig's, auto)")
-    parser.add_argument("--learn-colours", type=int, default=0, metavar="PAIRS",
-                        help="learn each installation's pointer colours first (`trackerd calibrate pointer`) from"
-                        " this many pairs of shots of its own (not the measured ones), and locate with them"
-                        " (default 0: the detector's default thresholds)")
-    parser.add_argument("--records", metavar="FILE", default=None,
-                        help="also write every frame's record (its installation and frame number, factors, status,"
-                             " reason, error, sigma) as JSON lines, to look into a miss with the same seed")
-    parser.add_argument("--workers", type=_positive_int, default=min(2, multiprocessing.cpu_count()),
-                        help="processes rendering and locating (default 2)")
+    parser.add_argument(
+        "--refine",
+        choices=("auto", "always", "never"),
+        default=None,
+        help="override [locator] refine for trackerd (default: the rig's, auto)",
+    )
+    parser.add_argument(
+        "--learn-colours",
+        type=int,
+        default=0,
+        metavar="PAIRS",
+        help="learn each installation's pointer colours first (`trackerd calibrate pointer`) from"
+        " this many pairs of shots of its own (not the measured ones), and locate with them"
+        " (default 0: the detector's default thresholds)",
+    )
+    parser.add_argument(
+        "--records",
+        metavar="FILE",
+        default=None,
+        help="also write every frame's record (its installation and frame number, factors, status,"
+        " reason, error, sigma) as JSON lines, to look into a miss with the same seed",
+    )
+    parser.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=min(2, multiprocessing.cpu_count()),
+        help="processes rendering and locating (default 2)",
+    )
 
 
 def _positive_int(text: str) -> int:
@@ -106,8 +123,13 @@ def run(args: argparse.Namespace) -> int:
                 out.write(json.dumps(record) + "\n")
     summary = summarise(records)
     summary["seconds"] = round(time.time() - start, 1)
-    summary["arguments"] = {"rigs": args.rigs, "poses": args.poses, "seed": args.seed, "refine": args.refine,
-                            "learn_colours": args.learn_colours}
+    summary["arguments"] = {
+        "rigs": args.rigs,
+        "poses": args.poses,
+        "seed": args.seed,
+        "refine": args.refine,
+        "learn_colours": args.learn_colours,
+    }
     if args.learn_colours:
         learned = {r["rig"] for r in records if r.get("learned")}
         summary["colours_learned_in"] = f"{len(learned)} of {args.rigs} installations"
@@ -137,16 +159,28 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
     if refine is not None:
         rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": refine})})
     widest = max(c.width_px for c in drawn.cameras)
-    renderer = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
-                             background_step=1 if widest <= 2000 else 2, noise_field=True)
+    renderer = SceneRenderer(
+        drawn.rig,
+        list(drawn.cameras),
+        look=drawn.look,
+        cache_dir=False,
+        background_step=1 if widest <= 2000 else 2,
+        noise_field=True,
+    )
     assert drawn.rig.wall is not None and drawn.rig.pointer is not None  # a drawn rig has both
     wall = wall_frame(drawn.rig.wall)
     learned = False
     if learn_pairs:
         # Shots of their own, from their own generator and renderer (a renderer draws its noise field from the
         # first generator it is given): the measured frames are exactly those of a run without learning.
-        learning = SceneRenderer(drawn.rig, list(drawn.cameras), look=drawn.look, cache_dir=False,
-                                 background_step=1 if widest <= 2000 else 2, noise_field=True)
+        learning = SceneRenderer(
+            drawn.rig,
+            list(drawn.cameras),
+            look=drawn.look,
+            cache_dir=False,
+            background_step=1 if widest <= 2000 else 2,
+            noise_field=True,
+        )
         rig, learned = _learn_colours(rig, drawn, learning, wall, np.random.default_rng([seed, index, 1]), learn_pairs)
     locator = Locator(rig, cameras=drawn.cameras)
     floor_rng = np.random.default_rng([seed, index, 2])  # its own: the scenes are those of a run without it
@@ -154,8 +188,18 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
     for frame in range(poses):
         shot = random_shot(drawn, rng, wall)
         content = wall_content(shot.content_kind, rng)
-        views = [renderer.render(i, shot.pose, rng, motion_to=shot.motion_to, motion_steps=shot.motion_steps,
-                                 occluders=shot.occluders, content=content) for i in range(len(drawn.cameras))]
+        views = [
+            renderer.render(
+                i,
+                shot.pose,
+                rng,
+                motion_to=shot.motion_to,
+                motion_steps=shot.motion_steps,
+                occluders=shot.occluders,
+                content=content,
+            )
+            for i in range(len(drawn.cameras))
+        ]
         # The truth of a blurred frame is the middle of the exposure.
         middle = shot.pose if shot.motion_to is None else shot.pose.interpolate(shot.motion_to, 0.5)
         truth = true_wall_hit(middle, wall).wall_xy_m
@@ -184,20 +228,27 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
         if fix.hit is not None and truth is not None:
             record["error_m"] = float(np.linalg.norm(fix.hit.wall_xy_m - truth))
         if truth is not None and seeing >= 2:
-            floor = floor_hit(drawn.cameras, [min(pair) >= MIN_VISIBLE for pair in visible], middle, rig, wall,
-                              floor_rng)
+            floor = floor_hit(
+                drawn.cameras, [min(pair) >= MIN_VISIBLE for pair in visible], middle, rig, wall, floor_rng
+            )
             if floor is not None:
                 record["floor_error_m"] = float(np.linalg.norm(floor - truth))
-        naive = naive_hit(drawn.cameras, wall, [v.image for v in views], [v.pixel_format for v in views],
-                          drawn.rig.pointer.front_colour)
+        naive = naive_hit(
+            drawn.cameras,
+            wall,
+            [v.image for v in views],
+            [v.pixel_format for v in views],
+            drawn.rig.pointer.front_colour,
+        )
         if naive is not None and truth is not None:
             record["naive_error_m"] = float(np.linalg.norm(naive - truth))
         records.append(record)
     return records
 
 
-def _learn_colours(rig: RigConfig, drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame,
-                   rng: np.random.Generator, pairs: int) -> tuple[RigConfig, bool]:
+def _learn_colours(
+    rig: RigConfig, drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame, rng: np.random.Generator, pairs: int
+) -> tuple[RigConfig, bool]:
     """The rig with its pointer colours learned from ``pairs`` shots, as `trackerd calibrate pointer` learns
     them; the rig unchanged (and False) where they cannot be learned (the operator would be told why)."""
     from trackerd.calibration import CalibrationError
@@ -210,8 +261,18 @@ def _learn_colours(rig: RigConfig, drawn: RandomRig, renderer: SceneRenderer, wa
     for _ in range(pairs):
         shot = random_shot(drawn, rng, wall)
         content = wall_content(shot.content_kind, rng)
-        views = [renderer.render(i, shot.pose, rng, motion_to=shot.motion_to, motion_steps=shot.motion_steps,
-                                 occluders=shot.occluders, content=content) for i in range(len(drawn.cameras))]
+        views = [
+            renderer.render(
+                i,
+                shot.pose,
+                rng,
+                motion_to=shot.motion_to,
+                motion_steps=shot.motion_steps,
+                occluders=shot.occluders,
+                content=content,
+            )
+            for i in range(len(drawn.cameras))
+        ]
         learner.feed([(cam.camera_id, v.image, v.pixel_format) for cam, v in zip(drawn.cameras, views, strict=True)])
     try:
         colours = learner.result("bench", check_detector=False).colours
@@ -220,8 +281,14 @@ def _learn_colours(rig: RigConfig, drawn: RandomRig, renderer: SceneRenderer, wa
     return with_learned_colours(rig, colours), True
 
 
-def floor_hit(cameras: Sequence[CameraModel], seeing: list[bool], pose: PointerPose, rig: RigConfig, wall: WallFrame,
-              rng: np.random.Generator) -> np.ndarray | None:
+def floor_hit(
+    cameras: Sequence[CameraModel],
+    seeing: list[bool],
+    pose: PointerPose,
+    rig: RigConfig,
+    wall: WallFrame,
+    rng: np.random.Generator,
+) -> np.ndarray | None:
     """The geometric floor's wall hit (see the module): the true ends as every camera in ``seeing`` images
     them, moved by FLOOR_SIGMA_PX of noise, fitted as trackerd fits measured ends."""
     from trackerd.geometry.pointer_fit import EndViews, fit_pointer_robust
@@ -239,8 +306,14 @@ def floor_hit(cameras: Sequence[CameraModel], seeing: list[bool], pose: PointerP
             measured[k, e] = in_camera[:2] / in_camera[2] + rng.normal(0.0, sigma, 2)
             covariances[k, e] = np.eye(2) * sigma * sigma
     try:
-        views = EndViews.of(np.stack([c.rotation for c in used]), np.stack([c.translation_m for c in used]),
-                            measured, covariances, rig.pointer.length_m, rig.locator.length_sigma_m)
+        views = EndViews.of(
+            np.stack([c.rotation for c in used]),
+            np.stack([c.translation_m for c in used]),
+            measured,
+            covariances,
+            rig.pointer.length_m,
+            rig.locator.length_sigma_m,
+        )
         fit = fit_pointer_robust(views, front, back)
         hit = intersect_line_plane_m(fit.back_m, fit.front_m, wall)
     except GeometryError:
@@ -260,8 +333,13 @@ def intersect_line_plane_m(back_m: np.ndarray, front_m: np.ndarray, wall: WallFr
     return on_wall
 
 
-def naive_hit(cameras: Sequence[CameraModel], wall: WallFrame, images: Sequence[NDArray[np.uint8]],
-              pixel_formats: Sequence[str], front_colour: str) -> np.ndarray | None:
+def naive_hit(
+    cameras: Sequence[CameraModel],
+    wall: WallFrame,
+    images: Sequence[NDArray[np.uint8]],
+    pixel_formats: Sequence[str],
+    front_colour: str,
+) -> np.ndarray | None:
     """The naive method's wall hit: largest blob's box midpoints, each end triangulated, eq. 26-28."""
     from trackerd.detect.reference import naive_ends
     from trackerd.geometry.triangulation import triangulate_least_squares
@@ -309,8 +387,11 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     def stats(values: np.ndarray) -> dict[str, float | None]:
         if values.size == 0:
             return {"median_mm": None, "p95_mm": None, "worst_mm": None}
-        return {"median_mm": round(float(np.median(values)), 2), "p95_mm": round(float(np.percentile(values, 95)), 2),
-                "worst_mm": round(float(np.max(values)), 1)}
+        return {
+            "median_mm": round(float(np.median(values)), 2),
+            "p95_mm": round(float(np.percentile(values, 95)), 2),
+            "worst_mm": round(float(np.max(values)), 1),
+        }
 
     def share(count: int, total: int) -> float | None:
         return round(100.0 * count / total, 1) if total else None
@@ -342,8 +423,10 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     misses = Counter(_first_clause(r["reason"]) for r in records if r["eligible"] and r["error_m"] is None)
     out["misses"] = dict(misses.most_common(12))
     seconds = np.array([r["seconds"] for r in records]) * 1000.0
-    out["locate_ms"] = {"median": round(float(np.median(seconds)), 2),
-                        "p95": round(float(np.percentile(seconds, 95)), 2)}
+    out["locate_ms"] = {
+        "median": round(float(np.median(seconds)), 2),
+        "p95": round(float(np.percentile(seconds, 95)), 2),
+    }
     return out
 
 
@@ -358,11 +441,16 @@ def _first_clause(reason: str | None) -> str:
 
 
 def format_summary(summary: dict[str, Any]) -> str:
-    head = (f"  {'':<22}{'frames':>7}{'elig.':>6} | {'found':>6}{'median':>8}{'p95':>8}{'worst':>8}"
-            f"{'>3s':>6}{'>5s':>6}{'<=1s':>6}{'<=2s':>6} | {'floor':>6}{'p95':>7}"
-            f" | {'naive':>6}{'median':>8}{'p95':>8}{'worst':>8} | hidden: hits, wrong")
-    lines = ["Wall error on randomized installations, trackerd against the naive method (mm; % of eligible frames;"
-             " s: trackerd's own sigma; floor: the geometry alone at 0.1 px, median and p95)", head]
+    head = (
+        f"  {'':<22}{'frames':>7}{'elig.':>6} | {'found':>6}{'median':>8}{'p95':>8}{'worst':>8}"
+        f"{'>3s':>6}{'>5s':>6}{'<=1s':>6}{'<=2s':>6} | {'floor':>6}{'p95':>7}"
+        f" | {'naive':>6}{'median':>8}{'p95':>8}{'worst':>8} | hidden: hits, wrong"
+    )
+    lines = [
+        "Wall error on randomized installations, trackerd against the naive method (mm; % of eligible frames;"
+        " s: trackerd's own sigma; floor: the geometry alone at 0.1 px, median and p95)",
+        head,
+    ]
 
     def row(label: str, f: dict[str, Any]) -> str:
         t, n, h, g = f["trackerd"], f["naive"], f["hidden"], f["floor"]
@@ -370,13 +458,15 @@ def format_summary(summary: dict[str, Any]) -> str:
         def cell(value: Any, width: int, fmt: str = ".1f") -> str:
             return f"{'-':>{width}}" if value is None else f"{value:>{width}{fmt}}"
 
-        return (f"  {label:<22}{f['frames']:>7}{f['eligible']:>6} | {cell(t['found_percent'], 6)}"
-                f"{cell(t['median_mm'], 8, '.2f')}{cell(t['p95_mm'], 8, '.2f')}{cell(t['worst_mm'], 8)}"
-                f"{cell(t['over_3_sigma_percent'], 6)}{cell(t['over_5_sigma_percent'], 6)}"
-                f"{cell(t['within_1_sigma_percent'], 6, '.0f')}{cell(t['within_2_sigma_percent'], 6, '.0f')} | "
-                f"{cell(g['median_mm'], 6, '.2f')}{cell(g['p95_mm'], 7, '.2f')} | "
-                f"{cell(n['found_percent'], 6)}{cell(n['median_mm'], 8, '.2f')}{cell(n['p95_mm'], 8, '.2f')}"
-                f"{cell(n['worst_mm'], 8)} | {h['hits']:>4} {h['confidently_wrong']:>3}")
+        return (
+            f"  {label:<22}{f['frames']:>7}{f['eligible']:>6} | {cell(t['found_percent'], 6)}"
+            f"{cell(t['median_mm'], 8, '.2f')}{cell(t['p95_mm'], 8, '.2f')}{cell(t['worst_mm'], 8)}"
+            f"{cell(t['over_3_sigma_percent'], 6)}{cell(t['over_5_sigma_percent'], 6)}"
+            f"{cell(t['within_1_sigma_percent'], 6, '.0f')}{cell(t['within_2_sigma_percent'], 6, '.0f')} | "
+            f"{cell(g['median_mm'], 6, '.2f')}{cell(g['p95_mm'], 7, '.2f')} | "
+            f"{cell(n['found_percent'], 6)}{cell(n['median_mm'], 8, '.2f')}{cell(n['p95_mm'], 8, '.2f')}"
+            f"{cell(n['worst_mm'], 8)} | {h['hits']:>4} {h['confidently_wrong']:>3}"
+        )
 
     lines.append(row("overall", summary["overall"]))
     for factor, levels in summary["factors"].items():
@@ -386,11 +476,17 @@ def format_summary(summary: dict[str, Any]) -> str:
     if summary["misses"]:
         lines.append("eligible frames not located, by reason:")
         lines += [f"  {count:>4}  {reason}" for reason, count in summary["misses"].items()]
-    lines.append(f"trackerd locate per frame: median {summary['locate_ms']['median']} ms,"
-                 f" p95 {summary['locate_ms']['p95']} ms (a first sighting: full search)")
+    lines.append(
+        f"trackerd locate per frame: median {summary['locate_ms']['median']} ms,"
+        f" p95 {summary['locate_ms']['p95']} ms (a first sighting: full search)"
+    )
     if summary.get("colours_learned_in"):
-        lines.append(f"pointer colours learned (--learn-colours {summary['arguments']['learn_colours']}) in"
-                     f" {summary['colours_learned_in']}; the others keep the default thresholds")
-    lines.append(f"({summary['seconds']} s; --rigs {summary['arguments']['rigs']} --poses"
-                 f" {summary['arguments']['poses']} --seed {summary['arguments']['seed']})")
+        lines.append(
+            f"pointer colours learned (--learn-colours {summary['arguments']['learn_colours']}) in"
+            f" {summary['colours_learned_in']}; the others keep the default thresholds"
+        )
+    lines.append(
+        f"({summary['seconds']} s; --rigs {summary['arguments']['rigs']} --poses"
+        f" {summary['arguments']['poses']} --seed {summary['arguments']['seed']})"
+    )
     return "\n".join(lines)

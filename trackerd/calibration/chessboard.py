@@ -358,4 +358,3 @@ def _square_px(grid: Array) -> float:
     dx = np.linalg.norm(np.diff(grid, axis=1), axis=2)
     dy = np.linalg.norm(np.diff(grid, axis=0), axis=2)
     return float(min(np.median(dx), np.median(dy)))
-

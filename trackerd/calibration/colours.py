@@ -134,8 +134,9 @@ class LearnedFigures:
     :data:`CHECK_FRAMES`); None when not tried."""
 
 
-def ball_discs(camera: CameraModel, front_m: NDArray[np.float64], back_m: NDArray[np.float64],
-               radius_m: float, front_colour: str) -> dict[str, Disc | None]:
+def ball_discs(
+    camera: CameraModel, front_m: NDArray[np.float64], back_m: NDArray[np.float64], radius_m: float, front_colour: str
+) -> dict[str, Disc | None]:
     """Where each ball of the located pointer images in ``camera`` (None behind it or off the image)."""
     back_colour = "blue" if front_colour == "red" else "red"
     discs: dict[str, Disc | None] = {}
@@ -162,8 +163,14 @@ def learned_threshold(ball_excess: float, background_excess: float) -> int:
 class ColourLearner:
     """Accumulates ball and background figures from located pairs (a live session's ``feed``)."""
 
-    def __init__(self, rig: RigConfig, cameras: Sequence[CameraModel], wanted: int = 60,
-                 locator: Locator | None = None, seed: int = 0) -> None:
+    def __init__(
+        self,
+        rig: RigConfig,
+        cameras: Sequence[CameraModel],
+        wanted: int = 60,
+        locator: Locator | None = None,
+        seed: int = 0,
+    ) -> None:
         if rig.pointer is None:
             raise CalibrationError("learning the pointer's colours needs the rig's [pointer] table")
         self.pointer: PointerConfig = rig.pointer
@@ -192,8 +199,10 @@ class ColourLearner:
         line = fix.line
         if not fix.found or line is None or max(line.front_gap_m, line.back_gap_m) > GOOD_GAP_M:
             if self.frames % 25 == 0 and self.used == 0:
-                return Event(f"[{self.frames} pairs] the pointer is not located yet"
-                             f" ({fix.reason or fix.status}): wave it where both cameras see it")
+                return Event(
+                    f"[{self.frames} pairs] the pointer is not located yet"
+                    f" ({fix.reason or fix.status}): wave it where both cameras see it"
+                )
             return None
         self.used += 1
         pointer = self.pointer
@@ -224,7 +233,8 @@ class ColourLearner:
             return Event(
                 f"[{self.used:>3} pairs] red ball {_level(red[0])} / room {_level(red[1])};"
                 f" blue ball {_level(blue[0])} / room {_level(blue[1])} (grey levels of colour excess)",
-                accepted=True, finished=self.done,
+                accepted=True,
+                finished=self.done,
             )
         return None
 
@@ -267,11 +277,16 @@ class ColourLearner:
         for colour in COLOURS:
             for camera, seen in zip(self.cameras, self._cameras, strict=True):
                 background = seen.background.get(colour)
-                per_camera.append(CameraFigures(
-                    camera.camera_id, colour, _percentile(seen.ball[colour]),
-                    background[0] if background else None, background[1] if background else None,
-                    background[2] if background else None,
-                ))
+                per_camera.append(
+                    CameraFigures(
+                        camera.camera_id,
+                        colour,
+                        _percentile(seen.ball[colour]),
+                        background[0] if background else None,
+                        background[1] if background else None,
+                        background[2] if background else None,
+                    )
+                )
             samples = sum(a.size for cam in self._cameras for a in cam.ball[colour])
             if samples < MIN_CORE_SAMPLES:
                 raise CalibrationError(
@@ -289,8 +304,9 @@ class ColourLearner:
                 )
             values = np.concatenate([v for cam in self._cameras for v in cam.value[colour]])
             min_value = min(threshold, round(VALUE_SHARE * float(np.percentile(values, BALL_PERCENTILE))))
-            learned[colour] = LearnedColour(min_excess=threshold, min_value=min_value,
-                                            ball_excess=round(ball), background_excess=room)
+            learned[colour] = LearnedColour(
+                min_excess=threshold, min_value=min_value, ball_excess=round(ball), background_excess=room
+            )
             if room >= threshold:
                 worst = _worst_figures(per_camera, colour)
                 at = worst.background_at_px
@@ -316,10 +332,12 @@ class ColourLearner:
         from trackerd.detect.detector import ColourEndDetector
 
         before = self.rig.detector
-        after = before.model_copy(update={
-            c: ColourThreshold(min_excess=colours.of(c).min_excess, min_value=colours.of(c).min_value)
-            for c in COLOURS
-        })
+        after = before.model_copy(
+            update={
+                c: ColourThreshold(min_excess=colours.of(c).min_excess, min_value=colours.of(c).min_value)
+                for c in COLOURS
+            }
+        )
         found = {name: self._found_with(cfg, ColourEndDetector) for name, cfg in (("before", before), ("after", after))}
         return {"before": found["before"], "after": found["after"], "pairs": len(self._kept)}
 
@@ -355,8 +373,10 @@ def _percentile(arrays: list[NDArray[np.int16]]) -> float | None:
 
 def _worst_figures(per_camera: list[CameraFigures], colour: str) -> CameraFigures:
     """The camera whose room reached the most of ``colour``."""
-    return max((f for f in per_camera if f.colour == colour and f.background_excess is not None),
-               key=lambda f: -1 if f.background_excess is None else f.background_excess)
+    return max(
+        (f for f in per_camera if f.colour == colour and f.background_excess is not None),
+        key=lambda f: -1 if f.background_excess is None else f.background_excess,
+    )
 
 
 def _worst(per_camera: list[CameraFigures], colour: str) -> str:

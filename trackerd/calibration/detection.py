@@ -155,4 +155,3 @@ def _charuco_detector(spec: BoardSpec) -> cv2.aruco.CharucoDetector:
         detector = cv2.aruco.CharucoDetector(spec.cv_board, charuco, params)
         _DETECTORS[key] = detector
     return detector
-

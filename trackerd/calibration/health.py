@@ -192,9 +192,7 @@ class CalibrationHealth:
         self.total = 0
 
     @classmethod
-    def for_rig(
-        cls, rig: RigConfig, cameras: Sequence[CameraModel] | None = None, **kwargs: Any
-    ) -> CalibrationHealth:
+    def for_rig(cls, rig: RigConfig, cameras: Sequence[CameraModel] | None = None, **kwargs: Any) -> CalibrationHealth:
         """From a RigConfig (pointer ball size and front colour)."""
         pointer = rig.pointer
         if pointer is None:

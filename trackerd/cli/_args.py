@@ -31,7 +31,8 @@ def positive_int(text: str) -> int:
 def add_console_option(parser: argparse.ArgumentParser) -> None:
     """``--console ADDR``: where the operator's console listens (the rig's ``[console]`` otherwise)."""
     parser.add_argument(
-        "--console", metavar="ADDR",
+        "--console",
+        metavar="ADDR",
         help="serve the operator's console on HOST:PORT instead of the rig's [console] listen"
-             " (default 127.0.0.1:8560), or 'off'",
+        " (default 127.0.0.1:8560), or 'off'",
     )

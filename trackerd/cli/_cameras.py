@@ -35,12 +35,22 @@ def add_virtual_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
     from trackerd.sim import netns
     from trackerd.sim.motion import MOTIONS
 
-    parser.add_argument("--virtual", metavar="MOTION", choices=MOTIONS,
-                        help=f"{verb} simulated cameras serving a rendered motion ({', '.join(MOTIONS)})")
-    parser.add_argument("--prefix", default=netns.DEFAULT_PREFIX,
-                        help=f"with --virtual: network namespace name prefix (default {netns.DEFAULT_PREFIX})")
-    parser.add_argument("--subnet", default=netns.DEFAULT_SUBNET,
-                        help=f"with --virtual: addresses for the cameras' links (default {netns.DEFAULT_SUBNET})")
+    parser.add_argument(
+        "--virtual",
+        metavar="MOTION",
+        choices=MOTIONS,
+        help=f"{verb} simulated cameras serving a rendered motion ({', '.join(MOTIONS)})",
+    )
+    parser.add_argument(
+        "--prefix",
+        default=netns.DEFAULT_PREFIX,
+        help=f"with --virtual: network namespace name prefix (default {netns.DEFAULT_PREFIX})",
+    )
+    parser.add_argument(
+        "--subnet",
+        default=netns.DEFAULT_SUBNET,
+        help=f"with --virtual: addresses for the cameras' links (default {netns.DEFAULT_SUBNET})",
+    )
 
 
 @contextmanager
@@ -71,12 +81,21 @@ def open_cameras(
             if network == "loopback" and rig.acquisition.trigger == "software":
                 acquisition = rig.acquisition.model_copy(update={"trigger": "free_running"})
                 rig = rig.model_copy(update={"acquisition": acquisition})
-            print(f"{label}: starting simulated cameras serving the '{virtual_motion}' motion (rendered once, then"
-                  " cached)...", file=sys.stderr, flush=True)
-            virtual = stack.enter_context(VirtualRig(
-                rig, motion=virtual_motion, network=network,
-                prefix=prefix or netns.DEFAULT_PREFIX, subnet=subnet or netns.DEFAULT_SUBNET,
-            ))
+            print(
+                f"{label}: starting simulated cameras serving the '{virtual_motion}' motion (rendered once, then"
+                " cached)...",
+                file=sys.stderr,
+                flush=True,
+            )
+            virtual = stack.enter_context(
+                VirtualRig(
+                    rig,
+                    motion=virtual_motion,
+                    network=network,
+                    prefix=prefix or netns.DEFAULT_PREFIX,
+                    subnet=subnet or netns.DEFAULT_SUBNET,
+                )
+            )
             rig = virtual.daemon_rig
         info = CameraInfo(before=None if virtual is None else virtual.on_open)
         opened = CameraSource(None, rig, info, virtual)

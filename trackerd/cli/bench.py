@@ -54,7 +54,8 @@ def register(subparsers: Any) -> None:
         if not has_run:
             continue
         summary = (doc or module_info.name).strip().splitlines()[0]
-        sub = bench_sub.add_parser(module_info.name, help=summary, description=doc,
-                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+        sub = bench_sub.add_parser(
+            module_info.name, help=summary, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter
+        )
         sub.module_name = f"trackerd.bench.{module_info.name}"
         sub.add_argument("--json", action="store_true", help="print the figures as one JSON object")

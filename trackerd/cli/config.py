@@ -94,7 +94,8 @@ def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFr
             "size_m": [wall.width_m, wall.height_m],
             "display_px": [wall.display_width_px, wall.display_height_px] if wall.has_display else None,
             "max_plane_residual_m": float(np.max(np.abs(wall.fit_residuals_m)))
-            if wall.fit_residuals_m is not None else 0.0,
+            if wall.fit_residuals_m is not None
+            else 0.0,
         },
         "pointer": rig.pointer.model_dump(),
         "detector": rig.detector.model_dump(),
@@ -123,9 +124,7 @@ def describe(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> 
             f" distortion [{', '.join(f'{d:g}' for d in cam.distortion) or 'none'}]"
         )
         centre = ", ".join(f"{v:.3f}" for v in cam.centre_m)
-        lines.append(
-            f"    at ({centre}) m, yaw {yaw:.2f} pitch {pitch:.2f} roll {roll:.2f} deg"
-        )
+        lines.append(f"    at ({centre}) m, yaw {yaw:.2f} pitch {pitch:.2f} roll {roll:.2f} deg")
     base = np.linalg.norm(cameras[0].centre_m - cameras[1].centre_m)
     lines.append(f"  baseline {cameras[0].camera_id}-{cameras[1].camera_id}: {base:.3f} m")
     lines.append(
@@ -155,10 +154,14 @@ def _thresholds_line(rig: RigConfig, sources: dict[str, str]) -> str:
             parts.append(f"{colour} {threshold.min_excess} (rig file's [detector.{colour}])")
         elif learned is not None:
             seen = learned.of(colour)
-            parts.append(f"{colour} {threshold.min_excess}"
-                         f" (learned: ball {seen.ball_excess}, room {seen.background_excess})")
+            parts.append(
+                f"{colour} {threshold.min_excess} (learned: ball {seen.ball_excess}, room {seen.background_excess})"
+            )
         else:
             parts.append(f"{colour} {threshold.min_excess} (default)")
-    when = f"; colours learned {learned.learned}" if learned is not None else (
-        "; colours not learned (`trackerd calibrate pointer` learns them in this room)")
+    when = (
+        f"; colours learned {learned.learned}"
+        if learned is not None
+        else ("; colours not learned (`trackerd calibrate pointer` learns them in this room)")
+    )
     return f"thresholds (colour excess, grey levels): {', '.join(parts)}{when}"

@@ -31,8 +31,10 @@ if TYPE_CHECKING:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "ctl", help="the console's actions (snapshot, recording, calibration check, status) on the running daemon",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "ctl",
+        help="the console's actions (snapshot, recording, calibration check, status) on the running daemon",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file the daemon runs with")
     parser.add_argument("--console", metavar="ADDR", help="the daemon's console HOST:PORT (default: the rig's)")
@@ -60,8 +62,10 @@ def connect(config: str, listen: str | None) -> tuple[ConsoleClient, dict[str, A
     client = ConsoleClient.for_rig(rig, listen)
     info = client.find()
     if info is None:
-        raise NoDaemon(f"no trackerd daemon's console answers at {client.base} (is `trackerd run` running,"
-                       " with [console] enabled?)")
+        raise NoDaemon(
+            f"no trackerd daemon's console answers at {client.base} (is `trackerd run` running,"
+            " with [console] enabled?)"
+        )
     return client, info
 
 

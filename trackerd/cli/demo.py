@@ -28,17 +28,26 @@ from trackerd.sim.motion import MOTIONS
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "demo", help="run the daemon on simulated cameras and print the hits it publishes",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "demo",
+        help="run the daemon on simulated cameras and print the hits it publishes",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--config", default=str(example_rig("simulated")),
-                        help="rig to simulate (default: the bundled config/simulated.toml)")
-    parser.add_argument("--motion", default="figure8", choices=MOTIONS,
-                        help="scripted pointer motion (default: figure8)")
+    parser.add_argument(
+        "--config",
+        default=str(example_rig("simulated")),
+        help="rig to simulate (default: the bundled config/simulated.toml)",
+    )
+    parser.add_argument(
+        "--motion", default="figure8", choices=MOTIONS, help="scripted pointer motion (default: figure8)"
+    )
     parser.add_argument("--seconds", type=positive_seconds, help="stop after this long (default: until Ctrl-C)")
     parser.add_argument("--every", type=int, default=6, help="print one hit in this many (default 6: ten a second)")
-    parser.add_argument("--endpoint", help="publish here instead of the rig's endpoint, for example to run"
-                        " beside a daemon that has it: tcp://127.0.0.1:5561")
+    parser.add_argument(
+        "--endpoint",
+        help="publish here instead of the rig's endpoint, for example to run"
+        " beside a daemon that has it: tcp://127.0.0.1:5561",
+    )
     add_console_option(parser)
     add_network_options(parser)
     parser.set_defaults(handler=demo_command)
@@ -58,8 +67,12 @@ def demo_command(args: argparse.Namespace) -> int:
     network: Network = "netns" if netns.netns_missing_reason() is None else "loopback"
     if network == "loopback" and rig.acquisition.trigger == "software":
         rig = rig.model_copy(update={"acquisition": rig.acquisition.model_copy(update={"trigger": "free_running"})})
-    print(f"trackerd demo: preparing the '{args.motion}' motion for {len(rig.cameras)} simulated cameras"
-          " (rendered once, then cached)...", file=sys.stderr, flush=True)
+    print(
+        f"trackerd demo: preparing the '{args.motion}' motion for {len(rig.cameras)} simulated cameras"
+        " (rendered once, then cached)...",
+        file=sys.stderr,
+        flush=True,
+    )
     virtual_rig = VirtualRig(
         rig, motion=args.motion, network=network, prefix=args.prefix, subnet=args.subnet, mtu=args.mtu
     )
@@ -77,16 +90,21 @@ def demo_command(args: argparse.Namespace) -> int:
             publisher: Publisher = zmq_publisher(r)
             if not listeners:
                 endpoint = connectable_endpoint(publisher.endpoints[0])
-                listeners.append(threading.Thread(
-                    target=_listen, args=(endpoint, args.every, stop, summary, format_message), daemon=True
-                ))
+                listeners.append(
+                    threading.Thread(
+                        target=_listen, args=(endpoint, args.every, stop, summary, format_message), daemon=True
+                    )
+                )
                 listeners[0].start()
             return publisher
 
         try:
             code = serve(
-                daemon_rig, None, lambda r: AravisPairSource(r, on_open=virtual.on_open, wait_for_cameras=True),
-                seconds=args.seconds, publisher_factory=publisher_then_listener,
+                daemon_rig,
+                None,
+                lambda r: AravisPairSource(r, on_open=virtual.on_open, wait_for_cameras=True),
+                seconds=args.seconds,
+                publisher_factory=publisher_then_listener,
                 banner=f"trackerd demo: daemon publishing on {', '.join(daemon_rig.outputs.zmq.endpoints)};"
                 " hits below (Ctrl-C to stop)",
             )
@@ -110,8 +128,9 @@ def _another_endpoint(rig: Any) -> str:
     return "another --endpoint"
 
 
-def _listen(endpoint: str, every: int, stop: threading.Event, summary: dict[str, Any],
-            fmt: Callable[[str, dict[str, Any]], str]) -> None:
+def _listen(
+    endpoint: str, every: int, stop: threading.Event, summary: dict[str, Any], fmt: Callable[[str, dict[str, Any]], str]
+) -> None:
     """A subscriber like any application's: prints every ``every``-th hit and each status."""
     ctx = zmq.Context()
     sub = ctx.socket(zmq.SUB)

@@ -60,22 +60,38 @@ class RecordTimeout(TrackerdError):
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("gesture", help="record and list gesture templates", description=__doc__,
-                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = subparsers.add_parser(
+        "gesture",
+        help="record and list gesture templates",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="gesture_command", metavar="COMMAND", required=True)
     record = sub.add_parser("record", help="record examples of a gesture into a template")
     record.add_argument("name", help="the gesture's name (letters, digits, _ and -), e.g. zigzag")
     record.add_argument("--examples", type=int, default=5, help="strokes to record (default 5)")
     record.add_argument("--dir", help="template directory (default: the rig's template_dir)")
     record.add_argument("--config", help="rig file: endpoint, template_dir and stroke settings from it")
-    record.add_argument("--endpoint",
-                        help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})")
-    record.add_argument("--from", dest="from_file", metavar="FILE",
-                        help="read hit messages from FILE (JSON lines) instead of a running trackerd")
-    record.add_argument("--rotation-invariant", action="store_true",
-                        help="the gesture may start anywhere and be drawn turned (like a circle)")
-    record.add_argument("--max-rotation-deg", type=float, default=30.0,
-                        help="otherwise: how far a stroke may be turned and still match (default 30)")
+    record.add_argument(
+        "--endpoint", help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})"
+    )
+    record.add_argument(
+        "--from",
+        dest="from_file",
+        metavar="FILE",
+        help="read hit messages from FILE (JSON lines) instead of a running trackerd",
+    )
+    record.add_argument(
+        "--rotation-invariant",
+        action="store_true",
+        help="the gesture may start anywhere and be drawn turned (like a circle)",
+    )
+    record.add_argument(
+        "--max-rotation-deg",
+        type=float,
+        default=30.0,
+        help="otherwise: how far a stroke may be turned and still match (default 30)",
+    )
     record.add_argument("--timeout", type=float, default=120.0, help="give up after S seconds (default 120)")
     record.set_defaults(handler=record_command)
     listing = sub.add_parser("list", help="list the gesture templates the daemon would load")
@@ -103,9 +119,16 @@ def list_command(args: argparse.Namespace) -> int:
     templates = load_templates(directory, builtin=interaction.gestures.builtin)
     for name, t in sorted(templates.items()):
         where = "built-in" if Path(t.source).parent == BUILTIN_DIR else t.source
-        gates = [f"{label} {value:g}" for label, value in (
-            ("min speed m/s", t.min_mean_speed_m_s), ("max ms", t.max_duration_ms), ("min size m", t.min_size_m),
-            ("max submovements", t.max_submovements)) if value is not None]
+        gates = [
+            f"{label} {value:g}"
+            for label, value in (
+                ("min speed m/s", t.min_mean_speed_m_s),
+                ("max ms", t.max_duration_ms),
+                ("min size m", t.min_size_m),
+                ("max submovements", t.max_submovements),
+            )
+            if value is not None
+        ]
         kind = "any rotation" if t.rotation_invariant else f"+-{t.max_rotation_deg:g} deg"
         print(f"{name:<16} {len(t.examples)} example(s)  {kind}  {', '.join(gates) or 'no gates'}  ({where})")
     return 0
@@ -113,8 +136,10 @@ def list_command(args: argparse.Namespace) -> int:
 
 def record_command(args: argparse.Namespace) -> int:
     if not NAME_PATTERN.match(args.name) or args.name in RESERVED_TRIGGERS:
-        raise ConfigError(f"'{args.name}' cannot name a gesture (letters, digits, _ and -, starting with a letter;"
-                          f" not {', '.join(RESERVED_TRIGGERS)})")
+        raise ConfigError(
+            f"'{args.name}' cannot name a gesture (letters, digits, _ and -, starting with a letter;"
+            f" not {', '.join(RESERVED_TRIGGERS)})"
+        )
     if args.examples < 1:
         raise ConfigError("--examples must be 1 or more")
     interaction, directory, endpoint = _settings(args)
@@ -123,9 +148,11 @@ def record_command(args: argparse.Namespace) -> int:
     own = load_directory(directory) if directory.is_dir() else {}
     existing = own.pop(args.name, None)
     if existing is not None and existing.rotation_invariant != args.rotation_invariant:
-        raise ConfigError(f"{existing.source}: {args.name} is {'' if existing.rotation_invariant else 'not '}"
-                          f"rotation-invariant; record it {'with' if existing.rotation_invariant else 'without'}"
-                          " --rotation-invariant, or under another name")
+        raise ConfigError(
+            f"{existing.source}: {args.name} is {'' if existing.rotation_invariant else 'not '}"
+            f"rotation-invariant; record it {'with' if existing.rotation_invariant else 'without'}"
+            " --rotation-invariant, or under another name"
+        )
     known = load_templates(None, builtin=interaction.gestures.builtin)
     known.pop(args.name, None)
     known.update(own)
@@ -133,30 +160,45 @@ def record_command(args: argparse.Namespace) -> int:
     created = _writable_directory(directory)
     written = False
     try:
-        hits = _hits_from_file(Path(args.from_file)) if args.from_file else _hits_from_zmq(
-            args.endpoint or endpoint or DEFAULT_ENDPOINT, args.timeout)
+        hits = (
+            _hits_from_file(Path(args.from_file))
+            if args.from_file
+            else _hits_from_zmq(args.endpoint or endpoint or DEFAULT_ENDPOINT, args.timeout)
+        )
         strokes = _consistent_strokes(args, _strokes(hits, interaction), interaction, known, existing)
-        template = template_from_strokes(args.name, [(s.times_ns, s.points_m) for s in strokes],
-                                         rotation_invariant=args.rotation_invariant,
-                                         max_rotation_deg=args.max_rotation_deg)
+        template = template_from_strokes(
+            args.name,
+            [(s.times_ns, s.points_m) for s in strokes],
+            rotation_invariant=args.rotation_invariant,
+            max_rotation_deg=args.max_rotation_deg,
+        )
         if existing is not None:
             template = _merge(existing, template)
         try:
             path = save_template(template, directory)
         except OSError as err:
-            raise TrackerdError(f"{directory}: cannot write {template.name}.json: {err.strerror};"
-                                f" the {len(strokes)} example(s) are not saved") from err
+            raise TrackerdError(
+                f"{directory}: cannot write {template.name}.json: {err.strerror};"
+                f" the {len(strokes)} example(s) are not saved"
+            ) from err
         written = True
     finally:
         if not written:
             _remove_empty(created)
-    print(f"wrote {path} ({len(template.examples)} example(s)); reload trackerd (systemctl reload trackerd)"
-          " to use it", flush=True)
+    print(
+        f"wrote {path} ({len(template.examples)} example(s)); reload trackerd (systemctl reload trackerd) to use it",
+        flush=True,
+    )
     return 0
 
 
-def _consistent_strokes(args: argparse.Namespace, strokes: Iterator[Stroke], interaction: InteractionConfig,
-                        known: dict[str, Template], existing: Template | None) -> list[Stroke]:
+def _consistent_strokes(
+    args: argparse.Namespace,
+    strokes: Iterator[Stroke],
+    interaction: InteractionConfig,
+    known: dict[str, Template],
+    existing: Template | None,
+) -> list[Stroke]:
     """The first ``args.examples`` strokes that the recogniser takes for the gesture's other examples.
 
     Each stroke is scored as the daemon would score it against the examples kept so far (those
@@ -175,8 +217,11 @@ def _consistent_strokes(args: argparse.Namespace, strokes: Iterator[Stroke], int
             score = score_shape(stroke.points_m, own)
             if score < minimum:
                 refused += 1
-                print(f"{line}: refused, it scores {score:.2f} against the other examples of {args.name}"
-                      f" (at least {minimum:.2f} needed): a different gesture? draw it again", flush=True)
+                print(
+                    f"{line}: refused, it scores {score:.2f} against the other examples of {args.name}"
+                    f" (at least {minimum:.2f} needed): a different gesture? draw it again",
+                    flush=True,
+                )
                 continue
             line += f"; {score:.2f} against the other examples"
         if known:
@@ -190,8 +235,10 @@ def _consistent_strokes(args: argparse.Namespace, strokes: Iterator[Stroke], int
         if len(kept) >= args.examples:
             return kept
     unlike = f", {refused} refused as unlike the others" if refused else ""
-    raise RecordTimeout(f"only {len(kept)} of {args.examples} strokes{unlike}"
-                        f" {'in ' + args.from_file if args.from_file else f'within {args.timeout:g} s'}")
+    raise RecordTimeout(
+        f"only {len(kept)} of {args.examples} strokes{unlike}"
+        f" {'in ' + args.from_file if args.from_file else f'within {args.timeout:g} s'}"
+    )
 
 
 def _writable_directory(directory: Path) -> list[Path]:
@@ -226,11 +273,15 @@ def _remove_empty(folders: list[Path]) -> None:
 
 def _merge(old: Template, new: Template) -> Template:
     """The examples of both; gates wide enough for both."""
+
     def widest(a: T | None, b: T | None, pick: Callable[[T, T], T]) -> T | None:
         return None if a is None or b is None else pick(a, b)
 
     return Template(
-        new.name, old.examples + new.examples, new.rotation_invariant, new.max_rotation_deg,
+        new.name,
+        old.examples + new.examples,
+        new.rotation_invariant,
+        new.max_rotation_deg,
         widest(old.min_mean_speed_m_s, new.min_mean_speed_m_s, min),
         widest(old.max_duration_ms, new.max_duration_ms, max),
         widest(old.min_size_m, new.min_size_m, min),

@@ -32,9 +32,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("role", choices=["server", "client"],
-                        help="server: the daemon's pair (outputs.zmq.curve_secret_key_file);"
-                             " client: a subscriber's pair (its .key goes into curve_authorized_keys_dir)")
+    parser.add_argument(
+        "role",
+        choices=["server", "client"],
+        help="server: the daemon's pair (outputs.zmq.curve_secret_key_file);"
+        " client: a subscriber's pair (its .key goes into curve_authorized_keys_dir)",
+    )
     parser.add_argument("--dir", default=".", help="directory to write into (default: the current one)")
     parser.add_argument("--name", help="file name stem (default: the role); e.g. the subscriber's host or app")
     parser.add_argument("--force", action="store_true", help="overwrite existing files")
@@ -52,11 +55,15 @@ def keys_command(args: argparse.Namespace) -> int:
     print(f"public key: {public_path}")
     print(f"secret key: {secret_path} (mode 0600; keep it private)")
     if args.role == "server":
-        print("next: set outputs.zmq.curve_secret_key_file to the secret key's absolute path, make it"
-              " readable by the trackerd user only, and give the public key to subscribers")
+        print(
+            "next: set outputs.zmq.curve_secret_key_file to the secret key's absolute path, make it"
+            " readable by the trackerd user only, and give the public key to subscribers"
+        )
     else:
-        print("next: copy the public key into the daemon's curve_authorized_keys_dir (if it has one) and"
-              " run subscribers with --client-key on the secret key")
+        print(
+            "next: copy the public key into the daemon's curve_authorized_keys_dir (if it has one) and"
+            " run subscribers with --client-key on the secret key"
+        )
     return 0
 
 

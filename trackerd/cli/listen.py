@@ -45,19 +45,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--endpoint",
-                        help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})")
+    parser.add_argument(
+        "--endpoint", help=f"where trackerd publishes (default: from --config, else {DEFAULT_ENDPOINT})"
+    )
     parser.add_argument("--config", help="rig TOML file: take the endpoint and the server's CURVE key from it")
-    parser.add_argument("--topic", action="append", metavar="T",
-                        help=f"only this topic (repeatable; default: all). Topics: {', '.join(TOPICS)}")
+    parser.add_argument(
+        "--topic",
+        action="append",
+        metavar="T",
+        help=f"only this topic (repeatable; default: all). Topics: {', '.join(TOPICS)}",
+    )
     parser.add_argument("--count", type=int, metavar="N", help="exit after N messages")
     parser.add_argument("--json", action="store_true", help="print each payload as one JSON line")
-    parser.add_argument("--timeout", type=float, metavar="S",
-                        help="exit 1 if S seconds pass without a message")
+    parser.add_argument("--timeout", type=float, metavar="S", help="exit 1 if S seconds pass without a message")
     parser.add_argument("--server-key", metavar="FILE", help="the daemon's CURVE public key (server.key)")
-    parser.add_argument("--client-key", metavar="FILE",
-                        help="this subscriber's CURVE key pair (.key_secret); default: a throwaway pair,"
-                             " enough when the daemon accepts any client")
+    parser.add_argument(
+        "--client-key",
+        metavar="FILE",
+        help="this subscriber's CURVE key pair (.key_secret); default: a throwaway pair,"
+        " enough when the daemon accepts any client",
+    )
     parser.set_defaults(handler=listen_command)
 
 
@@ -96,8 +103,9 @@ def listen_command(args: argparse.Namespace) -> int:
             raise ConfigError(f"--endpoint {endpoint}: {err.strerror}") from err
         topics = ", ".join(args.topic) if args.topic else "all topics"
         curve = " (CURVE)" if server_key is not None else ""
-        print(f"trackerd listen: listening to {endpoint}{curve} for {topics}; Ctrl-C to stop",
-              file=sys.stderr, flush=True)
+        print(
+            f"trackerd listen: listening to {endpoint}{curve} for {topics}; Ctrl-C to stop", file=sys.stderr, flush=True
+        )
         return _receive(sub, args, endpoint, silence_hint(endpoint, server_key is not None, status_interval_s))
     except KeyboardInterrupt:
         return 0
@@ -130,9 +138,9 @@ def connectable_endpoint(endpoint: str) -> str:
     """A bind endpoint as a local subscriber connects to it ('*' and 0.0.0.0 mean this host)."""
     for wildcard in ("tcp://*:", "tcp://0.0.0.0:"):
         if endpoint.startswith(wildcard):
-            return "tcp://127.0.0.1:" + endpoint[len(wildcard):]
+            return "tcp://127.0.0.1:" + endpoint[len(wildcard) :]
     if endpoint.startswith("tcp://[::]:"):
-        return "tcp://[::1]:" + endpoint[len("tcp://[::]:"):]
+        return "tcp://[::1]:" + endpoint[len("tcp://[::]:") :]
     return endpoint
 
 
@@ -147,11 +155,16 @@ def silence_hint(endpoint: str, curve: bool, status_interval_s: float) -> Hint:
     """The line to print when nothing at all has arrived for a few status periods: the three usual
     reasons, each with what to check."""
     after_s = max(float(SILENT_STATUS_PERIODS), SILENT_STATUS_PERIODS * status_interval_s)
-    keys = ("is --server-key the daemon's public key, and does the daemon accept this client's key?" if curve
-            else "does the daemon use CURVE (then --server-key FILE, or --config with its rig file)?")
-    text = (f"trackerd listen: nothing from {endpoint} in {after_s:g} s, though a running trackerd publishes"
-            f" a status every {status_interval_s:g} s: is the daemon running (systemctl status trackerd)?"
-            f" is {endpoint} the endpoint in the rig's [outputs.zmq]? {keys}")
+    keys = (
+        "is --server-key the daemon's public key, and does the daemon accept this client's key?"
+        if curve
+        else "does the daemon use CURVE (then --server-key FILE, or --config with its rig file)?"
+    )
+    text = (
+        f"trackerd listen: nothing from {endpoint} in {after_s:g} s, though a running trackerd publishes"
+        f" a status every {status_interval_s:g} s: is the daemon running (systemctl status trackerd)?"
+        f" is {endpoint} the endpoint in the rig's [outputs.zmq]? {keys}"
+    )
     return Hint(text, after_s)
 
 
@@ -193,8 +206,11 @@ def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str, hint: Hin
             continue
         version = str(data.get("schema_version", "?"))
         if version.split(".")[0] != str(SCHEMA_MAJOR) and not warned_version:
-            print(f"trackerd listen: messages are schema {version}; this trackerd reads {SCHEMA_MAJOR}.x,"
-                  " so fields may be missing below", file=sys.stderr)
+            print(
+                f"trackerd listen: messages are schema {version}; this trackerd reads {SCHEMA_MAJOR}.x,"
+                " so fields may be missing below",
+                file=sys.stderr,
+            )
             warned_version = True
         print(format_message(topic, data), flush=True)
     return 0
@@ -207,8 +223,17 @@ def format_message(topic: str, data: dict[str, Any]) -> str:
     """One readable line for a message; tolerant of missing and unknown fields (an event without
     the field its line is built around is printed raw, like an unknown topic)."""
     head = f"{topic:<8} #{data.get('sequence', '?')}"
-    formatter = {"hit": _hit, "pointer": _pointer, "status": _status, "enter": _enter, "leave": _leave,
-                 "dwell": _dwell, "gesture": _gesture, "command": _command, "hand": _hand}.get(topic)
+    formatter = {
+        "hit": _hit,
+        "pointer": _pointer,
+        "status": _status,
+        "enter": _enter,
+        "leave": _leave,
+        "dwell": _dwell,
+        "gesture": _gesture,
+        "command": _command,
+        "hand": _hand,
+    }.get(topic)
     line = None
     if formatter is not None:
         try:
@@ -268,8 +293,10 @@ def _dwell(d: dict[str, Any]) -> str | None:
 def _gesture(d: dict[str, Any]) -> str | None:
     if "name" not in d:
         return None
-    text = f"{d['name']}  score {_num(d.get('score'), '.2f')}  {_num(d.get('duration_ms'), '.0f', ' ms')}" \
+    text = (
+        f"{d['name']}  score {_num(d.get('score'), '.2f')}  {_num(d.get('duration_ms'), '.0f', ' ms')}"
         f"  {_num(d.get('path_m'), '.2f', ' m')}  cursor {d.get('cursor_id', '?')}  {_where(d)}"
+    )
     if d.get("runner_up"):
         text += f"  (next: {d['runner_up']} {_num(d.get('runner_up_score'), '.2f')})"
     return text
@@ -288,8 +315,10 @@ def _hand(d: dict[str, Any]) -> str | None:
     if "fingers" not in d:
         return None
     state = "" if d.get("present", True) else "  gone"
-    return f"{d['fingers']} fingers (now {d.get('fingers_now', '?')})  {d.get('camera', '?')}" \
+    return (
+        f"{d['fingers']} fingers (now {d.get('fingers_now', '?')})  {d.get('camera', '?')}"
         f"  ({_num(d.get('image_x_px'), '.0f')}, {_num(d.get('image_y_px'), '.0f')} px){state}"
+    )
 
 
 def _vec(values: Any) -> str:
@@ -297,13 +326,15 @@ def _vec(values: Any) -> str:
 
 
 def _pointer(d: dict[str, Any]) -> str:
-    return "  ".join([
-        str(d.get("status", "?")),
-        f"front {_vec(d['front_m'])} m",
-        f"back {_vec(d['back_m'])} m",
-        f"length {d['length_m'] * 1000:.0f} mm",
-        f"gaps {_num(d.get('front_gap_mm'), '.1f')}/{_num(d.get('back_gap_mm'), '.1f')} mm",
-    ])
+    return "  ".join(
+        [
+            str(d.get("status", "?")),
+            f"front {_vec(d['front_m'])} m",
+            f"back {_vec(d['back_m'])} m",
+            f"length {d['length_m'] * 1000:.0f} mm",
+            f"gaps {_num(d.get('front_gap_mm'), '.1f')}/{_num(d.get('back_gap_mm'), '.1f')} mm",
+        ]
+    )
 
 
 def _status(d: dict[str, Any]) -> str:

@@ -37,8 +37,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file")
-    parser.add_argument("images", nargs="+", metavar="IMAGE",
-                        help="one image per camera, in the rig's camera order (PNG, JPEG, TIFF or .npy)")
+    parser.add_argument(
+        "images",
+        nargs="+",
+        metavar="IMAGE",
+        help="one image per camera, in the rig's camera order (PNG, JPEG, TIFF or .npy)",
+    )
     parser.add_argument("--truth", help="ground-truth JSON (as bundled in tests/data/pairs) to report the error")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.set_defaults(handler=locate_command)
@@ -133,7 +137,9 @@ def fix_to_json(fix: PointerFix, locator: Locator, images: list[str]) -> dict[st
         "status": fix.status,
         "reason": fix.reason,
         "cameras": cameras,
-        "pointer": None if line is None else {
+        "pointer": None
+        if line is None
+        else {
             "front_colour": locator.front_colour,
             "front_m": _vec(line.front_m),
             "back_m": _vec(line.back_m),
@@ -142,7 +148,9 @@ def fix_to_json(fix: PointerFix, locator: Locator, images: list[str]) -> dict[st
             "back_gap_m": line.back_gap_m,
             "method": line.method,
         },
-        "hit": None if hit is None else {
+        "hit": None
+        if hit is None
+        else {
             "wall_xy_m": _vec(hit.wall_xy_m),
             "display_px": _vec(hit.display_px),
             "on_wall": hit.on_wall,

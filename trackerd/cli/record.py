@@ -29,21 +29,33 @@ from trackerd.errors import RecordingError
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "record", help="record synchronized camera pairs to a recording folder",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "record",
+        help="record synchronized camera pairs to a recording folder",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file")
     parser.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
     limit = parser.add_mutually_exclusive_group()
     limit.add_argument("--seconds", type=positive_seconds, help="stop after this many seconds of recorded time")
     limit.add_argument("--pairs", type=int, help="stop after this many pairs")
-    parser.add_argument("--compression", choices=("none", "deflate"),
-                        help="frame storage (default: the rig's [recording] compression, normally none)")
-    parser.add_argument("--mode", choices=("raw", "compressed", "windowed"),
-                        help="raw, compressed (lossless zstd) or windowed (the tracker's windows over keyframes);"
-                             " default: the rig's [recording] mode, normally raw")
-    parser.add_argument("--keyframe-interval", type=positive_seconds, metavar="S",
-                        help="compressed and windowed: a pair stored whole at least every S seconds (default 1)")
+    parser.add_argument(
+        "--compression",
+        choices=("none", "deflate"),
+        help="frame storage (default: the rig's [recording] compression, normally none)",
+    )
+    parser.add_argument(
+        "--mode",
+        choices=("raw", "compressed", "windowed"),
+        help="raw, compressed (lossless zstd) or windowed (the tracker's windows over keyframes);"
+        " default: the rig's [recording] mode, normally raw",
+    )
+    parser.add_argument(
+        "--keyframe-interval",
+        type=positive_seconds,
+        metavar="S",
+        help="compressed and windowed: a pair stored whole at least every S seconds (default 1)",
+    )
     add_virtual_arguments(parser, "record")
     parser.set_defaults(handler=record_command)
 
@@ -80,14 +92,25 @@ def record_command(args: argparse.Namespace) -> int:
     progress = ProgressLine()
     recorder = None
     try:
-        with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd record", prefix=args.prefix,
-                          subnet=args.subnet) as cams:
+        with open_cameras(
+            loaded.config, virtual_motion=args.virtual, label="trackerd record", prefix=args.prefix, subnet=args.subnet
+        ) as cams:
             # The recorder's failure is this command's error line below, not a log record as well.
-            recorder = Recorder(out, cams.rig, producer="trackerd record", config=config, camera_info=cams.info,
-                                rig_file=loaded.path.resolve(), calibration_file=loaded.calibration_path,
-                                log_failure=False).start()
-            print(f"trackerd record: recording {', '.join(c.id for c in cams.rig.cameras)} to {out}"
-                  " (Ctrl-C to stop)", file=sys.stderr, flush=True)
+            recorder = Recorder(
+                out,
+                cams.rig,
+                producer="trackerd record",
+                config=config,
+                camera_info=cams.info,
+                rig_file=loaded.path.resolve(),
+                calibration_file=loaded.calibration_path,
+                log_failure=False,
+            ).start()
+            print(
+                f"trackerd record: recording {', '.join(c.id for c in cams.rig.cameras)} to {out} (Ctrl-C to stop)",
+                file=sys.stderr,
+                flush=True,
+            )
             while not stop.is_set() and not recorder.done:
                 pair = cams.source.next_pair(0.1)
                 if pair is not None:
@@ -103,8 +126,11 @@ def record_command(args: argparse.Namespace) -> int:
             recorder.stop(timeout_s=60.0)
         progress.done()
     status = recorder.status()
-    kept = (f"{status.pairs} pairs ({status.recorded_s:.1f} s, {status.written_mb:.0f} MB) in {out}"
-            if status.pairs else "nothing was recorded")
+    kept = (
+        f"{status.pairs} pairs ({status.recorded_s:.1f} s, {status.written_mb:.0f} MB) in {out}"
+        if status.pairs
+        else "nothing was recorded"
+    )
     if recorder.error is not None:
         # One line: what stopped it and what was kept (readable: the partial pair is cut off).
         message = str(recorder.error).removesuffix("; what was written stays readable")
@@ -115,7 +141,9 @@ def record_command(args: argparse.Namespace) -> int:
     progress.done()
     if status.pairs == 0:
         raise RecordingError(f"{out}: no pair arrived from the cameras; nothing was recorded")
-    print(f"trackerd record: {kept}; dropped: {status.dropped_pairs} pairs by the writer,"
-          f" {source_status.dropped_pairs} pairs and {source_status.frames_dropped} unpaired frames at the cameras",
-          file=sys.stderr)
+    print(
+        f"trackerd record: {kept}; dropped: {status.dropped_pairs} pairs by the writer,"
+        f" {source_status.dropped_pairs} pairs and {source_status.frames_dropped} unpaired frames at the cameras",
+        file=sys.stderr,
+    )
     return 0

@@ -29,8 +29,10 @@ if TYPE_CHECKING:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "recording", help="check, import and export recordings",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "recording",
+        help="check, import and export recordings",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = parser.add_subparsers(dest="recording_command", metavar="ACTION", required=True)
 
@@ -45,27 +47,48 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     imp.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
     imp.add_argument("--config", required=True, help="rig TOML file the images come from (cameras, calibration)")
     timing = imp.add_mutually_exclusive_group()
-    timing.add_argument("--timestamps", metavar="CSV",
-                     help="CSV with name and timestamp_ns|_us|_ms|_s columns (optionally camera); in name order"
-                          " the times must increase")
-    timing.add_argument("--rate", type=float, metavar="HZ",
-                     help="without --timestamps: the images are a real sequence at HZ pairs per second. Without"
-                          " either, they are unrelated stills 1 s apart (longer than the interaction's"
-                          " reset_after_ms, so each is smoothed on its own)")
-    imp.add_argument("--compression", choices=("none", "deflate"), default="none",
-                     help="store frames raw (default) or deflated (lossless, smaller, slower to write)")
-    imp.add_argument("--mode", choices=("raw", "compressed", "windowed"), default="raw",
-                     help="raw (default), compressed (lossless zstd) or windowed (docs/recording.md, Modes)")
+    timing.add_argument(
+        "--timestamps",
+        metavar="CSV",
+        help="CSV with name and timestamp_ns|_us|_ms|_s columns (optionally camera); in name order"
+        " the times must increase",
+    )
+    timing.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="without --timestamps: the images are a real sequence at HZ pairs per second. Without"
+        " either, they are unrelated stills 1 s apart (longer than the interaction's"
+        " reset_after_ms, so each is smoothed on its own)",
+    )
+    imp.add_argument(
+        "--compression",
+        choices=("none", "deflate"),
+        default="none",
+        help="store frames raw (default) or deflated (lossless, smaller, slower to write)",
+    )
+    imp.add_argument(
+        "--mode",
+        choices=("raw", "compressed", "windowed"),
+        default="raw",
+        help="raw (default), compressed (lossless zstd) or windowed (docs/recording.md, Modes)",
+    )
     imp.set_defaults(handler=import_command)
 
     conv = sub.add_parser("convert", help="rewrite a recording in another mode (compressed, windowed, raw)")
     conv.add_argument("recording", metavar="REC", help="a recording folder (*.trec)")
     conv.add_argument("out", metavar="OUT", help="the new recording (a folder, by convention *.trec)")
     conv.add_argument("--mode", required=True, choices=("raw", "compressed", "windowed"), help="the new mode")
-    conv.add_argument("--keyframe-interval", type=positive_seconds, default=1.0, metavar="S",
-                      help="compressed and windowed: a pair stored whole at least every S seconds (default 1)")
-    conv.add_argument("--margin", type=int, default=8, metavar="PX",
-                      help="windowed: pixels added around each window (default 8)")
+    conv.add_argument(
+        "--keyframe-interval",
+        type=positive_seconds,
+        default=1.0,
+        metavar="S",
+        help="compressed and windowed: a pair stored whole at least every S seconds (default 1)",
+    )
+    conv.add_argument(
+        "--margin", type=int, default=8, metavar="PX", help="windowed: pixels added around each window (default 8)"
+    )
     conv.add_argument("--no-verify", action="store_true", help="skip the source's frame checksums")
     conv.set_defaults(handler=convert_command)
 
@@ -109,12 +132,22 @@ def import_command(args: argparse.Namespace) -> int:
     loaded = load_rig(args.config, for_tracking=False)  # the cameras are what it uses
     check_new_recording(args.out)
     line, show = _progress("importing")
-    writer = import_folder(args.folder, args.out, loaded.config, timestamps=args.timestamps, rate_hz=args.rate,
-                           compression=args.compression, rig_file=loaded.path, progress=show, mode=args.mode)
+    writer = import_folder(
+        args.folder,
+        args.out,
+        loaded.config,
+        timestamps=args.timestamps,
+        rate_hz=args.rate,
+        compression=args.compression,
+        rig_file=loaded.path,
+        progress=show,
+        mode=args.mode,
+    )
     line.done()
     formats = ", ".join(f"{c.id} {c.pixel_format} {c.width_px}x{c.height_px}" for c in writer.metadata.cameras)
-    print(f"{writer.path}: {writer.pairs} pairs imported from {args.folder} ({formats}),"
-          f" {writer.data_bytes / 1e6:.1f} MB")
+    print(
+        f"{writer.path}: {writer.pairs} pairs imported from {args.folder} ({formats}), {writer.data_bytes / 1e6:.1f} MB"
+    )
     return 0
 
 
@@ -129,8 +162,15 @@ def convert_command(args: argparse.Namespace) -> int:
         for problem in recording.problems:
             print(f"trackerd recording convert: warning: {problem}", file=sys.stderr)
         line, show = _progress("converting")
-        summary = convert_recording(recording, args.out, args.mode, keyframe_interval_s=args.keyframe_interval,
-                                    window_margin_px=args.margin, verify=not args.no_verify, progress=show)
+        summary = convert_recording(
+            recording,
+            args.out,
+            args.mode,
+            keyframe_interval_s=args.keyframe_interval,
+            window_margin_px=args.margin,
+            verify=not args.no_verify,
+            progress=show,
+        )
         line.done()
     for problem in summary.skipped:
         print(f"trackerd recording convert: error: {problem}", file=sys.stderr)
@@ -139,8 +179,10 @@ def convert_command(args: argparse.Namespace) -> int:
     if writer.mode != "raw":
         reasons = f" ({', '.join(f'{k} {v}' for k, v in summary.keyframes.items())})" if summary.keyframes else ""
         keys = f", {writer.keyframes} keyframes{reasons}"
-    print(f"{writer.path}: {writer.pairs} pairs, {writer.mode}{keys}, {writer.data_bytes / 1e6:.1f} MB"
-          f" ({summary.source_bytes / max(writer.data_bytes, 1):.1f}x smaller than {args.recording})")
+    print(
+        f"{writer.path}: {writer.pairs} pairs, {writer.mode}{keys}, {writer.data_bytes / 1e6:.1f} MB"
+        f" ({summary.source_bytes / max(writer.data_bytes, 1):.1f}x smaller than {args.recording})"
+    )
     return 1 if summary.skipped else 0
 
 
@@ -158,11 +200,21 @@ def export_command(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"  {note}", file=sys.stderr)
         line, show = _progress("exporting")
-        summary = export_recording(recording, args.out, rig, every=args.every, first=args.first, count=args.count,
-                                   images=not args.no_images, progress=show)
+        summary = export_recording(
+            recording,
+            args.out,
+            rig,
+            every=args.every,
+            first=args.first,
+            count=args.count,
+            images=not args.no_images,
+            progress=show,
+        )
         line.done()
     for problem in summary.skipped:
         print(f"trackerd recording export: error: {problem}", file=sys.stderr)
-    print(f"{summary.csv_path}: {summary.pairs} pairs ({', '.join(f'{k} {v}' for k, v in summary.statuses.items())});"
-          f" {summary.images} images in {args.out}")
+    print(
+        f"{summary.csv_path}: {summary.pairs} pairs ({', '.join(f'{k} {v}' for k, v in summary.statuses.items())});"
+        f" {summary.images} images in {args.out}"
+    )
     return 1 if summary.skipped else 0

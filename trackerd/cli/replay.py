@@ -38,25 +38,48 @@ if TYPE_CHECKING:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "replay", help="replay a recording through the daemon's pipeline, publishing as `trackerd run` does",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "replay",
+        help="replay a recording through the daemon's pipeline, publishing as `trackerd run` does",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("recording", metavar="RECORDING", help="a recording folder (*.trec)")
     parser.add_argument("--config", help="rig TOML file to use instead of the recorded rig")
-    parser.add_argument("--speed", type=parse_speed, default=1.0, metavar="S",
-                        help="1.0: recorded pace (default); 2.0: twice as fast; max: as fast as possible")
+    parser.add_argument(
+        "--speed",
+        type=parse_speed,
+        default=1.0,
+        metavar="S",
+        help="1.0: recorded pace (default); 2.0: twice as fast; max: as fast as possible",
+    )
     parser.add_argument("--loop", action="store_true", help="start again from the first pair at the end")
-    parser.add_argument("--passes", type=positive_int, metavar="N",
-                        help="loop, and stop after N passes over the recording (--loop alone: until stopped)")
+    parser.add_argument(
+        "--passes",
+        type=positive_int,
+        metavar="N",
+        help="loop, and stop after N passes over the recording (--loop alone: until stopped)",
+    )
     parser.add_argument("--seconds", type=positive_seconds, help="stop after this many seconds (default: at the end)")
-    parser.add_argument("--endpoint", action="append", metavar="E",
-                        help="publish on this ZeroMQ endpoint instead of the rig's (repeatable)")
-    parser.add_argument("--delay", type=float, default=1.0, metavar="S",
-                        help="seconds between binding the publisher and the first pair (default 1.0)")
+    parser.add_argument(
+        "--endpoint",
+        action="append",
+        metavar="E",
+        help="publish on this ZeroMQ endpoint instead of the rig's (repeatable)",
+    )
+    parser.add_argument(
+        "--delay",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="seconds between binding the publisher and the first pair (default 1.0)",
+    )
     parser.add_argument("--first", type=int, default=0, metavar="N", help="start at pair N (default 0)")
     parser.add_argument("--count", type=int, metavar="N", help="replay N pairs (default: to the end)")
-    parser.add_argument("--no-verify", action="store_true",
-                        help="skip the frame checksums (faster at --speed max; record headers are still checked)")
+    parser.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="skip the frame checksums (faster at --speed max; record headers are still checked)",
+    )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     add_console_option(parser)
     parser.set_defaults(handler=replay_command)
@@ -86,15 +109,23 @@ def replay_command(args: argparse.Namespace) -> int:
     rig, notes = replay_rig(recording, args.config, args.endpoint)
     rig = with_console(rig, args.console)
     source = ReplayPairSource(
-        recording, speed=args.speed, loop=args.loop or args.passes is not None, verify=not args.no_verify,
+        recording,
+        speed=args.speed,
+        loop=args.loop or args.passes is not None,
+        verify=not args.no_verify,
         start_delay_s=args.delay,
-        first=args.first, count=args.count, passes=args.passes,
+        first=args.first,
+        count=args.count,
+        passes=args.passes,
     )
     pace = "max speed" if args.speed is None else f"{args.speed:g}x the recorded pace"
     meta = recording.metadata
-    print(f"trackerd replay {recording.path}: pairs {source.first}-{source.stop_at - 1} of {len(recording)}"
-          f" ({recording.duration_s:.1f} s recorded {meta.created_utc} by {meta.producer}), {pace}"
-          + (f", {args.passes} passes" if args.passes else ", looping" if args.loop else ""), file=sys.stderr)
+    print(
+        f"trackerd replay {recording.path}: pairs {source.first}-{source.stop_at - 1} of {len(recording)}"
+        f" ({recording.duration_s:.1f} s recorded {meta.created_utc} by {meta.producer}), {pace}"
+        + (f", {args.passes} passes" if args.passes else ", looping" if args.loop else ""),
+        file=sys.stderr,
+    )
     for note in notes:
         print(f"  {note}", file=sys.stderr)
     publishers: list[Publisher] = []
@@ -113,12 +144,21 @@ def replay_command(args: argparse.Namespace) -> int:
         if progress.due():
             hits = publishers[-1].counts.get("hit", 0) if publishers else 0
             rate = source.status().pair_rate_hz
-            progress.show(f"replay: {source.delivered}/{total} pairs, {rate:.0f} pairs/s, {hits} hits,"
-                          f" lag {source.lag_ms:.0f} ms")
+            progress.show(
+                f"replay: {source.delivered}/{total} pairs, {rate:.0f} pairs/s, {hits} hits, lag {source.lag_ms:.0f} ms"
+            )
         return source.finished and pipeline.pairs_processed >= source.delivered and pipeline.backlog <= 0
 
-    code = serve(rig, None, lambda _r: source, seconds=args.seconds, publisher_factory=publisher_factory,
-                 clock_offset_ns=source.pipeline_clock_offset_ns(), until=until, replay=True)
+    code = serve(
+        rig,
+        None,
+        lambda _r: source,
+        seconds=args.seconds,
+        publisher_factory=publisher_factory,
+        clock_offset_ns=source.pipeline_clock_offset_ns(),
+        until=until,
+        replay=True,
+    )
     progress.done()
     summary = _summary(source, publishers, recording)
     if pipelines:
@@ -163,9 +203,12 @@ def _summary(source: ReplayPairSource, publishers: list[Publisher], recording: R
 
 def _format(s: dict[str, Any]) -> str:
     rate = "-" if s["pair_rate_hz"] is None else f"{s['pair_rate_hz']:.1f}"
-    line = (f"replayed {s['pairs']} pairs in {s['seconds']:.2f} s ({rate} pairs/s"
-            + (" at max speed" if s["speed"] == "max" else f", max lag {s['max_lag_ms']} ms") + ")"
-            + f"; {s['hits']} hits, messages {s['messages']}")
+    line = (
+        f"replayed {s['pairs']} pairs in {s['seconds']:.2f} s ({rate} pairs/s"
+        + (" at max speed" if s["speed"] == "max" else f", max lag {s['max_lag_ms']} ms")
+        + ")"
+        + f"; {s['hits']} hits, messages {s['messages']}"
+    )
     if s["skipped_damaged"]:
         line += f"; {s['skipped_damaged']} damaged pairs skipped"
     return line

@@ -44,8 +44,10 @@ log = logging.getLogger("trackerd.run")
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "run", help="run the tracking daemon on the rig's cameras",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "run",
+        help="run the tracking daemon on the rig's cameras",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file, e.g. /etc/trackerd/rig.toml")
     parser.add_argument(
@@ -76,8 +78,14 @@ def run_command(args: argparse.Namespace) -> int:
     rig = with_console(load_rig(path).config, args.console)
     # What each camera says about itself, noted as it opens, for recordings made on demand.
     info = CameraInfo()
-    return serve(rig, path, lambda r: aravis_source(r, on_open=info.on_open), seconds=args.seconds,
-                 camera_info=info, exit_if_stuck=True)
+    return serve(
+        rig,
+        path,
+        lambda r: aravis_source(r, on_open=info.on_open),
+        seconds=args.seconds,
+        camera_info=info,
+        exit_if_stuck=True,
+    )
 
 
 def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[PipelineExtension]:
@@ -91,7 +99,9 @@ def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[Pipeline
     from trackerd.recording.extension import create as recording_extension
 
     creators: list[Callable[[RigConfig, ExtensionContext], PipelineExtension | None]] = [
-        recording_extension, interaction_extension]
+        recording_extension,
+        interaction_extension,
+    ]
     built = []
     for create in creators:
         try:
@@ -105,11 +115,20 @@ def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[Pipeline
     return built
 
 
-def serve(rig: RigConfig, path: Path | None, source_factory: Callable[[RigConfig], PairSource], *,
-          seconds: float | None = None, publisher_factory: Callable[[RigConfig], Publisher] = zmq_publisher,
-          banner: str | None = None, clock_offset_ns: int | None = None,
-          until: Callable[[Pipeline], bool] | None = None, camera_info: CameraInfo | None = None,
-          exit_if_stuck: bool = False, replay: bool = False) -> int:
+def serve(
+    rig: RigConfig,
+    path: Path | None,
+    source_factory: Callable[[RigConfig], PairSource],
+    *,
+    seconds: float | None = None,
+    publisher_factory: Callable[[RigConfig], Publisher] = zmq_publisher,
+    banner: str | None = None,
+    clock_offset_ns: int | None = None,
+    until: Callable[[Pipeline], bool] | None = None,
+    camera_info: CameraInfo | None = None,
+    exit_if_stuck: bool = False,
+    replay: bool = False,
+) -> int:
     """Run a pipeline until a signal (or ``seconds``); the CLI's `run` and `replay` share it.
 
     ``clock_offset_ns`` fixes the pipeline's monotonic-to-epoch offset (a replay publishes the
@@ -127,15 +146,26 @@ def serve(rig: RigConfig, path: Path | None, source_factory: Callable[[RigConfig
     notifier = SdNotify()
     if clock_offset_ns is None:
         clock_offset_ns = time.time_ns() - time.monotonic_ns()
-    context = ExtensionContext(rig_file=path.resolve() if path is not None else None, camera_info=camera_info,
-                               clock_offset_ns=clock_offset_ns, replay=replay)
+    context = ExtensionContext(
+        rig_file=path.resolve() if path is not None else None,
+        camera_info=camera_info,
+        clock_offset_ns=clock_offset_ns,
+        replay=replay,
+    )
     tap = None
     if rig.console.enabled:
         from trackerd.pipeline.tap import ConsoleTap
 
         tap = ConsoleTap()
-    pipeline = Pipeline(rig, source_factory, publisher_factory, notifier, extensions=build_extensions(rig, context),
-                        clock_offset_ns=clock_offset_ns, tap=tap)
+    pipeline = Pipeline(
+        rig,
+        source_factory,
+        publisher_factory,
+        notifier,
+        extensions=build_extensions(rig, context),
+        clock_offset_ns=clock_offset_ns,
+        tap=tap,
+    )
     console = None
     stop = threading.Event()
     reload_requested = threading.Event()
@@ -158,8 +188,7 @@ def serve(rig: RigConfig, path: Path | None, source_factory: Callable[[RigConfig
 
             console = _start_console(ConsoleServer(pipeline, tap, camera_info=camera_info), rig)
         endpoints = ", ".join(pipeline.publisher.endpoints) if pipeline.publisher else "-"
-        print(banner or f"trackerd {rig.name}: publishing on {endpoints} (Ctrl-C to stop)", file=sys.stderr,
-              flush=True)
+        print(banner or f"trackerd {rig.name}: publishing on {endpoints} (Ctrl-C to stop)", file=sys.stderr, flush=True)
         if console is not None:
             print(f"trackerd {rig.name}: console at {console.url}", file=sys.stderr, flush=True)
         deadline = None if seconds is None else time.monotonic() + seconds
@@ -223,8 +252,9 @@ def _reload(pipeline: Pipeline, path: Path | None) -> None:
         log.error("SIGHUP: keeping the running configuration: %s", err)
         return
     except Exception as err:  # noqa: BLE001 - whatever the new file does, the daemon runs on
-        log.error("SIGHUP: keeping the running configuration: %s: cannot be read (%s: %s)", path,
-                  type(err).__name__, err)
+        log.error(
+            "SIGHUP: keeping the running configuration: %s: cannot be read (%s: %s)", path, type(err).__name__, err
+        )
         return
     pipeline.request_reload(rig)
     log.info("SIGHUP: reloading %s", path)

@@ -48,7 +48,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--measure", action="store_true", help="also acquire pairs and print the figures")
     parser.add_argument("--json", action="store_true", help="with --measure: print the figures as JSON")
     parser.add_argument(
-        "--write-rig", type=Path, metavar="FILE",
+        "--write-rig",
+        type=Path,
+        metavar="FILE",
         help="write the rig as the daemon must open it (the simulated cameras' addresses) to FILE,"
         " for `trackerd run --config FILE` in another terminal (default: OUT/daemon-rig.toml)",
     )
@@ -58,15 +60,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def add_network_options(parser: argparse.ArgumentParser) -> None:
     """--prefix, --subnet and --mtu of the virtual rig's network namespaces (simrig and demo)."""
     parser.add_argument(
-        "--prefix", type=_prefix, default=netns.DEFAULT_PREFIX,
+        "--prefix",
+        type=_prefix,
+        default=netns.DEFAULT_PREFIX,
         help=f"network namespace name prefix (default {netns.DEFAULT_PREFIX}); one rig per prefix",
     )
     parser.add_argument(
-        "--subnet", type=_subnet, default=netns.DEFAULT_SUBNET,
+        "--subnet",
+        type=_subnet,
+        default=netns.DEFAULT_SUBNET,
         help=f"addresses for the cameras' links (default {netns.DEFAULT_SUBNET})",
     )
     parser.add_argument(
-        "--mtu", type=int, default=netns.DEFAULT_MTU,
+        "--mtu",
+        type=int,
+        default=netns.DEFAULT_MTU,
         help=f"MTU of the cameras' links (default {netns.DEFAULT_MTU}: jumbo frames)",
     )
 
@@ -140,8 +148,11 @@ def simrig_command(args: argparse.Namespace) -> int:
                 # trigger pacing), so the next step is always a written rig, never the rig file itself.
                 written = args.write_rig if args.write_rig is not None else virtual.out_dir / "daemon-rig.toml"
                 _write_rig(virtual.daemon_rig, written, Path(args.config))
-                print(f"the daemon on these cameras, in another terminal: trackerd run --config {written}",
-                      file=log, flush=True)
+                print(
+                    f"the daemon on these cameras, in another terminal: trackerd run --config {written}",
+                    file=log,
+                    flush=True,
+                )
             started = time.monotonic()
             try:
                 if args.measure:
@@ -166,8 +177,10 @@ def _write_rig(rig: Any, path: Path, source: Path) -> None:
 
     if rig.calibration is not None:
         rig = rig.model_copy(update={"calibration": (source.parent / rig.calibration).resolve()})
-    header = f"Written by `trackerd simrig --config {source}`: the simulated cameras' addresses replace the\n" \
+    header = (
+        f"Written by `trackerd simrig --config {source}`: the simulated cameras' addresses replace the\n"
         "serials, and acquisition settings are adapted to the simulated cameras (docs/acquisition.md)."
+    )
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(dump_rig(rig, header=header))
 

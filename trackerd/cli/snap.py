@@ -40,18 +40,31 @@ if TYPE_CHECKING:  # types only: the command imports the acquisition stack when 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "snap", help="take one synchronized pair, save it raw and annotated, print the detections and the hit",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        "snap",
+        help="take one synchronized pair, save it raw and annotated, print the detections and the hit",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file")
     parser.add_argument("out", metavar="OUT", help="folder to save into (created if missing)")
     parser.add_argument("--name", help="file name stem (default snap-<local time>)")
-    parser.add_argument("--settle", type=float, default=0.5, metavar="S",
-                        help="seconds of pairs to discard first, while exposure settles (default 0.5)")
-    parser.add_argument("--timeout", type=float, default=10.0, metavar="S",
-                        help="give up if no pair arrives within this many seconds (default 10)")
-    parser.add_argument("--console", metavar="ADDR",
-                        help="the running daemon's console HOST:PORT (default: the rig's [console] listen)")
+    parser.add_argument(
+        "--settle",
+        type=float,
+        default=0.5,
+        metavar="S",
+        help="seconds of pairs to discard first, while exposure settles (default 0.5)",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="give up if no pair arrives within this many seconds (default 10)",
+    )
+    parser.add_argument(
+        "--console", metavar="ADDR", help="the running daemon's console HOST:PORT (default: the rig's [console] listen)"
+    )
     add_virtual_arguments(parser, "snap")
     parser.set_defaults(handler=snap_command)
 
@@ -69,15 +82,19 @@ def snap_command(args: argparse.Namespace) -> int:
         client = ConsoleClient.for_rig(loaded.config, args.console)
         info = client.find()
         if info is not None and client.runs_cameras_of(info, loaded.config):
-            print(f"trackerd snap: the daemon is running and holds the cameras; taking the snapshot from it"
-                  f" ({client.base})", file=sys.stderr)
+            print(
+                f"trackerd snap: the daemon is running and holds the cameras; taking the snapshot from it"
+                f" ({client.base})",
+                file=sys.stderr,
+            )
             answer = client.snapshot_into(folder, args.name)
             for entry in answer["files"]:
                 print(f"  saved {folder / entry['name']}")
             return 0
     name = args.name or f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
-    with open_cameras(loaded.config, virtual_motion=args.virtual, label="trackerd snap", prefix=args.prefix,
-                      subnet=args.subnet) as cams:
+    with open_cameras(
+        loaded.config, virtual_motion=args.virtual, label="trackerd snap", prefix=args.prefix, subnet=args.subnet
+    ) as cams:
         pair = _take(cams.source, args.settle, args.timeout)
         rig = cams.rig
         info = dict(cams.info)
@@ -95,8 +112,9 @@ def _take(source: PairSource, settle_s: float, timeout_s: float) -> FramePair:
     raise CameraError(f"no synchronized pair arrived within {timeout_s:g} s (see `trackerd cameras`)")
 
 
-def save_snap(pair: FramePair, rig: RigConfig, folder: Path, name: str,
-              camera_info: dict[str, Any] | None = None) -> int:
+def save_snap(
+    pair: FramePair, rig: RigConfig, folder: Path, name: str, camera_info: dict[str, Any] | None = None
+) -> int:
     """Locate the pointer in ``pair``, write the files (trackerd.recording.snapshot), print what was found."""
     from trackerd.locator import Locator
     from trackerd.recording.outputs import output_folder

@@ -16,6 +16,4 @@ class ConfigModel(BaseModel):
     refused: TOML can spell them (nan, inf), but no setting of a rig can take them.
     """
 
-    model_config = ConfigDict(
-        extra="forbid", frozen=True, use_attribute_docstrings=True, allow_inf_nan=False
-    )
+    model_config = ConfigDict(extra="forbid", frozen=True, use_attribute_docstrings=True, allow_inf_nan=False)

@@ -89,8 +89,7 @@ class CameraConfig(ConfigModel):
             raise ValueError("features are written by the pylon and gentl backends only (backend = 'pylon' or 'gentl')")
         if self.backend == "gentl" and not self.producer:
             raise ValueError(
-                "backend = 'gentl' needs producer = the path of the GenTL producer (.cti file) that reaches"
-                " the camera"
+                "backend = 'gentl' needs producer = the path of the GenTL producer (.cti file) that reaches the camera"
             )
         if self.backend != "gentl" and self.producer is not None:
             raise ValueError(f"producer is for backend = 'gentl' (this camera's backend is '{self.backend}')")
@@ -103,7 +102,6 @@ class CameraConfig(ConfigModel):
             0 <= intr.cx_px < self.width_px and 0 <= intr.cy_px < self.height_px
         ):
             raise ValueError(
-                f"principal point ({intr.cx_px}, {intr.cy_px}) lies outside the"
-                f" {self.width_px}x{self.height_px} image"
+                f"principal point ({intr.cx_px}, {intr.cy_px}) lies outside the {self.width_px}x{self.height_px} image"
             )
         return self

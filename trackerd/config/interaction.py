@@ -191,8 +191,9 @@ class InteractionConfig(ConfigModel):
     def _commands(cls, value: dict[str, str]) -> dict[str, str]:
         for trigger, command in value.items():
             if not _NAME.match(trigger):
-                raise ValueError(f"'{trigger}' is not a trigger name (a gesture name, or one of"
-                                 f" {', '.join(RESERVED_TRIGGERS)})")
+                raise ValueError(
+                    f"'{trigger}' is not a trigger name (a gesture name, or one of {', '.join(RESERVED_TRIGGERS)})"
+                )
             if not command.strip():
                 raise ValueError(f"'{trigger}' maps to an empty command")
         return value
@@ -200,12 +201,19 @@ class InteractionConfig(ConfigModel):
     @model_validator(mode="after")
     def _dependencies(self) -> InteractionConfig:
         if not self.pointing.enabled and (self.dwell.enabled or self.gestures.enabled or self.tuio.enabled):
-            raise ValueError("pointing.enabled = false also needs dwell, gestures and tuio off"
-                             " (they act while the pointer is on the display)")
+            raise ValueError(
+                "pointing.enabled = false also needs dwell, gestures and tuio off"
+                " (they act while the pointer is on the display)"
+            )
         return self
 
     @property
     def any_enabled(self) -> bool:
         """Whether anything here needs the interaction stage at all."""
-        return (self.smoothing.enabled or self.pointing.enabled or self.hand.enabled or self.tuio.enabled
-                or bool(self.commands))
+        return (
+            self.smoothing.enabled
+            or self.pointing.enabled
+            or self.hand.enabled
+            or self.tuio.enabled
+            or bool(self.commands)
+        )

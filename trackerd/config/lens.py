@@ -59,8 +59,7 @@ class OpenCVIntrinsics(ConfigModel):
     def _distortion_length(cls, value: tuple[float, ...]) -> tuple[float, ...]:
         if len(value) not in OPENCV_DISTORTION_LENGTHS:
             raise ValueError(
-                f"has {len(value)} coefficients; OpenCV takes "
-                + ", ".join(str(n) for n in OPENCV_DISTORTION_LENGTHS)
+                f"has {len(value)} coefficients; OpenCV takes " + ", ".join(str(n) for n in OPENCV_DISTORTION_LENGTHS)
             )
         return value
 

@@ -120,11 +120,13 @@ def load_rig(path: str | Path, *, for_tracking: bool = True) -> LoadedRig:
     if rig.calibration is not None:
         calibration_path = (rig_path.parent / rig.calibration).resolve()
         if not calibration_path.exists():
-            not_ready.append(CalibrationPending(
-                rig_path,
-                f"calibration: {calibration_path}: no such file yet (the path is relative to the rig file);"
-                f" `trackerd calibrate intrinsics --config {rig_path.name} --camera {rig.cameras[0].id}` writes it",
-            ))
+            not_ready.append(
+                CalibrationPending(
+                    rig_path,
+                    f"calibration: {calibration_path}: no such file yet (the path is relative to the rig file);"
+                    f" `trackerd calibrate intrinsics --config {rig_path.name} --camera {rig.cameras[0].id}` writes it",
+                )
+            )
         else:
             calibration = load_calibration(calibration_path)
             rig = merge_calibration(rig, calibration, calibration_path)
@@ -186,6 +188,7 @@ def _unfinished_frame(calibration: CalibrationFile) -> str | None:
 
 def _resolve_paths(rig: RigConfig, rig_path: Path) -> RigConfig:
     """File names inside a rig file are relative to that file, like ``calibration``."""
+
     def resolved(model: BaseModel, keys: tuple[str, ...]) -> dict[str, Path]:
         return {
             key: (rig_path.parent / value).resolve()
@@ -238,7 +241,4 @@ def merge_calibration(rig: RigConfig, calibration: CalibrationFile, path: Path) 
     try:
         return RigConfig.model_validate(rig.model_copy(update=update).model_dump())
     except ValidationError as err:
-        raise ConfigError(
-            f"{path}: after merging into the rig: {describe_validation_error(err, RigConfig)}"
-        ) from err
-
+        raise ConfigError(f"{path}: after merging into the rig: {describe_validation_error(err, RigConfig)}") from err

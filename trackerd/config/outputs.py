@@ -97,8 +97,7 @@ class ZmqOutput(ConfigModel):
         if self.curve_secret_key_file is not None or self.allow_insecure_network:
             return []
         return [
-            e for e in self.endpoints
-            if (host := self.endpoint_host(e)) is not None and not self.is_loopback_host(host)
+            e for e in self.endpoints if (host := self.endpoint_host(e)) is not None and not self.is_loopback_host(host)
         ]
 
 

@@ -82,8 +82,13 @@ def wall_frame(wall: WallConfig) -> WallFrame:
         assert wall.x_direction is not None and wall.y_direction is not None
         assert wall.width_m is not None and wall.height_m is not None
         return WallFrame.from_points(
-            np.array(wall.points_m), np.array(wall.origin_m), np.array(wall.x_direction),
-            np.array(wall.y_direction), wall.width_m, wall.height_m, display,
+            np.array(wall.points_m),
+            np.array(wall.origin_m),
+            np.array(wall.x_direction),
+            np.array(wall.y_direction),
+            wall.width_m,
+            wall.height_m,
+            display,
             wall.planarity_tolerance_m,
         )
     except GeometryError as err:
@@ -104,12 +109,14 @@ def lens_fold_px(cam: CameraConfig) -> tuple[float, tuple[float, float]]:
         return 0.0, (0.0, 0.0)
     w, h = cam.width_px - 0.5, cam.height_px - 0.5
     steps = np.linspace(0.0, 1.0, 65)
-    border = np.vstack([
-        np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, -0.5)]),
-        np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, h)]),
-        np.column_stack([np.full(65, -0.5), -0.5 + steps * (h + 0.5)]),
-        np.column_stack([np.full(65, w), -0.5 + steps * (h + 0.5)]),
-    ])
+    border = np.vstack(
+        [
+            np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, -0.5)]),
+            np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, h)]),
+            np.column_stack([np.full(65, -0.5), -0.5 + steps * (h + 0.5)]),
+            np.column_stack([np.full(65, w), -0.5 + steps * (h + 0.5)]),
+        ]
+    )
     origins, directions = model.pixel_to_ray(border)
     miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
     miss = np.where(np.isfinite(miss), miss, np.inf)
@@ -140,8 +147,10 @@ def check_wall_in_front(rig: RigConfig, wall_path: Path | None) -> None:
     # Corners listed clockwise (seen from the room) give a frame whose normal points
     # into the wall and whose x runs up it; every camera then sits behind the wall.
     behind = [
-        cam.id for cam in rig.cameras
-        if cam.extrinsics is not None and cam.intrinsics is not None
+        cam.id
+        for cam in rig.cameras
+        if cam.extrinsics is not None
+        and cam.intrinsics is not None
         and wall.plane.signed_distance_m(camera_model(cam).centre_m) < 0
     ]
     if behind:

@@ -42,9 +42,13 @@ def _table(data: Mapping[str, Any], path: list[str], lines: list[str], element: 
     ``element``: the table is one element of an array of tables (``[[path]]``), whose
     header must be written even when it holds only sub-tables.
     """
+
     def is_table_array(v: Any) -> bool:
-        return isinstance(v, Sequence) and not isinstance(v, str) and bool(v) and all(
-            isinstance(item, Mapping) for item in v
+        return (
+            isinstance(v, Sequence)
+            and not isinstance(v, str)
+            and bool(v)
+            and all(isinstance(item, Mapping) for item in v)
         )
 
     values = [(k, v) for k, v in data.items() if not isinstance(v, Mapping) and not is_table_array(v)]

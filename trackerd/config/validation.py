@@ -165,8 +165,10 @@ def describe_validation_error(err: ValidationError, root: type[BaseModel]) -> st
     elif kind == "union_tag_invalid":
         # pydantic's message quotes the tag as given, line breaks and all.
         ctx = first.get("ctx", {})
-        message = (f"tag {quoted(ctx.get('tag', ''))} in key {ctx.get('discriminator', '')} does not match"
-                   f" any of the expected tags: {ctx.get('expected_tags', '')}")
+        message = (
+            f"tag {quoted(ctx.get('tag', ''))} in key {ctx.get('discriminator', '')} does not match"
+            f" any of the expected tags: {ctx.get('expected_tags', '')}"
+        )
     elif kind == "union_tag_not_found":
         key = str(first.get("ctx", {}).get("discriminator", "")).strip("'")
         tags = _union_tags(root, loc, key)
@@ -229,4 +231,3 @@ def _json_fallback(value: Any) -> str:
     if isinstance(value, (datetime.date, datetime.time)):
         return value.isoformat()
     raise TypeError(f"cannot validate a {type(value).__name__}")
-

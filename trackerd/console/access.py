@@ -49,8 +49,9 @@ def access_middleware(token: str | None) -> Middleware:
         if header.startswith("Bearer "):
             given = header.removeprefix("Bearer ").strip()
         if given is None or not secrets.compare_digest(given.encode(), token.encode()):
-            return web.json_response({"error": "the console needs its token (?token=... or Authorization: Bearer)"},
-                                     status=401)
+            return web.json_response(
+                {"error": "the console needs its token (?token=... or Authorization: Bearer)"}, status=401
+            )
         response = await handler(request)
         if "token" in request.query and not response.prepared:
             response.set_cookie(COOKIE, token, httponly=True, samesite="Strict")

@@ -35,10 +35,23 @@ class Actions:
         wall = self.pipeline.locator.wall
         return {
             "rig": rig.name,
-            "cameras": [{"id": c.id, "width_px": c.width_px, "height_px": c.height_px, "address": c.address,
-                         "device_id": c.device_id, "serial": c.serial} for c in rig.cameras],
-            "wall": {"width_m": wall.width_m, "height_m": wall.height_m,
-                     "display_width_px": wall.display_width_px, "display_height_px": wall.display_height_px},
+            "cameras": [
+                {
+                    "id": c.id,
+                    "width_px": c.width_px,
+                    "height_px": c.height_px,
+                    "address": c.address,
+                    "device_id": c.device_id,
+                    "serial": c.serial,
+                }
+                for c in rig.cameras
+            ],
+            "wall": {
+                "width_m": wall.width_m,
+                "height_m": wall.height_m,
+                "display_width_px": wall.display_width_px,
+                "display_height_px": wall.display_height_px,
+            },
             "recording_available": self._recording() is not None,
             "frame_rate_hz": rig.console.frame_rate_hz,
         }
@@ -90,8 +103,11 @@ class Actions:
             done = record.total >= self._check_wanted
             figures = record.figures()
             progress = {
-                "state": "done" if done else "running", "fixes": record.total, "wanted": self._check_wanted,
-                "seconds": round(time.monotonic() - self._check_started, 1), "figures": figures.to_json(),
+                "state": "done" if done else "running",
+                "fixes": record.total,
+                "wanted": self._check_wanted,
+                "seconds": round(time.monotonic() - self._check_started, 1),
+                "figures": figures.to_json(),
             }
             if done:
                 progress["text"] = health_text(figures, record.total)
@@ -110,6 +126,11 @@ class Actions:
         if status is None:
             return False, {"state": "starting", "detail": "no status yet"}
         cameras = {c.id: c.state for c in status.cameras}
-        detail = {"state": status.state, "detail": status.detail, "cameras": cameras,
-                  "pair_rate_hz": status.pairing.pair_rate_hz, "failure": self.pipeline.failure is not None}
+        detail = {
+            "state": status.state,
+            "detail": status.detail,
+            "cameras": cameras,
+            "pair_rate_hz": status.pairing.pair_rate_hz,
+            "failure": self.pipeline.failure is not None,
+        }
         return status.state in HEALTHY_STATES and self.pipeline.failure is None, detail

@@ -101,8 +101,14 @@ def snapshot_name(directory: Path, stem: str | None = None) -> str:
 class FrameThread:
     """Serves the page's images and the snapshots from the pairs the pipeline offers."""
 
-    def __init__(self, tap: ConsoleTap, rig: Any, on_images: Callable[[list[CameraImage]], None],
-                 snapshot_directory: Path, camera_info: Any = None) -> None:
+    def __init__(
+        self,
+        tap: ConsoleTap,
+        rig: Any,
+        on_images: Callable[[list[CameraImage]], None],
+        snapshot_directory: Path,
+        camera_info: Any = None,
+    ) -> None:
         self.tap = tap
         self.rig = rig
         self.period_s = 1.0 / rig.console.frame_rate_hz
@@ -168,8 +174,7 @@ class FrameThread:
                 if not snapshots_waiting:
                     # Paced for the page; a snapshot asked for meanwhile ends the wait.
                     delay = next_due - time.monotonic()
-                    if delay > 0 and self._wake.wait_for(
-                            lambda: self._stopping or bool(self._snapshots), delay):
+                    if delay > 0 and self._wake.wait_for(lambda: self._stopping or bool(self._snapshots), delay):
                         continue
             self.tap.frame_wanted = True
             slot = self.tap.take(TAKE_WAIT_S)
@@ -197,16 +202,22 @@ class FrameThread:
             self._outlines = (id(locator), [outline_px(cam, locator.wall) for cam in locator.cameras])
         images = []
         for k, frame in enumerate(pair.frames):
-            jpeg, width, height = scaled_jpeg(frame.image, frame.pixel_format, console.image_width_px,
-                                              console.jpeg_quality)
+            jpeg, width, height = scaled_jpeg(
+                frame.image, frame.pixel_format, console.image_width_px, console.jpeg_quality
+            )
             detections = fix.detections[k] if k < len(fix.detections) else None
             camera = locator.cameras[k]
             overlay = camera_overlay(camera, None, detections, window_px)
             overlay["outline_px"], overlay["corners_px"] = self._outlines[1][k]
             header = {
-                "camera": frame.camera_id, "sequence": pair.sequence, "frame_id": frame.frame_id,
-                "image_width_px": width, "image_height_px": height, "status": fix.status,
-                "reason": fix.reason, **overlay,
+                "camera": frame.camera_id,
+                "sequence": pair.sequence,
+                "frame_id": frame.frame_id,
+                "image_width_px": width,
+                "image_height_px": height,
+                "status": fix.status,
+                "reason": fix.reason,
+                **overlay,
             }
             images.append(CameraImage(frame.camera_id, pair.sequence, jpeg, header))
         return images
@@ -216,8 +227,9 @@ class FrameThread:
 
         try:
             info = dict(self._camera_info) if self._camera_info is not None else None
-            written = write_snapshot(pair, fix, locator, self.rig, self.snapshot_directory / request.name,
-                                     request.name, info)
+            written = write_snapshot(
+                pair, fix, locator, self.rig, self.snapshot_directory / request.name, request.name, info
+            )
             log.info("console: snapshot %s saved in %s", request.name, self.snapshot_directory / request.name)
         except Exception as err:  # noqa: BLE001 - the page hears why; the daemon runs on
             log.error("console: snapshot %s failed: %s", request.name, err)

@@ -29,13 +29,15 @@ class Logbook(logging.Handler):
             text = str(record.msg)
         with self._entries_lock:
             self._serial += 1
-            self._entries.append({
-                "serial": self._serial,
-                "time_utc": dt.datetime.fromtimestamp(record.created, dt.UTC).isoformat(timespec="milliseconds"),
-                "level": record.levelname.lower(),
-                "logger": record.name,
-                "message": text.splitlines()[0] if text else "",
-            })
+            self._entries.append(
+                {
+                    "serial": self._serial,
+                    "time_utc": dt.datetime.fromtimestamp(record.created, dt.UTC).isoformat(timespec="milliseconds"),
+                    "level": record.levelname.lower(),
+                    "logger": record.name,
+                    "message": text.splitlines()[0] if text else "",
+                }
+            )
 
     def since(self, serial: int) -> list[dict[str, Any]]:
         """The entries after ``serial`` (0: all kept), oldest first."""

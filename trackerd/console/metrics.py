@@ -58,15 +58,16 @@ class StatusCollector:
         pairing = status.pairing
         yield CounterMetricFamily("trackerd_pairs", "synchronized pairs delivered by the cameras", value=pairing.pairs)
         yield GaugeMetricFamily("trackerd_pair_rate_hz", "pairs per second", value=pairing.pair_rate_hz)
-        drops = CounterMetricFamily("trackerd_dropped_frames", "frames dropped before pairing, by cause",
-                                    labels=["cause"])
+        drops = CounterMetricFamily(
+            "trackerd_dropped_frames", "frames dropped before pairing, by cause", labels=["cause"]
+        )
         for cause, count in sorted(pairing.dropped_frames.items()):
             drops.add_metric([cause], count)
         yield drops
-        yield CounterMetricFamily("trackerd_dropped_pairs", "pairs dropped (newest kept) before publishing",
-                                  value=pairing.dropped_pairs)
-        skew = GaugeMetricFamily("trackerd_skew_microseconds", "time between a pair's two frames",
-                                 labels=["quantile"])
+        yield CounterMetricFamily(
+            "trackerd_dropped_pairs", "pairs dropped (newest kept) before publishing", value=pairing.dropped_pairs
+        )
+        skew = GaugeMetricFamily("trackerd_skew_microseconds", "time between a pair's two frames", labels=["quantile"])
         for quantile, value in (("0.5", pairing.skew_p50_us), ("0.99", pairing.skew_p99_us)):
             if value is not None:
                 skew.add_metric([quantile], value)
@@ -75,14 +76,17 @@ class StatusCollector:
         for outcome, count in sorted(status.fixes.items()):
             fixes.add_metric([outcome], count)
         yield fixes
-        yield CounterMetricFamily("trackerd_hits", "wall hits published",
-                                  value=status.messages.get("hit", status.fixes.get("hit", 0)))
-        cam_state = GaugeMetricFamily("trackerd_camera_state", "each camera's state (1 for the current one)",
-                                      labels=["camera", "state"])
+        yield CounterMetricFamily(
+            "trackerd_hits", "wall hits published", value=status.messages.get("hit", status.fixes.get("hit", 0))
+        )
+        cam_state = GaugeMetricFamily(
+            "trackerd_camera_state", "each camera's state (1 for the current one)", labels=["camera", "state"]
+        )
         rate = GaugeMetricFamily("trackerd_camera_frame_rate_hz", "frames per second", labels=["camera"])
         frames = CounterMetricFamily("trackerd_camera_frames", "frames received", labels=["camera"])
-        dropped = CounterMetricFamily("trackerd_camera_dropped_buffers", "buffers the camera's stream lost, by cause",
-                                      labels=["camera", "cause"])
+        dropped = CounterMetricFamily(
+            "trackerd_camera_dropped_buffers", "buffers the camera's stream lost, by cause", labels=["camera", "cause"]
+        )
         losses = CounterMetricFamily("trackerd_camera_losses", "times the camera was lost", labels=["camera"])
         for cam in status.cameras:
             for name in sorted({*CAMERA_STATES, cam.state}):
@@ -95,22 +99,29 @@ class StatusCollector:
         yield from (cam_state, rate, frames, dropped, losses)
         if status.calibration is not None:
             cal = status.calibration
-            yield GaugeMetricFamily("trackerd_calibration_suspect", "1 when the calibration looks off",
-                                    value=1.0 if cal.suspect else 0.0)
+            yield GaugeMetricFamily(
+                "trackerd_calibration_suspect", "1 when the calibration looks off", value=1.0 if cal.suspect else 0.0
+            )
             if cal.ray_gap_mm.p50 is not None:
-                yield GaugeMetricFamily("trackerd_calibration_ray_gap_mm", "median ray gap of recent fixes",
-                                        value=cal.ray_gap_mm.p50)
+                yield GaugeMetricFamily(
+                    "trackerd_calibration_ray_gap_mm", "median ray gap of recent fixes", value=cal.ray_gap_mm.p50
+                )
             if cal.reprojection_px.p50 is not None:
-                yield GaugeMetricFamily("trackerd_calibration_reprojection_px",
-                                        "median reprojection error of recent fixes", value=cal.reprojection_px.p50)
+                yield GaugeMetricFamily(
+                    "trackerd_calibration_reprojection_px",
+                    "median reprojection error of recent fixes",
+                    value=cal.reprojection_px.p50,
+                )
         for name, (counts, total_ms) in sorted(self.tap.histogram_snapshot().items()):
             cumulative, buckets = 0, []
             for bound, count in zip((*LATENCY_BUCKETS_MS, float("inf")), counts, strict=True):
                 cumulative += int(count)
                 buckets.append(("+Inf" if bound == float("inf") else f"{bound / 1000:g}", cumulative))
             yield HistogramMetricFamily(
-                f"trackerd_{name}_latency_seconds", HISTOGRAM_HELP.get(name, name),
-                buckets=buckets, sum_value=total_ms / 1000.0,
+                f"trackerd_{name}_latency_seconds",
+                HISTOGRAM_HELP.get(name, name),
+                buckets=buckets,
+                sum_value=total_ms / 1000.0,
             )
         for key, value in self.extra().items():
             yield GaugeMetricFamily(f"trackerd_{key}", EXTRA_HELP.get(key, key.replace("_", " ")), value=value)

@@ -140,13 +140,15 @@ class Pages:
 
     def _status_text(self, warnings: list[dict[str, Any]]) -> str:
         status = self.tap.status
-        return json.dumps({
-            "type": "status",
-            "status": None if status is None else status.model_dump(mode="json"),
-            "recording": self.actions.recording_state(),
-            "check": self.actions.check_progress(),
-            "warnings": warnings,
-        })
+        return json.dumps(
+            {
+                "type": "status",
+                "status": None if status is None else status.model_dump(mode="json"),
+                "recording": self.actions.recording_state(),
+                "check": self.actions.check_progress(),
+                "warnings": warnings,
+            }
+        )
 
     def broadcast_status(self) -> None:
         text = self._status_text([])

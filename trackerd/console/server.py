@@ -49,6 +49,8 @@ log = logging.getLogger(__name__)
 
 SNAPSHOT_TIMEOUT_S = 10.0
 STOP_TIMEOUT_S = 0.6
+
+
 def default_snapshot_directory() -> Path:
     """Under systemd, the unit's state directory (``StateDirectory=trackerd``: /var/lib/trackerd);
     otherwise ``trackerd-snapshots`` in the system's temporary directory."""
@@ -138,20 +140,22 @@ class ConsoleServer:
     async def _main(self) -> None:
         self._stop_event = asyncio.Event()
         app = web.Application(middlewares=[access_middleware(self.token)], client_max_size=64 * 1024)
-        app.add_routes([
-            web.get("/", self._index),
-            web.get("/static/{name}", self._static_file),
-            web.get("/ws", self.pages.websocket),
-            web.get("/api/info", self._info),
-            web.get("/api/status", self._status),
-            web.post("/api/snapshot", self._snapshot),
-            web.get("/snapshots/{name}/{file}", self._snapshot_file),
-            web.post("/api/recording/{action}", self._recording),
-            web.post("/api/check", self._check_start),
-            web.get("/api/check", self._check_progress),
-            web.get("/metrics", self._metrics),
-            web.get("/healthz", self._healthz),
-        ])
+        app.add_routes(
+            [
+                web.get("/", self._index),
+                web.get("/static/{name}", self._static_file),
+                web.get("/ws", self.pages.websocket),
+                web.get("/api/info", self._info),
+                web.get("/api/status", self._status),
+                web.post("/api/snapshot", self._snapshot),
+                web.get("/snapshots/{name}/{file}", self._snapshot_file),
+                web.post("/api/recording/{action}", self._recording),
+                web.post("/api/check", self._check_start),
+                web.get("/api/check", self._check_progress),
+                web.get("/metrics", self._metrics),
+                web.get("/healthz", self._healthz),
+            ]
+        )
         runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=STOP_TIMEOUT_S / 2)
         await runner.setup()
         self._runner = runner
@@ -169,8 +173,10 @@ class ConsoleServer:
         pusher.cancel()
         began = time.monotonic()
         # All pages at once, each given a moment to answer the close (a stuck one is not waited for).
-        closing = [asyncio.wait_for(page.ws.close(code=1001, message=b"daemon stopping"), 0.1)
-                   for page in list(self.pages.open)]
+        closing = [
+            asyncio.wait_for(page.ws.close(code=1001, message=b"daemon stopping"), 0.1)
+            for page in list(self.pages.open)
+        ]
         await asyncio.gather(*closing, return_exceptions=True)
         log.debug("console: pages closed in %.0f ms", (time.monotonic() - began) * 1e3)
         try:
@@ -200,9 +206,13 @@ class ConsoleServer:
 
     async def _status(self, _request: web.Request) -> web.Response:
         status = self.tap.status
-        return web.json_response({"status": None if status is None else status.model_dump(mode="json"),
-                                  "recording": self.actions.recording_state(),
-                                  "check": self.actions.check_progress()})
+        return web.json_response(
+            {
+                "status": None if status is None else status.model_dump(mode="json"),
+                "recording": self.actions.recording_state(),
+                "check": self.actions.check_progress(),
+            }
+        )
 
     def _images_from_thread(self, images: list[CameraImage]) -> None:
         """Called on the frame thread: hand the images to the loop (never waits)."""
@@ -214,10 +224,10 @@ class ConsoleServer:
 
     async def _snapshot(self, request: web.Request) -> web.Response:
         wanted = request.query.get("name")
-        if wanted is not None and not (0 < len(wanted) <= 64 and all(c.isalnum() or c in "-_." for c in wanted)
-                                       and not wanted.startswith(".")):
-            return web.json_response({"error": "name: letters, digits, '-', '_' and '.' only (at most 64)"},
-                                     status=400)
+        if wanted is not None and not (
+            0 < len(wanted) <= 64 and all(c.isalnum() or c in "-_." for c in wanted) and not wanted.startswith(".")
+        ):
+            return web.json_response({"error": "name: letters, digits, '-', '_' and '.' only (at most 64)"}, status=400)
         loop = asyncio.get_running_loop()
         future: asyncio.Future[Any] = loop.create_future()
 
@@ -235,15 +245,20 @@ class ConsoleServer:
             self.frames.cancel_snapshot(name)
             return web.json_response(
                 {"error": f"no pair was processed within {SNAPSHOT_TIMEOUT_S:g} s (are the cameras streaming?)"},
-                status=503)
+                status=503,
+            )
         if isinstance(result, BaseException):
             return web.json_response({"error": f"the snapshot could not be saved: {result}"}, status=500)
         folder = self.snapshot_directory / name
-        return web.json_response({
-            "name": name, "folder": str(folder),
-            "files": [{"name": p.name, "url": f"snapshots/{name}/{p.name}", "bytes": p.stat().st_size}
-                      for p in result],
-        })
+        return web.json_response(
+            {
+                "name": name,
+                "folder": str(folder),
+                "files": [
+                    {"name": p.name, "url": f"snapshots/{name}/{p.name}", "bytes": p.stat().st_size} for p in result
+                ],
+            }
+        )
 
     async def _snapshot_file(self, request: web.Request) -> web.StreamResponse:
         name, file = request.match_info["name"], request.match_info["file"]
@@ -260,8 +275,9 @@ class ConsoleServer:
             raise web.HTTPNotFound()
         ok, text = self.actions.recording(action)
         self.pages.broadcast_status()
-        return web.json_response({"ok": ok, "message": text, "recording": self.actions.recording_state()},
-                                 status=200 if ok else 409)
+        return web.json_response(
+            {"ok": ok, "message": text, "recording": self.actions.recording_state()}, status=200 if ok else 409
+        )
 
     async def _check_start(self, request: web.Request) -> web.Response:
         try:
@@ -269,8 +285,9 @@ class ConsoleServer:
         except ValueError:
             return web.json_response({"error": "fixes must be a whole number"}, status=400)
         ok, text = self.actions.start_check(fixes)
-        return web.json_response({"ok": ok, "message": text, "check": self.actions.check_progress()},
-                                 status=200 if ok else 409)
+        return web.json_response(
+            {"ok": ok, "message": text, "check": self.actions.check_progress()}, status=200 if ok else 409
+        )
 
     async def _check_progress(self, _request: web.Request) -> web.Response:
         return web.json_response(self.actions.check_progress())

@@ -142,9 +142,17 @@ def fit_ball(
     return fit
 
 
-def _one_pass(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, cx: float, cy: float,
-              radius: float, axis: tuple[float, float] | None,
-              radius_range_px: tuple[float, float] | None = None, rising_rims: bool = False) -> BallFit:
+def _one_pass(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    colour: str,
+    cx: float,
+    cy: float,
+    radius: float,
+    axis: tuple[float, float] | None,
+    radius_range_px: tuple[float, float] | None = None,
+    rising_rims: bool = False,
+) -> BallFit:
     reach = 2.0 * radius + 3.0
     s = grid.cell_px
     dr, dc = grid.offset(colour)
@@ -210,8 +218,9 @@ def _bilinear(image: NDArray[np.float32], u: Array, v: Array) -> Array:
     return np.where(inside, out, np.nan)
 
 
-def _rims(profile: Array, rho: Array, radius: float, lattice_px: float, rising_rims: bool = False
-          ) -> tuple[Array, Array]:
+def _rims(
+    profile: Array, rho: Array, radius: float, lattice_px: float, rising_rims: bool = False
+) -> tuple[Array, Array]:
     """Per ray, the radius where the excess falls through the midpoint of the levels just inside and
     just outside the rim (NaN where there is no such fall), and that ray's contrast.
 
@@ -258,8 +267,9 @@ def _rims(profile: Array, rho: Array, radius: float, lattice_px: float, rising_r
     return rim, contrast
 
 
-def _rising_rims(profile: Array, rho: Array, radius: float, background: Array,
-                 falling: NDArray[np.bool_], half: int) -> tuple[NDArray[np.bool_], Array, Array]:
+def _rising_rims(
+    profile: Array, rho: Array, radius: float, background: Array, falling: NDArray[np.bool_], half: int
+) -> tuple[NDArray[np.bool_], Array, Array]:
     """The rims of the rays (of those without a falling rim) that cross from the ball into something *more*
     of its colour: a shaded ball before a bright picture of its own hue, whose colour excess rises at the
     rim rather than falls. There the rim is where the excess rises through the midpoint of the ball's own
@@ -298,8 +308,9 @@ def _rising_rims(profile: Array, rho: Array, radius: float, background: Array,
     return found, np.where(found, rim, np.nan), contrast
 
 
-def _levels_around(profile: Array, first: NDArray[np.intp], inside_at: NDArray[np.intp], half: int,
-                   fallback: Array) -> tuple[Array, NDArray[np.intp], Array]:
+def _levels_around(
+    profile: Array, first: NDArray[np.intp], inside_at: NDArray[np.intp], half: int, fallback: Array
+) -> tuple[Array, NDArray[np.intp], Array]:
     """Per ray, the midpoint of the levels at ``inside_at`` and ``half`` samples beyond ``first`` (where a
     rim was first seen; ``fallback`` where either is missing), and the samples around ``first`` to look
     for the rim's crossing of it: (midpoints, their indices (R, 2 half + 2), their values)."""
@@ -357,8 +368,9 @@ def _circle_of(points: Array) -> tuple[Array, float] | None:
     return np.array([cx + mx, cy + my]), math.sqrt(r2)
 
 
-def robust_circle(points: Array, trials: int = 48, radius_range_px: tuple[float, float] | None = None
-                  ) -> tuple[Array, float, Array, float] | None:
+def robust_circle(
+    points: Array, trials: int = 48, radius_range_px: tuple[float, float] | None = None
+) -> tuple[Array, float, Array, float] | None:
     """A circle through most of ``points`` (N, 2), ignoring the rest: centre, radius, per-point weights
     (0 for points left out) and the residuals' robust scale.
 

@@ -97,9 +97,7 @@ class BlobSearch:
         r0, r1, c0, c1 = self.grid.interior()
         # Centre the coarse samples in their step x step blocks.
         coarse = (r0 + step // 2, r1, c0 + step // 2, c1)
-        red, blue = coarse_masks(
-            frame, self.grid, self.thresholds["red"], self.thresholds["blue"], coarse, step
-        )
+        red, blue = coarse_masks(frame, self.grid, self.thresholds["red"], self.thresholds["blue"], coarse, step)
         assert red is not None and blue is not None
         seeds = seed_windows({"red": red, "blue": blue}, coarse, step, self.grid, self.limits)
         jobs = [(colour, w) for colour in COLOURS for w in seeds[colour].windows[:MAX_WINDOWS]]
@@ -108,16 +106,12 @@ class BlobSearch:
         for colour in COLOURS:
             candidates, rejects = found[colour]
             s = seeds[colour]
-            searches[colour] = _Search(
-                candidates, s.count, s.too_large, rejects, len(s.windows) <= MAX_WINDOWS
-            )
+            searches[colour] = _Search(candidates, s.count, s.too_large, rejects, len(s.windows) <= MAX_WINDOWS)
         result = self.result(frame, searches, "full", None)
         assert result is not None
         return result
 
-    def near(
-        self, frame: NDArray[np.uint8], track: dict[str, EndTrack]
-    ) -> ImageDetections | None:
+    def near(self, frame: NDArray[np.uint8], track: dict[str, EndTrack]) -> ImageDetections | None:
         """Both ends among the blobs near their previous positions, or None (search in full)."""
         jobs = []
         for colour in COLOURS:
@@ -169,9 +163,7 @@ class BlobSearch:
                 if not candidates:
                     return None
             searches[colour] = _Search(candidates, 1, 0, rejects, True)
-        return self.result(
-            frame, searches, "window", {c: track[c].area_px for c in COLOURS}, need_pair=True
-        )
+        return self.result(frame, searches, "window", {c: track[c].area_px for c in COLOURS}, need_pair=True)
 
     def window_around(self, centre_px: NDArray[np.float64], half_px: float) -> Region | None:
         """The cells within ``half_px`` of ``centre_px`` (clipped to the frame), or None if none."""
@@ -210,9 +202,7 @@ class BlobSearch:
                 refined.rejects[j] = again.rejects[i]
         out: dict[str, tuple[list[Candidate], Rejects]] = {c: ([], Rejects({})) for c in COLOURS}
         seen: set[tuple[int, int, int, int]] = set()
-        for (colour, _), candidates, rejects in zip(
-            jobs, refined.candidates, refined.rejects, strict=True
-        ):
+        for (colour, _), candidates, rejects in zip(jobs, refined.candidates, refined.rejects, strict=True):
             found, total = out[colour]
             total.merge(rejects)
             for c in candidates:
@@ -257,9 +247,7 @@ class BlobSearch:
             ends[colour] = EndDetection(True, m.centre_px, m.area_px, m.bbox_px, score, None)
         return ImageDetections(ends["red"], ends["blue"], search)  # type: ignore[arg-type]
 
-    def measure_chosen(
-        self, frame: NDArray[np.uint8], chosen: list[Candidate]
-    ) -> list[Measurement]:
+    def measure_chosen(self, frame: NDArray[np.uint8], chosen: list[Candidate]) -> list[Measurement]:
         """The chosen candidates' centres, areas and boxes, all at once when that is the same.
 
         Measured together (trackerd.detect.window_measure) in square windows around each
@@ -289,10 +277,7 @@ class BlobSearch:
             )
             if found is not None:
                 return found
-        measured = [
-            measure_candidate(frame, self.grid, c, self.thresholds[c.colour], self.weighted)
-            for c in chosen
-        ]
+        measured = [measure_candidate(frame, self.grid, c, self.thresholds[c.colour], self.weighted) for c in chosen]
         return self.centres(frame, measured)
 
     def centres(self, frame: NDArray[np.uint8], found: list[Measurement]) -> list[Measurement]:

@@ -132,9 +132,7 @@ class Rejects:
         """Add another set of rejects to this one."""
         for problem, n in other.counts.items():
             self.counts[problem] = self.counts.get(problem, 0) + n
-        if other.largest is not None and (
-            self.largest is None or other.largest[0] > self.largest[0]
-        ):
+        if other.largest is not None and (self.largest is None or other.largest[0] > self.largest[0]):
             self.largest = other.largest
 
 
@@ -254,9 +252,7 @@ def refine(
     a ball are counted in their job's ``rejects``; the others become candidates.
     """
     n_jobs = len(jobs)
-    out = Refined(
-        [[] for _ in range(n_jobs)], [Rejects({}) for _ in range(n_jobs)], [False] * n_jobs
-    )
+    out = Refined([[] for _ in range(n_jobs)], [Rejects({}) for _ in range(n_jobs)], [False] * n_jobs)
     if n_jobs == 0:
         return out
     strip = pack(frame, grid, jobs)
@@ -309,9 +305,7 @@ def refine(
         j = owner[k]
         per_job[j] += 1
         if per_job[j] > MAX_CANDIDATES_PER_WINDOW:
-            out.rejects[j].counts["smaller than others"] = (
-                out.rejects[j].counts.get("smaller than others", 0) + 1
-            )
+            out.rejects[j].counts["smaller than others"] = out.rejects[j].counts.get("smaller than others", 0) + 1
             continue
         colour, window = jobs[j]
         r0, r1, c0, c1 = window
@@ -367,9 +361,7 @@ def _count_rejects(
         return
     n_jobs = len(rejects)
     jobs = np.asarray(owner)[bad]
-    counts = np.bincount(
-        jobs * len(_PROBLEMS) + problem[bad] - 1, minlength=n_jobs * len(_PROBLEMS)
-    )
+    counts = np.bincount(jobs * len(_PROBLEMS) + problem[bad] - 1, minlength=n_jobs * len(_PROBLEMS))
     for key in counts.nonzero()[0].tolist():
         j, p = divmod(key, len(_PROBLEMS))
         rejects[j].counts[_PROBLEMS[p]] = int(counts[key])

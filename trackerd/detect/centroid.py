@@ -93,9 +93,7 @@ class Samples:
     """The colour's own samples over the region (Bayer only)."""
 
 
-def sample(
-    frame: NDArray[np.uint8], grid: SampleGrid, colour: str, threshold: Threshold, region: Region
-) -> Samples:
+def sample(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, threshold: Threshold, region: Region) -> Samples:
     """The colour test over ``region`` (cells, inside ``grid.interior()``)."""
     excess, value = excess_window(frame, grid, colour, region)
     strong = excess >= EXCESS_SCALE * threshold.min_excess
@@ -152,9 +150,7 @@ def measure(samples: Samples, weighted: bool, *, shape: bool = False) -> Measure
         own_level = float(samples.value[top : r1 + 2, left : c1 + 2][box].mean())
         origin = (samples.region[0] + top, samples.region[2] + left)
         rim = Rim(samples.colour, origin, box, weight, own_level)
-    return Measurement(
-        x0 + s * mx, y0 + s * my, total * s * s, bbox, on_border, elongation, fill, rim
-    )
+    return Measurement(x0 + s * mx, y0 + s * my, total * s * s, bbox, on_border, elongation, fill, rim)
 
 
 def measure_rims(

@@ -96,9 +96,7 @@ def sample_grid(pixel_format: str, width_px: int, height_px: int) -> SampleGrid:
     layout = BAYER_LAYOUTS.get(pixel_format)
     if layout is not None:
         if width_px < 8 or height_px < 8:
-            raise ImageError(
-                f"a {width_px}x{height_px} {pixel_format} frame is too small to search"
-            )
+            raise ImageError(f"a {width_px}x{height_px} {pixel_format} frame is too small to search")
         return SampleGrid(
             pixel_format,
             2,
@@ -131,9 +129,7 @@ def sample_grid(pixel_format: str, width_px: int, height_px: int) -> SampleGrid:
     )
 
 
-def _plane(
-    frame: NDArray[np.uint8], grid: SampleGrid, which: str, region: Region, step: int
-) -> NDArray[np.uint8]:
+def _plane(frame: NDArray[np.uint8], grid: SampleGrid, which: str, region: Region, step: int) -> NDArray[np.uint8]:
     """A strided view of one colour's samples over ``region`` (cells), every ``step``-th cell."""
     r0, r1, c0, c1 = region
     if grid.is_bayer:
@@ -144,9 +140,7 @@ def _plane(
     return frame[r0:r1:step, c0:c1:step, channel]
 
 
-def _exceeds(
-    value: NDArray[np.uint8], others_max: NDArray[np.uint8], threshold: Threshold
-) -> NDArray[np.bool_]:
+def _exceeds(value: NDArray[np.uint8], others_max: NDArray[np.uint8], threshold: Threshold) -> NDArray[np.bool_]:
     """``value >= others_max + min_excess and value >= min_value``, in uint8 without overflow.
 
     ``value - min_excess`` wraps round below zero, but only where ``value`` is
@@ -222,9 +216,7 @@ def excess_window(
     quad = pair[:-2] + pair[2:]
     rows = slice(1 + dr, 1 + dr + 2 * h, 2)
     cols = slice(1 + dc, 1 + dc + 2 * w, 2)
-    greens = np.add(
-        pair[rows, dc : dc + 2 * w : 2], patch[dr : dr + 2 * h : 2, cols], dtype=np.int16
-    )
+    greens = np.add(pair[rows, dc : dc + 2 * w : 2], patch[dr : dr + 2 * h : 2, cols], dtype=np.int16)
     greens += patch[2 + dr : 2 + dr + 2 * h : 2, cols]
     np.maximum(greens, quad[dr : dr + 2 * h : 2, dc : dc + 2 * w : 2], out=greens)
     value = patch[rows, cols]
@@ -234,9 +226,7 @@ def excess_window(
     return excess, value
 
 
-def green_at(
-    frame: NDArray[np.uint8], grid: SampleGrid, points_px: NDArray[np.float64]
-) -> NDArray[np.float64]:
+def green_at(frame: NDArray[np.uint8], grid: SampleGrid, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
     """Green, a stand-in for brightness, near points (N, 2) given as (x, y) pixels -> (N,).
 
     On a Bayer mosaic, the green sample at or right of the nearest pixel (half of

@@ -105,9 +105,19 @@ class ColourEndDetector:
         # wherever that gives what measuring them one by one gives.
         self.flat = self.weighted and self.grid.is_bayer
         self._work = WorkspaceCache()
-        self._blobs = BlobSearch(cfg, self.grid, self.thresholds, self.limits, self.step_cells,
-                                 self.length_over_diameter, self.rod_over_diameter, self.weighted, self.flat,
-                                 self.rim_pixels, self._work)
+        self._blobs = BlobSearch(
+            cfg,
+            self.grid,
+            self.thresholds,
+            self.limits,
+            self.step_cells,
+            self.length_over_diameter,
+            self.rod_over_diameter,
+            self.weighted,
+            self.flat,
+            self.rim_pixels,
+            self._work,
+        )
         self._round_blob = BlobShape(QUICK_MAX_ELONGATION, QUICK_MIN_FILL)
 
     def reset(self) -> None:
@@ -120,9 +130,7 @@ class ColourEndDetector:
         result = None
         self._crowded = set()
         if self._track is not None:
-            result = self._quick_track(frame, self._track) or self._blobs.near(
-                frame, self._track
-            )
+            result = self._quick_track(frame, self._track) or self._blobs.near(frame, self._track)
         if result is None:
             result = self._blobs.full(frame)
         self._remember(result)
@@ -138,9 +146,7 @@ class ColourEndDetector:
 
     # ------------------------------------------------------------------ searches
 
-    def _quick_track(
-        self, frame: NDArray[np.uint8], track: dict[str, EndTrack]
-    ) -> ImageDetections | None:
+    def _quick_track(self, frame: NDArray[np.uint8], track: dict[str, EndTrack]) -> ImageDetections | None:
         """Each end measured straight in a small window where it should be, if it is plainly there.
 
         This is the common case while tracking, and costs a few dozen NumPy calls
@@ -221,9 +227,7 @@ class ColourEndDetector:
                 return None
         return found[0], found[1]
 
-    def _quick_result(
-        self, red: Measurement, blue: Measurement, crowded: set[str]
-    ) -> ImageDetections | None:
+    def _quick_result(self, red: Measurement, blue: Measurement, crowded: set[str]) -> ImageDetections | None:
         """The quick path's answer if the two ends are consistent as a pair, else None."""
         pair = pair_consistency(
             red.area_px,
@@ -255,14 +259,13 @@ class ColourEndDetector:
             and not m.on_border
             and m.elongation <= QUICK_MAX_ELONGATION
             and m.fill >= QUICK_MIN_FILL
-            and previous_area_px / QUICK_AREA_RATIO
-            <= m.area_px
-            <= previous_area_px * QUICK_AREA_RATIO
+            and previous_area_px / QUICK_AREA_RATIO <= m.area_px <= previous_area_px * QUICK_AREA_RATIO
             and self.limits.min_area_px <= m.area_px <= self.limits.max_area_px
         )
 
-    def follow(self, red_px: NDArray[np.float64], blue_px: NDArray[np.float64], red_radius_px: float,
-               blue_radius_px: float) -> None:
+    def follow(
+        self, red_px: NDArray[np.float64], blue_px: NDArray[np.float64], red_radius_px: float, blue_radius_px: float
+    ) -> None:
         """Track the ends from these positions next frame: where a search beyond this detector (the
         locator's, across cameras) found the balls this frame, whatever this detector took for them."""
         self._track = {
@@ -286,7 +289,6 @@ class ColourEndDetector:
             crowded = result.search == "window" and colour in self._crowded
             track[colour] = EndTrack(x, y, vx, vy, end.area_px, crowded)
         self._track = track
-
 
 
 def detect_all_cameras(

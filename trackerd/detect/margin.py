@@ -145,7 +145,8 @@ def colour_samples(
     away = np.ones(excess.shape, dtype=np.bool_)
     core = np.zeros(excess.shape, dtype=np.bool_)
     known = {
-        name: disc for name, disc in balls.items()
+        name: disc
+        for name, disc in balls.items()
         if disc is not None and np.isfinite([disc.x_px, disc.y_px, disc.radius_px]).all()
     }
     for name, disc in known.items():

@@ -52,9 +52,7 @@ def to_bgr(frame: NDArray[np.uint8], pixel_format: str) -> NDArray[np.uint8]:
     raise ImageError(f"pixel format {pixel_format!r} is not a colour format")
 
 
-def opencv_reference(
-    frame: NDArray[np.uint8], pixel_format: str, cfg: DetectorConfig
-) -> ImageDetections:
+def opencv_reference(frame: NDArray[np.uint8], pixel_format: str, cfg: DetectorConfig) -> ImageDetections:
     """Demosaic, HSV, inRange per end, moments: the centroid of every pixel of each end's hue."""
     hsv = cv2.cvtColor(to_bgr(frame, pixel_format), cv2.COLOR_BGR2HSV)
     ends = {}
@@ -63,24 +61,21 @@ def opencv_reference(
         high = (min(hue + HUE_HALF_WIDTH, 179), 255, 255)
         mask = np.asarray(cv2.inRange(hsv, low, high), dtype=np.uint8)
         if hue - HUE_HALF_WIDTH < 0:  # red wraps around hue 0
-            mask |= np.asarray(cv2.inRange(
-                hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, thr.min_value), (179, 255, 255)
-            ), dtype=np.uint8)
+            mask |= np.asarray(
+                cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, thr.min_value), (179, 255, 255)),
+                dtype=np.uint8,
+            )
         m = cv2.moments(mask, binaryImage=True)
         if m["m00"] <= 0:
             ends[colour] = EndDetection.missing(f"no {colour} pixels in the hue band")
             continue
         centre = np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]])
         x, y, w, h = cv2.boundingRect(mask)
-        ends[colour] = EndDetection(
-            True, centre, float(m["m00"]), (x, y, x + w - 1, y + h - 1), 1.0, None
-        )
+        ends[colour] = EndDetection(True, centre, float(m["m00"]), (x, y, x + w - 1, y + h - 1), 1.0, None)
     return ImageDetections(ends["red"], ends["blue"], "full")
 
 
-def report_baseline(
-    frame: NDArray[np.uint8], pixel_format: str, cfg: DetectorConfig
-) -> ImageDetections:
+def report_baseline(frame: NDArray[np.uint8], pixel_format: str, cfg: DetectorConfig) -> ImageDetections:
     """The report's eq. 10-12: midpoint of the extent of all pixels of each end's colour."""
     rgb = to_bgr(frame, pixel_format)[..., ::-1].astype(np.int16)
     ends = {}
@@ -107,11 +102,16 @@ def naive_ends(frame: NDArray[np.uint8], pixel_format: str) -> dict[str, NDArray
     hsv = cv2.cvtColor(to_bgr(frame, pixel_format), cv2.COLOR_BGR2HSV)
     ends: dict[str, NDArray[np.float64] | None] = {}
     for colour, hue in (("red", 0), ("blue", 120)):
-        mask = np.asarray(cv2.inRange(hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40),
-                                      (min(hue + HUE_HALF_WIDTH, 179), 255, 255)), dtype=np.uint8)
+        mask = np.asarray(
+            cv2.inRange(
+                hsv, (max(hue - HUE_HALF_WIDTH, 0), MIN_SATURATION, 40), (min(hue + HUE_HALF_WIDTH, 179), 255, 255)
+            ),
+            dtype=np.uint8,
+        )
         if hue - HUE_HALF_WIDTH < 0:
-            mask |= np.asarray(cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, 40), (179, 255, 255)),
-                               dtype=np.uint8)
+            mask |= np.asarray(
+                cv2.inRange(hsv, (180 + hue - HUE_HALF_WIDTH, MIN_SATURATION, 40), (179, 255, 255)), dtype=np.uint8
+            )
         count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         if count <= 1:
             ends[colour] = None

@@ -103,9 +103,16 @@ def search_candidates(
     return out
 
 
-def _seeds(mask: NDArray[np.bool_], region: tuple[int, int, int, int], step: int, grid: SampleGrid, colour: str,
-           spacing: float, smallest: float, largest: float
-           ) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int, int]]]:
+def _seeds(
+    mask: NDArray[np.bool_],
+    region: tuple[int, int, int, int],
+    step: int,
+    grid: SampleGrid,
+    colour: str,
+    spacing: float,
+    smallest: float,
+    largest: float,
+) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int, int]]]:
     """(x, y, radius) in pixels of the mask's blobs of a ball's size, roundest and largest first; and the
     boxes (row0, row1, col0, col1 in mask samples) of the blobs too large to be one ball."""
     if not mask.any():

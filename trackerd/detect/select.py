@@ -71,19 +71,14 @@ def pair_consistency(
     """How consistent two blobs (areas, offset between centres) are with one pointer, in [0, 1]."""
     ratio = math.log(area_a_px / area_b_px)
     diameter = 2.0 * math.sqrt(max(area_a_px, area_b_px) / math.pi)
-    if (
-        math.hypot(dx_px, dy_px)
-        > length_over_diameter * diameter * DISTANCE_SLACK + DISTANCE_SLACK_PX
-    ):
+    if math.hypot(dx_px, dy_px) > length_over_diameter * diameter * DISTANCE_SLACK + DISTANCE_SLACK_PX:
         return 0.0
     return math.exp(-0.5 * (ratio / AREA_RATIO_SIGMA) ** 2)
 
 
 def pair_score(red: Candidate, blue: Candidate, length_over_diameter: float) -> float:
     """:func:`pair_consistency` of two candidates."""
-    return pair_consistency(
-        red.area_px, blue.area_px, red.x_px - blue.x_px, red.y_px - blue.y_px, length_over_diameter
-    )
+    return pair_consistency(red.area_px, blue.area_px, red.x_px - blue.x_px, red.y_px - blue.y_px, length_over_diameter)
 
 
 def rod_evidence(
@@ -181,16 +176,12 @@ def _total(pair: tuple[Candidate, float, Candidate, float, float]) -> float:
     return pair[1] * pair[3] * pair[4]
 
 
-def missing_reason(
-    colour: str, seeds: int, too_large_seeds: int, rejects: Rejects, examined_all: bool
-) -> str:
+def missing_reason(colour: str, seeds: int, too_large_seeds: int, rejects: Rejects, examined_all: bool) -> str:
     """One line on why no blob of ``colour`` was taken for an end."""
     if seeds == 0:
         return f"no {colour} pixels above threshold"
     if rejects.total == 0 and too_large_seeds == seeds:
-        return (
-            f"{seeds} {colour} region{'s' if seeds != 1 else ''}, all far larger than max_area_px"
-        )
+        return f"{seeds} {colour} region{'s' if seeds != 1 else ''}, all far larger than max_area_px"
     if rejects.total == 0:
         return f"{colour} pixels above threshold, but no {colour} blob at full resolution"
     n = rejects.total + too_large_seeds

@@ -84,10 +84,7 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
     The strip's first and last columns are always black.
     """
     scales = [scale_for(w) for _, w in jobs]
-    shapes = [
-        (-(-(w[1] - w[0]) // k), -(-(w[3] - w[2]) // k))
-        for (_, w), k in zip(jobs, scales, strict=True)
-    ]
+    shapes = [(-(-(w[1] - w[0]) // k), -(-(w[3] - w[2]) // k)) for (_, w), k in zip(jobs, scales, strict=True)]
     boxes = [(h + 1, w + 1) for h, w in shapes]  # with the gap after
     area = sum(h * w for h, w in boxes)
     width = max(max(w for _, w in boxes), math.isqrt(area) + 1) + 1
@@ -98,9 +95,7 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
     shelf_of = [0] * len(jobs)
     height = 1
     for colour in ("red", "blue"):
-        mine = sorted(
-            (j for j, (c, _) in enumerate(jobs) if c == colour), key=lambda j: -boxes[j][0]
-        )
+        mine = sorted((j for j, (c, _) in enumerate(jobs) if c == colour), key=lambda j: -boxes[j][0])
         if not mine:
             continue
         top = height
@@ -148,6 +143,4 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
         grid.channels,
         image.shape,
     )
-    return Strip(
-        image, strip_grid, rows, cols, zones, np.array(shelf_tops), shelf_jobs, scales, shapes
-    )
+    return Strip(image, strip_grid, rows, cols, zones, np.array(shelf_tops), shelf_jobs, scales, shapes)

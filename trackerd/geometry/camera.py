@@ -91,8 +91,13 @@ class CameraModel:
     def with_intrinsics(self, matrix: Array, distortion: Array) -> CameraModel:
         """The same camera pose with other intrinsics (for calibration studies)."""
         return CameraModel(
-            self.camera_id, self.width_px, self.height_px, matrix, distortion,
-            self.rotation, self.translation_m,
+            self.camera_id,
+            self.width_px,
+            self.height_px,
+            matrix,
+            distortion,
+            self.rotation,
+            self.translation_m,
         )
 
     # ----------------------------------------------------------------- projection
@@ -129,9 +134,7 @@ class CameraModel:
             x = (pix[:, 0] - cx - skew * y) / fx
             plain: Array = np.column_stack([x, y])
             return plain
-        out = cv2.undistortPoints(
-            pix.reshape(-1, 1, 2), self.matrix, self.distortion, criteria=_UNDISTORT_CRITERIA
-        )
+        out = cv2.undistortPoints(pix.reshape(-1, 1, 2), self.matrix, self.distortion, criteria=_UNDISTORT_CRITERIA)
         return np.asarray(out, dtype=np.float64).reshape(-1, 2)  # float64 already: typed, not copied
 
     def rays_camera(self, pixels_px: Array) -> Array:
@@ -165,9 +168,7 @@ class CameraModel:
         return self.distortion if self.distortion.size else None
 
 
-def report_pixel_pitch(
-    focal_length: float, horizontal_fov_deg: float, width_px: int
-) -> float:
+def report_pixel_pitch(focal_length: float, horizontal_fov_deg: float, width_px: int) -> float:
     """Size of one pixel on the image plane at focal length ``focal_length`` (eq. 14).
 
     ``x distance per pixel = f * tan(half view angle) / (image width in pixels / 2)``;

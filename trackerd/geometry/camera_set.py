@@ -58,21 +58,27 @@ class CameraSet:
         if used is None or len(used) == len(self.cameras):
             return self
         index = np.asarray(used)
-        return CameraSet([self.cameras[i] for i in used], self.centres_m[index], self.rotations[index],
-                         tuple(self.scalar_poses[i] for i in used))
+        return CameraSet(
+            [self.cameras[i] for i in used],
+            self.centres_m[index],
+            self.rotations[index],
+            tuple(self.scalar_poses[i] for i in used),
+        )
 
 
 def _scalar_pose(cam: CameraModel) -> ScalarPose:
     cx, cy, cz = (float(v) for v in cam.centre_m)
     tx, ty, tz = (float(v) for v in cam.translation_m)
     r = cam.rotation
-    rows = ((float(r[0, 0]), float(r[0, 1]), float(r[0, 2])), (float(r[1, 0]), float(r[1, 1]), float(r[1, 2])),
-            (float(r[2, 0]), float(r[2, 1]), float(r[2, 2])))
+    rows = (
+        (float(r[0, 0]), float(r[0, 1]), float(r[0, 2])),
+        (float(r[1, 0]), float(r[1, 1]), float(r[1, 2])),
+        (float(r[2, 0]), float(r[2, 1]), float(r[2, 2])),
+    )
     return (cx, cy, cz), rows, (tx, ty, tz)
 
 
-def estimate_line(normalised: Array, view: CameraSet, min_plane_sin: float, ball_radius_m: float | None
-                  ) -> PointerLine:
+def estimate_line(normalised: Array, view: CameraSet, min_plane_sin: float, ball_radius_m: float | None) -> PointerLine:
     """Pointer line from normalised coordinates (C, 2 ends (front, back), 2) of the cameras in ``view``.
 
     With ``ball_radius_m``, each end's ray is corrected to its ball's centre
@@ -93,25 +99,31 @@ def estimate_line(normalised: Array, view: CameraSet, min_plane_sin: float, ball
             line = _line_from_camera_rays(
                 sphere_centre_direction(rays[:, 0], front_depth, ball_radius_m),
                 sphere_centre_direction(rays[:, 1], back_depth, ball_radius_m),
-                view, min_plane_sin,
+                view,
+                min_plane_sin,
             )
     return line
 
 
-def _estimate_two(normalised: Array, view: CameraSet, min_plane_sin: float, ball_radius_m: float | None
-                  ) -> PointerLine | None:
+def _estimate_two(
+    normalised: Array, view: CameraSet, min_plane_sin: float, ball_radius_m: float | None
+) -> PointerLine | None:
     """:func:`estimate_line` for two cameras in plain floats (trackerd.geometry.two_cameras); None where
     the planes are too close to parallel, for the general path's two-point line."""
     (centre0, rows0, t0), (centre1, rows1, t1) = view.scalar_poses
     (x0f, y0f), (x0b, y0b) = normalised[0].tolist()
     (x1f, y1f), (x1b, y1b) = normalised[1].tolist()
 
-    def line_of(x0f: float, y0f: float, x0b: float, y0b: float, x1f: float, y1f: float, x1b: float,
-                y1b: float) -> PointerLine | None:
+    def line_of(
+        x0f: float, y0f: float, x0b: float, y0b: float, x1f: float, y1f: float, x1b: float, y1b: float
+    ) -> PointerLine | None:
         return two_cameras.pointer_line(
-            centre0, centre1,
-            two_cameras.world_ray(rows0, x0f, y0f), two_cameras.world_ray(rows0, x0b, y0b),
-            two_cameras.world_ray(rows1, x1f, y1f), two_cameras.world_ray(rows1, x1b, y1b),
+            centre0,
+            centre1,
+            two_cameras.world_ray(rows0, x0f, y0f),
+            two_cameras.world_ray(rows0, x0b, y0b),
+            two_cameras.world_ray(rows1, x1f, y1f),
+            two_cameras.world_ray(rows1, x1b, y1b),
             min_plane_sin,
         )
 
@@ -119,8 +131,11 @@ def _estimate_two(normalised: Array, view: CameraSet, min_plane_sin: float, ball
     if line is None or ball_radius_m is None:
         return line
     front, back = line.front_floats, line.back_floats
-    depths = [rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
-              for rows, t in ((rows0, t0), (rows1, t1)) for p in (front, back)]
+    depths = [
+        rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
+        for rows, t in ((rows0, t0), (rows1, t1))
+        for p in (front, back)
+    ]
     if min(depths) <= ball_radius_m:
         return line
     # As sphere_centre_direction: the ellipse's centre lies (1 - r^2 / Z^2) further out.
@@ -128,16 +143,16 @@ def _estimate_two(normalised: Array, view: CameraSet, min_plane_sin: float, ball
     return line_of(x0f * k0f, y0f * k0f, x0b * k0b, y0b * k0b, x1f * k1f, y1f * k1f, x1b * k1b, y1b * k1b)
 
 
-def _line_from_camera_rays(front_cam: Array, back_cam: Array, view: CameraSet, min_plane_sin: float
-                           ) -> PointerLine:
+def _line_from_camera_rays(front_cam: Array, back_cam: Array, view: CameraSet, min_plane_sin: float) -> PointerLine:
     """Line from camera-frame unit rays (C, 3) through the front and back ends."""
     front_world = np.einsum("cj,cjk->ck", front_cam, view.rotations)
     back_world = np.einsum("cj,cjk->ck", back_cam, view.rotations)
     return estimate_pointer_line(view.centres_m, front_world, back_world, min_plane_sin)
 
 
-def hit_uncertainty_m(normalised: Array, view: CameraSet, sigma_px: float, wall: WallFrame,
-                      wall_scalars: WallFloats) -> float | None:
+def hit_uncertainty_m(
+    normalised: Array, view: CameraSet, sigma_px: float, wall: WallFrame, wall_scalars: WallFloats
+) -> float | None:
     """RMS radius of the hit's error when every centroid moves by ``sigma_px`` across the pointer.
 
     Only displacements across each camera's image of the pointer move the
@@ -152,8 +167,7 @@ def hit_uncertainty_m(normalised: Array, view: CameraSet, sigma_px: float, wall:
     return hit_uncertainty_reference_m(normalised, view, sigma_px, wall)
 
 
-def hit_uncertainty_reference_m(normalised: Array, view: CameraSet, sigma_px: float, wall: WallFrame
-                                ) -> float | None:
+def hit_uncertainty_reference_m(normalised: Array, view: CameraSet, sigma_px: float, wall: WallFrame) -> float | None:
     """:func:`hit_uncertainty_m` for any number of cameras: the reference of :func:`hit_uncertainty_two_m`."""
     n_cameras = len(view.cameras)
     # Variant 0 is the measurement; then each end of each camera moved across the pointer.
@@ -170,8 +184,9 @@ def hit_uncertainty_reference_m(normalised: Array, view: CameraSet, sigma_px: fl
     return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
 
 
-def hit_uncertainty_two_m(normalised: Array, view: CameraSet, sigma_px: float, wall_scalars: WallFloats
-                          ) -> float | None:
+def hit_uncertainty_two_m(
+    normalised: Array, view: CameraSet, sigma_px: float, wall_scalars: WallFloats
+) -> float | None:
     """:func:`hit_uncertainty_m` for two cameras, in plain floats (trackerd.geometry.two_cameras)."""
     (centre0, rows0, _), (centre1, rows1, _) = view.scalar_poses
     measured = normalised.reshape(8).tolist()  # x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b
@@ -187,8 +202,9 @@ def hit_uncertainty_two_m(normalised: Array, view: CameraSet, sigma_px: float, w
             moved[4 * index + 2 * end + 1] += shift[1]
             variants.append(tuple(moved))
     try:
-        hits = two_cameras.plane_line_hits(centre0, centre1, (rows0, rows1), variants,
-                                           wall_scalars.normal, wall_scalars.offset_m)
+        hits = two_cameras.plane_line_hits(
+            centre0, centre1, (rows0, rows1), variants, wall_scalars.normal, wall_scalars.offset_m
+        )
     except GeometryError:
         return None
     # The hits lie in the wall's plane: their spread in the wall's frame, along its two axes.

@@ -57,12 +57,25 @@ class EndViews:
     the ball's centre (a fitted outline)."""
 
     @staticmethod
-    def of(rotations: Array, translations_m: Array, measured: Array, covariances: Array, length_m: float,
-           length_sigma_m: float, ball_radius_m: float = 0.0) -> EndViews:
+    def of(
+        rotations: Array,
+        translations_m: Array,
+        measured: Array,
+        covariances: Array,
+        length_m: float,
+        length_sigma_m: float,
+        ball_radius_m: float = 0.0,
+    ) -> EndViews:
         """The views as float64 arrays (the covariances copied: the robust fit changes them)."""
-        return EndViews(np.asarray(rotations, dtype=np.float64), np.asarray(translations_m, dtype=np.float64),
-                        np.asarray(measured, dtype=np.float64), np.array(covariances, dtype=np.float64),
-                        float(length_m), float(length_sigma_m), float(ball_radius_m))
+        return EndViews(
+            np.asarray(rotations, dtype=np.float64),
+            np.asarray(translations_m, dtype=np.float64),
+            np.asarray(measured, dtype=np.float64),
+            np.array(covariances, dtype=np.float64),
+            float(length_m),
+            float(length_sigma_m),
+            float(ball_radius_m),
+        )
 
 
 @dataclass(frozen=True)
@@ -91,8 +104,9 @@ INCONSISTENT = 2.0
 """A fit whose chi-square exceeds this times its degrees of freedom looks for a measurement to leave out."""
 
 
-def fit_pointer_robust(views: EndViews, front0_m: Array, back0_m: Array, rounds: int = 2, min_cameras: int = 2
-                       ) -> PointerFit:
+def fit_pointer_robust(
+    views: EndViews, front0_m: Array, back0_m: Array, rounds: int = 2, min_cameras: int = 2
+) -> PointerFit:
     """:func:`fit_pointer`, leaving out measurements that do not agree with the others.
 
     While the measurements disagree (reduced chi-square above INCONSISTENT), the fit is redone without
@@ -130,8 +144,9 @@ def fit_pointer_robust(views: EndViews, front0_m: Array, back0_m: Array, rounds:
         present[c, e] = False
         dropped.append((c, e))
     if dropped:
-        fit = PointerFit(fit.front_m, fit.back_m, fit.covariance, fit.chi2, fit.dof, fit.inflation, fit.iterations,
-                         tuple(dropped))
+        fit = PointerFit(
+            fit.front_m, fit.back_m, fit.covariance, fit.chi2, fit.dof, fit.inflation, fit.iterations, tuple(dropped)
+        )
     return fit
 
 
@@ -144,8 +159,9 @@ DROPPED_VARIANCE = 1e4
 """The covariance (normalised units squared) of a measurement that is not there: it weighs nothing."""
 
 
-def predict(rotations: Array, translations_m: Array, front_m: Array, back_m: Array, ball_radius_m: float = 0.0
-            ) -> Array:
+def predict(
+    rotations: Array, translations_m: Array, front_m: Array, back_m: Array, ball_radius_m: float = 0.0
+) -> Array:
     """Where the fit puts each end in each camera's normalised image plane: (C, 2 ends, 2)."""
     ends = np.stack([np.asarray(front_m, dtype=np.float64), np.asarray(back_m, dtype=np.float64)])
     xc = np.einsum("cij,ej->cei", rotations, ends) + translations_m[:, None, :]
@@ -192,8 +208,17 @@ def fit_pointer(views: EndViews, front0_m: Array, back0_m: Array, max_iterations
     return PointerFit(params[:3].copy(), params[3:].copy(), covariance * inflation, chi2, dof, inflation, iterations)
 
 
-def _linearise(params: Array, rot: Array, trans: Array, obs: Array, whiten: Array, k2: float, length_m: float,
-               length_sigma_m: float, cameras: int) -> tuple[Array, Array]:
+def _linearise(
+    params: Array,
+    rot: Array,
+    trans: Array,
+    obs: Array,
+    whiten: Array,
+    k2: float,
+    length_m: float,
+    length_sigma_m: float,
+    cameras: int,
+) -> tuple[Array, Array]:
     """Whitened residuals (4C + 1,) and their Jacobian (4C + 1, 6) at ``params``."""
     ends = params.reshape(2, 3)
     # Camera coordinates of both ends in every camera: (C, 2, 3).
@@ -232,8 +257,9 @@ def _linearise(params: Array, rot: Array, trans: Array, obs: Array, whiten: Arra
     return residuals, jacobian_rows
 
 
-def hit_covariance(front_m: Array, back_m: Array, covariance: Array, plane_normal: Array, plane_offset_m: float,
-                   wall_axes: Array) -> Array:
+def hit_covariance(
+    front_m: Array, back_m: Array, covariance: Array, plane_normal: Array, plane_offset_m: float, wall_axes: Array
+) -> Array:
     """2x2 covariance of the wall hit (in the wall's x, y axes, metres) of the line back -> front, from the
     6x6 covariance of (front, back): eq. 26-28 linearised.
 

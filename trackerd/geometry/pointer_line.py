@@ -76,8 +76,11 @@ class PointerLine:
         """Unit vector from the back end to the front end."""
         (fx, fy, fz), (bx, by, bz) = self.front_floats, self.back_floats
         length = self.length_m
-        direction = (np.full(3, np.nan) if not length > 0.0  # coincident ends: no direction
-                     else np.array([(fx - bx) / length, (fy - by) / length, (fz - bz) / length]))
+        direction = (
+            np.full(3, np.nan)
+            if not length > 0.0  # coincident ends: no direction
+            else np.array([(fx - bx) / length, (fy - by) / length, (fz - bz) / length])
+        )
         direction.flags.writeable = False  # one array for every caller
         return direction
 
@@ -94,11 +97,14 @@ class PointerLine:
 
 def cross3(a: Array, b: Array) -> Array:
     """Cross product of (..., 3) arrays; np.cross is slow for the handful of vectors used here."""
-    return np.stack([
-        a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-        a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-        a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-    ], axis=-1)
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
 
 
 def interpretation_plane_normals(front_dirs: Array, back_dirs: Array) -> Array:
@@ -240,8 +246,9 @@ def _line_from_points(centres: Array, front_dirs: Array, back_dirs: Array, condi
     if len(centres) == 2:
         front = closest_approach(centres[0], front_dirs[0], centres[1], front_dirs[1])
         back = closest_approach(centres[0], back_dirs[0], centres[1], back_dirs[1])
-        return PointerLine(front.midpoint_m, back.midpoint_m, float(front.gap_m), float(back.gap_m),
-                           "points", conditioning)
+        return PointerLine(
+            front.midpoint_m, back.midpoint_m, float(front.gap_m), float(back.gap_m), "points", conditioning
+        )
     front_m, front_d = triangulate_least_squares(centres, front_dirs)
     back_m, back_d = triangulate_least_squares(centres, back_dirs)
     return PointerLine(front_m, back_m, float(2 * front_d.max()), float(2 * back_d.max()), "points", conditioning)

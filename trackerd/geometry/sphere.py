@@ -36,8 +36,9 @@ class SphereDirection:
     """2x2 covariance of ``normalised``."""
 
 
-def fit_sphere_direction(rim_normalised: Array, weights: Array | None = None,
-                         rim_sigma_normalised: float | None = None) -> SphereDirection | None:
+def fit_sphere_direction(
+    rim_normalised: Array, weights: Array | None = None, rim_sigma_normalised: float | None = None
+) -> SphereDirection | None:
     """The cone through rim points given in normalised undistorted coordinates (N, 2).
 
     ``rim_sigma_normalised`` is one rim point's standard error across the rim, in

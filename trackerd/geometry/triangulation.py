@@ -68,9 +68,7 @@ def closest_approach(
     sin_angle = np.sqrt(denom) / np.where(norms > 0, norms, np.inf)
     if np.any(~(sin_angle >= np.sin(min_angle_rad))):
         worst = float(np.degrees(np.arcsin(np.clip(np.nanmin(sin_angle), 0.0, 1.0))))
-        raise GeometryError(
-            f"rays are parallel within {worst:.2g} degrees: the cameras cannot triangulate this point"
-        )
+        raise GeometryError(f"rays are parallel within {worst:.2g} degrees: the cameras cannot triangulate this point")
     baseline = c2 - c1
     s = np.einsum("...i,...i->...", np.cross(baseline, b), a_cross_b) / denom
     t = np.einsum("...i,...i->...", np.cross(baseline, a), a_cross_b) / denom

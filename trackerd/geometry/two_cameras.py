@@ -49,9 +49,11 @@ def _unit(a: Vec) -> Vec:
 def world_ray(rotation: Rows, x_norm: float, y_norm: float) -> Vec:
     """The world direction (not unit) of the camera ray through normalised image point (x, y): R^T (x, y, 1)."""
     r0, r1, r2 = rotation
-    return (r0[0] * x_norm + r1[0] * y_norm + r2[0],
-            r0[1] * x_norm + r1[1] * y_norm + r2[1],
-            r0[2] * x_norm + r1[2] * y_norm + r2[2])
+    return (
+        r0[0] * x_norm + r1[0] * y_norm + r2[0],
+        r0[1] * x_norm + r1[1] * y_norm + r2[1],
+        r0[2] * x_norm + r1[2] * y_norm + r2[2],
+    )
 
 
 def plane_normal(front: Vec, back: Vec) -> Vec:
@@ -77,9 +79,11 @@ def planes_line(c0: Vec, c1: Vec, n0: Vec, n1: Vec) -> tuple[Vec, Vec, float] | 
     r0, r1, r2 = _dot(n0, c0), _dot(n1, c1), _dot(u, middle)
     a, b, c = _cross(n1, u), _cross(u, n0), cross
     det = _dot(n0, a)
-    point = ((r0 * a[0] + r1 * b[0] + r2 * c[0]) / det,
-             (r0 * a[1] + r1 * b[1] + r2 * c[1]) / det,
-             (r0 * a[2] + r1 * b[2] + r2 * c[2]) / det)
+    point = (
+        (r0 * a[0] + r1 * b[0] + r2 * c[0]) / det,
+        (r0 * a[1] + r1 * b[1] + r2 * c[1]) / det,
+        (r0 * a[2] + r1 * b[2] + r2 * c[2]) / det,
+    )
     return point, u, conditioning
 
 
@@ -108,8 +112,9 @@ def ray_gap_m(c0: Vec, c1: Vec, d0: Vec, d1: Vec) -> float:
     return abs(_dot(normal, _sub(c1, c0))) / length
 
 
-def pointer_line(c0: Vec, c1: Vec, front0: Vec, back0: Vec, front1: Vec, back1: Vec,
-                 min_plane_sin: float) -> PointerLine | None:
+def pointer_line(
+    c0: Vec, c1: Vec, front0: Vec, back0: Vec, front1: Vec, back1: Vec, min_plane_sin: float
+) -> PointerLine | None:
     """:func:`pointer_line.estimate_pointer_line` for two cameras (centres c0, c1; world rays
     through each camera's front and back end); None when the planes are too close to parallel
     for their line, where the caller uses the two triangulated points instead."""
@@ -119,12 +124,24 @@ def pointer_line(c0: Vec, c1: Vec, front0: Vec, back0: Vec, front1: Vec, back1: 
     point, u, conditioning = found
     front = _end_on_line(point, u, c0, c1, front0, front1)
     back = _end_on_line(point, u, c0, c1, back0, back1)
-    return PointerLine(np.array(front), np.array(back), ray_gap_m(c0, c1, front0, front1),
-                       ray_gap_m(c0, c1, back0, back1), "planes", conditioning)
+    return PointerLine(
+        np.array(front),
+        np.array(back),
+        ray_gap_m(c0, c1, front0, front1),
+        ray_gap_m(c0, c1, back0, back1),
+        "planes",
+        conditioning,
+    )
 
 
-def plane_line_hits(c0: Vec, c1: Vec, rotations: tuple[Rows, Rows], variants: list[tuple[float, ...]],
-                    wall_normal: Vec, wall_offset_m: float) -> list[Vec]:
+def plane_line_hits(
+    c0: Vec,
+    c1: Vec,
+    rotations: tuple[Rows, Rows],
+    variants: list[tuple[float, ...]],
+    wall_normal: Vec,
+    wall_offset_m: float,
+) -> list[Vec]:
     """Where the interpretation planes' line meets the wall plane, for sets of normalised end
     coordinates (x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b): the batched path of the locator's
     uncertainty (:func:`trackerd.geometry.camera_set.hit_uncertainty_reference_m`). The wall plane is
@@ -141,8 +158,9 @@ def plane_line_hits(c0: Vec, c1: Vec, rotations: tuple[Rows, Rows], variants: li
         known = normals[camera].get(ends)
         if known is None:
             rows = rotations[camera]
-            known = normals[camera][ends] = plane_normal(world_ray(rows, ends[0], ends[1]),
-                                                         world_ray(rows, ends[2], ends[3]))
+            known = normals[camera][ends] = plane_normal(
+                world_ray(rows, ends[0], ends[1]), world_ray(rows, ends[2], ends[3])
+            )
         return known
 
     for x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b in variants:

@@ -149,9 +149,18 @@ class WallFloats:
     @classmethod
     def of(cls, wall: WallFrame) -> WallFloats:
         plane = wall.plane
-        display = (wall.display_width_px, wall.display_height_px) if wall.has_display else None
-        return cls(as_vec3(plane.normal), float(plane.offset_m), as_vec3(wall.origin_m), as_vec3(wall.x_axis),
-                   as_vec3(wall.y_axis), float(wall.width_m), float(wall.height_m), display)  # type: ignore[arg-type]
+        width_px, height_px = wall.display_width_px, wall.display_height_px
+        display = (width_px, height_px) if width_px is not None and height_px is not None else None
+        return cls(
+            as_vec3(plane.normal),
+            float(plane.offset_m),
+            as_vec3(wall.origin_m),
+            as_vec3(wall.x_axis),
+            as_vec3(wall.y_axis),
+            float(wall.width_m),
+            float(wall.height_m),
+            display,
+        )
 
     def direction_sin(self, start_m: Vec3, through_m: Vec3) -> float:
         """Sine of the angle between the line through the two points and the wall's plane (0 if they coincide)."""
@@ -272,8 +281,16 @@ class WallFrame:
         side = (corners[3] - corners[0] + corners[2] - corners[1]) / 2.0
         # Measured corners are only nearly coplanar: put the origin on the fitted plane.
         origin = corners[0] - plane.signed_distance_m(corners[0]) * plane.normal
-        return cls._build(origin, bottom, side, plane, float(np.linalg.norm(bottom)),
-                          float(np.linalg.norm(side)), display_px, residuals)
+        return cls._build(
+            origin,
+            bottom,
+            side,
+            plane,
+            float(np.linalg.norm(bottom)),
+            float(np.linalg.norm(side)),
+            display_px,
+            residuals,
+        )
 
     @classmethod
     def from_points(
@@ -297,8 +314,16 @@ class WallFrame:
             _check_planarity(residuals, planarity_tolerance_m, "points_m")
         origin = np.asarray(origin_m, dtype=np.float64)
         origin = origin - plane.signed_distance_m(origin) * plane.normal
-        return cls._build(origin, np.asarray(x_direction, float), np.asarray(y_direction, float), plane,
-                          width_m, height_m, display_px, residuals)
+        return cls._build(
+            origin,
+            np.asarray(x_direction, float),
+            np.asarray(y_direction, float),
+            plane,
+            width_m,
+            height_m,
+            display_px,
+            residuals,
+        )
 
     @classmethod
     def _build(

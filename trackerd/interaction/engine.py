@@ -212,8 +212,15 @@ class InteractionEngine:
         self._inside = False
         self._since_ns = None
         position = self._last_on_m if self._last_on_m is not None else np.zeros(2)
-        events.append(Event("leave", time_ns, self.cursor_id, position.copy(),
-                            {"reason": reason, "duration_ms": (time_ns - self._entered_ns) / 1e6}))
+        events.append(
+            Event(
+                "leave",
+                time_ns,
+                self.cursor_id,
+                position.copy(),
+                {"reason": reason, "duration_ms": (time_ns - self._entered_ns) / 1e6},
+            )
+        )
 
     # ------------------------------------------------------------------ dwell
 
@@ -235,8 +242,9 @@ class InteractionEngine:
         if self._dwell_armed and time_ns - self._dwell_start_ns >= cfg.time_ms * 1e6:
             self._dwell_armed = False
             mean = self._dwell_sum / self._dwell_count
-            events.append(Event("dwell", time_ns, self.cursor_id, mean,
-                                {"dwell_ms": (time_ns - self._dwell_start_ns) / 1e6}))
+            events.append(
+                Event("dwell", time_ns, self.cursor_id, mean, {"dwell_ms": (time_ns - self._dwell_start_ns) / 1e6})
+            )
 
     # ------------------------------------------------------------------ gestures
 
@@ -271,12 +279,24 @@ class InteractionEngine:
             return
         # The rest that follows a gesture is not a click.
         self._reset_dwell(stroke.points_m[-1], stroke.end_ns, armed=False)
-        events.append(Event(
-            "gesture", stroke.end_ns, self.cursor_id, stroke.points_m[-1].copy(),
-            {"name": best_name, "score": best, "start_ns": stroke.start_ns, "end_ns": stroke.end_ns,
-             "path_m": features.path_m, "start_m": stroke.points_m[0].copy(),
-             "runner_up": runner_up, "runner_up_score": second},
-        ))
+        events.append(
+            Event(
+                "gesture",
+                stroke.end_ns,
+                self.cursor_id,
+                stroke.points_m[-1].copy(),
+                {
+                    "name": best_name,
+                    "score": best,
+                    "start_ns": stroke.start_ns,
+                    "end_ns": stroke.end_ns,
+                    "path_m": features.path_m,
+                    "start_m": stroke.points_m[0].copy(),
+                    "runner_up": runner_up,
+                    "runner_up_score": second,
+                },
+            )
+        )
 
     def _reject(self, stroke: Stroke, reason: str, scores: list[tuple[str, float]]) -> None:
         self.rejected_total += 1

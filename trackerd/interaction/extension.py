@@ -121,8 +121,9 @@ class InteractionExtension:
         maker = EventMaker(wall, checked.grammar, smoothing=cfg.smoothing.enabled)
         hands = None
         if cfg.hand.enabled and checked.hand_camera is not None:
-            hands = HandPoses(cfg.hand, checked.hand_camera, rig.cameras[checked.hand_camera].id, maker,
-                              threaded=self._threaded_hands)
+            hands = HandPoses(
+                cfg.hand, checked.hand_camera, rig.cameras[checked.hand_camera].id, maker, threaded=self._threaded_hands
+            )
         tuio = WallCursor(TuioSender(cfg.tuio), wall.width_m, wall.height_m) if cfg.tuio.enabled else None
         return _Parts(rig, engine, maker, hands, tuio)
 
@@ -154,8 +155,9 @@ class InteractionExtension:
         cursor: CursorHit | None = None
         if hit is not None and step.smoothed_m is not None:
             cursor = self.maker.cursor_hit(step.smoothed_m, self.engine.cursor_id if step.inside else None)
-        events = self.maker.events(step.events, sequence=pair.sequence, capture_ns=capture_ns,
-                                   clock_offset_ns=self._offset_ns)
+        events = self.maker.events(
+            step.events, sequence=pair.sequence, capture_ns=capture_ns, clock_offset_ns=self._offset_ns
+        )
         for event in events:
             if isinstance(event, Gestured):
                 self._gesture_counts[event.name] = self._gesture_counts.get(event.name, 0) + 1
@@ -186,8 +188,11 @@ class InteractionExtension:
         }
         if cost.size:
             p50, p99 = np.percentile(cost, [50, 99]) / 1e3
-            figures.update(cost_p50_us=round(float(p50), 1), cost_p99_us=round(float(p99), 1),
-                           cost_max_us=round(float(cost.max()) / 1e3, 1))
+            figures.update(
+                cost_p50_us=round(float(p50), 1),
+                cost_p99_us=round(float(p99), 1),
+                cost_max_us=round(float(cost.max()) / 1e3, 1),
+            )
         return figures
 
     def reload(self, rig: RigConfig) -> None:
@@ -262,8 +267,9 @@ class InteractionExtension:
     def _end_session(self, *, forget_scene: bool = False) -> list[Event]:
         """Reset the engine and the hand's count; the events that end what was going on."""
         sequence, capture_ns = self._last_sequence, self._last_capture_ns
-        out = self.maker.events(self.engine.reset(), sequence=sequence, capture_ns=capture_ns,
-                                clock_offset_ns=self._offset_ns)
+        out = self.maker.events(
+            self.engine.reset(), sequence=sequence, capture_ns=capture_ns, clock_offset_ns=self._offset_ns
+        )
         if self.hands is not None:
             out += self.hands.end_session(sequence, capture_ns, forget_scene=forget_scene)
         return out

@@ -76,7 +76,7 @@ def half_resolution_rgb(image: NDArray[np.uint8], pixel_format: str) -> NDArray[
     h, w = image.shape[0] // 2 * 2, image.shape[1] // 2 * 2
 
     def plane(pos: tuple[int, int]) -> NDArray[np.uint8]:
-        return image[pos[0]:h:2, pos[1]:w:2]
+        return image[pos[0] : h : 2, pos[1] : w : 2]
 
     green = ((plane(layout.green_a).astype(np.uint16) + plane(layout.green_b)) >> 1).astype(np.uint8)
     return np.dstack([plane(layout.red), green, plane(layout.blue)])
@@ -112,7 +112,7 @@ def count_fingers(contour: NDArray[np.int32], mask: NDArray[np.uint8]) -> tuple[
             defects = cv2.convexityDefects(contour, np.sort(hull, axis=0))
         except cv2.error:
             defects = None  # a self-intersecting contour: count by reach alone
-        for start_i, end_i, far_i, depth in (defects.reshape(-1, 4) if defects is not None else ()):
+        for start_i, end_i, far_i, depth in defects.reshape(-1, 4) if defects is not None else ():
             if depth / 256.0 < DEFECT_DEPTH * radius:
                 continue
             start, end, far = (contour[i][0].astype(np.float64) for i in (start_i, end_i, far_i))

@@ -56,8 +56,16 @@ class HandPoses:
     ``offer`` and ``take`` run in the processing thread; with ``threaded`` the looks run on a
     thread of their own, started with the first offer and stopped by :meth:`stop`."""
 
-    def __init__(self, config: HandConfig, camera_index: int, camera_id: str, maker: EventMaker, *,
-                 threaded: bool, detector: HandDetector | None = None) -> None:
+    def __init__(
+        self,
+        config: HandConfig,
+        camera_index: int,
+        camera_id: str,
+        maker: EventMaker,
+        *,
+        threaded: bool,
+        detector: HandDetector | None = None,
+    ) -> None:
         self.camera_index = camera_index
         self.camera_id = camera_id
         self.threaded = threaded
@@ -118,9 +126,18 @@ class HandPoses:
             out = self.take()
             last = self._last
             if last is not None and self._debouncer.stable is not None:
-                out.append(HandSeen(sequence=sequence, capture_ns=capture_ns, camera=self.camera_id, present=False,
-                                    fingers=self._debouncer.stable, fingers_now=last.fingers,
-                                    centre_px=last.centre_px, area_px=last.area_px))
+                out.append(
+                    HandSeen(
+                        sequence=sequence,
+                        capture_ns=capture_ns,
+                        camera=self.camera_id,
+                        present=False,
+                        fingers=self._debouncer.stable,
+                        fingers_now=last.fingers,
+                        centre_px=last.centre_px,
+                        area_px=last.area_px,
+                    )
+                )
             self._last = None
             self._debouncer.reset()
             if forget_scene:
@@ -162,9 +179,18 @@ class HandPoses:
         if seen is None:
             last = self._last
             if last is not None and self._debouncer.stable is not None:
-                out.append(HandSeen(sequence=look.sequence, capture_ns=look.capture_ns, camera=look.camera_id,
-                                    present=False, fingers=self._debouncer.stable, fingers_now=last.fingers,
-                                    centre_px=last.centre_px, area_px=last.area_px))
+                out.append(
+                    HandSeen(
+                        sequence=look.sequence,
+                        capture_ns=look.capture_ns,
+                        camera=look.camera_id,
+                        present=False,
+                        fingers=self._debouncer.stable,
+                        fingers_now=last.fingers,
+                        centre_px=last.centre_px,
+                        area_px=last.area_px,
+                    )
+                )
             self._last = None
             self._debouncer.reset()
             return out
@@ -172,9 +198,16 @@ class HandPoses:
         changed = self._debouncer.add(seen.fingers)
         if self._debouncer.stable is None:
             return out  # not seen steadily enough yet
-        event = HandSeen(sequence=look.sequence, capture_ns=look.capture_ns, camera=look.camera_id, present=True,
-                         fingers=self._debouncer.stable, fingers_now=seen.fingers, centre_px=seen.centre_px,
-                         area_px=seen.area_px)
+        event = HandSeen(
+            sequence=look.sequence,
+            capture_ns=look.capture_ns,
+            camera=look.camera_id,
+            present=True,
+            fingers=self._debouncer.stable,
+            fingers_now=seen.fingers,
+            centre_px=seen.centre_px,
+            area_px=seen.area_px,
+        )
         out.append(event)
         if changed:
             self._maker.add_command(out, f"hand_{self._debouncer.stable}", event)

@@ -54,8 +54,9 @@ class EventMaker:
             return CursorHit(cursor_id, None)
         return CursorHit(cursor_id, self.point(smoothed_m), bool(self.wall.on_wall(smoothed_m)))
 
-    def events(self, engine_events: list[EngineEvent], *, sequence: int, capture_ns: int,
-               clock_offset_ns: int) -> list[Event]:
+    def events(
+        self, engine_events: list[EngineEvent], *, sequence: int, capture_ns: int, clock_offset_ns: int
+    ) -> list[Event]:
         """The engine's events of pair ``sequence``, each followed by its command; ``clock_offset_ns``
         takes the engine's capture times (a gesture's start and end) to the publishing clock."""
         out: list[Event] = []
@@ -70,23 +71,37 @@ class EventMaker:
         """Append the command ``trigger`` sets off, if the grammar maps it."""
         command = self.grammar.command_for(trigger)
         if command is not None:
-            out.append(CommandIssued(sequence=cause.sequence, capture_ns=cause.capture_ns, command=command,
-                                     trigger=trigger, cause=cause))
+            out.append(
+                CommandIssued(
+                    sequence=cause.sequence, capture_ns=cause.capture_ns, command=command, trigger=trigger, cause=cause
+                )
+            )
 
     def _event(self, event: EngineEvent, sequence: int, capture_ns: int, clock_offset_ns: int) -> PointingEvent:
-        common: dict[str, Any] = {"sequence": sequence, "capture_ns": capture_ns, "cursor_id": event.cursor_id,
-                  "at": self.point(event.position_m)}
+        common: dict[str, Any] = {
+            "sequence": sequence,
+            "capture_ns": capture_ns,
+            "cursor_id": event.cursor_id,
+            "at": self.point(event.position_m),
+        }
         d = event.detail
         if event.kind == "enter":
             return Entered(**common)
         if event.kind == "leave":
-            return Left(**common, reason=cast(Literal["off_display", "lost"], d["reason"]),
-                        duration_ms=d["duration_ms"])
+            return Left(
+                **common, reason=cast(Literal["off_display", "lost"], d["reason"]), duration_ms=d["duration_ms"]
+            )
         if event.kind == "dwell":
             return Dwelt(**common, dwell_ms=d["dwell_ms"])
         return Gestured(
-            **common, name=d["name"], score=float(d["score"]),
-            start_ns=d["start_ns"] + clock_offset_ns, end_ns=d["end_ns"] + clock_offset_ns,
-            path_m=d["path_m"], start_x_m=float(d["start_m"][0]), start_y_m=float(d["start_m"][1]),
-            runner_up=d["runner_up"], runner_up_score=float(d["runner_up_score"]),
+            **common,
+            name=d["name"],
+            score=float(d["score"]),
+            start_ns=d["start_ns"] + clock_offset_ns,
+            end_ns=d["end_ns"] + clock_offset_ns,
+            path_m=d["path_m"],
+            start_x_m=float(d["start_m"][0]),
+            start_y_m=float(d["start_m"][1]),
+            runner_up=d["runner_up"],
+            runner_up_score=float(d["runner_up_score"]),
         )

@@ -62,8 +62,15 @@ def _samples(duration_s: float, rate_hz: float) -> Array:
     return np.arange(max(2, round(duration_s * rate_hz) + 1)) / rate_hz
 
 
-def swipe_path(name: str, start_m: Array, length_m: float, duration_s: float, rng: np.random.Generator,
-               rate_hz: float = RATE_HZ, ideal: bool = False) -> Array:
+def swipe_path(
+    name: str,
+    start_m: Array,
+    length_m: float,
+    duration_s: float,
+    rng: np.random.Generator,
+    rate_hz: float = RATE_HZ,
+    ideal: bool = False,
+) -> Array:
     """Positions (N, 2) of one swipe at ``rate_hz``; ``ideal``: straight, exactly on its direction."""
     angle = math.radians(DIRECTIONS[name] + (0.0 if ideal else rng.normal(0.0, 3.0)))
     along = np.array([math.cos(angle), math.sin(angle)])
@@ -73,9 +80,18 @@ def swipe_path(name: str, start_m: Array, length_m: float, duration_s: float, rn
     return start_m + np.outer(s * length_m, along) + np.outer(4.0 * bow * s * (1.0 - s), across)
 
 
-def circle_path(name: str, centre_m: Array, diameter_m: float, duration_s: float, rng: np.random.Generator,
-                rate_hz: float = RATE_HZ, turns: float = 1.1, start_rad: float = 0.0, aspect: float = 1.0,
-                tilt_rad: float = 0.0) -> Array:
+def circle_path(
+    name: str,
+    centre_m: Array,
+    diameter_m: float,
+    duration_s: float,
+    rng: np.random.Generator,
+    rate_hz: float = RATE_HZ,
+    turns: float = 1.1,
+    start_rad: float = 0.0,
+    aspect: float = 1.0,
+    tilt_rad: float = 0.0,
+) -> Array:
     """Positions (N, 2) of a loop: ``turns`` turns in the sense of ``name``, an ellipse of ``aspect``."""
     sense = CIRCLES[name]
     s = minimum_jerk(_samples(duration_s, rate_hz) / duration_s)
@@ -87,23 +103,37 @@ def circle_path(name: str, centre_m: Array, diameter_m: float, duration_s: float
     return centre_m + turned
 
 
-def random_gesture(name: str, rng: np.random.Generator, width_m: float, height_m: float,
-                   rate_hz: float = RATE_HZ) -> Array:
+def random_gesture(
+    name: str, rng: np.random.Generator, width_m: float, height_m: float, rate_hz: float = RATE_HZ
+) -> Array:
     """One gesture of a kind, with random size, speed, placement and form, on the display."""
     if name in DIRECTIONS:
         length = rng.uniform(0.3, 0.9) if name in ("swipe_left", "swipe_right") else rng.uniform(0.3, 0.6)
         duration = rng.uniform(0.15, 0.35)
         along = np.array([math.cos(math.radians(DIRECTIONS[name])), math.sin(math.radians(DIRECTIONS[name]))])
         centre = np.array([rng.uniform(0.3, width_m - 0.3), rng.uniform(0.25, height_m - 0.25)])
-        centre = np.clip(centre, [length / 2 + 0.05, 0.05 + length / 2 * abs(along[1])],
-                         [width_m - length / 2 - 0.05, height_m - 0.05 - length / 2 * abs(along[1])])
+        centre = np.clip(
+            centre,
+            [length / 2 + 0.05, 0.05 + length / 2 * abs(along[1])],
+            [width_m - length / 2 - 0.05, height_m - 0.05 - length / 2 * abs(along[1])],
+        )
         return swipe_path(name, centre - along * length / 2, length, duration, rng, rate_hz)
     diameter = rng.uniform(0.2, min(0.6, height_m - 0.1))
-    centre = np.array([rng.uniform(diameter, width_m - diameter), rng.uniform(diameter / 2 + 0.05,
-                                                                             height_m - diameter / 2 - 0.05)])
-    return circle_path(name, centre, diameter, rng.uniform(0.6, 1.4), rng, rate_hz,
-                       turns=rng.uniform(1.0, 1.2), start_rad=rng.uniform(0, 2 * math.pi),
-                       aspect=rng.uniform(0.8, 1.0), tilt_rad=rng.uniform(0, math.pi))
+    centre = np.array(
+        [rng.uniform(diameter, width_m - diameter), rng.uniform(diameter / 2 + 0.05, height_m - diameter / 2 - 0.05)]
+    )
+    return circle_path(
+        name,
+        centre,
+        diameter,
+        rng.uniform(0.6, 1.4),
+        rng,
+        rate_hz,
+        turns=rng.uniform(1.0, 1.2),
+        start_rad=rng.uniform(0, 2 * math.pi),
+        aspect=rng.uniform(0.8, 1.0),
+        tilt_rad=rng.uniform(0, math.pi),
+    )
 
 
 def rest(position_m: Array, duration_s: float, rng: np.random.Generator, rate_hz: float = RATE_HZ) -> Array:
@@ -114,8 +144,9 @@ def rest(position_m: Array, duration_s: float, rng: np.random.Generator, rate_hz
     return out
 
 
-def aimed_move(start_m: Array, target_m: Array, width_m: float, rng: np.random.Generator,
-               rate_hz: float = RATE_HZ) -> Array:
+def aimed_move(
+    start_m: Array, target_m: Array, width_m: float, rng: np.random.Generator, rate_hz: float = RATE_HZ
+) -> Array:
     """An aimed movement (N, 2) lasting what Fitts' law gives, often with a corrective sub-movement.
 
     Following the optimised sub-movement model (Meyer et al., 1988), the primary
@@ -152,8 +183,9 @@ def trace(start_m: Array, rng: np.random.Generator, width_m: float, rate_hz: flo
     return np.column_stack([x, y])
 
 
-def random_pointing(duration_s: float, rng: np.random.Generator, width_m: float, height_m: float,
-                    rate_hz: float = RATE_HZ) -> Array:
+def random_pointing(
+    duration_s: float, rng: np.random.Generator, width_m: float, height_m: float, rate_hz: float = RATE_HZ
+) -> Array:
     """Positions (N, 2) of a presenter pointing at things for ``duration_s`` (no gesture intended)."""
     position = np.array([width_m / 2, height_m / 2])
     pieces = [position[None, :]]
@@ -175,9 +207,17 @@ def random_pointing(duration_s: float, rng: np.random.Generator, width_m: float,
     return np.vstack(pieces)[:wanted]
 
 
-def gesture_session(names: list[str], rng: np.random.Generator, width_m: float, height_m: float,
-                    *, noise_mm: float = 1.5, loss: float = 0.02, rate_hz: float = RATE_HZ,
-                    start_ns: int = 10**12) -> Track:
+def gesture_session(
+    names: list[str],
+    rng: np.random.Generator,
+    width_m: float,
+    height_m: float,
+    *,
+    noise_mm: float = 1.5,
+    loss: float = 0.02,
+    rate_hz: float = RATE_HZ,
+    start_ns: int = 10**12,
+) -> Track:
     """The pointer enters, then for each name: a rest, the gesture, a rest; then it leaves (NaN).
 
     ``noise_mm``: white noise per axis; ``loss``: fraction of pairs without a hit.
@@ -204,16 +244,32 @@ def gesture_session(names: list[str], rng: np.random.Generator, width_m: float, 
     return _as_track(np.vstack(pieces), labels, rng, noise_mm, loss, rate_hz, start_ns)
 
 
-def pointing_session(duration_s: float, rng: np.random.Generator, width_m: float, height_m: float,
-                     *, noise_mm: float = 1.5, loss: float = 0.02, rate_hz: float = RATE_HZ,
-                     start_ns: int = 10**12) -> Track:
+def pointing_session(
+    duration_s: float,
+    rng: np.random.Generator,
+    width_m: float,
+    height_m: float,
+    *,
+    noise_mm: float = 1.5,
+    loss: float = 0.02,
+    rate_hz: float = RATE_HZ,
+    start_ns: int = 10**12,
+) -> Track:
     """Random pointing for ``duration_s`` (no gestures), with noise and lost pairs, then the pointer leaves."""
-    return _as_track(random_pointing(duration_s, rng, width_m, height_m, rate_hz), [], rng, noise_mm, loss,
-                     rate_hz, start_ns)
+    return _as_track(
+        random_pointing(duration_s, rng, width_m, height_m, rate_hz), [], rng, noise_mm, loss, rate_hz, start_ns
+    )
 
 
-def _as_track(points: Array, labels: list[tuple[str, int, int]], rng: np.random.Generator, noise_mm: float,
-              loss: float, rate_hz: float, start_ns: int) -> Track:
+def _as_track(
+    points: Array,
+    labels: list[tuple[str, int, int]],
+    rng: np.random.Generator,
+    noise_mm: float,
+    loss: float,
+    rate_hz: float,
+    start_ns: int,
+) -> Track:
     tail = int(0.5 * rate_hz)  # the pointer leaves: pairs without a hit
     noisy = points + rng.normal(0.0, noise_mm / 1000.0, points.shape)
     noisy[rng.random(len(noisy)) < loss] = np.nan
@@ -239,13 +295,31 @@ def builtin_templates() -> list[Template]:
     out: list[Template] = []
     for name in DIRECTIONS:
         path = swipe_path(name, np.zeros(2), 0.6, 0.25, rng, ideal=True)
-        out.append(Template(name, (prepare(path, False),), rotation_invariant=False, max_rotation_deg=30.0,
-                            min_mean_speed_m_s=1.1, max_duration_ms=350.0, min_size_m=0.25,
-                            max_submovements=1))
+        out.append(
+            Template(
+                name,
+                (prepare(path, False),),
+                rotation_invariant=False,
+                max_rotation_deg=30.0,
+                min_mean_speed_m_s=1.1,
+                max_duration_ms=350.0,
+                min_size_m=0.25,
+                max_submovements=1,
+            )
+        )
     for name in CIRCLES:
         examples = tuple(
             prepare(circle_path(name, np.zeros(2), 0.4, 1.0, rng, turns=turns), True) for turns in (1.0, 1.15)
         )
-        out.append(Template(name, examples, rotation_invariant=True, max_rotation_deg=180.0,
-                            min_mean_speed_m_s=0.3, max_duration_ms=2500.0, min_size_m=0.12))
+        out.append(
+            Template(
+                name,
+                examples,
+                rotation_invariant=True,
+                max_rotation_deg=180.0,
+                min_mean_speed_m_s=0.3,
+                max_duration_ms=2500.0,
+                min_size_m=0.12,
+            )
+        )
     return out

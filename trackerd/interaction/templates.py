@@ -193,7 +193,7 @@ def template_from_strokes(
 def parse_template(data: Any, source: str) -> Template:
     """A template from a file's parsed JSON; ConfigError naming ``source`` when it is not one."""
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ConfigError(f"{source}: not a trackerd gesture template (no \"format\": \"{FORMAT}\")")
+        raise ConfigError(f'{source}: not a trackerd gesture template (no "format": "{FORMAT}")')
     if data.get("version") != VERSION:
         raise ConfigError(f"{source}: template format version {data.get('version')!r}; this trackerd reads {VERSION}")
     name = data.get("name")
@@ -203,8 +203,10 @@ def parse_template(data: Any, source: str) -> Template:
         examples = tuple(np.asarray(e, dtype=np.float64) for e in data["examples"])
         rotation_invariant = bool(data.get("rotation_invariant", False))
         max_rotation = float(data.get("max_rotation_deg", 30.0))
-        gates = {key: None if data.get(key) is None else float(data[key])
-                 for key in ("min_mean_speed_m_s", "max_duration_ms", "min_size_m")}
+        gates = {
+            key: None if data.get(key) is None else float(data[key])
+            for key in ("min_mean_speed_m_s", "max_duration_ms", "min_size_m")
+        }
         submovements = data.get("max_submovements")
         max_submovements = None if submovements is None else int(submovements)
     except (KeyError, TypeError, ValueError) as err:
@@ -213,8 +215,9 @@ def parse_template(data: Any, source: str) -> Template:
         raise ConfigError(f"{source}: every example must be {POINTS} finite [x, y] points")
     if not 0.0 <= max_rotation <= 180.0:
         raise ConfigError(f"{source}: max_rotation_deg must be from 0 to 180")
-    return Template(name, examples, rotation_invariant, max_rotation, source=source,
-                    max_submovements=max_submovements, **gates)
+    return Template(
+        name, examples, rotation_invariant, max_rotation, source=source, max_submovements=max_submovements, **gates
+    )
 
 
 def load_template(path: Path) -> Template:
@@ -247,8 +250,10 @@ def load_templates(
     if only:
         missing = [name for name in only if name not in templates]
         if missing:
-            raise ConfigError(f"interaction.gestures.only: no template for {', '.join(missing)};"
-                              f" loaded: {', '.join(sorted(templates)) or 'none'}")
+            raise ConfigError(
+                f"interaction.gestures.only: no template for {', '.join(missing)};"
+                f" loaded: {', '.join(sorted(templates)) or 'none'}"
+            )
         templates = {name: templates[name] for name in only}
     return templates
 

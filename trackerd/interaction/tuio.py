@@ -71,8 +71,11 @@ def encode_frame(source: str, cursors: list[Cursor], frame: int) -> bytes:
     bundle.add_content(_message("source", source).build())
     bundle.add_content(_message("alive", *[c.session_id for c in cursors]).build())
     for c in cursors:
-        bundle.add_content(_message("set", c.session_id, c.x, c.y, c.velocity_x_per_s, c.velocity_y_per_s,
-                                    c.acceleration_per_s2).build())
+        bundle.add_content(
+            _message(
+                "set", c.session_id, c.x, c.y, c.velocity_x_per_s, c.velocity_y_per_s, c.acceleration_per_s2
+            ).build()
+        )
     bundle.add_content(_message("fseq", frame).build())
     return bundle.build().dgram
 
@@ -177,8 +180,14 @@ class WallCursor:
         self.height_m = height_m
         self._last_m: NDArray[np.float64] | None = None
 
-    def frame(self, time_ns: int, smoothed_m: NDArray[np.float64] | None, inside: bool,
-              velocity_m_s: NDArray[np.float64], cursor_id: int) -> None:
+    def frame(
+        self,
+        time_ns: int,
+        smoothed_m: NDArray[np.float64] | None,
+        inside: bool,
+        velocity_m_s: NDArray[np.float64],
+        cursor_id: int,
+    ) -> None:
         """Send this pair's bundle: the cursor while the pointer is entered, else none."""
         if smoothed_m is not None:
             self._last_m = smoothed_m

@@ -98,8 +98,13 @@ class ColourWatch:
         self._next_ns = now_ns + int(WATCH_EVERY_S * 1e9)
         return True
 
-    def measure(self, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str], fix: PointerFix,
-                now_ns: int | None = None) -> None:
+    def measure(
+        self,
+        images: Sequence[NDArray[np.uint8]],
+        pixel_formats: Sequence[str],
+        fix: PointerFix,
+        now_ns: int | None = None,
+    ) -> None:
         """Measure one located pair's frames (on the watch's own thread)."""
         from trackerd.calibration.colours import ball_discs
 
@@ -109,8 +114,9 @@ class ColourWatch:
         radius_m = pointer.end_diameter_m / 2.0
         best: dict[str, Reading] = {}
         for index, (camera, image, pixel_format) in enumerate(zip(self.cameras, images, pixel_formats, strict=True)):
-            discs: dict[str, Disc | None] = ball_discs(camera, line.front_m, line.back_m, radius_m,
-                                                       pointer.front_colour)
+            discs: dict[str, Disc | None] = ball_discs(
+                camera, line.front_m, line.back_m, radius_m, pointer.front_colour
+            )
             if any(d is None for d in discs.values()):
                 continue
             grid = self._grid(index, camera, pixel_format)
@@ -180,7 +186,7 @@ class ColourWatch:
             baseline, ball = self._reference(colour)
             threshold = self._threshold(colour)
             where = "" if reading.at_px is None else f" near ({reading.at_px[0]:.0f}, {reading.at_px[1]:.0f})"
-            against = (f"the pointer's {ball:.0f}" if ball is not None else f"the threshold {threshold}")
+            against = f"the pointer's {ball:.0f}" if ball is not None else f"the threshold {threshold}"
             since = "when learned" if self.learned is not None else "at start"
             lines.append(
                 f"{colour}: something in camera {reading.camera}{where} reaches {reading.room_excess} grey levels of"
@@ -228,8 +234,9 @@ class WatchThread:
     def start(self) -> None:
         self._thread.start()
 
-    def offer(self, watch: ColourWatch, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str],
-              fix: PointerFix) -> None:
+    def offer(
+        self, watch: ColourWatch, images: Sequence[NDArray[np.uint8]], pixel_formats: Sequence[str], fix: PointerFix
+    ) -> None:
         """A due pair for ``watch`` (called on the processing thread; never waits)."""
         with self._wake:
             self._slot = (watch, images, pixel_formats, fix)

@@ -100,9 +100,7 @@ class Pipeline:
         self.tap = tap
         """The operator's console's view of the pipeline (trackerd.pipeline.tap), or None."""
         self._notifier = notifier or SdNotify({})
-        self.clock_offset_ns = (
-            time.time_ns() - time.monotonic_ns() if clock_offset_ns is None else clock_offset_ns
-        )
+        self.clock_offset_ns = time.time_ns() - time.monotonic_ns() if clock_offset_ns is None else clock_offset_ns
         self.extensions: list[PipelineExtension] = list(extensions or [])
         self.figures = PipelineFigures()
         """Counts and latency windows (trackerd.pipeline.figures): the status drains the latencies."""
@@ -115,11 +113,11 @@ class Pipeline:
         self._started_ns = time.monotonic_ns()
         self._status_sequence = 0
         self._slot = SourceSlot(source_factory, self._notifier)
-        links = StageLinks(self._queue, self.figures, self._reload, self._notifier, self.clock_offset_ns, tap,
-                           observer)
+        links = StageLinks(self._queue, self.figures, self._reload, self._notifier, self.clock_offset_ns, tap, observer)
         self._processing = ProcessingStage(rig, self._slot, links, self.extensions)
-        self._publishing = PublishingStage(rig, publisher_factory, links, self._state,
-                                           source_status=self._slot.status, status_for=self._status_for)
+        self._publishing = PublishingStage(
+            rig, publisher_factory, links, self._state, source_status=self._slot.status, status_for=self._status_for
+        )
 
     # ------------------------------------------------------------------ control
 
@@ -132,10 +130,15 @@ class Pipeline:
             self._publishing.close()
             raise
         self._threads = [
-            threading.Thread(target=self._guard, args=(self._processing.run, self._stop),
-                             name="trackerd-process", daemon=True),
-            threading.Thread(target=self._guard, args=(self._publishing.run, self._stop, self._processing.done),
-                             name="trackerd-publish", daemon=True),
+            threading.Thread(
+                target=self._guard, args=(self._processing.run, self._stop), name="trackerd-process", daemon=True
+            ),
+            threading.Thread(
+                target=self._guard,
+                args=(self._publishing.run, self._stop, self._processing.done),
+                name="trackerd-publish",
+                daemon=True,
+            ),
         ]
         for thread in self._threads:
             thread.start()
@@ -220,11 +223,11 @@ class Pipeline:
         Advances the daemon's state from the cameras' (the publishing thread calls it for every status)."""
         return self._status_for(source_status)[0]
 
-    def _status_for(
-            self, source_status: SourceStatus | None) -> tuple[StatusMessage, Mapping[str, NDArray[np.int64]]]:
+    def _status_for(self, source_status: SourceStatus | None) -> tuple[StatusMessage, Mapping[str, NDArray[np.int64]]]:
         cameras = source_status.cameras if source_status is not None else ()
-        state, detail = self._state.observe([(c.camera_id, c.state) for c in cameras],
-                                            reloading=self._reload.in_progress)
+        state, detail = self._state.observe(
+            [(c.camera_id, c.state) for c in cameras], reloading=self._reload.in_progress
+        )
         health = self._processing.health  # once: a reload may replace it meanwhile
         colours = self.colour_watch.to_json()
         drained = self.figures.drain()

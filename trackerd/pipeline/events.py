@@ -156,8 +156,11 @@ class PairEvents:
         """This extension's answer followed by the next one's (a later extension's ``hit`` wins)."""
         if not other.earlier and other.hit is None and not other.events:
             return self
-        return PairEvents([*other.earlier, *self.earlier], other.hit if other.hit is not None else self.hit,
-                          [*self.events, *other.events])
+        return PairEvents(
+            [*other.earlier, *self.earlier],
+            other.hit if other.hit is not None else self.hit,
+            [*self.events, *other.events],
+        )
 
 
 NOTHING = PairEvents()

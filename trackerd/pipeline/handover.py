@@ -55,8 +55,9 @@ class Processed:
         """The wire messages, in the order published (the one conversion, trackerd.publish.from_fix)."""
         if self.fix is None:
             return event_messages([*self.events.earlier, *self.events.events])
-        return pair_messages(self.fix, self.front_colour, sequence=self.sequence, capture_ns=self.capture_ns,
-                             events=self.events)
+        return pair_messages(
+            self.fix, self.front_colour, sequence=self.sequence, capture_ns=self.capture_ns, events=self.events
+        )
 
 
 @dataclass(frozen=True)

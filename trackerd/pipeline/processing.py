@@ -56,8 +56,9 @@ def measures_health(pair_index: int, fix: PointerFix) -> bool:
 class ProcessingStage:
     """The processing thread's loop and what it owns (see the module's docstring)."""
 
-    def __init__(self, rig: RigConfig, slot: SourceSlot, links: StageLinks,
-                 extensions: Sequence[PipelineExtension]) -> None:
+    def __init__(
+        self, rig: RigConfig, slot: SourceSlot, links: StageLinks, extensions: Sequence[PipelineExtension]
+    ) -> None:
         self.rig = rig
         self.slot = slot
         self._links = links
@@ -86,8 +87,17 @@ class ProcessingStage:
             last = [event for extension in self.extensions for event in extension.finish()]
             if last:
                 now = time.monotonic_ns()
-                self._links.queue.put(Processed(None, self.locator.front_colour, 0, now,
-                                                now + self._links.clock_offset_ns, PairEvents(events=last), final=True))
+                self._links.queue.put(
+                    Processed(
+                        None,
+                        self.locator.front_colour,
+                        0,
+                        now,
+                        now + self._links.clock_offset_ns,
+                        PairEvents(events=last),
+                        final=True,
+                    )
+                )
         finally:
             self.done.set()
 
@@ -124,8 +134,10 @@ class ProcessingStage:
             if fix.status == "not_found":
                 # Tracking windows are stale once the pointer is gone.
                 self.locator.reset()
-            stage = {"detect": fix.timings_ns.get("detect_ns", 0),
-                     "triangulate": fix.timings_ns.get("triangulate_ns", 0)}
+            stage = {
+                "detect": fix.timings_ns.get("detect_ns", 0),
+                "triangulate": fix.timings_ns.get("triangulate_ns", 0),
+            }
             marks = (taken_mark, observer.mark()) if observer is not None else None
             health = (self.health, fix) if measures_health(figures.pairs_processed, fix) else None
             watch = self.colour_watch
@@ -134,10 +146,21 @@ class ProcessingStage:
             tap = links.tap
             if tap is not None and tap.frame_wanted:
                 tap.offer(pair, fix, self.locator)
-            links.queue.put(Processed(fix, self.locator.front_colour, pair.sequence, received, capture, events,
-                                      stage, taken_ns=start,
-                                      queued_ns=time.monotonic_ns() if observer is not None else 0,
-                                      marks=marks, health=health))
+            links.queue.put(
+                Processed(
+                    fix,
+                    self.locator.front_colour,
+                    pair.sequence,
+                    received,
+                    capture,
+                    events,
+                    stage,
+                    taken_ns=start,
+                    queued_ns=time.monotonic_ns() if observer is not None else 0,
+                    marks=marks,
+                    health=health,
+                )
+            )
             figures.processing_cpu.add(time.thread_time_ns() - start_cpu)
             figures.pairs_processed += 1
             self._links.notifier.progress()

@@ -123,11 +123,20 @@ class PublishingStage:
         if item.final:
             return
         done = time.monotonic_ns()
-        links.figures.add_published(item.stage_ns, publish_ns=done - start, processing_ns=done - item.received_ns,
-                                    latency_ns=done + links.clock_offset_ns - item.capture_ns)
+        links.figures.add_published(
+            item.stage_ns,
+            publish_ns=done - start,
+            processing_ns=done - item.received_ns,
+            latency_ns=done + links.clock_offset_ns - item.capture_ns,
+        )
         if observer is not None and item.marks is not None:
-            times = PairTimes(received_ns=item.received_ns, taken_ns=item.taken_ns, queued_ns=item.queued_ns,
-                              sending_ns=start, sent_ns=done)
+            times = PairTimes(
+                received_ns=item.received_ns,
+                taken_ns=item.taken_ns,
+                queued_ns=item.queued_ns,
+                sending_ns=start,
+                sent_ns=done,
+            )
             observer.published(times, item.marks, sending_mark)
         tap = links.tap
         if tap is not None and tap.messages_wanted:

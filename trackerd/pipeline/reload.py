@@ -68,4 +68,8 @@ def changes_calibration(rig: RigConfig, old: RigConfig) -> bool:
 def changes_colours(rig: RigConfig, old: RigConfig) -> bool:
     """What the colour watch compares against changed: it starts afresh."""
     return (rig.cameras, rig.pointer, rig.detector, rig.pointer_colours) != (
-        old.cameras, old.pointer, old.detector, old.pointer_colours)
+        old.cameras,
+        old.pointer,
+        old.detector,
+        old.pointer_colours,
+    )

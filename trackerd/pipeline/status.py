@@ -98,9 +98,16 @@ def status_message(f: StatusFigures) -> StatusMessage:
         rig=f.rig_name,
         cameras=tuple(
             CameraStatusPart(
-                id=c.camera_id, state=c.state, frame_rate_hz=c.frame_rate_hz, frames=c.frames,
-                dropped=dict(c.failed_buffers), losses=c.losses, reconnects=c.reconnects,
-                last_error=c.last_error, stream=dict(c.stream), ptp_state=c.ptp_state,
+                id=c.camera_id,
+                state=c.state,
+                frame_rate_hz=c.frame_rate_hz,
+                frames=c.frames,
+                dropped=dict(c.failed_buffers),
+                losses=c.losses,
+                reconnects=c.reconnects,
+                last_error=c.last_error,
+                stream=dict(c.stream),
+                ptp_state=c.ptp_state,
             )
             for c in cameras
         ),

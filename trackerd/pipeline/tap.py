@@ -27,8 +27,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-LATENCY_BUCKETS_MS: tuple[float, ...] = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 25.0, 50.0, 100.0,
-                                         250.0, 1000.0)
+LATENCY_BUCKETS_MS: tuple[float, ...] = (
+    0.5,
+    1.0,
+    1.5,
+    2.0,
+    3.0,
+    4.0,
+    6.0,
+    8.0,
+    12.0,
+    16.0,
+    25.0,
+    50.0,
+    100.0,
+    250.0,
+    1000.0,
+)
 """Upper bounds of the latency histograms' buckets (Prometheus ``le``; +Inf is implied)."""
 MESSAGES_KEPT = 1024
 """Hit and pointer messages kept for the console between two of its reads (about 8 s at 60 pairs/s)."""

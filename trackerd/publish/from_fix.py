@@ -48,8 +48,9 @@ def messages_from_fix(fix: PointerFix, locator: Locator, *, sequence: int, captu
     return fix_messages(fix, locator.front_colour, sequence=sequence, capture_ns=capture_ns)
 
 
-def fix_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_ns: int,
-                 cursor: ev.CursorHit | None = None) -> list[Message]:
+def fix_messages(
+    fix: PointerFix, front_colour: str, *, sequence: int, capture_ns: int, cursor: ev.CursorHit | None = None
+) -> list[Message]:
     """:func:`messages_from_fix` with the front end's colour given (the locator's at the time of the
     fix), and the hit published as ``cursor`` says (smoothed, in a pointing session) when given."""
     line = fix.line
@@ -107,17 +108,22 @@ def _as_cursor(located: dict[str, Any], cursor: ev.CursorHit) -> dict[str, Any]:
     if smoothed is None:
         return {**located, "cursor_id": cursor.cursor_id}
     return {
-        "wall_x_m": smoothed.x_m, "wall_y_m": smoothed.y_m,
-        "display_x_px": smoothed.display_x_px, "display_y_px": smoothed.display_y_px,
+        "wall_x_m": smoothed.x_m,
+        "wall_y_m": smoothed.y_m,
+        "display_x_px": smoothed.display_x_px,
+        "display_y_px": smoothed.display_y_px,
         "on_wall": cursor.smoothed_on_wall,
-        "raw_wall_x_m": located["wall_x_m"], "raw_wall_y_m": located["wall_y_m"],
-        "raw_display_x_px": located["display_x_px"], "raw_display_y_px": located["display_y_px"],
+        "raw_wall_x_m": located["wall_x_m"],
+        "raw_wall_y_m": located["wall_y_m"],
+        "raw_display_x_px": located["display_x_px"],
+        "raw_display_y_px": located["display_y_px"],
         "cursor_id": cursor.cursor_id,
     }
 
 
-def pair_messages(fix: PointerFix, front_colour: str, *, sequence: int, capture_ns: int,
-                  events: ev.PairEvents) -> list[Message]:
+def pair_messages(
+    fix: PointerFix, front_colour: str, *, sequence: int, capture_ns: int, events: ev.PairEvents
+) -> list[Message]:
     """Every message of one pair, in the order published: the events that end what came before,
     the fix's pointer and hit, the events the pair completed (trackerd.pipeline.events.PairEvents)."""
     return [
@@ -136,23 +142,40 @@ def event_message(event: ev.Event) -> Message:
     if isinstance(event, ev.PointingEvent):
         return _pointing_message(event)
     if isinstance(event, ev.HandSeen):
-        return HandMessage(sequence=event.sequence, capture_ns=event.capture_ns, camera=event.camera,
-                           present=event.present, fingers=event.fingers,
-                           fingers_now=event.fingers_now, image_x_px=event.centre_px[0],
-                           image_y_px=event.centre_px[1], area_px=event.area_px)
+        return HandMessage(
+            sequence=event.sequence,
+            capture_ns=event.capture_ns,
+            camera=event.camera,
+            present=event.present,
+            fingers=event.fingers,
+            fingers_now=event.fingers_now,
+            image_x_px=event.centre_px[0],
+            image_y_px=event.centre_px[1],
+            area_px=event.area_px,
+        )
     if isinstance(event, ev.CommandIssued):
         cause = event.cause
         position = _pointing_fields(cause) if isinstance(cause, ev.PointingEvent) else {}
-        return CommandMessage(sequence=event.sequence, capture_ns=event.capture_ns, command=event.command,
-                              trigger=event.trigger, trigger_topic=cause.kind,
-                              **position)
+        return CommandMessage(
+            sequence=event.sequence,
+            capture_ns=event.capture_ns,
+            command=event.command,
+            trigger=event.trigger,
+            trigger_topic=cause.kind,
+            **position,
+        )
     raise TypeError(f"no message for a {type(event).__name__}")
 
 
 def _pointing_fields(event: ev.PointingEvent) -> dict[str, Any]:
     at = event.at
-    return {"cursor_id": event.cursor_id, "wall_x_m": at.x_m, "wall_y_m": at.y_m,
-            "display_x_px": at.display_x_px, "display_y_px": at.display_y_px}
+    return {
+        "cursor_id": event.cursor_id,
+        "wall_x_m": at.x_m,
+        "wall_y_m": at.y_m,
+        "display_x_px": at.display_x_px,
+        "display_y_px": at.display_y_px,
+    }
 
 
 def _pointing_message(event: ev.PointingEvent) -> Message:
@@ -165,9 +188,16 @@ def _pointing_message(event: ev.PointingEvent) -> Message:
         return DwellMessage(**fields, dwell_ms=event.dwell_ms)
     if isinstance(event, ev.Gestured):
         return GestureMessage(
-            **fields, name=event.name, score=round(event.score, 4), start_ns=event.start_ns,
-            end_ns=event.end_ns, duration_ms=(event.end_ns - event.start_ns) / 1e6, path_m=event.path_m,
-            start_wall_x_m=event.start_x_m, start_wall_y_m=event.start_y_m, runner_up=event.runner_up,
+            **fields,
+            name=event.name,
+            score=round(event.score, 4),
+            start_ns=event.start_ns,
+            end_ns=event.end_ns,
+            duration_ms=(event.end_ns - event.start_ns) / 1e6,
+            path_m=event.path_m,
+            start_wall_x_m=event.start_x_m,
+            start_wall_y_m=event.start_y_m,
+            runner_up=event.runner_up,
             runner_up_score=None if event.runner_up is None else round(event.runner_up_score, 4),
         )
     raise TypeError(f"no message for a {type(event).__name__}")

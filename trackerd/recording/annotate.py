@@ -23,8 +23,9 @@ def viewable(frame: NDArray[np.uint8], pixel_format: str) -> NDArray[np.uint8]:
     return to_bgr(frame, pixel_format)
 
 
-def _text(image: NDArray[np.uint8], lines: Sequence[str], top_left: tuple[int, int], scale: float = 0.8,
-          thickness: int = 2) -> None:
+def _text(
+    image: NDArray[np.uint8], lines: Sequence[str], top_left: tuple[int, int], scale: float = 0.8, thickness: int = 2
+) -> None:
     """Lines of white text on a darkened box, legible on any background.
 
     One pass of plain text: an outline drawn as a thicker pass of the same text does not fit it,
@@ -43,11 +44,12 @@ def _text(image: NDArray[np.uint8], lines: Sequence[str], top_left: tuple[int, i
     x0, y0 = max(x, 0), max(y, 0)
     x1 = x + 2 * pad + max(w for (w, _), _ in sizes)
     y1 = y + 2 * pad + len(lines) * pitch - gap
-    region = image[y0:max(y1, y0), x0:max(x1, x0)]
+    region = image[y0 : max(y1, y0), x0 : max(x1, x0)]
     region //= 4
     for k, line in enumerate(lines):
-        cv2.putText(image, line, (x + pad, y + pad + ascent + k * pitch), _FONT, scale, _TEXT_BGR, thickness,
-                    cv2.LINE_AA)
+        cv2.putText(
+            image, line, (x + pad, y + pad + ascent + k * pitch), _FONT, scale, _TEXT_BGR, thickness, cv2.LINE_AA
+        )
 
 
 def fix_summary(fix: PointerFix) -> str:

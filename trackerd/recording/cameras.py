@@ -34,8 +34,12 @@ class CameraInfo(dict[str, dict[str, str | None]]):
 def describe_camera(camera: Any) -> dict[str, str | None]:
     """Vendor, model, serial and device id of an Aravis camera (None for what it does not say)."""
     out: dict[str, str | None] = {}
-    for key, getter in (("vendor", "get_vendor_name"), ("model", "get_model_name"),
-                        ("serial", "get_device_serial_number"), ("device", "get_device_id")):
+    for key, getter in (
+        ("vendor", "get_vendor_name"),
+        ("model", "get_model_name"),
+        ("serial", "get_device_serial_number"),
+        ("device", "get_device_id"),
+    ):
         try:
             value = getattr(camera, getter)()
         except Exception:  # noqa: BLE001 - a camera that cannot say is still recorded

@@ -108,16 +108,22 @@ def check_recording(
 def format_report(report: CheckReport) -> str:
     """The report for a terminal: a few lines, problems last."""
     keys = "" if report.mode == "raw" else f" ({report.keyframes} keyframes)"
-    lines = [f"{report.path}: trackerd recording format {report.format_version}, {report.mode}{keys}, written by"
-             f" {report.producer} at {report.created_utc}"]
+    lines = [
+        f"{report.path}: trackerd recording format {report.format_version}, {report.mode}{keys}, written by"
+        f" {report.producer} at {report.created_utc}"
+    ]
     for cam in report.cameras:
         made = " ".join(filter(None, [cam.get("vendor"), cam.get("model")]))
         ident = ", ".join(filter(None, [f"serial {cam['serial']}" if cam.get("serial") else None, made or None]))
-        lines.append(f"  camera {cam['id']}: {cam['pixel_format']} {cam['width_px']}x{cam['height_px']}"
-                     + (f" ({ident})" if ident else ""))
+        lines.append(
+            f"  camera {cam['id']}: {cam['pixel_format']} {cam['width_px']}x{cam['height_px']}"
+            + (f" ({ident})" if ident else "")
+        )
     rate = (report.pairs - 1) / report.duration_s if report.duration_s > 0 else 0.0
-    lines.append(f"  pairs: {report.pairs} readable ({report.indexed} indexed, {report.recovered} recovered past the"
-                 f" index), {report.duration_s:.2f} s at {rate:.1f} pairs/s, {report.data_bytes / 1e6:.1f} MB")
+    lines.append(
+        f"  pairs: {report.pairs} readable ({report.indexed} indexed, {report.recovered} recovered past the"
+        f" index), {report.duration_s:.2f} s at {rate:.1f} pairs/s, {report.data_bytes / 1e6:.1f} MB"
+    )
     gaps = f"gaps in the pair sequence: {report.sequence_gaps} (pairs never recorded)"
     if report.closed:
         lines.append(f"  closed: {report.end_reason}; pairs the recorder dropped: {report.dropped_by_recorder}; {gaps}")

@@ -56,8 +56,9 @@ class ZstdCoder:
         # An ndarray is a C-contiguous buffer like the others; numpy's stubs do not declare the buffer protocol.
         return self._compressor.compress(cast("memoryview", data))
 
-    def decompress(self, stored: bytes | memoryview, expected_bytes: int, where: str, *, at_most: bool = False
-                   ) -> bytes:
+    def decompress(
+        self, stored: bytes | memoryview, expected_bytes: int, where: str, *, at_most: bool = False
+    ) -> bytes:
         """The bytes of one zstd frame, which must say it holds ``expected_bytes`` (``at_most``: no
         more than that) before anything is allocated."""
         try:
@@ -66,8 +67,10 @@ class ZstdCoder:
             raise RecordingError(f"{where}: compressed frame is not a zstd frame ({err})") from None
         if size < 0 or (size > expected_bytes if at_most else size != expected_bytes):
             said = "no size" if size < 0 else f"{size} bytes"
-            raise RecordingError(f"{where}: compressed frame says it holds {said}, expected"
-                                 f" {'at most ' if at_most else ''}{expected_bytes}")
+            raise RecordingError(
+                f"{where}: compressed frame says it holds {said}, expected"
+                f" {'at most ' if at_most else ''}{expected_bytes}"
+            )
         try:
             out = self._decompressor.decompress(stored, max_output_size=max(size, 1))
         except zstandard.ZstdError as err:
@@ -77,8 +80,9 @@ class ZstdCoder:
         return out
 
 
-def delta(frame: NDArray[np.uint8], previous: NDArray[np.uint8], out: NDArray[np.uint8] | None = None
-          ) -> NDArray[np.uint8]:
+def delta(
+    frame: NDArray[np.uint8], previous: NDArray[np.uint8], out: NDArray[np.uint8] | None = None
+) -> NDArray[np.uint8]:
     """``frame - previous`` byte by byte, modulo 256 (same shapes), into ``out`` if given."""
     return np.subtract(frame, previous, out=out, dtype=np.uint8)
 
@@ -93,8 +97,10 @@ def pack_windows(frame: NDArray[np.uint8], base_pair: int, windows: list[Window]
     top to bottom, as in the frame)."""
     parts = [WINDOWS_HEADER.pack(base_pair, len(windows))]
     parts += [WINDOW.pack(w.x_px, w.y_px, w.width_px, w.height_px) for w in windows]
-    parts += [np.ascontiguousarray(frame[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px]).tobytes()
-              for w in windows]
+    parts += [
+        np.ascontiguousarray(frame[w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px]).tobytes()
+        for w in windows
+    ]
     return b"".join(parts)
 
 
@@ -121,14 +127,20 @@ def unpack_windows(data: bytes, shape: tuple[int, ...], where: str) -> tuple[int
     out = []
     for k in range(count):
         window = Window(*WINDOW.unpack_from(data, WINDOWS_HEADER.size + k * WINDOW.size))
-        if (window.width_px < 1 or window.height_px < 1 or window.x_px + window.width_px > width
-                or window.y_px + window.height_px > height):
-            raise RecordingError(f"{where}: window {k} ({window.width_px}x{window.height_px} at {window.x_px},"
-                                 f" {window.y_px}) is not inside the {width}x{height} frame")
+        if (
+            window.width_px < 1
+            or window.height_px < 1
+            or window.x_px + window.width_px > width
+            or window.y_px + window.height_px > height
+        ):
+            raise RecordingError(
+                f"{where}: window {k} ({window.width_px}x{window.height_px} at {window.x_px},"
+                f" {window.y_px}) is not inside the {width}x{height} frame"
+            )
         size = window.width_px * window.height_px * channels
         if offset + size > len(data):
             raise RecordingError(f"{where}: window {k}'s pixels are cut short")
-        out.append((window, view[offset:offset + size]))
+        out.append((window, view[offset : offset + size]))
         offset += size
     if offset != len(data):
         raise RecordingError(f"{where}: {len(data) - offset} bytes after the last window")
@@ -154,8 +166,9 @@ class Canvases:
         self.copies = 0
         """Frames made by copying the whole keyframe (a new keyframe, or every canvas held)."""
 
-    def frame(self, key_index: int, key: NDArray[np.uint8], windows: list[tuple[Window, memoryview]]
-              ) -> NDArray[np.uint8]:
+    def frame(
+        self, key_index: int, key: NDArray[np.uint8], windows: list[tuple[Window, memoryview]]
+    ) -> NDArray[np.uint8]:
         """``key`` (the frame of record ``key_index``) with ``windows`` in place, read-only."""
         if key_index != self._key_index or self._key is not key:
             self._key_index, self._key, self._canvases = key_index, key, []
@@ -173,12 +186,13 @@ class Canvases:
         else:
             canvas, held = self._canvases[slot]
             for w in held:
-                canvas[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px] = \
-                    key[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px]
+                canvas[w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px] = key[
+                    w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px
+                ]
             held.clear()
         for window, pixels in windows:
             block = np.frombuffer(pixels, np.uint8).reshape((window.height_px, window.width_px, *key.shape[2:]))
-            canvas[window.y_px:window.y_px + window.height_px, window.x_px:window.x_px + window.width_px] = block
+            canvas[window.y_px : window.y_px + window.height_px, window.x_px : window.x_px + window.width_px] = block
             held.append(window)
         view = canvas.view()
         view.flags.writeable = False

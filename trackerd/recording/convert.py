@@ -44,13 +44,19 @@ def convert_recording(
 ) -> ConvertSummary:
     """Write ``source``'s readable pairs as a new recording at ``out`` in ``mode``; returns the summary
     (the writer closed). RecordingError when nothing of the source can be read."""
-    metadata = source.metadata.model_copy(update={
-        "end": None,
-        "notes": "; ".join(filter(None, [source.metadata.notes,
-                                          f"converted from {source.path.resolve()} ({source.metadata.mode})"])),
-    })
-    writer = RecordingWriter(out, metadata, mode=mode, keyframe_interval_s=keyframe_interval_s,
-                             window_margin_px=window_margin_px)
+    metadata = source.metadata.model_copy(
+        update={
+            "end": None,
+            "notes": "; ".join(
+                filter(
+                    None, [source.metadata.notes, f"converted from {source.path.resolve()} ({source.metadata.mode})"]
+                )
+            ),
+        }
+    )
+    writer = RecordingWriter(
+        out, metadata, mode=mode, keyframe_interval_s=keyframe_interval_s, window_margin_px=window_margin_px
+    )
     summary = ConvertSummary(writer, source.data_size)
     total = len(source)
     try:
@@ -67,8 +73,9 @@ def convert_recording(
         writer.close("error: conversion interrupted")
         raise
     end = source.metadata.end
-    writer.close(f"converted ({end.reason if end else 'source not closed'})",
-                 dropped_pairs=end.dropped_pairs if end else 0)
+    writer.close(
+        f"converted ({end.reason if end else 'source not closed'})", dropped_pairs=end.dropped_pairs if end else 0
+    )
     planner = getattr(writer, "_planner", None)
     if planner is not None:
         summary.keyframes = dict(planner.keyframes)

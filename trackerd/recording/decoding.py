@@ -72,8 +72,10 @@ class FrameDecoder:
         """A frame stored whole (raw, deflate, zstd)."""
         if frame.encoding == ENCODING_RAW:
             if frame.stored_bytes != cam.frame_bytes:
-                raise RecordingError(f"{where}: {frame.stored_bytes} bytes, a {cam.pixel_format}"
-                                     f" {cam.width_px}x{cam.height_px} frame has {cam.frame_bytes}")
+                raise RecordingError(
+                    f"{where}: {frame.stored_bytes} bytes, a {cam.pixel_format}"
+                    f" {cam.width_px}x{cam.height_px} frame has {cam.frame_bytes}"
+                )
             return np.frombuffer(stored, np.uint8).reshape(cam.shape)  # a view into the memory map
         if frame.encoding == ENCODING_DEFLATE:
             try:

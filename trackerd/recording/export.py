@@ -95,14 +95,18 @@ def export_recording(
     tuio = getattr(rig.interaction, "tuio", None)
     if tuio is not None and tuio.enabled:
         # An export computes what would be published; it sends nothing (TUIO is sent by the extension).
-        rig = rig.model_copy(update={"interaction": rig.interaction.model_copy(
-            update={"tuio": tuio.model_copy(update={"enabled": False})})})
+        rig = rig.model_copy(
+            update={
+                "interaction": rig.interaction.model_copy(update={"tuio": tuio.model_copy(update={"enabled": False})})
+            }
+        )
     locator = Locator(rig)
     # As `trackerd replay` builds them (trackerd/cli/run.py): a replay's, whose results follow from
     # the pairs alone.
     context = ExtensionContext(replay=True)
     extensions: list[PipelineExtension] = [
-        e for e in (recording_extension(rig, context), interaction_extension(rig, context)) if e is not None]
+        e for e in (recording_extension(rig, context), interaction_extension(rig, context)) if e is not None
+    ]
     offset = recording.metadata.clock_offset_ns
     columns = hit_columns()
     centroid_columns = [f"{cam.id}_{colour}_{axis}_px" for cam in rig.cameras for colour in COLOURS for axis in "xy"]
@@ -130,14 +134,24 @@ def export_recording(
                 events = NOTHING
                 for extension in extensions:
                     events = events.then(extension.on_located(located))
-                messages: list[Message] = pair_messages(fix, locator.front_colour, sequence=pair.sequence,
-                                                        capture_ns=capture, events=events)
+                messages: list[Message] = pair_messages(
+                    fix, locator.front_colour, sequence=pair.sequence, capture_ns=capture, events=events
+                )
                 if fix.status == "not_found":
                     locator.reset()  # the pipeline's rule: tracking windows are stale once the pointer is gone
                 statuses[fix.status] = statuses.get(fix.status, 0) + 1
                 hit = next((m for m in messages if isinstance(m, HitMessage)), None)
-                writer.writerow([index, pair.sequence, capture, fix.status, *_hit_values(hit, columns),
-                                 *_centroids(fix), fix.reason or ""])
+                writer.writerow(
+                    [
+                        index,
+                        pair.sequence,
+                        capture,
+                        fix.status,
+                        *_hit_values(hit, columns),
+                        *_centroids(fix),
+                        fix.reason or "",
+                    ]
+                )
                 if images and (index - first) % max(every, 1) == 0:
                     for k, (cam, frame) in enumerate(zip(recording.cameras, frames, strict=True)):
                         detections = fix.detections[k] if fix.detections else None

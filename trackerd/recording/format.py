@@ -83,8 +83,13 @@ ENCODING_DEFLATE = 1
 ENCODING_ZSTD = 2
 ENCODING_ZSTD_DELTA = 3
 ENCODING_WINDOWS = 4
-ENCODINGS = {ENCODING_RAW: "none", ENCODING_DEFLATE: "deflate", ENCODING_ZSTD: "zstd",
-             ENCODING_ZSTD_DELTA: "zstd-delta", ENCODING_WINDOWS: "windows"}
+ENCODINGS = {
+    ENCODING_RAW: "none",
+    ENCODING_DEFLATE: "deflate",
+    ENCODING_ZSTD: "zstd",
+    ENCODING_ZSTD_DELTA: "zstd-delta",
+    ENCODING_WINDOWS: "windows",
+}
 """Payload encodings: the raw frame bytes; a zlib stream (RFC 1950) of them; a zstd frame (RFC 8878)
 of them; a zstd frame of their difference (byte by byte, modulo 256) to the same camera's frame in
 the previous record; a zstd frame of windows of the frame over a full frame of an earlier record
@@ -254,12 +259,22 @@ def unpack_file_header(data: bytes, magic: bytes, where: str) -> tuple[int, int,
 
 def pack_record_header(header: RecordHeader) -> bytes:
     fixed = RECORD_FIXED.pack(
-        RECORD_MAGIC, header.header_bytes, len(header.frames), FRAME_ENTRY.size, header.flags,
-        header.pair_index, header.sequence, header.timestamp_ns, header.skew_ns, header.dropped_before, 0,
+        RECORD_MAGIC,
+        header.header_bytes,
+        len(header.frames),
+        FRAME_ENTRY.size,
+        header.flags,
+        header.pair_index,
+        header.sequence,
+        header.timestamp_ns,
+        header.skew_ns,
+        header.dropped_before,
+        0,
     )
     body = fixed + b"".join(
-        FRAME_ENTRY.pack(f.frame_id, f.device_timestamp_ns, f.host_timestamp_ns, f.stored_bytes,
-                         f.payload_crc32, f.encoding)
+        FRAME_ENTRY.pack(
+            f.frame_id, f.device_timestamp_ns, f.host_timestamp_ns, f.stored_bytes, f.payload_crc32, f.encoding
+        )
         for f in header.frames
     )
     body += struct.pack("<I", 0)
@@ -276,8 +291,19 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
     """
     if len(data) < RECORD_FIXED.size:
         raise RecordingError(f"{where}: record header cut short ({len(data)} of {RECORD_FIXED.size} bytes)")
-    (magic, header_bytes, n_frames, entry_bytes, flags, pair_index, sequence, timestamp_ns, skew_ns,
-     dropped_before, _reserved) = RECORD_FIXED.unpack_from(data)
+    (
+        magic,
+        header_bytes,
+        n_frames,
+        entry_bytes,
+        flags,
+        pair_index,
+        sequence,
+        timestamp_ns,
+        skew_ns,
+        dropped_before,
+        _reserved,
+    ) = RECORD_FIXED.unpack_from(data)
     if magic != RECORD_MAGIC:
         raise RecordingError(f"{where}: no record here (expected {RECORD_MAGIC.decode()}, found {bytes(magic)!r})")
     if entry_bytes < FRAME_ENTRY.size or n_frames < 1:
@@ -295,8 +321,7 @@ def unpack_record_header(data: bytes | memoryview, where: str) -> RecordHeader:
     for k in range(n_frames):
         values = FRAME_ENTRY.unpack_from(data, RECORD_FIXED.size + k * entry_bytes)
         frames.append(FrameEntry(*values))
-    return RecordHeader(pair_index, sequence, timestamp_ns, skew_ns, dropped_before, tuple(frames), flags,
-                        header_bytes)
+    return RecordHeader(pair_index, sequence, timestamp_ns, skew_ns, dropped_before, tuple(frames), flags, header_bytes)
 
 
 @dataclass(frozen=True, slots=True)
@@ -315,8 +340,9 @@ class IndexEntry:
 
 
 def pack_index_entry(entry: IndexEntry) -> bytes:
-    body = INDEX_ENTRY.pack(entry.offset, entry.record_bytes, entry.pair_index, entry.sequence,
-                            entry.timestamp_ns, 0, 0)[:-4]
+    body = INDEX_ENTRY.pack(
+        entry.offset, entry.record_bytes, entry.pair_index, entry.sequence, entry.timestamp_ns, 0, 0
+    )[:-4]
     return body + struct.pack("<I", zlib.crc32(body))
 
 

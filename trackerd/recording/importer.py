@@ -82,21 +82,23 @@ def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, st
         fields = [f.strip() for f in reader.fieldnames or []]
         unit = next((f for f in fields if f in _UNITS_NS), None)
         if "name" not in fields or unit is None:
-            raise RecordingError(f"{path}: needs a header with 'name' and one of {', '.join(_UNITS_NS)};"
-                                 f" found {', '.join(fields) or 'none'}")
+            raise RecordingError(
+                f"{path}: needs a header with 'name' and one of {', '.join(_UNITS_NS)};"
+                f" found {', '.join(fields) or 'none'}"
+            )
         out: dict[tuple[str, str | None], Stamp] = {}
         for row in reader:
             row = {k.strip(): (v or "").strip() for k, v in row.items() if k is not None}
             camera = row.get("camera") or None
             if camera is not None and camera not in camera_ids:
-                raise RecordingError(f"{path}:{reader.line_num}: camera '{camera}' is not one of"
-                                     f" {', '.join(camera_ids)}")
+                raise RecordingError(
+                    f"{path}:{reader.line_num}: camera '{camera}' is not one of {', '.join(camera_ids)}"
+                )
             try:
                 value = float(row[unit]) if unit == "timestamp_s" else int(row[unit])
             except ValueError:
                 raise RecordingError(f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not a number") from None
-            out[(row["name"], camera)] = Stamp(round(value * _UNITS_NS[unit]), reader.line_num,
-                                               f"{unit} {row[unit]}")
+            out[(row["name"], camera)] = Stamp(round(value * _UNITS_NS[unit]), reader.line_num, f"{unit} {row[unit]}")
     return out
 
 
@@ -136,16 +138,25 @@ def import_folder(
                 image, fmt = read_frame(moment.files[cam.id], cam)
                 first = formats.setdefault(cam.id, (fmt, image.shape))
                 if first != (fmt, image.shape):
-                    raise ImageError(f"{moment.files[cam.id]}: a {fmt} image, but camera '{cam.id}''s earlier images"
-                                     f" are {first[0]}; a recording keeps one pixel format per camera")
+                    raise ImageError(
+                        f"{moment.files[cam.id]}: a {fmt} image, but camera '{cam.id}''s earlier images"
+                        f" are {first[0]}; a recording keeps one pixel format per camera"
+                    )
                 frames.append(Frame(cam.id, k, 0, stamp - t0, fmt, image))
             stamps = capture[k]
             pair = FramePair(tuple(frames), sum(stamps) // len(stamps) - t0, max(stamps) - min(stamps), k)
             if writer is None:
-                metadata = build_metadata(rig, pair, producer="trackerd recording import", clock_offset_ns=clock_offset,
-                                          rig_file=rig_file, notes=f"imported from {folder.resolve()}")
-                writer = RecordingWriter(out, metadata, compression=compression, compression_level=compression_level,
-                                         mode=mode)
+                metadata = build_metadata(
+                    rig,
+                    pair,
+                    producer="trackerd recording import",
+                    clock_offset_ns=clock_offset,
+                    rig_file=rig_file,
+                    notes=f"imported from {folder.resolve()}",
+                )
+                writer = RecordingWriter(
+                    out, metadata, compression=compression, compression_level=compression_level, mode=mode
+                )
             writer.write(pair)
             if progress is not None:
                 progress(k + 1, len(moments))
@@ -158,8 +169,14 @@ def import_folder(
     return writer
 
 
-def _time(times: dict[tuple[str, str | None], Stamp] | None, name: str, cam: str, k: int, period_ns: int,
-          path: str | Path | None) -> Stamp:
+def _time(
+    times: dict[tuple[str, str | None], Stamp] | None,
+    name: str,
+    cam: str,
+    k: int,
+    period_ns: int,
+    path: str | Path | None,
+) -> Stamp:
     if times is None:
         return Stamp(k * period_ns, 0, "")
     for key in ((name, cam), (name, None)):
@@ -168,8 +185,9 @@ def _time(times: dict[tuple[str, str | None], Stamp] | None, name: str, cam: str
     raise RecordingError(f"{path}: no timestamp for '{name}' (camera '{cam}')")
 
 
-def _check_increasing(path: Path, moments: Sequence[Moment], camera_ids: Sequence[str],
-                      stamps: Sequence[Sequence[Stamp]]) -> None:
+def _check_increasing(
+    path: Path, moments: Sequence[Moment], camera_ids: Sequence[str], stamps: Sequence[Sequence[Stamp]]
+) -> None:
     """Each camera's times must increase in name order: a recording's pairs follow each other in time
     (replay paces by them, the interaction stage measures speeds and timeouts with them)."""
     for k in range(1, len(moments)):

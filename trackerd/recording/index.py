@@ -46,23 +46,26 @@ def read_index(index_path: Path, data_size: int) -> tuple[list[IndexEntry], list
             raise RecordingError(f"{index_path}: entries of {entry_bytes} bytes, fewer than {INDEX_ENTRY.size}")
     except RecordingError as err:
         return entries, [f"{err}; pairs found by scanning {DATA_FILE}"]
-    body = memoryview(raw)[FILE_HEADER.size:]
+    body = memoryview(raw)[FILE_HEADER.size :]
     count = len(body) // entry_bytes
     expected_offset = FILE_HEADER.size
     for k in range(count):
         where = f"{index_path}: entry {k} (byte {FILE_HEADER.size + k * entry_bytes})"
         try:
-            entry = unpack_index_entry(body[k * entry_bytes:(k + 1) * entry_bytes], entry_bytes, where)
+            entry = unpack_index_entry(body[k * entry_bytes : (k + 1) * entry_bytes], entry_bytes, where)
         except RecordingError as err:
             problems.append(f"{err}; the index is used up to pair {k - 1}")
             return entries, problems
         if entry.pair_index != k or entry.offset != expected_offset:
-            problems.append(f"{where}: says pair {entry.pair_index} at byte {entry.offset}, expected pair"
-                            f" {k} at byte {expected_offset}; the index is used up to pair {k - 1}")
+            problems.append(
+                f"{where}: says pair {entry.pair_index} at byte {entry.offset}, expected pair"
+                f" {k} at byte {expected_offset}; the index is used up to pair {k - 1}"
+            )
             return entries, problems
         if entry.end > data_size:
-            problems.append(f"{where}: pair {k} ends at byte {entry.end} but {DATA_FILE} has"
-                            f" {data_size} bytes (truncated)")
+            problems.append(
+                f"{where}: pair {k} ends at byte {entry.end} but {DATA_FILE} has {data_size} bytes (truncated)"
+            )
             return entries, problems
         entries.append(entry)
         expected_offset = entry.end
@@ -71,8 +74,9 @@ def read_index(index_path: Path, data_size: int) -> tuple[list[IndexEntry], list
     return entries, problems
 
 
-def scan_unindexed(view: Callable[[int, int], memoryview], data_path: Path, data_size: int,
-                   entries: list[IndexEntry]) -> list[str]:
+def scan_unindexed(
+    view: Callable[[int, int], memoryview], data_path: Path, data_size: int, entries: list[IndexEntry]
+) -> list[str]:
     """Scan past the last of ``entries`` for complete records (written, not yet indexed), appending
     an entry for each to ``entries``; what was found or ignored, one line each.
 
@@ -94,8 +98,10 @@ def scan_unindexed(view: Callable[[int, int], memoryview], data_path: Path, data
                 problems.append(f"{err}; the {available} bytes from there on are ignored")
             return problems
         if header.pair_index != k:
-            problems.append(f"{where}: the record there says it is pair {header.pair_index}; the"
-                            f" {available} bytes from there on are ignored")
+            problems.append(
+                f"{where}: the record there says it is pair {header.pair_index}; the"
+                f" {available} bytes from there on are ignored"
+            )
             return problems
         if header.record_bytes > available:
             problems.append(f"{where}: incomplete ({available} of {header.record_bytes} bytes written); ignored")
@@ -103,6 +109,8 @@ def scan_unindexed(view: Callable[[int, int], memoryview], data_path: Path, data
         entries.append(IndexEntry(offset, header.record_bytes, k, header.sequence, header.timestamp_ns))
         offset += header.record_bytes
     if len(entries) > indexed:
-        problems.append(f"{data_path}: {len(entries) - indexed} complete pair(s) past the end of"
-                        f" the index (pairs {indexed}-{len(entries) - 1}), recovered")
+        problems.append(
+            f"{data_path}: {len(entries) - indexed} complete pair(s) past the end of"
+            f" the index (pairs {indexed}-{len(entries) - 1}), recovered"
+        )
     return problems

@@ -56,6 +56,7 @@ from trackerd.recording.index import read_index, scan_unindexed
 MAX_METADATA_BYTES = 16 * 1024 * 1024
 """recording.json holds the rig and what the cameras said of themselves: tens of kilobytes."""
 
+
 def _upgrade_1(data: dict[str, Any]) -> dict[str, Any]:
     """1.x -> 2.x: a 1.0 recording has no ``mode`` and is raw (1.1 says so already)."""
     return {**data, "mode": data.get("mode", "raw")}
@@ -94,8 +95,10 @@ class Recording:
         if not folder.exists():
             raise RecordingError(f"{folder}: no such recording")
         if not folder.is_dir():
-            raise RecordingError(f"{folder}: not a recording (a recording is a folder holding {METADATA_FILE},"
-                                 f" {DATA_FILE} and {INDEX_FILE})")
+            raise RecordingError(
+                f"{folder}: not a recording (a recording is a folder holding {METADATA_FILE},"
+                f" {DATA_FILE} and {INDEX_FILE})"
+            )
         metadata = read_metadata(folder)
         data_path = folder / DATA_FILE
         try:
@@ -158,7 +161,7 @@ class Recording:
         """The data file's bytes from ``offset``, a view into its memory map (no copy)."""
         if self._map is None:
             raise RecordingError(f"{self.path}: the recording is closed")
-        return memoryview(self._map)[offset:offset + length]
+        return memoryview(self._map)[offset : offset + length]
 
     def header(self, index: int) -> RecordHeader:
         """Pair ``index``'s record header, checked against the index; RecordingError naming the damage."""
@@ -167,8 +170,10 @@ class Recording:
         # The whole record as a view (no copy): a newer MINOR's header may be longer than this version's.
         header = unpack_record_header(self.view(entry.offset, entry.record_bytes), where)
         if (header.pair_index, header.record_bytes) != (entry.pair_index, entry.record_bytes):
-            raise RecordingError(f"{where}: the record (pair {header.pair_index}, {header.record_bytes} bytes) does"
-                                 f" not match its index entry (pair {entry.pair_index}, {entry.record_bytes} bytes)")
+            raise RecordingError(
+                f"{where}: the record (pair {header.pair_index}, {header.record_bytes} bytes) does"
+                f" not match its index entry (pair {entry.pair_index}, {entry.record_bytes} bytes)"
+            )
         if len(header.frames) != len(self.cameras):
             raise RecordingError(f"{where}: {len(header.frames)} frames, the recording has {len(self.cameras)} cameras")
         return header
@@ -179,7 +184,6 @@ class Recording:
         difference or as windows is rebuilt from the frames it builds on, which are checked too."""
         header = header or self.header(index)
         return [self._decoder.frame(index, k, header, verify) for k in range(len(self.cameras))]
-
 
     def pair(self, index: int, *, verify: bool = True) -> FramePair:
         """Pair ``index`` exactly as recorded (timestamps on the recording host's monotonic clock)."""
@@ -213,17 +217,31 @@ class Recording:
         self.close()
 
 
-def make_pair(recording: Recording, header: RecordHeader, images: list[NDArray[np.uint8]],
-              *, shift_ns: int = 0, host_ns: int | None = None, sequence: int | None = None) -> FramePair:
+def make_pair(
+    recording: Recording,
+    header: RecordHeader,
+    images: list[NDArray[np.uint8]],
+    *,
+    shift_ns: int = 0,
+    host_ns: int | None = None,
+    sequence: int | None = None,
+) -> FramePair:
     """A FramePair from a record: timestamps moved by ``shift_ns``; ``host_ns`` replaces the frames'
     host timestamps (the replay's delivery time) when given."""
     frames = tuple(
-        Frame(cam.id, entry.frame_id, entry.device_timestamp_ns,
-              entry.host_timestamp_ns + shift_ns if host_ns is None else host_ns, cam.pixel_format, image)
+        Frame(
+            cam.id,
+            entry.frame_id,
+            entry.device_timestamp_ns,
+            entry.host_timestamp_ns + shift_ns if host_ns is None else host_ns,
+            cam.pixel_format,
+            image,
+        )
         for cam, entry, image in zip(recording.cameras, header.frames, images, strict=True)
     )
-    return FramePair(frames, header.timestamp_ns + shift_ns, header.skew_ns,
-                     header.sequence if sequence is None else sequence)
+    return FramePair(
+        frames, header.timestamp_ns + shift_ns, header.skew_ns, header.sequence if sequence is None else sequence
+    )
 
 
 def read_metadata(folder: Path) -> RecordingMetadata:

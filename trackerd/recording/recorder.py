@@ -196,13 +196,22 @@ class Recorder:
 
     def _create(self, pair: FramePair) -> RecordingWriter:
         metadata = build_metadata(
-            self.rig, pair, producer=self._producer, clock_offset_ns=self._clock_offset_ns,
-            camera_info=self._camera_info, rig_file=self._rig_file, calibration_file=self._calibration_file,
+            self.rig,
+            pair,
+            producer=self._producer,
+            clock_offset_ns=self._clock_offset_ns,
+            camera_info=self._camera_info,
+            rig_file=self._rig_file,
+            calibration_file=self._calibration_file,
         )
         return RecordingWriter(
-            self.path, metadata, compression=self.config.compression,
-            compression_level=self.config.compression_level, min_free_space_mb=self.config.min_free_space_mb,
-            mode=self.config.mode, keyframe_interval_s=self.config.keyframe_interval_s,
+            self.path,
+            metadata,
+            compression=self.config.compression,
+            compression_level=self.config.compression_level,
+            min_free_space_mb=self.config.min_free_space_mb,
+            mode=self.config.mode,
+            keyframe_interval_s=self.config.keyframe_interval_s,
             window_margin_px=self.config.window_margin_px,
         )
 

@@ -90,8 +90,9 @@ class ReplayPairSource(PairSource):
         self.first = min(max(first, 0), n)
         self.stop_at = n if count is None else min(n, self.first + count)
         if self.first >= self.stop_at:
-            raise RecordingError(f"{self.recording.path}: no intact pairs to replay"
-                                 + (f" from pair {first}" if first else ""))
+            raise RecordingError(
+                f"{self.recording.path}: no intact pairs to replay" + (f" from pair {first}" if first else "")
+            )
         self.speed = speed
         self.loop = loop
         self.passes = passes if loop else 1
@@ -154,8 +155,9 @@ class ReplayPairSource(PairSource):
         self._halt = threading.Event()
         self._ahead = queue.Queue(maxsize=self._queue_batches())
         self._local = deque()
-        self._reader = threading.Thread(target=self._read_ahead, args=(self._halt, self._ahead),
-                                        name="trackerd-replay-reader", daemon=True)
+        self._reader = threading.Thread(
+            target=self._read_ahead, args=(self._halt, self._ahead), name="trackerd-replay-reader", daemon=True
+        )
         self._reader.start()
 
     def _queue_batches(self) -> int:
@@ -288,8 +290,9 @@ class ReplayPairSource(PairSource):
             skew_p99_us=p99,
             skew_max_us=skews[-1] / 1e3 if skews else None,
             cameras=tuple(
-                CameraStatus(cam.id, state, f"recording {self.recording.path}", frames=delivered,
-                             frame_rate_hz=round(rate, 3))
+                CameraStatus(
+                    cam.id, state, f"recording {self.recording.path}", frames=delivered, frame_rate_hz=round(rate, 3)
+                )
                 for cam in self.recording.cameras
             ),
         )

@@ -27,9 +27,15 @@ from trackerd.errors import ImageError
 def snapshot_record(pair: Any, fix: Any, rig: Any, name: str) -> dict[str, Any]:
     """The JSON record's top level: when, which pair, the fix."""
     record: dict[str, Any] = {
-        "name": name, "taken_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"), "rig": rig.name,
-        "timestamp_ns": pair.timestamp_ns, "skew_ns": pair.skew_ns, "sequence": pair.sequence,
-        "status": fix.status, "reason": fix.reason, "cameras": [],
+        "name": name,
+        "taken_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"),
+        "rig": rig.name,
+        "timestamp_ns": pair.timestamp_ns,
+        "skew_ns": pair.skew_ns,
+        "sequence": pair.sequence,
+        "status": fix.status,
+        "reason": fix.reason,
+        "cameras": [],
     }
     if fix.hit is not None:
         record["wall_xy_m"] = [float(v) for v in fix.hit.wall_xy_m[:2]]
@@ -41,9 +47,16 @@ def snapshot_record(pair: Any, fix: Any, rig: Any, name: str) -> dict[str, Any]:
     return record
 
 
-def write_snapshot(pair: Any, fix: Any, locator: Any, rig: Any, folder: Path, name: str,
-                   camera_info: dict[str, Any] | None = None,
-                   say: Callable[[str], None] = lambda _line: None) -> list[Path]:
+def write_snapshot(
+    pair: Any,
+    fix: Any,
+    locator: Any,
+    rig: Any,
+    folder: Path,
+    name: str,
+    camera_info: dict[str, Any] | None = None,
+    say: Callable[[str], None] = lambda _line: None,
+) -> list[Path]:
     """Write the snapshot's files for ``pair`` located as ``fix`` by ``locator``; the paths written
     (views and raw frames by camera, the JSON last). ``say`` gets a line per camera."""
     from trackerd.console.overlay import camera_overlay, draw_overlay
@@ -78,14 +91,23 @@ def write_snapshot(pair: Any, fix: Any, locator: Any, rig: Any, folder: Path, na
                 ends_json[colour] = {
                     "found": end.found,
                     "centroid_px": None if end.centroid_px is None else [float(v) for v in end.centroid_px],
-                    "area_px": end.area_px, "bbox_px": end.bbox_px, "reason": end.reason,
+                    "area_px": end.area_px,
+                    "bbox_px": end.bbox_px,
+                    "reason": end.reason,
                 }
-        record["cameras"].append({
-            "id": frame.camera_id, "frame_id": frame.frame_id, "pixel_format": frame.pixel_format,
-            "device_timestamp_ns": frame.device_timestamp_ns, "host_timestamp_ns": frame.host_timestamp_ns,
-            "raw": raw_path.name, "view": view_path.name, "ends": ends_json,
-            **({"camera": camera_info[frame.camera_id]} if camera_info and frame.camera_id in camera_info else {}),
-        })
+        record["cameras"].append(
+            {
+                "id": frame.camera_id,
+                "frame_id": frame.frame_id,
+                "pixel_format": frame.pixel_format,
+                "device_timestamp_ns": frame.device_timestamp_ns,
+                "host_timestamp_ns": frame.host_timestamp_ns,
+                "raw": raw_path.name,
+                "view": view_path.name,
+                "ends": ends_json,
+                **({"camera": camera_info[frame.camera_id]} if camera_info and frame.camera_id in camera_info else {}),
+            }
+        )
     json_path = folder / f"{name}.json"
     json_path.write_text(json.dumps(record, indent=2) + "\n")
     written.append(json_path)

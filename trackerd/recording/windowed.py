@@ -82,8 +82,9 @@ class WindowPlanner:
     _ends: list[dict[str, _End] | None] = field(default_factory=list)
 
     @classmethod
-    def for_rig(cls, rig: Any, pixel_formats: Sequence[str] | None = None, margin_px: int = DEFAULT_MARGIN_PX
-                ) -> WindowPlanner:
+    def for_rig(
+        cls, rig: Any, pixel_formats: Sequence[str] | None = None, margin_px: int = DEFAULT_MARGIN_PX
+    ) -> WindowPlanner:
         return cls(Locator(rig, pixel_formats=pixel_formats), Locator(rig, pixel_formats=pixel_formats), margin_px)
 
     @classmethod
@@ -212,8 +213,9 @@ def _rebuild(key: NDArray[np.uint8], image: NDArray[np.uint8], windows: list[Win
     from the stored bytes)."""
     frame = key.copy()
     for w in windows:
-        frame[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px] = \
-            image[w.y_px:w.y_px + w.height_px, w.x_px:w.x_px + w.width_px]
+        frame[w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px] = image[
+            w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px
+        ]
     return frame
 
 
@@ -222,18 +224,35 @@ def _outcome(fix: PointerFix, locator: Locator) -> tuple:
     the status and reason, every detection, and the tracking state carried forward."""
     from trackerd.publish.from_fix import messages_from_fix
 
-    messages = tuple(m.model_dump_json() if hasattr(m, "model_dump_json") else repr(m)
-                     for m in messages_from_fix(fix, locator, sequence=0, capture_ns=0))
+    messages = tuple(
+        m.model_dump_json() if hasattr(m, "model_dump_json") else repr(m)
+        for m in messages_from_fix(fix, locator, sequence=0, capture_ns=0)
+    )
     detections = tuple(
-        (d.search, *((e.found, None if e.centroid_px is None else tuple(e.centroid_px.tolist()), e.area_px,
-                      e.bbox_px, e.score, e.reason) for e in (d.red, d.blue)))
+        (
+            d.search,
+            *(
+                (
+                    e.found,
+                    None if e.centroid_px is None else tuple(e.centroid_px.tolist()),
+                    e.area_px,
+                    e.bbox_px,
+                    e.score,
+                    e.reason,
+                )
+                for e in (d.red, d.blue)
+            ),
+        )
         for d in fix.detections
     )
-    centroids = tuple(tuple((c, None if v is None else tuple(np.asarray(v).tolist())) for c, v in cam.items())
-                      for cam in fix.centroids_px)
+    centroids = tuple(
+        tuple((c, None if v is None else tuple(np.asarray(v).tolist())) for c, v in cam.items())
+        for cam in fix.centroids_px
+    )
     # The tracking state each detector carries to the next frame (read only; see the module's docstring).
-    state = tuple((repr(getattr(d, "_track", None)), tuple(sorted(getattr(d, "_crowded", ()))))
-                  for d in locator.detectors)
+    state = tuple(
+        (repr(getattr(d, "_track", None)), tuple(sorted(getattr(d, "_crowded", ())))) for d in locator.detectors
+    )
     # And the refined path's (when its slow search last ran), every attribute but its locator.
     refined = getattr(locator, "_refined", None)
     refined_state = None if refined is None else repr(sorted((k, v) for k, v in vars(refined).items() if k != "loc"))

@@ -148,16 +148,18 @@ def build_metadata(
         cfg = by_id.get(frame.camera_id)
         info = dict((camera_info or {}).get(frame.camera_id, {}))
         height, width = frame.image.shape[:2]
-        cameras.append(CameraMeta(
-            id=frame.camera_id,
-            pixel_format=frame.pixel_format,
-            width_px=width,
-            height_px=height,
-            serial=info.get("serial") or (cfg.serial if cfg else None),
-            vendor=info.get("vendor"),
-            model=info.get("model"),
-            device=info.get("device") or (cfg and (cfg.address or cfg.device_id)) or None,
-        ))
+        cameras.append(
+            CameraMeta(
+                id=frame.camera_id,
+                pixel_format=frame.pixel_format,
+                width_px=width,
+                height_px=height,
+                serial=info.get("serial") or (cfg.serial if cfg else None),
+                vendor=info.get("vendor"),
+                model=info.get("model"),
+                device=info.get("device") or (cfg and (cfg.address or cfg.device_id)) or None,
+            )
+        )
     return RecordingMetadata(
         created_utc=utc_now(),
         trackerd_version=trackerd.__version__,
@@ -277,12 +279,25 @@ class RecordingWriter:
             raise RecordingError(f"{self.path}: the recording is closed")
         payloads, encodings, keyframe = self._payloads(pair)
         entries = tuple(
-            FrameEntry(frame.frame_id, frame.device_timestamp_ns, frame.host_timestamp_ns, len(payload),
-                       zlib.crc32(payload), encoding)
+            FrameEntry(
+                frame.frame_id,
+                frame.device_timestamp_ns,
+                frame.host_timestamp_ns,
+                len(payload),
+                zlib.crc32(payload),
+                encoding,
+            )
             for frame, payload, encoding in zip(pair.frames, payloads, encodings, strict=True)
         )
-        header = RecordHeader(self.pairs, pair.sequence, pair.timestamp_ns, pair.skew_ns, dropped_before, entries,
-                              FLAG_KEYFRAME if keyframe and self.mode != "raw" else 0)
+        header = RecordHeader(
+            self.pairs,
+            pair.sequence,
+            pair.timestamp_ns,
+            pair.skew_ns,
+            dropped_before,
+            entries,
+            FLAG_KEYFRAME if keyframe and self.mode != "raw" else 0,
+        )
         record_bytes = header.record_bytes
         if self._min_free:
             free = free_space_bytes(self.path)
@@ -351,8 +366,10 @@ class RecordingWriter:
         plan = self._planner.plan(pair, self._keyframe_due(pair), self.pairs)
         if plan.keyframe:
             return [self._zstd.compress(raw) for raw in raws], [ENCODING_ZSTD] * n, True
-        payloads = [self._zstd.compress(pack_windows(image, self._last_key_pair, windows))
-                    for image, windows in zip(images, plan.windows, strict=True)]
+        payloads = [
+            self._zstd.compress(pack_windows(image, self._last_key_pair, windows))
+            for image, windows in zip(images, plan.windows, strict=True)
+        ]
         return payloads, [ENCODING_WINDOWS] * n, False
 
     def _raw_frames(self, pair: FramePair) -> list[memoryview]:
@@ -383,8 +400,13 @@ class RecordingWriter:
         for fd in (self._data, self._index):
             with contextlib.suppress(OSError):
                 os.close(fd)
-        end = EndMeta(closed_utc=utc_now(), pairs=self.pairs, dropped_pairs=dropped_pairs,
-                      data_bytes=self.data_bytes, reason=reason)
+        end = EndMeta(
+            closed_utc=utc_now(),
+            pairs=self.pairs,
+            dropped_pairs=dropped_pairs,
+            data_bytes=self.data_bytes,
+            reason=reason,
+        )
         self.metadata = self.metadata.model_copy(update={"end": end})
         try:
             write_metadata(self.path, self.metadata)

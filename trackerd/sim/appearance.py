@@ -58,8 +58,13 @@ class Look:
 
     def illumination(self, width_px: int, height_px: int) -> NDArray[np.float32] | None:
         """The image-space light (H, W, 3) the scene is multiplied by, or None when it is uniform 1."""
-        uniform = (self.gain == 1.0 and self.white_balance == (1.0, 1.0, 1.0) and self.vignetting == 0.0
-                   and self.gradient == (0.0, 0.0) and self.spot is None)
+        uniform = (
+            self.gain == 1.0
+            and self.white_balance == (1.0, 1.0, 1.0)
+            and self.vignetting == 0.0
+            and self.gradient == (0.0, 0.0)
+            and self.spot is None
+        )
         if uniform:
             return None
         xs = (np.arange(width_px, dtype=np.float32) + 0.5) / width_px - 0.5
@@ -78,7 +83,8 @@ class Look:
             dx = (xs[None, :] + 0.5 - sx) * width_px
             dy = (ys[:, None] + 0.5 - sy) * height_px
             level *= np.float32(1.0) + np.float32(peak) * np.exp(
-                -(dx * dx + dy * dy) / np.float32(2.0 * (radius * diagonal) ** 2))
+                -(dx * dx + dy * dy) / np.float32(2.0 * (radius * diagonal) ** 2)
+            )
         wb = np.asarray(self.white_balance, dtype=np.float32) * np.float32(self.gain)
         return level[..., None] * wb[None, None, :]
 
@@ -109,13 +115,25 @@ CONTENT_KINDS = ("dark slide", "photo", "red text", "saturated blocks", "blank")
 
 # Saturated colours a display shows that lie near the pointer's paints: the hard cases.
 _NEAR_PAINT: tuple[RGB, ...] = (
-    (0.92, 0.10, 0.12), (0.85, 0.15, 0.55), (0.95, 0.45, 0.08), (0.60, 0.12, 0.70),
-    (0.12, 0.22, 0.90), (0.30, 0.20, 0.85), (0.75, 0.05, 0.05), (0.05, 0.30, 0.75),
-    (0.90, 0.20, 0.35), (0.15, 0.55, 0.90),
+    (0.92, 0.10, 0.12),
+    (0.85, 0.15, 0.55),
+    (0.95, 0.45, 0.08),
+    (0.60, 0.12, 0.70),
+    (0.12, 0.22, 0.90),
+    (0.30, 0.20, 0.85),
+    (0.75, 0.05, 0.05),
+    (0.05, 0.30, 0.75),
+    (0.90, 0.20, 0.35),
+    (0.15, 0.55, 0.90),
 )
 _OTHER: tuple[RGB, ...] = (
-    (0.95, 0.95, 0.92), (0.15, 0.70, 0.25), (0.95, 0.85, 0.15), (0.10, 0.10, 0.12),
-    (0.55, 0.55, 0.58), (0.20, 0.75, 0.70), (0.80, 0.65, 0.45),
+    (0.95, 0.95, 0.92),
+    (0.15, 0.70, 0.25),
+    (0.95, 0.85, 0.15),
+    (0.10, 0.10, 0.12),
+    (0.55, 0.55, 0.58),
+    (0.20, 0.75, 0.70),
+    (0.80, 0.65, 0.45),
 )
 
 
@@ -146,8 +164,16 @@ def wall_content(kind: str, rng: np.random.Generator, width_px: int = 768, heigh
             y = int((k + 1) * h / (lines + 1)) + int(h / (3 * lines))
             text = "".join(chr(int(c)) for c in rng.integers(65, 91, size=int(rng.integers(8, 20))))
             scale = h / (lines + 1) / 28.0
-            cv2.putText(slide, text, (int(0.05 * w), y), cv2.FONT_HERSHEY_SIMPLEX, scale, red,
-                        max(1, int(scale * 2.5)), cv2.LINE_AA)
+            cv2.putText(
+                slide,
+                text,
+                (int(0.05 * w), y),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                scale,
+                red,
+                max(1, int(scale * 2.5)),
+                cv2.LINE_AA,
+            )
         if rng.uniform() < 0.6:
             blue = tuple(int(255 * c) for c in _NEAR_PAINT[int(rng.integers(4, 6))])
             cx, cy = int(rng.uniform(0.6, 0.9) * w), int(rng.uniform(0.2, 0.8) * h)
@@ -171,7 +197,16 @@ def wall_content(kind: str, rng: np.random.Generator, width_px: int = 768, heigh
         blob_rgb = np.asarray(palette[int(rng.integers(0, len(palette)))]) * rng.uniform(0.7, 1.05)
         centre = (int(rng.uniform(0, w)), int(rng.uniform(0, h)))
         axes = (int(rng.uniform(0.03, 0.25) * w), int(rng.uniform(0.05, 0.5) * h))
-        cv2.ellipse(image, centre, axes, float(rng.uniform(0, 180)), 0, 360,
-                    tuple(float(c) for c in np.clip(blob_rgb, 0, 1)), -1, cv2.LINE_AA)
+        cv2.ellipse(
+            image,
+            centre,
+            axes,
+            float(rng.uniform(0, 180)),
+            0,
+            360,
+            tuple(float(c) for c in np.clip(blob_rgb, 0, 1)),
+            -1,
+            cv2.LINE_AA,
+        )
     image = np.asarray(cv2.GaussianBlur(image, (0, 0), float(rng.uniform(0.5, 3.0))), dtype=np.float32)
     return np.clip(image, 0.0, 1.0)

@@ -44,8 +44,16 @@ def default_cache_dir() -> Path:
 class RoomBackgrounds:
     """Each camera's view of the empty room: (H, W, 3) float32 RGB in [0, 1], and its raw values."""
 
-    def __init__(self, rig: RigConfig, cameras: list[CameraModel], room: Room, lens: LensRays, *,
-                 cache_dir: Path | None, step: int = 1) -> None:
+    def __init__(
+        self,
+        rig: RigConfig,
+        cameras: list[CameraModel],
+        room: Room,
+        lens: LensRays,
+        *,
+        cache_dir: Path | None,
+        step: int = 1,
+    ) -> None:
         """``step``: render every this many pixels and interpolate (for large sensors in randomized
         scenes, where the room behind the pointer needs no detail); ``cache_dir`` None: memory only."""
         self.rig = rig
@@ -93,8 +101,7 @@ class RoomBackgrounds:
             self._raw[key] = cached
         return cached
 
-    def lit_in_format(self, index: int, fmt: str, illumination: NDArray[np.float32] | None
-                      ) -> NDArray[np.float32]:
+    def lit_in_format(self, index: int, fmt: str, illumination: NDArray[np.float32] | None) -> NDArray[np.float32]:
         """The empty room lit by a look's ``illumination`` (H, W, 3), as raw values in ``fmt``, cached
         (one look per renderer, so the format is the key)."""
         if illumination is None:
@@ -111,13 +118,20 @@ class RoomBackgrounds:
         if self.cache_dir is None:
             return None
         cam = self.cameras[index]
-        key = repr((
-            RENDER_VERSION, self.room.fingerprint, cam.width_px, cam.height_px,
-            cam.matrix.round(9).tolist(), cam.distortion.round(12).tolist(),
-            cam.rotation.round(12).tolist(), cam.translation_m.round(12).tolist(),
-            self.rig.simulation.background_supersampling,
-            *(() if self.step == 1 else (self.step,)),
-        ))
+        key = repr(
+            (
+                RENDER_VERSION,
+                self.room.fingerprint,
+                cam.width_px,
+                cam.height_px,
+                cam.matrix.round(9).tolist(),
+                cam.distortion.round(12).tolist(),
+                cam.rotation.round(12).tolist(),
+                cam.translation_m.round(12).tolist(),
+                self.rig.simulation.background_supersampling,
+                *(() if self.step == 1 else (self.step,)),
+            )
+        )
         digest = hashlib.sha256(key.encode()).hexdigest()[:24]
         return self.cache_dir / f"bg-{digest}.npy"
 
@@ -144,7 +158,8 @@ class RoomBackgrounds:
             import cv2
 
             # np.asarray: OpenCV's stubs type its results loosely; float32 in is float32 out (no copy).
-            out = np.asarray(cv2.resize(out, (step * width, step * height), interpolation=cv2.INTER_LINEAR),
-                             dtype=np.float32)
+            out = np.asarray(
+                cv2.resize(out, (step * width, step * height), interpolation=cv2.INTER_LINEAR), dtype=np.float32
+            )
             out = np.ascontiguousarray(out[: cam.height_px, : cam.width_px])
         return out

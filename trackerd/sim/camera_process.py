@@ -30,9 +30,19 @@ def read_line(process: subprocess.Popen[str], timeout_s: float) -> str:
     return process.stdout.readline()
 
 
-def gvcamera_command(*, exec_prefix: list[str], interface: str, serial: str, label: str, start_ns: int,
-                     clock: tuple[int, float], phase_us: float, truth_out: Path,
-                     loop: tuple[Path, Path, float] | None, size_px: tuple[int, int]) -> list[str]:
+def gvcamera_command(
+    *,
+    exec_prefix: list[str],
+    interface: str,
+    serial: str,
+    label: str,
+    start_ns: int,
+    clock: tuple[int, float],
+    phase_us: float,
+    truth_out: Path,
+    loop: tuple[Path, Path, float] | None,
+    size_px: tuple[int, int],
+) -> list[str]:
     """The command line of a simulated camera: its identity, clock and capture phase, where its truth
     goes, and what it serves: ``loop`` (frames file, truth file, loop frames per second) or, when None,
     a synthetic moving square of ``size_px`` (width, height). ``exec_prefix`` runs it elsewhere (in a

@@ -126,12 +126,15 @@ class DisplayScreen:
             map_y[r0 : r0 + len(ys)] = block_y
         rows, cols = np.nonzero(map_x >= 0)
         if rows.size:
-            box = (max(int(rows.min()) - 1, 0), min(int(rows.max()) + 2, cam.height_px),
-                   max(int(cols.min()) - 1, 0), min(int(cols.max()) + 2, cam.width_px))
+            box = (
+                max(int(rows.min()) - 1, 0),
+                min(int(rows.max()) + 2, cam.height_px),
+                max(int(cols.min()) - 1, 0),
+                min(int(cols.max()) + 2, cam.width_px),
+            )
         else:
             box = (0, 0, 0, 0)
         r0, r1, c0, c1 = box
-        cropped = DisplayMap(np.ascontiguousarray(map_x[r0:r1, c0:c1]), np.ascontiguousarray(map_y[r0:r1, c0:c1]),
-                             box)
+        cropped = DisplayMap(np.ascontiguousarray(map_x[r0:r1, c0:c1]), np.ascontiguousarray(map_y[r0:r1, c0:c1]), box)
         self._maps[index] = cropped
         return cropped

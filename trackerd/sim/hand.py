@@ -88,8 +88,9 @@ class RenderedHand:
     """Pixels covered by the hand (skin only, not the sleeve)."""
 
 
-def random_hand_pose(fingers: int, rng: np.random.Generator, width_px: int, height_px: int,
-                     distance_m: tuple[float, float] = (1.5, 3.0)) -> HandPose:
+def random_hand_pose(
+    fingers: int, rng: np.random.Generator, width_px: int, height_px: int, distance_m: tuple[float, float] = (1.5, 3.0)
+) -> HandPose:
     """A hand showing ``fingers`` fingers somewhere in the middle of the image, turned and scaled at random."""
     variants = EXTENDED[fingers]
     extended = variants[int(rng.integers(len(variants)))]
@@ -239,8 +240,11 @@ class HandRenderer:
         base = np.column_stack([across, up, towards_camera])  # hand x, y, z in world, upright and facing
         if right @ across < 0:
             base[:, 0] = -base[:, 0]
-        local = (_rotation(2, math.radians(pose.roll_deg)) @ _rotation(0, math.radians(pose.tilt_deg[0]))
-                 @ _rotation(1, math.radians(pose.tilt_deg[1])))
+        local = (
+            _rotation(2, math.radians(pose.roll_deg))
+            @ _rotation(0, math.radians(pose.tilt_deg[0]))
+            @ _rotation(1, math.radians(pose.tilt_deg[1]))
+        )
         return base @ local, centre
 
     def render(self, pose: HandPose, rng: np.random.Generator, *, noise: bool = True) -> RenderedHand:
@@ -295,5 +299,6 @@ class HandRenderer:
         image = sensor_output(values, rng, sim.noise_sigma, sim.shot_noise, noise)
         palm_px = cam.project(centre[None])[0]
         area = float((hit & skin).reshape(h, w, n).mean(axis=2).sum())
-        return RenderedHand(image, self.pixel_format, pose, (float(palm_px[0]), float(palm_px[1])),
-                            (x0, y0, x1, y1), area)
+        return RenderedHand(
+            image, self.pixel_format, pose, (float(palm_px[0]), float(palm_px[1])), (x0, y0, x1, y1), area
+        )

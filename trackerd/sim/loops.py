@@ -37,8 +37,18 @@ LOOP_VERSION = 1
 KEEP_LOOPS = 4
 """Rendered loops kept in the cache; older ones are deleted when a new one is rendered."""
 RENDERER_SOURCES = (
-    "render.py", "backgrounds.py", "display.py", "lens_rays.py", "pointer_render.py", "pointer_shading.py",
-    "raycast.py", "room_shading.py", "sensor.py", "appearance.py", "scene.py", "motion.py",
+    "render.py",
+    "backgrounds.py",
+    "display.py",
+    "lens_rays.py",
+    "pointer_render.py",
+    "pointer_shading.py",
+    "raycast.py",
+    "room_shading.py",
+    "sensor.py",
+    "appearance.py",
+    "scene.py",
+    "motion.py",
 )
 """The modules of trackerd/sim a rendered loop depends on: their source is part of its cache key."""
 

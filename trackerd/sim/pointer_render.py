@@ -52,8 +52,7 @@ class PointerRenderer:
         self.supersampling = supersampling
         self._last: dict[int, tuple[PatchKey, PointerPatch | None]] = {}
 
-    def patch(self, index: int, poses: list[PointerPose], occluders: tuple[Occluder, ...] = ()
-              ) -> PointerPatch | None:
+    def patch(self, index: int, poses: list[PointerPose], occluders: tuple[Occluder, ...] = ()) -> PointerPatch | None:
         """:meth:`render`, remembered for the last poses of each camera: a pointer held still
         (a presenter asked to hold it there) is ray-cast once; each frame still gets its own noise."""
         key = (tuple(p.front_m.tobytes() + p.back_m.tobytes() for p in poses), occluders)
@@ -68,8 +67,7 @@ class PointerRenderer:
         """Cast the next frame of every camera afresh, whatever the last poses were."""
         self._last.clear()
 
-    def render(self, index: int, poses: list[PointerPose], occluders: tuple[Occluder, ...] = ()
-               ) -> PointerPatch | None:
+    def render(self, index: int, poses: list[PointerPose], occluders: tuple[Occluder, ...] = ()) -> PointerPatch | None:
         """Render the pointer alone in the tiles its image touches, averaged over ``poses``; None when
         nothing is in view."""
         cam = self.cameras[index]
@@ -85,8 +83,9 @@ class PointerRenderer:
         y1 = min(cam.height_px, int((ty.max() + 1) * TILE_PX))
         in_tiles = np.zeros((y1 - y0, x1 - x0), dtype=bool)
         for tile_x, tile_y in tiles:
-            in_tiles[tile_y * TILE_PX - y0 : (tile_y + 1) * TILE_PX - y0,
-                     tile_x * TILE_PX - x0 : (tile_x + 1) * TILE_PX - x0] = True
+            in_tiles[
+                tile_y * TILE_PX - y0 : (tile_y + 1) * TILE_PX - y0, tile_x * TILE_PX - x0 : (tile_x + 1) * TILE_PX - x0
+            ] = True
         local_y, local_x = np.nonzero(in_tiles)
         centre_dirs = self.lens.rays(index, (local_x + x0).astype(np.float64), (local_y + y0).astype(np.float64))
         rgb = np.zeros((y1 - y0, x1 - x0, 3))
@@ -94,8 +93,21 @@ class PointerRenderer:
         sums = {"red": np.zeros(3), "blue": np.zeros(3)}
         weight = 1.0 / len(poses)
         for pose in poses:
-            self._accumulate_pose(index, pose, x0, y0, local_x, local_y, centre_dirs, (y1 - y0, x1 - x0),
-                                  weight, rgb, coverage, sums, occluders)
+            self._accumulate_pose(
+                index,
+                pose,
+                x0,
+                y0,
+                local_x,
+                local_y,
+                centre_dirs,
+                (y1 - y0, x1 - x0),
+                weight,
+                rgb,
+                coverage,
+                sums,
+                occluders,
+            )
         result = {c: (float(v[0]), float(v[1]), float(v[2])) for c, v in sums.items()}
         return PointerPatch(x0, y0, rgb, coverage, result)
 
@@ -152,8 +164,9 @@ class PointerRenderer:
         ox, oy = np.meshgrid(offsets, offsets)
         sample_x = ((ex + x0)[:, None] + ox.ravel()[None, :]).ravel()
         sample_y = ((ey + y0)[:, None] + oy.ravel()[None, :]).ravel()
-        ids, colours = shade_pointer(self.scene, cam.centre_m, self.lens.rays(index, sample_x, sample_y), pose,
-                                     occluders)
+        ids, colours = shade_pointer(
+            self.scene, cam.centre_m, self.lens.rays(index, sample_x, sample_y), pose, occluders
+        )
         n = ss * ss
         coverage[ey, ex] += weight * (ids != NOTHING).reshape(-1, n).sum(axis=1) / n
         rgb[ey, ex] += weight * colours.reshape(-1, n, 3).sum(axis=1) / n
@@ -170,10 +183,12 @@ class PointerRenderer:
         handle_end = pose.back_m - HANDLE_LENGTH_FACTOR * length * pose.direction
         hand_centre = handle_end - HAND_RADIUS_M * 0.5 * pose.direction
         axis_points = np.linspace(0.0, 1.0, 24)[:, None]
-        points = np.vstack([
-            pose.front_m + axis_points * (handle_end - pose.front_m),
-            hand_centre[None, :],
-        ])
+        points = np.vstack(
+            [
+                pose.front_m + axis_points * (handle_end - pose.front_m),
+                hand_centre[None, :],
+            ]
+        )
         radius = np.full(len(points), max(self.scene.end_diameter_m / 2.0, self.scene.rod_diameter_m / 2.0))
         radius[-1] = HAND_RADIUS_M if self.scene.hand else 0.0
         in_cam = cam.to_camera_frame(points)

@@ -42,8 +42,14 @@ class PointerLook:
     @classmethod
     def of(cls, rig: RigConfig, room: Room, look: Look) -> PointerLook:
         pointer = scene_pointer(rig)
-        return cls(pointer.end_diameter_m, pointer.rod_diameter_m, pointer.front_colour, rig.simulation.hand,
-                   room.light_m, look)
+        return cls(
+            pointer.end_diameter_m,
+            pointer.rod_diameter_m,
+            pointer.front_colour,
+            rig.simulation.hand,
+            room.light_m,
+            look,
+        )
 
 
 def shade_pointer(

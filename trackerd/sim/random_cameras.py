@@ -20,26 +20,50 @@ Array = NDArray[np.float64]
 RESOLUTIONS = ((1280, 720), (1920, 1080), (1920, 1200), (2448, 2048), (3840, 2160))
 
 
-def build_rig(name: str, cameras: list[tuple[CameraModel, str]], wall_width_m: float, wall_height_m: float,
-              above_floor_m: float, pointer: dict[str, Any], simulation: dict[str, Any] | None = None) -> RigConfig:
+def build_rig(
+    name: str,
+    cameras: list[tuple[CameraModel, str]],
+    wall_width_m: float,
+    wall_height_m: float,
+    above_floor_m: float,
+    pointer: dict[str, Any],
+    simulation: dict[str, Any] | None = None,
+) -> RigConfig:
     """A rig file for cameras (their true models and pixel formats) in front of a wall in the plane z = 0,
     from (0, 0) to (width, height), its display's bottom edge ``above_floor_m`` over the floor."""
     corners = [[0.0, 0.0, 0.0], [wall_width_m, 0.0, 0.0], [wall_width_m, wall_height_m, 0.0], [0.0, wall_height_m, 0.0]]
-    return RigConfig.model_validate({
-        "name": name,
-        "cameras": [camera_config(model, fmt) for model, fmt in cameras],
-        "wall": {"corners_m": corners, "display_width_px": 3840,
-                 "display_height_px": int(3840 * wall_height_m / wall_width_m)},
-        "pointer": pointer,
-        "simulation": {
-            "supersampling": 2, "background_supersampling": 1, "display_height_above_floor_m": above_floor_m,
-            "room_depth_m": 7.0, "hand_height_m": (1.0, 1.8), **(simulation or {}),
-        },
-    })
+    return RigConfig.model_validate(
+        {
+            "name": name,
+            "cameras": [camera_config(model, fmt) for model, fmt in cameras],
+            "wall": {
+                "corners_m": corners,
+                "display_width_px": 3840,
+                "display_height_px": int(3840 * wall_height_m / wall_width_m),
+            },
+            "pointer": pointer,
+            "simulation": {
+                "supersampling": 2,
+                "background_supersampling": 1,
+                "display_height_above_floor_m": above_floor_m,
+                "room_depth_m": 7.0,
+                "hand_height_m": (1.0, 1.8),
+                **(simulation or {}),
+            },
+        }
+    )
 
 
-def aimed_camera(camera_id: str, position: Array, target: Array, width_px: int, height_px: int, hfov_deg: float,
-                 distortion: Array | None = None, roll_deg: float = 0.0) -> CameraModel:
+def aimed_camera(
+    camera_id: str,
+    position: Array,
+    target: Array,
+    width_px: int,
+    height_px: int,
+    hfov_deg: float,
+    distortion: Array | None = None,
+    roll_deg: float = 0.0,
+) -> CameraModel:
     """A camera at ``position`` looking at ``target`` (image y down, world y up), with a horizontal field
     of view and the principal point at the image's centre."""
     forward = np.asarray(target, dtype=np.float64) - np.asarray(position, dtype=np.float64)
@@ -51,13 +75,20 @@ def aimed_camera(camera_id: str, position: Array, target: Array, width_px: int, 
     right, down = (math.cos(roll) * right + math.sin(roll) * down, -math.sin(roll) * right + math.cos(roll) * down)
     focal = (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
     matrix = np.array([[focal, 0.0, (width_px - 1) / 2.0], [0.0, focal, (height_px - 1) / 2.0], [0.0, 0.0, 1.0]])
-    return CameraModel.from_pose(camera_id, width_px, height_px, matrix,
-                                 np.zeros(5) if distortion is None else np.asarray(distortion, dtype=np.float64),
-                                 np.asarray(position, dtype=np.float64), np.column_stack([right, down, forward]))
+    return CameraModel.from_pose(
+        camera_id,
+        width_px,
+        height_px,
+        matrix,
+        np.zeros(5) if distortion is None else np.asarray(distortion, dtype=np.float64),
+        np.asarray(position, dtype=np.float64),
+        np.column_stack([right, down, forward]),
+    )
 
 
-def camera_positions(rng: np.random.Generator, placement: str, count: int, width: float, floor: float,
-                      centre: Array) -> list[Array]:
+def camera_positions(
+    rng: np.random.Generator, placement: str, count: int, width: float, floor: float, centre: Array
+) -> list[Array]:
     """Positions of ``count`` cameras for a placement family (world: x along the wall, y up, z out of it)."""
 
     def side(k: int) -> Array:
@@ -96,8 +127,9 @@ def camera_positions(rng: np.random.Generator, placement: str, count: int, width
     return out
 
 
-def draw_aimed_camera(rng: np.random.Generator, camera_id: str, position: Array, target: Array, box: Array
-                  ) -> tuple[CameraModel, str] | None:
+def draw_aimed_camera(
+    rng: np.random.Generator, camera_id: str, position: Array, target: Array, box: Array
+) -> tuple[CameraModel, str] | None:
     """A camera at ``position`` looking at ``target``, with a lens that takes in the presenter's area."""
     width_px, height_px = RESOLUTIONS[int(rng.choice(len(RESOLUTIONS), p=[0.3, 0.4, 0.17, 0.08, 0.05]))]
     aim = target + rng.normal(0.0, 0.15, size=3)
@@ -144,10 +176,22 @@ def camera_config(model: CameraModel, pixel_format: str) -> dict[str, Any]:
     """The rig file's [[cameras]] entry for a camera's true model."""
     k = model.matrix
     return {
-        "id": model.camera_id, "serial": f"RND-{model.camera_id}", "width_px": model.width_px,
-        "height_px": model.height_px, "pixel_format": pixel_format,
-        "intrinsics": {"model": "opencv", "fx_px": float(k[0, 0]), "fy_px": float(k[1, 1]), "cx_px": float(k[0, 2]),
-                       "cy_px": float(k[1, 2]), "distortion": [float(v) for v in model.distortion]},
-        "extrinsics": {"kind": "opencv", "rotation_matrix": model.rotation.tolist(),
-                       "tvec_m": model.translation_m.tolist()},
+        "id": model.camera_id,
+        "serial": f"RND-{model.camera_id}",
+        "width_px": model.width_px,
+        "height_px": model.height_px,
+        "pixel_format": pixel_format,
+        "intrinsics": {
+            "model": "opencv",
+            "fx_px": float(k[0, 0]),
+            "fy_px": float(k[1, 1]),
+            "cx_px": float(k[0, 2]),
+            "cy_px": float(k[1, 2]),
+            "distortion": [float(v) for v in model.distortion],
+        },
+        "extrinsics": {
+            "kind": "opencv",
+            "rotation_matrix": model.rotation.tolist(),
+            "tvec_m": model.translation_m.tolist(),
+        },
     }

@@ -46,8 +46,17 @@ from trackerd.sim.scene import PointerPose, pose_aimed_at, scene_pointer, scene_
 Array = NDArray[np.float64]
 
 __all__ = [
-    "LIGHTINGS", "OCCLUSIONS", "PAINTS", "PLACEMENTS", "RESOLUTIONS", "RandomRig", "RandomShot", "aimed_camera",
-    "build_rig", "random_rig", "random_shot",
+    "LIGHTINGS",
+    "OCCLUSIONS",
+    "PAINTS",
+    "PLACEMENTS",
+    "RESOLUTIONS",
+    "RandomRig",
+    "RandomShot",
+    "aimed_camera",
+    "build_rig",
+    "random_rig",
+    "random_shot",
 ]
 """The drawing of installations and shots, and the camera helpers (:mod:`trackerd.sim.random_cameras`)
 the tests' rooms build rigs with, imported from here."""
@@ -149,12 +158,26 @@ def _try_rig(rng: np.random.Generator, name: str, placement: str | None) -> Rand
     lighting = str(rng.choice(LIGHTINGS))
     paint = str(rng.choice(PAINTS))
     look, noise_sigma, shot_noise = _look(rng, lighting, paint)
-    rig = build_rig(name, list(zip(cameras, formats, strict=True)), width, height, above_floor,
-                    {"length_m": length, "end_diameter_m": ball_d, "rod_diameter_m": rod_d,
-                     "front_colour": str(rng.choice(["red", "red", "blue"]))},
-                    {"seed": int(rng.integers(0, 2**31)), "clutter": int(rng.integers(4, 16)),
-                     "noise_sigma": noise_sigma, "shot_noise": shot_noise,
-                     "presenter_distance_m": (lower[2], upper[2])})
+    rig = build_rig(
+        name,
+        list(zip(cameras, formats, strict=True)),
+        width,
+        height,
+        above_floor,
+        {
+            "length_m": length,
+            "end_diameter_m": ball_d,
+            "rod_diameter_m": rod_d,
+            "front_colour": str(rng.choice(["red", "red", "blue"])),
+        },
+        {
+            "seed": int(rng.integers(0, 2**31)),
+            "clutter": int(rng.integers(4, 16)),
+            "noise_sigma": noise_sigma,
+            "shot_noise": shot_noise,
+            "presenter_distance_m": (lower[2], upper[2]),
+        },
+    )
     widest = max(c.width_px for c in cameras)
     factors = {
         "placement": placement,
@@ -184,8 +207,12 @@ def _look(rng: np.random.Generator, lighting: str, paint: str) -> tuple[Look, fl
         values["white_balance"] = (float(rng.uniform(0.75, 0.9)), 1.0, float(rng.uniform(1.1, 1.25)))
     elif lighting == "spotlight":
         values["gain"] = float(rng.uniform(0.6, 0.8))
-        values["spot"] = (float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.1, 0.3)),
-                          float(rng.uniform(0.5, 1.2)))
+        values["spot"] = (
+            float(rng.uniform(0.2, 0.8)),
+            float(rng.uniform(0.2, 0.8)),
+            float(rng.uniform(0.1, 0.3)),
+            float(rng.uniform(0.5, 1.2)),
+        )
     elif lighting == "uneven":
         values["gradient"] = (float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5)))
         values["vignetting"] = float(rng.uniform(0.2, 0.5))
@@ -220,8 +247,9 @@ def random_shot(drawn: RandomRig, rng: np.random.Generator, wall: WallFrame | No
         content = str(rng.choice(CONTENT_KINDS))
         blur = "none" if blur_px < 1.0 else ("some" if blur_px < 4.0 else "strong")
         steps = int(min(4, max(2, math.ceil(blur_px / 2.0) + 1)))
-        return RandomShot(pose, motion_to, occluders, content,
-                          {"content": content, "occlusion": occlusion, "blur": blur}, steps)
+        return RandomShot(
+            pose, motion_to, occluders, content, {"content": content, "occlusion": occlusion, "blur": blur}, steps
+        )
     raise RuntimeError("could not draw a pointer pose two cameras see")  # pragma: no cover
 
 
@@ -238,8 +266,9 @@ def _seen_by(pose: PointerPose, cameras: tuple[CameraModel, ...], margin_px: flo
     return seen
 
 
-def _motion(rng: np.random.Generator, pose: PointerPose, cameras: tuple[CameraModel, ...]
-            ) -> tuple[PointerPose | None, float]:
+def _motion(
+    rng: np.random.Generator, pose: PointerPose, cameras: tuple[CameraModel, ...]
+) -> tuple[PointerPose | None, float]:
     """The pose at the end of the exposure (a sweep about the hand), and the tip's largest image motion."""
     if rng.uniform() < 0.4:
         return None, 0.0
@@ -259,8 +288,9 @@ def _motion(rng: np.random.Generator, pose: PointerPose, cameras: tuple[CameraMo
     return moved, blur
 
 
-def _occluders(rng: np.random.Generator, occlusion: str, pose: PointerPose, drawn: RandomRig
-               ) -> tuple[Occluder, ...] | None:
+def _occluders(
+    rng: np.random.Generator, occlusion: str, pose: PointerPose, drawn: RandomRig
+) -> tuple[Occluder, ...] | None:
     """What stands in front of the pointer for an occlusion level; None when it cannot be placed."""
     if occlusion == "none":
         return ()

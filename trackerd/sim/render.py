@@ -41,8 +41,17 @@ from trackerd.sim.scene import PointerPose, Room, build_room, scene_pointer, sce
 from trackerd.sim.sensor import NoiseFields, raw_values, sensor_output
 
 __all__ = [
-    "AMBIENT", "DIFFUSE", "RENDER_VERSION", "TILE_PX", "RenderedView", "SceneRenderer", "ViewTruth",
-    "default_cache_dir", "raw_values", "sensor_output", "silhouette_area_px",
+    "AMBIENT",
+    "DIFFUSE",
+    "RENDER_VERSION",
+    "TILE_PX",
+    "RenderedView",
+    "SceneRenderer",
+    "ViewTruth",
+    "default_cache_dir",
+    "raw_values",
+    "sensor_output",
+    "silhouette_area_px",
 ]
 """The renderer, and (for the board and hand renderers and older importers) the names this module
 held before it was split: the room's light terms, the sensor model, the cache's location."""
@@ -112,11 +121,13 @@ class SceneRenderer:
         else:
             self.cache_dir = Path(cache_dir)
         self.lens = LensRays(self.cameras)
-        self.backgrounds = RoomBackgrounds(rig, self.cameras, self.room, self.lens, cache_dir=self.cache_dir,
-                                           step=background_step)
+        self.backgrounds = RoomBackgrounds(
+            rig, self.cameras, self.room, self.lens, cache_dir=self.cache_dir, step=background_step
+        )
         self.display = DisplayScreen(self.cameras, self.room, self.lens)
-        self.pointer = PointerRenderer(self.cameras, self.lens, PointerLook.of(rig, self.room, look),
-                                       rig.simulation.supersampling)
+        self.pointer = PointerRenderer(
+            self.cameras, self.lens, PointerLook.of(rig, self.room, look), rig.simulation.supersampling
+        )
         self._noise = NoiseFields()
         self._illumination: dict[int, FloatImage | None] = {}
 
@@ -160,9 +171,11 @@ class SceneRenderer:
         truth_area = {"red": 0.0, "blue": 0.0}
         full_area = {"red": 0.0, "blue": 0.0}
         if pose is not None:
-            poses = [pose] if motion_to is None else [
-                pose.interpolate(motion_to, f) for f in np.linspace(0.0, 1.0, max(motion_steps, 2))
-            ]
+            poses = (
+                [pose]
+                if motion_to is None
+                else [pose.interpolate(motion_to, f) for f in np.linspace(0.0, 1.0, max(motion_steps, 2))]
+            )
             patch = self.pointer.patch(camera_index, poses, occluders)
             if patch is not None:
                 x0, y0 = patch.x0, patch.y0

@@ -43,8 +43,16 @@ from trackerd.sim.motion import DEFAULT_PERIOD_S
 from trackerd.sim.rig_network import FAKE_DEVICE_ID, Network, RigNetwork, choose_network
 
 __all__ = [
-    "FAKE_DEVICE_ID", "KEEP_LOOPS", "LOOP_VERSION", "Network", "RenderedLoop", "VirtualRig", "default_cache_dir",
-    "loop_key", "loop_truth", "render_loop",
+    "FAKE_DEVICE_ID",
+    "KEEP_LOOPS",
+    "LOOP_VERSION",
+    "Network",
+    "RenderedLoop",
+    "VirtualRig",
+    "default_cache_dir",
+    "loop_key",
+    "loop_truth",
+    "render_loop",
 ]
 """The rig, and the loop names this module held before the loops got their own (importers use them here)."""
 
@@ -258,9 +266,18 @@ class VirtualRig:
         prefix, interface = self.net.exec_prefix(index)
         loop = self.loop
         served = None if loop is None else (loop.frame_paths[index], loop.truth_path, loop.content_fps)
-        return gvcamera_command(exec_prefix=prefix, interface=interface, serial=self.serial(index), label=cam.id,
-                                start_ns=self.start_ns, clock=self.clock(index), phase_us=self.phase_us(index),
-                                truth_out=self.truth_path(index), loop=served, size_px=(cam.width_px, cam.height_px))
+        return gvcamera_command(
+            exec_prefix=prefix,
+            interface=interface,
+            serial=self.serial(index),
+            label=cam.id,
+            start_ns=self.start_ns,
+            clock=self.clock(index),
+            phase_us=self.phase_us(index),
+            truth_out=self.truth_path(index),
+            loop=served,
+            size_px=(cam.width_px, cam.height_px),
+        )
 
     def _spawn(self, proc: CameraProcess) -> None:
         proc.spawn(child_env(), self.out_dir / f"camera-{self.rig.cameras[proc.index].id}.log")

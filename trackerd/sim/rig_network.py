@@ -41,8 +41,9 @@ def choose_network(rig: RigConfig, network: Network) -> Literal["netns", "loopba
 class RigNetwork:
     """The links of a rig's simulated cameras, and how the daemon addresses each camera over them."""
 
-    def __init__(self, camera_count: int, network: Literal["netns", "loopback"], prefix: str, subnet: str,
-                 mtu: int | None) -> None:
+    def __init__(
+        self, camera_count: int, network: Literal["netns", "loopback"], prefix: str, subnet: str, mtu: int | None
+    ) -> None:
         self.kind = network
         self.prefix = prefix
         self.mtu = mtu

@@ -100,8 +100,7 @@ def face_texture(room: Room, face: Face, u: Array, v: Array) -> Array:
             blocks.append(((bx, 0.1, bx + 0.1, 0.1 + bh), hue))
         for (fx0, fy0, fx1, fy1), rgb in blocks:
             block = (
-                (u >= x0 + fx0 * width) & (u <= x0 + fx1 * width)
-                & (v >= y0 + fy0 * height) & (v <= y0 + fy1 * height)
+                (u >= x0 + fx0 * width) & (u <= x0 + fx1 * width) & (v >= y0 + fy0 * height) & (v <= y0 + fy1 * height)
             )
             tex[block] = rgb
     return tex.reshape(n, 3)

@@ -228,8 +228,10 @@ def build_room(rig: RigConfig, wall: WallFrame) -> Room:
             side = rng.choice([x0 + 0.4, x1 - 0.4])
             balls.append(Ball((float(side), floor + radius, float(rng.uniform(0.5, depth - 0.5))), radius, colour))
     display = (
-        float(corners[:, 0].min()), float(corners[:, 1].min()),
-        float(corners[:, 0].max()), float(corners[:, 1].max()),
+        float(corners[:, 0].min()),
+        float(corners[:, 1].min()),
+        float(corners[:, 0].max()),
+        float(corners[:, 1].max()),
     )
     light = ((x0 + x1) / 2.0, ceiling - 0.2, depth * 0.6)
     fingerprint = repr((lower, upper, patches, balls, display, light, faces))

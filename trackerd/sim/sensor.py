@@ -39,7 +39,11 @@ def raw_values(rgb: NDArray[np.float32], fmt: str, x0: int, y0: int) -> NDArray[
 
 
 def sensor_output(
-    values: NDArray[np.float32], rng: np.random.Generator, read_sigma: float, shot: float, noise: bool,
+    values: NDArray[np.float32],
+    rng: np.random.Generator,
+    read_sigma: float,
+    shot: float,
+    noise: bool,
     draws: NDArray[np.float32] | None = None,
 ) -> NDArray[np.uint8]:
     """[0, 1] values -> 8-bit sensor output with read and shot noise (``draws``: the standard normal

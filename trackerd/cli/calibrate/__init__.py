@@ -96,8 +96,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--min-pairs",
         type=int,
         default=MIN_PAIRS,
-        help=f"fewest pairs (default {MIN_PAIRS}; at least {MIN_PAIRS_FLOOR}, which telling a pair out of sync"
-        " needs)",
+        help=f"fewest pairs (default {MIN_PAIRS}; at least {MIN_PAIRS_FLOOR}, which telling a pair out of sync needs)",
     )
     _report(p)
     p.add_argument(
@@ -174,8 +173,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _common(p, snapshots=False)
     p.add_argument("--pairs", metavar="DIR", help="folder of pointer images named <name>-<camera>.<ext>")
     _sources(p, snapshots=False)
-    p.add_argument("--frames", type=positive_int, default=None,
-                   help="--live: pairs with the pointer located to learn from (default 60)")
+    p.add_argument(
+        "--frames",
+        type=positive_int,
+        default=None,
+        help="--live: pairs with the pointer located to learn from (default 60)",
+    )
     p.set_defaults(handler=pointer_command)
 
     p = steps.add_parser(
@@ -223,8 +226,9 @@ def _sources(p: argparse.ArgumentParser, snapshots: bool = True) -> None:
     p.add_argument(
         "--live", action="store_true", help="use the rig's cameras (the daemon's source) and guide the operator"
     )
-    p.add_argument("--recording", metavar="R",
-                   help="read the pairs of a recording (trackerd record), as --live reads the cameras")
+    p.add_argument(
+        "--recording", metavar="R", help="read the pairs of a recording (trackerd record), as --live reads the cameras"
+    )
     p.add_argument(
         "--source",
         choices=("cameras", "simulated"),

@@ -225,7 +225,11 @@ def no_board_hint(spec: BoardSpec, frame: tuple[str, np.ndarray, str]) -> str:
     cols, rows = spec.inner_corners
     if other is not None:
         found = BoardSpec.parse(other).inner_corners
-        return (f" (none shows {cols} x {rows} inner corners, but {name} shows {found[0]} x {found[1]}:"
-                f" give --board {other}; --board counts squares)")
-    return (f" (no detector found {cols} x {rows} inner corners, nor a neighbouring size, in any: is the"
-            " board in view, lit and in focus?)")
+        return (
+            f" (none shows {cols} x {rows} inner corners, but {name} shows {found[0]} x {found[1]}:"
+            f" give --board {other}; --board counts squares)"
+        )
+    return (
+        f" (no detector found {cols} x {rows} inner corners, nor a neighbouring size, in any: is the"
+        " board in view, lit and in focus?)"
+    )

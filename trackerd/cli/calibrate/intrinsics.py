@@ -83,7 +83,9 @@ def intrinsics_command(args: argparse.Namespace) -> int:
             hint = no_board_hint(spec, next(iter(camera_frames(files[:1], cam))))
         raise CalibrationError(f"no usable view of the board in {collected.frames} image(s){hint}")
     result = calibrate_intrinsics(
-        collected.views, distortion_terms=args.distortion or 5, min_views=args.min_views,
+        collected.views,
+        distortion_terms=args.distortion or 5,
+        min_views=args.min_views,
         drop_outliers=args.drop_outliers,
     )
     if args.distortion is None:
@@ -113,8 +115,11 @@ def intrinsics_command(args: argparse.Namespace) -> int:
         out.result(text, {"camera": cam.id, **report, "written": None})
         raise CalibrationError(f"RMS {result.rms_px:.2f} px exceeds --max-rms {args.max_rms:.2f} px: not written")
     calibration = apply_intrinsics(
-        context.calibration, cam.id, result, spec,
-        (args.recording or "live") if mode == "live" else f"{len(files)} images"
+        context.calibration,
+        cam.id,
+        result,
+        spec,
+        (args.recording or "live") if mode == "live" else f"{len(files)} images",
     )
     entry = context.calibration.cameras.get(cam.id)
     notes: list[str] = []
@@ -128,7 +133,6 @@ def intrinsics_command(args: argparse.Namespace) -> int:
     for note in notes:
         out.say(note)
     return 0
-
 
 
 K3_GAIN_NEEDED = 0.05

@@ -27,19 +27,30 @@ def pointer_command(args: argparse.Namespace) -> int:
     rig = context.complete()
     mode = check_source(args, "--pairs DIR", args.pairs is not None)
     if mode == "files":
-        live_only = [name for name, given in (("--frames", args.frames is not None),
-                                              ("--duration", args.duration is not None),
-                                              ("--source", args.source != "cameras")) if given]
+        live_only = [
+            name
+            for name, given in (
+                ("--frames", args.frames is not None),
+                ("--duration", args.duration is not None),
+                ("--source", args.source != "cameras"),
+            )
+            if given
+        ]
         if live_only:
-            raise CalibrationError(f"{' and '.join(live_only)}: only with --live or --recording; --pairs DIR"
-                                   " learns from every pair in the folder")
+            raise CalibrationError(
+                f"{' and '.join(live_only)}: only with --live or --recording; --pairs DIR"
+                " learns from every pair in the folder"
+            )
     cameras = [camera_model(c) for c in rig.cameras]
     if mode == "live":
         learner = ColourLearner(rig, cameras, wanted=args.frames or DEFAULT_FRAMES)
-        out.say("wave the pointer slowly through the room, where every camera sees both ends,"
-                " in front of whatever the display shows")
-        run_live(context, rig, args, learner, out,
-                 lambda: simulated_pointer(context, args.frames or DEFAULT_FRAMES, seed=17))
+        out.say(
+            "wave the pointer slowly through the room, where every camera sees both ends,"
+            " in front of whatever the display shows"
+        )
+        run_live(
+            context, rig, args, learner, out, lambda: simulated_pointer(context, args.frames or DEFAULT_FRAMES, seed=17)
+        )
     else:
         found = pair_files(args.pairs, [c.id for c in rig.cameras])
         out.say(f"{args.pairs}: {len(found.moments)} pair(s), {found.layout}")
@@ -54,8 +65,9 @@ def pointer_command(args: argparse.Namespace) -> int:
     calibration = with_pointer_colours(context.calibration, figures.colours)
     written = write_result(context, calibration, "trackerd calibrate pointer", args.dry_run, notes)
     before = {c: getattr(rig.detector, c).min_excess for c in COLOURS}
-    out.result(_text(figures, before, notes),
-               {**_json(figures), "thresholds_before": before, **written, "notes": notes})
+    out.result(
+        _text(figures, before, notes), {**_json(figures), "thresholds_before": before, **written, "notes": notes}
+    )
     return 0
 
 
@@ -65,8 +77,10 @@ def _overrides(context: RigContext) -> list[str]:
     if not given:
         return []
     tables = "] and [detector.".join(given)
-    return [f"note: the rig file sets [detector.{tables}], which stays in force over the learned threshold"
-            " (remove it to use the learned one)"]
+    return [
+        f"note: the rig file sets [detector.{tables}], which stays in force over the learned threshold"
+        " (remove it to use the learned one)"
+    ]
 
 
 def _text(figures: LearnedFigures, before: dict[str, int], notes: list[str]) -> str:
@@ -83,15 +97,21 @@ def _text(figures: LearnedFigures, before: dict[str, int], notes: list[str]) -> 
             ball = "-" if cam.ball_excess is None else f"{cam.ball_excess:.0f}"
             room = "-" if cam.background_excess is None else f"{cam.background_excess}"
             lines.append(f"    camera {cam.camera_id}: ball {ball}, room {room}")
-    lines.append("  (grey levels by which the end's channel exceeds the other two: the ball's 10th percentile,"
-                 " the room's highest block)")
+    lines.append(
+        "  (grey levels by which the end's channel exceeds the other two: the ball's 10th percentile,"
+        " the room's highest block)"
+    )
     check = figures.detector_check
     if check:
         (found_before, tried), (found_after, _) = check["before"], check["after"]
-        lines.append(f"the detector's own search, on {tried} views of {check['pairs']} of those pairs, found both"
-                     f" ends in {found_before} with the thresholds it had, {found_after} with the learned ones")
-    lines.append(f"(min_value, the brightness each end's own channel must reach, is learned too:"
-                 f" red {figures.colours.red.min_value}, blue {figures.colours.blue.min_value})")
+        lines.append(
+            f"the detector's own search, on {tried} views of {check['pairs']} of those pairs, found both"
+            f" ends in {found_before} with the thresholds it had, {found_after} with the learned ones"
+        )
+    lines.append(
+        f"(min_value, the brightness each end's own channel must reach, is learned too:"
+        f" red {figures.colours.red.min_value}, blue {figures.colours.blue.min_value})"
+    )
     lines.extend(f"warning: {w}" for w in figures.warnings)
     lines.extend(notes)
     return "\n".join(lines)
@@ -103,9 +123,14 @@ def _json(figures: LearnedFigures) -> dict[str, Any]:
         "used": figures.used,
         "pointer_colours": figures.colours.model_dump(mode="json"),
         "cameras": [
-            {"camera": f.camera_id, "colour": f.colour, "ball_excess": f.ball_excess,
-             "background_excess": f.background_excess, "background_pair": f.background_frame,
-             "background_at_px": list(f.background_at_px) if f.background_at_px else None}
+            {
+                "camera": f.camera_id,
+                "colour": f.colour,
+                "ball_excess": f.ball_excess,
+                "background_excess": f.background_excess,
+                "background_pair": f.background_frame,
+                "background_at_px": list(f.background_at_px) if f.background_at_px else None,
+            }
             for f in figures.per_camera
         ],
         "detector_check": (
@@ -113,7 +138,8 @@ def _json(figures: LearnedFigures) -> dict[str, Any]:
                 "before": {"found": figures.detector_check["before"][0], "views": figures.detector_check["before"][1]},
                 "after": {"found": figures.detector_check["after"][0], "views": figures.detector_check["after"][1]},
             }
-            if figures.detector_check else None
+            if figures.detector_check
+            else None
         ),
         "warnings": list(figures.warnings),
     }

@@ -161,8 +161,10 @@ def stereo_command(args: argparse.Namespace) -> int:
         for name in result.pair_names:
             if name in moments:
                 frames = read_pair(moments[name], [cam1, cam2], grey_ok=True)
-                images[name] = (grey_for_calibration(frames[0][1], frames[0][2]),
-                                grey_for_calibration(frames[1][1], frames[1][2]))
+                images[name] = (
+                    grey_for_calibration(frames[0][1], frames[0][2]),
+                    grey_for_calibration(frames[1][1], frames[1][2]),
+                )
         pictures = stereo_pictures(Path(args.report), (cam1.id, cam2.id), result, collected.pairs, images)
         lines = text.splitlines()
         figures = lines[:2] + [line for line in lines if line.strip().startswith("WARNING")]

@@ -15,7 +15,9 @@ class Part(BaseModel):
     caught here), while subscribers are told to ignore unknown fields (the exported schemas allow them)."""
 
     model_config = ConfigDict(
-        extra="forbid", use_attribute_docstrings=True, allow_inf_nan=False,
+        extra="forbid",
+        use_attribute_docstrings=True,
+        allow_inf_nan=False,
         json_schema_serialization_defaults_required=True,
     )
 
@@ -39,4 +41,3 @@ class Message(Part):
     publish_ns: int = Field(default=0, ge=0)
     """When the message was handed to ZeroMQ, same clock as capture_ns; set by the publisher.
     publish_ns - capture_ns is the daemon's latency for this message."""
-

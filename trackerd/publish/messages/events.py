@@ -130,4 +130,3 @@ class HandMessage(Message):
     """The hand's centre, pixels from the top."""
     area_px: float = Field(ge=0.0)
     """The hand's area in full-resolution pixels."""
-

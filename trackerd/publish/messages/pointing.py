@@ -81,4 +81,3 @@ class PointerMessage(Message):
     when the planes are ill-conditioned), or (1.3) the pointer fit, both ends fitted to every camera's
     measurements of the balls' outlines with the pointer's known length (docs/geometry.md). Open: treat
     a value you do not know as one more way of estimating the same line."""
-

@@ -244,4 +244,3 @@ class StatusMessage(Message):
     colours: ColourWatchPart | None = None
     """(1.4) The pointer's colours against the room's (docs/detection.md, "The colour watch"); null until
     first measured."""
-
