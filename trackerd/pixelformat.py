@@ -89,7 +89,7 @@ def frame_nbytes(pixel_format: str, width_px: int, height_px: int) -> int:
 
 
 def image_from_payload(
-    payload: bytes | memoryview | NDArray[np.uint8], pixel_format: str, width_px: int, height_px: int
+    payload: bytes | bytearray | memoryview | NDArray[np.uint8], pixel_format: str, width_px: int, height_px: int
 ) -> Image | None:
     """A buffer's payload as the frame's image: a read-only view, no copy (None if the payload is short).
 
@@ -98,7 +98,8 @@ def image_from_payload(
     (H, W) or (H, W, 3) uint8 (:func:`frame_shape`); bytes past the image are ignored.
     """
     nbytes = frame_nbytes(pixel_format, width_px, height_px)
-    available = len(payload) if isinstance(payload, bytes) else payload.nbytes
+    # Aravis hands bytes, pylon a bytearray, GenTL a NumPy array: every one is a buffer.
+    available = payload.nbytes if isinstance(payload, np.ndarray) else memoryview(payload).nbytes
     if available < nbytes:
         return None
     image = np.frombuffer(payload, dtype=np.uint8, count=nbytes).reshape(frame_shape(pixel_format, width_px, height_px))

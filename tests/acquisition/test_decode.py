@@ -86,6 +86,17 @@ def test_bytes_past_the_image_are_ignored() -> None:
 
 
 @pytest.mark.parametrize(
+    "as_backend_hands_it",
+    [bytes, bytearray, memoryview, lambda data: np.frombuffer(data, np.uint8)],
+    ids=["aravis-bytes", "pylon-bytearray", "memoryview", "gentl-array"],
+)
+def test_every_backends_kind_of_payload_reads_the_same(as_backend_hands_it) -> None:
+    image = image_from_payload(as_backend_hands_it(bytes(range(10))), "Mono8", 3, 3)
+    assert image is not None and image.tolist() == [[0, 1, 2], [3, 4, 5], [6, 7, 8]]
+    assert image_from_payload(as_backend_hands_it(bytes(8)), "Mono8", 3, 3) is None
+
+
+@pytest.mark.parametrize(
     ("case", "expected"),
     [
         (dict(failure="missing-packets"), "missing-packets"),
