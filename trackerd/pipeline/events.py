@@ -1,4 +1,4 @@
-"""What extensions make of a located pair: domain events, turned into wire messages once, by the publisher.
+"""What extensions make of a located pair: domain events, turned into wire messages once, at the hand-over.
 
 An extension (trackerd.pipeline.extensions) is handed the pair, its fix and its
 capture time, and answers with :class:`PairEvents`: the pair's hit as it is to be

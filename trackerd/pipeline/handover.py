@@ -1,8 +1,9 @@
 """The hand-over from the processing thread to the publishing thread, and what the two stages share.
 
 The processing thread hands over each pair's domain result (:class:`Processed`:
-the fix, the extensions' events, the pair's times); the publishing thread turns
-it into wire messages (trackerd.publish.from_fix.pair_messages) and sends them.
+the fix, the extensions' events, the pair's times) with its wire messages,
+converted once as it is handed over (trackerd.publish.from_fix.pair_messages);
+the publishing thread sends them.
 Both stages are built with the same :class:`StageLinks`: the drop-oldest queue
 between them and what both report to.
 """
@@ -51,8 +52,17 @@ class Processed:
     health: tuple[CalibrationHealth, PointerFix] | None = None
     """A fix to add to the calibration health record it was located under, once the messages are sent."""
 
+    wire: list[Message] | None = None
+    """The wire messages, once :meth:`messages` has built them."""
+
     def messages(self) -> list[Message]:
-        """The wire messages, in the order published (the one conversion, trackerd.publish.from_fix)."""
+        """The wire messages, in the order published (the one conversion, trackerd.publish.from_fix);
+        built once, by whichever thread asks first."""
+        if self.wire is None:
+            self.wire = self._convert()
+        return self.wire
+
+    def _convert(self) -> list[Message]:
         if self.fix is None:
             return event_messages([*self.events.earlier, *self.events.events])
         return pair_messages(

@@ -1,8 +1,8 @@
 """The publishing stage: each pair's messages out over ZeroMQ, and the status about once a second.
 
 It owns the publisher (ZeroMQ sockets are never shared between threads): it
-binds it, turns each pair's result the processing thread hands over into wire
-messages (the one conversion, trackerd.publish.from_fix) and sends them, sends a status
+binds it, sends the messages of each pair's result the processing thread hands over
+(converted once, by trackerd.publish.from_fix, as it was handed over), sends a status
 on a schedule and at once on any change of the cameras' states, and rebinds it
 when a reload changes the outputs (the second phase, trackerd.pipeline.reload).
 Once a pair's messages are sent it measures calibration health from the pair's
