@@ -167,7 +167,9 @@ def test_failed_buffers_are_counted_and_a_silent_camera_is_lost_and_reopened(
         assert wait_until(back, 30.0), source.status().cameras[1]
         status = source.status()
         sequence = status.pairs
-        after = collect(source, 10)
+        # Pairs made before the failure may still wait in the source's queue; every pair numbered past the
+        # count at the moment the camera was back holds a frame of the reopened stream.
+        after = [pair for pair in collect(source, 10 + rig.acquisition.pair_queue_length) if pair.sequence > sequence]
     right_status = status.cameras[1]
     assert right_status.losses >= 1 and "no frame for 300 ms" in (right_status.last_error or "")
     assert sum(right_status.failed_buffers.values()) > 0
@@ -175,7 +177,7 @@ def test_failed_buffers_are_counted_and_a_silent_camera_is_lost_and_reopened(
     assert status.cameras[0].losses == 0
     # While the right camera was away the left one's frames had no partner; pairs came again after.
     assert status.dropped_frames.get("partner_lost", 0) > 0
-    assert after[-1].sequence > sequence
+    assert len(after) >= 10, [pair.sequence for pair in after]
     # The reopened camera's image sequence started again on its own, so its images are shifted against the
     # other camera's; pairs by trigger keep that shift constant (both step one image per trigger).
     shifts = {(int(p.frames[0].image[0, 0]) - int(p.frames[1].image[0, 0])) % N_IMAGES for p in after}
