@@ -123,23 +123,7 @@ class HandPoses:
             pass  # a look handed over before the end is no longer wanted
         with self._lock:  # waits for a look in progress
             self._generation += 1
-            out = self.take()
-            last = self._last
-            if last is not None and self._debouncer.stable is not None:
-                out.append(
-                    HandSeen(
-                        sequence=sequence,
-                        capture_ns=capture_ns,
-                        camera=self.camera_id,
-                        present=False,
-                        fingers=self._debouncer.stable,
-                        fingers_now=last.fingers,
-                        centre_px=last.centre_px,
-                        area_px=last.area_px,
-                    )
-                )
-            self._last = None
-            self._debouncer.reset()
+            out = self.take() + self._forget_hand(sequence, capture_ns, self.camera_id)
             if forget_scene:
                 self._detector.reset()
         return out
@@ -170,6 +154,28 @@ class HandPoses:
             log.exception("the hand-pose thread failed")
             self._failure = err
 
+    def _forget_hand(self, sequence: int, capture_ns: int, camera_id: str) -> list[Event]:
+        """The hand is gone (not seen, or the session ended): a ``hand`` with ``present`` false when a
+        counted hand was in view, and the count starts again."""
+        out: list[Event] = []
+        last = self._last
+        if last is not None and self._debouncer.stable is not None:
+            out.append(
+                HandSeen(
+                    sequence=sequence,
+                    capture_ns=capture_ns,
+                    camera=camera_id,
+                    present=False,
+                    fingers=self._debouncer.stable,
+                    fingers_now=last.fingers,
+                    centre_px=last.centre_px,
+                    area_px=last.area_px,
+                )
+            )
+        self._last = None
+        self._debouncer.reset()
+        return out
+
     def _look(self, look: _Look) -> list[Event]:
         """One look and what it changes: a hand seen steadily (and its command when the count
         changes), or one seen before gone again."""
@@ -177,23 +183,7 @@ class HandPoses:
         self.looked += 1
         out: list[Event] = []
         if seen is None:
-            last = self._last
-            if last is not None and self._debouncer.stable is not None:
-                out.append(
-                    HandSeen(
-                        sequence=look.sequence,
-                        capture_ns=look.capture_ns,
-                        camera=look.camera_id,
-                        present=False,
-                        fingers=self._debouncer.stable,
-                        fingers_now=last.fingers,
-                        centre_px=last.centre_px,
-                        area_px=last.area_px,
-                    )
-                )
-            self._last = None
-            self._debouncer.reset()
-            return out
+            return self._forget_hand(look.sequence, look.capture_ns, look.camera_id)
         self._last = seen
         changed = self._debouncer.add(seen.fingers)
         if self._debouncer.stable is None:
