@@ -293,6 +293,39 @@ def test_a_rebuilt_frame_never_changes_while_someone_holds_it() -> None:
     assert len(canvases._canvases) == 2  # the held one and one reused 20 times
 
 
+def test_canvases_are_reused_across_keyframes_without_touching_a_held_frame() -> None:
+    """A new keyframe overwrites a free canvas in place rather than making a new one; a frame still
+    held over the old keyframe keeps its pixels, and a keyframe decoded again (a new array for the
+    same record: a looped replay) is never taken for the canvases still over the old array."""
+    first = np.arange(64, dtype=np.uint8).reshape(8, 8)
+    second = first[::-1].copy()
+    canvases = Canvases()
+    window = Window(2, 2, 2, 2)
+
+    def frame(index: int, key: np.ndarray, value: int) -> np.ndarray:
+        return canvases.frame(index, key, [(window, memoryview(bytes([value] * 4)))])
+
+    held = frame(0, first, 7)
+    loose = frame(0, first, 8)
+    del loose
+    over_second = frame(9, second, 9)
+    expected = second.copy()
+    expected[2:4, 2:4] = 9
+    assert np.array_equal(over_second, expected)
+    assert canvases.allocations == 2 and canvases.copies == 3  # the second canvas taken over, not a third made
+    expected_held = first.copy()
+    expected_held[2:4, 2:4] = 7
+    assert np.array_equal(held, expected_held)
+    del over_second, held
+    again = first.copy()
+    again[0, 0] = 99  # not what the canvases over ``first`` hold: it must be copied in
+    looped = frame(0, again, 5)
+    expected = again.copy()
+    expected[2:4, 2:4] = 5
+    assert np.array_equal(looped, expected)
+    assert canvases.allocations == 2
+
+
 def test_windows_too_small_for_the_tracker_become_keyframes_and_the_hits_stay_the_same(noisy, tmp_path) -> None:
     """The planner's check, not its guess of the windows, is what guarantees the hits: with windows
     cut far smaller than the tracker reads, pairs fail the check and are stored whole ('mismatch'),

@@ -124,7 +124,10 @@ def format_modes(written: dict[str, dict[str, Any]], replays: dict[str, dict[str
             f"  {f['writer_cpu_ms_per_pair']:>12} ms  {100 * f['cpu_share_at_rate']:>5.1f} % of a core"
             + (f"  ({reasons})" if reasons else "")
         )
-    lines.append("replay, max speed, through the pipeline:")
+    from trackerd.recording.checksum import CRC32_IMPLEMENTATION
+
+    # The checksums' library sets what checking them costs (raw rows, the writer's CPU): say which ran.
+    lines.append(f"replay, max speed, through the pipeline (frame checksums by {CRC32_IMPLEMENTATION}):")
     for name, f in replays.items():
         same = "identical to raw's" if f["hits_identical_to_raw"] else "DIFFER from raw's"
         dropped = f["dropped_before_publishing"]

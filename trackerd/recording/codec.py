@@ -147,14 +147,26 @@ def unpack_windows(data: bytes, shape: tuple[int, ...], where: str) -> tuple[int
     return base_pair, out
 
 
+@dataclass(slots=True)
+class _Canvas:
+    """One canvas: its pixels, which keyframe they are over (a :class:`Canvases` generation) and the
+    windows put in."""
+
+    pixels: NDArray[np.uint8]
+    generation: int
+    held: list[Window]
+
+
 class Canvases:
     """Frames rebuilt from one camera's keyframe and windows, without copying the whole frame each time.
 
     A frame handed out is a read-only view of one of a few canvases. A canvas is used again only when
     nothing but this object refers to it any more (its reference count says so: the pipeline, a
-    colour-watch thread or a caller keeping the frame keeps it out of use); then only the windows it
-    held are put back from the keyframe before the new ones go in. Otherwise a new canvas is made, as
-    a copy of the keyframe: what a caller holds never changes under it.
+    colour-watch thread or a caller keeping the frame keeps it out of use). A free canvas over the
+    same keyframe gets back the keyframe's pixels under the windows it held, then the new windows; a
+    free canvas over an earlier keyframe is overwritten with the new one in place (no new memory:
+    a new 2 MB array costs its page faults on top of the copy). Only when every canvas is held is a
+    new one made. What a caller holds never changes under it.
     """
 
     MAX_CANVASES = 32
@@ -162,39 +174,61 @@ class Canvases:
     def __init__(self) -> None:
         self._key_index = -1
         self._key: NDArray[np.uint8] | None = None
-        self._canvases: list[tuple[NDArray[np.uint8], list[Window]]] = []
+        self._generation = 0
+        """Counts the keyframes seen: a canvas over the current one has this generation."""
+        self._canvases: list[_Canvas] = []
         self.copies = 0
         """Frames made by copying the whole keyframe (a new keyframe, or every canvas held)."""
+        self.allocations = 0
+        """Canvases made (each also counts as a copy)."""
+
+    def _free(self, shape: tuple[int, ...]) -> _Canvas | None:
+        """A canvas nothing else refers to: one over the current keyframe if there is one, else any
+        of ``shape``."""
+        other = None
+        for canvas in self._canvases:
+            # Referred to by the _Canvas and getrefcount's argument only: no frame handed out views it.
+            if sys.getrefcount(canvas.pixels) <= 2:
+                if canvas.generation == self._generation:
+                    return canvas
+                if other is None and canvas.pixels.shape == shape:
+                    other = canvas
+        return other
 
     def frame(
         self, key_index: int, key: NDArray[np.uint8], windows: list[tuple[Window, memoryview]]
     ) -> NDArray[np.uint8]:
         """``key`` (the frame of record ``key_index``) with ``windows`` in place, read-only."""
         if key_index != self._key_index or self._key is not key:
-            self._key_index, self._key, self._canvases = key_index, key, []
-        slot = None
-        for k, (canvas, _) in enumerate(self._canvases):
-            # Referred to by the list's tuple, this loop's name and getrefcount's argument only.
-            if sys.getrefcount(canvas) <= 3:
-                slot = k
-                break
-        if slot is None:
-            canvas, held = key.copy(), cast("list[Window]", [])
+            self._key_index, self._key = key_index, key
+            self._generation += 1
+        found = self._free(key.shape)
+        if found is None:
+            canvas = _Canvas(key.copy(), self._generation, [])
             self.copies += 1
+            self.allocations += 1
             if len(self._canvases) < self.MAX_CANVASES:
-                self._canvases.append((canvas, held))
+                self._canvases.append(canvas)
+        elif found.generation != self._generation:
+            canvas = found
+            np.copyto(canvas.pixels, key)
+            canvas.generation = self._generation
+            canvas.held.clear()
+            self.copies += 1
         else:
-            canvas, held = self._canvases[slot]
-            for w in held:
-                canvas[w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px] = key[
+            canvas = found
+            pixels = canvas.pixels
+            for w in canvas.held:
+                pixels[w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px] = key[
                     w.y_px : w.y_px + w.height_px, w.x_px : w.x_px + w.width_px
                 ]
-            held.clear()
-        for window, pixels in windows:
-            block = np.frombuffer(pixels, np.uint8).reshape((window.height_px, window.width_px, *key.shape[2:]))
-            canvas[window.y_px : window.y_px + window.height_px, window.x_px : window.x_px + window.width_px] = block
-            held.append(window)
-        view = canvas.view()
+            canvas.held.clear()
+        pixels = canvas.pixels
+        for window, data in windows:
+            block = np.frombuffer(data, np.uint8).reshape((window.height_px, window.width_px, *key.shape[2:]))
+            pixels[window.y_px : window.y_px + window.height_px, window.x_px : window.x_px + window.width_px] = block
+            canvas.held.append(window)
+        view = pixels.view()
         view.flags.writeable = False
         return view
 

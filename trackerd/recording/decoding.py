@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.errors import RecordingError
+from trackerd.recording.checksum import frame_crc32
 from trackerd.recording.format import (
     ENCODING_DEFLATE,
     ENCODING_RAW,
@@ -54,7 +55,7 @@ class FrameDecoder:
         frame = header.frames[k]
         where = f"{recording.data_name}: pair {index}, camera '{recording.cameras[k].id}' (byte {offset})"
         stored = recording.view(offset, frame.stored_bytes)
-        if verify and zlib.crc32(stored) != frame.payload_crc32:
+        if verify and frame_crc32(stored) != frame.payload_crc32:
             raise RecordingError(f"{where}: frame checksum mismatch (the pixels are damaged)")
         return stored, where
 

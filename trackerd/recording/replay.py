@@ -41,11 +41,15 @@ from trackerd.recording.format import RecordHeader
 from trackerd.recording.reader import Recording, make_pair
 
 RATE_WINDOW_NS = 1_000_000_000
-READ_AHEAD_PAIRS = 8
-"""Pairs the reader thread checks ahead of the consumer (views into the memory map: no copies)."""
-BATCH_PAIRS = 4
+READ_AHEAD_PAIRS = 4
+"""Pairs the reader thread checks ahead of the consumer. Raw frames are views into the memory map;
+a windowed frame is a canvas of its own while it is in flight, and each new keyframe is copied into
+every canvas in use after it, so fewer pairs in flight are fewer 2 MB copies: 4 ahead, in batches
+of 2, made 9 copies a keyframe per camera where 8 in batches of 4 made 17 (0.2 ms of CPU a pair
+less on the 1 s keyframes of `trackerd bench replay --modes`; docs/recording.md, "Replay speed")."""
+BATCH_PAIRS = 2
 """At max speed the reader thread hands pairs over this many at a time: one queue operation (locks,
-a wake-up) per batch rather than per pair, about a tenth of a fast replay's time otherwise."""
+a wake-up) per batch rather than per pair."""
 STOP_TIMEOUT_S = 1.0
 
 

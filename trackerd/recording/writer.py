@@ -29,6 +29,7 @@ import trackerd
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
+from trackerd.recording.checksum import frame_crc32
 from trackerd.recording.codec import ZstdCoder, delta, pack_windows
 from trackerd.recording.format import (
     DATA_FILE,
@@ -284,7 +285,7 @@ class RecordingWriter:
                 frame.device_timestamp_ns,
                 frame.host_timestamp_ns,
                 len(payload),
-                zlib.crc32(payload),
+                frame_crc32(payload),
                 encoding,
             )
             for frame, payload, encoding in zip(pair.frames, payloads, encodings, strict=True)
