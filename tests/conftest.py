@@ -7,6 +7,14 @@ so only the first test session on a machine pays for rendering each camera's roo
 from __future__ import annotations
 
 import os
+
+# One OpenBLAS thread per process, set before NumPy loads OpenBLAS (which reads it once) and inherited
+# by the xdist workers and every trackerd the tests start. The suite runs two workers on two cores, or
+# daemons beside the test: OpenBLAS's own threads then wait for cores, spinning, and the renderer's
+# (N, 3) @ (3, 3) ray rotations took 10-20 times longer (91 ms against 1.8 s for 2 million rays, measured
+# on this 2-core machine under load). Results are the same bit for bit (tests/sim/test_rendered_bits.py).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 from pathlib import Path
 
 import numpy as np

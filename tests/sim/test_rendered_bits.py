@@ -13,13 +13,18 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
+
+if TYPE_CHECKING:
+    from trackerd.sim.render import SceneRenderer
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -96,13 +101,15 @@ def _view_parts(view) -> list[object]:  # a RenderedView
     return parts
 
 
-def _demo_scenes(cache_dir: Path) -> Iterator[tuple[str, str]]:
-    """Frames of the demo's loop (config/simulated.toml, figure8), rendered as a loop worker renders them."""
+def _demo_scenes(cache_dir: Path, renderer: SceneRenderer | None = None) -> Iterator[tuple[str, str]]:
+    """Frames of the demo's loop (config/simulated.toml, figure8), rendered as a loop worker renders them
+    (by ``renderer`` if given, else by a new one caching its rooms in ``cache_dir``)."""
     from trackerd.sim.motion import DEFAULT_PERIOD_S, make_motion
     from trackerd.sim.render import SceneRenderer
 
     rig: RigConfig = load_rig(REPO / "config" / "simulated.toml").config
-    renderer = SceneRenderer(rig, cache_dir=cache_dir)
+    if renderer is None:
+        renderer = SceneRenderer(rig, cache_dir=cache_dir)
     moving = make_motion("figure8", rig, DEFAULT_PERIOD_S)
     content_fps = 30.0
     for index in (0, 37, 81):
@@ -176,22 +183,49 @@ def all_scenes(cache_dir: Path) -> dict[str, str]:
     return found
 
 
-def test_the_demo_and_hand_frames_are_bit_identical(tmp_path: Path) -> None:
-    found = dict(_demo_scenes(tmp_path))
-    found.update(_hand_scene(tmp_path))
+@dataclass(frozen=True)
+class FreshRooms:
+    """A renderer that rendered both cameras' rooms afresh, and the cache folder it wrote them to."""
+
+    renderer: SceneRenderer
+    folder: Path
+    files_after_each: list[int]
+    """How many cached rooms the folder held after each camera's room was rendered, in camera order."""
+
+
+@pytest.fixture(scope="module")
+def fresh_rooms(tmp_path_factory: pytest.TempPathFactory) -> FreshRooms:
+    """Rendering a room takes seconds (each camera's, 6 s of CPU here): the module's two tests that need
+    them rendered afresh share one rendering, the demo's frames hashed from the renderer that made them,
+    the cache read back by a second renderer (when they run in one process: under xdist's default
+    distribution two adjacent tests mostly do)."""
+    from trackerd.sim.render import SceneRenderer
+
+    folder = tmp_path_factory.mktemp("rooms")
+    rig: RigConfig = load_rig(REPO / "config" / "simulated.toml").config
+    renderer = SceneRenderer(rig, cache_dir=folder)
+    counts = []
+    for camera in range(len(rig.cameras)):
+        renderer.background_rgb(camera)
+        counts.append(len(list(folder.glob("bg-*.npy"))))
+    return FreshRooms(renderer, folder, counts)
+
+
+def test_the_demo_and_hand_frames_are_bit_identical(fresh_rooms: FreshRooms) -> None:
+    found = dict(_demo_scenes(fresh_rooms.folder, fresh_rooms.renderer))
+    found.update(_hand_scene(fresh_rooms.folder))
     expected = {name: digest for name, digest in EXPECTED.items() if name.startswith(("demo", "hand"))}
     assert found == expected
 
 
-def test_a_background_read_from_the_cache_gives_the_same_frames(tmp_path: Path) -> None:
+def test_a_background_read_from_the_cache_gives_the_same_frames(fresh_rooms: FreshRooms) -> None:
     """A second renderer reads the room the first rendered and wrote to disk: the same frame."""
     from trackerd.sim.motion import DEFAULT_PERIOD_S, make_motion
     from trackerd.sim.render import SceneRenderer
 
     rig: RigConfig = load_rig(REPO / "config" / "simulated.toml").config
-    SceneRenderer(rig, cache_dir=tmp_path).background_rgb(0)
-    assert len(list(tmp_path.glob("bg-*.npy"))) == 1
-    renderer = SceneRenderer(rig, cache_dir=tmp_path)
+    assert fresh_rooms.files_after_each == [1, 2]  # one file per camera's room, written as it was rendered
+    renderer = SceneRenderer(rig, cache_dir=fresh_rooms.folder)
     pose = make_motion("figure8", rig, DEFAULT_PERIOD_S)(37 / 30.0)
     view = renderer.render(0, pose, np.random.default_rng([rig.simulation.seed, 0, 37]))
     assert _digest(*_view_parts(view)) == EXPECTED["demo figure8 frame 37 camera 0"]
