@@ -255,6 +255,7 @@ class Publisher:
         name = topic.decode("ascii")
         self._counts[name] = self._counts.get(name, 0) + 1
         if topic == STATUS_TOPIC:
+            self._lvc.sent(payload)
             self._statuses_sent += 1
             # About once a second: the subscriptions the inlet reports are never needed after
             # start, and would pile up as subscribers come and go.
@@ -361,6 +362,7 @@ class _LastValue:
         self._statuses = 0
         self._expected: collections.deque[bytes] = collections.deque(maxlen=256)  # a few minutes of statuses
         self._expected_lock = threading.Lock()
+        self._newest_sent: bytes | None = None
         self._thread = threading.Thread(target=self._run, name="trackerd-zmq-last-value", daemon=True)
 
     def connect(self, capture: str, frontend: str) -> None:
@@ -383,6 +385,12 @@ class _LastValue:
         """A status the publisher is about to send (called in the publishing thread)."""
         with self._expected_lock:
             self._expected.append(payload)
+
+    def sent(self, payload: bytes) -> None:
+        """A status the publisher has sent: the one new subscribers are answered with from now on
+        (called in the publishing thread)."""
+        with self._expected_lock:
+            self._newest_sent = payload
 
     def forget(self, payload: bytes) -> None:
         """A status that could not be sent after all."""
@@ -445,7 +453,12 @@ class _LastValue:
                         time.sleep(READ_PAUSE_S)
                 now = time.monotonic()
                 if asked and last is not None and now >= answered + ANSWER_INTERVAL_S:
-                    self._pub.send_multipart(last, flags=zmq.NOBLOCK)
+                    # The newest status sent, not the last one read off the capture: under a flood the
+                    # capture lags (and may drop), and an answer from it went out older than a status
+                    # subscribers already had (a status going backwards, seen by a late joiner).
+                    with self._expected_lock:
+                        newest = self._newest_sent
+                    self._pub.send_multipart(last if newest is None else [STATUS_TOPIC, newest], flags=zmq.NOBLOCK)
                     answered, asked = now, False
         except zmq.ContextTerminated:
             pass
