@@ -9,7 +9,7 @@ from detect_synthetic import BLUE, RED, WALL, Scene, Shape
 from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
 from trackerd.detect.colour import sample_grid
-from trackerd.detect.search import search_candidates
+from trackerd.detect.search import search_candidates, split_candidates
 
 MAGENTA = (0.85, 0.15, 0.55)
 
@@ -52,3 +52,24 @@ def test_a_grey_room_offers_no_candidates(detect_rng) -> None:
     frame, _ = Scene(shapes=[Shape(100.0, 75.0, (0.7, 0.68, 0.66), radius=15.0)]).render("BayerRG8", detect_rng)
     cands = search_candidates(frame, sample_grid("BayerRG8", 200, 150), (6.0, 30.0))
     assert cands == {"red": [], "blue": []}
+
+
+def test_a_dark_ball_before_a_bright_picture_of_its_own_hue_is_split_from_it(detect_rng) -> None:
+    """A navy ball (or a shaded red one) wholly in front of a bright picture of its own hue, its rod
+    running off over the picture: every hue test takes ball and picture as one group, too large to be a
+    ball. The ball is the part of the group that is darker; its excess rises into the picture at its rim.
+    Random placements, sizes and shades."""
+    grid = sample_grid("BayerRG8", 240, 150)
+    for colour, paint, bright in (("blue", BLUE, (0.15, 0.35, 0.95)), ("red", RED, (0.95, 0.25, 0.15))):
+        for _ in range(3):
+            x, y = detect_rng.uniform(80.0, 160.0), detect_rng.uniform(55.0, 95.0)
+            radius = detect_rng.uniform(7.0, 12.0)
+            shade = detect_rng.uniform(0.35, 0.5)
+            angle = detect_rng.uniform(0.0, 2.0 * np.pi)
+            rod = (x, y, x + 200.0 * np.cos(angle), y + 200.0 * np.sin(angle), 0.3 * radius)
+            ball = Shape(x, y, tuple(shade * c for c in paint), radius=radius)
+            # The picture fills the view (the rod is drawn over it, the ball over the rod).
+            frame, _ = Scene(width=240, background=bright, shapes=[ball], rods=[rod]).render("BayerRG8", detect_rng)
+            # The plain search does not offer it; the split does.
+            assert _nearest(search_candidates(frame, grid, (5.0, 25.0))[colour], x, y) > 3.0
+            assert _nearest(split_candidates(frame, grid, (5.0, 25.0))[colour], x, y) < 0.5, (x, y, radius, shade)
