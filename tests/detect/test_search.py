@@ -73,3 +73,18 @@ def test_a_dark_ball_before_a_bright_picture_of_its_own_hue_is_split_from_it(det
             # The plain search does not offer it; the split does.
             assert _nearest(search_candidates(frame, grid, (5.0, 25.0))[colour], x, y) > 3.0
             assert _nearest(split_candidates(frame, grid, (5.0, 25.0))[colour], x, y) < 0.5, (x, y, radius, shade)
+
+
+def test_a_bright_ball_touching_a_dark_picture_of_its_hue_is_split_from_it(detect_rng) -> None:
+    """A blue ball against the edge of a navy slide (a dark slide's blue): one group under every hue test,
+    whose centre is off the ball. The brighter part of the group is the ball. Random placements and sizes."""
+    grid = sample_grid("BayerRG8", 240, 150)
+    navy = (0.05, 0.08, 0.42)
+    for _ in range(4):
+        radius = detect_rng.uniform(8.0, 12.0)
+        x, y = detect_rng.uniform(70.0, 90.0), detect_rng.uniform(60.0, 90.0)
+        edge = x + detect_rng.uniform(0.3, 0.8) * radius  # the slide's left edge, under the ball
+        slide = Shape(edge + 60.0, 75.0, navy, half_size=(60.0, 55.0))
+        frame, _ = Scene(width=240, shapes=[slide, Shape(x, y, BLUE, radius=radius)]).render("BayerRG8", detect_rng)
+        assert _nearest(search_candidates(frame, grid, (5.0, 25.0))["blue"], x, y) > 1.0
+        assert _nearest(split_candidates(frame, grid, (5.0, 25.0))["blue"], x, y) < 0.5, (x, y, radius)

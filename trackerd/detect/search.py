@@ -44,11 +44,15 @@ MAX_SEEDS = 20
 """Seeds fitted per colour, best first."""
 
 DARKER_SHARE = 0.7
-"""Inside a group too large to be a ball, samples whose own channel is below this share of the group's
-median are looked at apart: a ball darker than a picture of its own hue behind it (navy before a bright
-blue, a shaded red before a lit red block)."""
+"""Inside a group larger than the smallest ball, samples whose own channel is below this share of the
+group's median are looked at apart (a ball darker than a picture of its own hue behind it: navy before a
+bright blue, a shaded red before a lit red block), and so are those above the median over it (a bright
+ball touching a dark picture of its hue, a navy slide)."""
 
-MAX_SPLIT_SEEDS = 8
+SPLIT_FROM = 2.0
+"""Groups whose box reaches this many times the smallest ball's radius are split."""
+
+MAX_SPLIT_SEEDS = 12
 """Seeds from the split of groups too large to be a ball, fitted per colour (:func:`split_candidates`)."""
 
 
@@ -154,10 +158,12 @@ def split_candidates(
 
     Such a ball still differs from the picture in brightness (a navy ball before a bright blue, a shaded
     red one before a lit red block) or in which of the other two channels is the larger (an orange ball
-    before a magenta, a cyan-blue one before a violet). So inside every group of the colour too large to
-    be a ball, the samples darker than DARKER_SHARE of the group's median, and each side of that channel
-    split, are seeds of their own. Their outlines are fitted taking rising rims too (the excess of a dark
-    ball is *below* that of the bright picture behind it; :func:`~trackerd.detect.ballfit.fit_ball`), with
+    before a magenta, a cyan-blue one before a violet). So inside every group of the colour larger than
+    SPLIT_FROM times the smallest ball's radius (one too large to be a ball, or one whose centre the
+    picture pulls off the ball), the samples darker than DARKER_SHARE of the group's median, those brighter
+    than the median over it, and each side of that channel split, are seeds of their own. Their outlines
+    are fitted taking rising rims too (the excess of a dark ball is *below* that of the bright picture
+    behind it; :func:`~trackerd.detect.ballfit.fit_ball`), with
     the radius kept near the seed's. Slower than the plain search and more easily fooled, so the locator
     asks for these only when the plain candidates do not make a pointer (trackerd/refine.py)."""
     smallest, largest = radius_range_px
@@ -167,9 +173,9 @@ def split_candidates(
     for colour in colours:
         own, other = sampled.planes(colour)
         mask = _hue_mask(own, sampled.excess(colour))
-        _, merged = _seeds(mask, region, step, grid, colour, spacing, smallest, largest)
         greener = sampled.green >= other
-        split = _split_seeds(mask, own, greener, merged, region, step, grid, colour, spacing, smallest, largest)
+        boxes = _large_groups(mask, spacing, SPLIT_FROM * smallest)
+        split = _split_seeds(mask, own, greener, boxes, region, step, grid, colour, spacing, smallest, largest)
         found: list[Candidate] = []
         for x, y, radius in split[:MAX_SPLIT_SEEDS]:
             size = max(radius, smallest)
@@ -235,12 +241,13 @@ def _split_seeds(
     smallest: float,
     largest: float,
 ) -> list[tuple[float, float, float]]:
-    """Seeds of a ball's size inside the groups too large to be one (``boxes``, mask samples): the group's
-    samples darker than DARKER_SHARE of its median, and those whose second channel is green against those
-    whose second is the other colour (``greener``), each looked at alone."""
+    """Seeds of a ball's size inside the groups in ``boxes`` (mask samples): the group's samples darker than
+    DARKER_SHARE of its median, those brighter than the median over it, and those whose second channel is
+    green against those whose second is the other colour (``greener``), each looked at alone."""
     if not boxes:
         return []
     darker = np.zeros_like(mask)
+    brighter = np.zeros_like(mask)
     side_a = np.zeros_like(mask)
     side_b = np.zeros_like(mask)
     for y0, y1, x0, x1 in boxes:
@@ -248,13 +255,29 @@ def _split_seeds(
         values = own[y0:y1, x0:x1]
         median = float(np.median(values[inside]))
         darker[y0:y1, x0:x1] = inside & (values < DARKER_SHARE * median)
+        brighter[y0:y1, x0:x1] = inside & (DARKER_SHARE * values > median)
         side_a[y0:y1, x0:x1] = inside & greener[y0:y1, x0:x1]
         side_b[y0:y1, x0:x1] = inside & ~greener[y0:y1, x0:x1]
     seeds: list[tuple[float, float, float]] = []
-    for part in (darker, side_a, side_b):
+    for part in (darker, brighter, side_a, side_b):
         found, _ = _seeds(part, region, step, grid, colour, spacing, smallest, largest)
         seeds += found
     return seeds
+
+
+def _large_groups(mask: NDArray[np.bool_], spacing: float, min_radius_px: float) -> list[tuple[int, int, int, int]]:
+    """Boxes (row0, row1, col0, col1 in mask samples) of the mask's groups whose box is at least
+    ``min_radius_px`` in half-extent."""
+    if not mask.any():
+        return []
+    runs = find_runs(mask)
+    labels, count = label_runs(runs)
+    stats = blob_stats(runs, labels, count)
+    half = 0.5 * spacing * np.maximum(stats.x1 - stats.x0 + 1, stats.y1 - stats.y0 + 1)
+    return [
+        (int(stats.y0[k]), int(stats.y1[k]) + 1, int(stats.x0[k]), int(stats.x1[k]) + 1)
+        for k in np.nonzero(half >= min_radius_px)[0]
+    ]
 
 
 def _distinct(candidates: list[Candidate]) -> list[Candidate]:
