@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -122,7 +123,10 @@ class RefinedPath:
             return searched
         if fix.status == "not_found":
             return searched
-        return fix
+        # The detector's ends made an impossible pointer, and the search found none: both say why (the
+        # search's first clause; the rest repeats the detector's reasons).
+        searched_why = (searched.reason or "").split(";")[0]
+        return replace(fix, reason=f"{fix.reason}; searched: {searched_why}" if searched_why else fix.reason)
 
     def _after_refined(self, fix: PointerFix) -> None:
         """Remember whether the detector's centroids could be trusted, and let the detectors track the balls
