@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -122,7 +123,10 @@ class RefinedPath:
             return searched
         if fix.status == "not_found":
             return searched
-        return fix
+        # The detector's ends made an impossible pointer, and the search found none: both say why (the
+        # search's first clause; the rest repeats the detector's reasons).
+        searched_why = (searched.reason or "").split(";")[0]
+        return replace(fix, reason=f"{fix.reason}; searched: {searched_why}" if searched_why else fix.reason)
 
     def _after_refined(self, fix: PointerFix) -> None:
         """Remember whether the detector's centroids could be trusted, and let the detectors track the balls
@@ -142,7 +146,7 @@ class RefinedPath:
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
         from trackerd.detect.ballfit import fit_ball
-        from trackerd.detect.search import Candidate, search_candidates
+        from trackerd.detect.search import Candidate, search_candidates, split_candidates
         from trackerd.ends import from_fit
         from trackerd.joint import choose_jointly
 
@@ -172,16 +176,33 @@ class RefinedPath:
                 return None
             return Candidate(colour, fit, (x_px, y_px), radius_px)
 
-        choice = choose_jointly(
-            self.loc.cameras,
-            candidates,
-            pointer.end_diameter_m / 2.0,
-            pointer.length_m,
-            pointer.length_tolerance_m,
-            self.loc.rig.locator.max_ray_gap_m,
-            room,
-            look,
-        )
+        def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
+            return choose_jointly(
+                self.loc.cameras,
+                offered,
+                pointer.end_diameter_m / 2.0,
+                pointer.length_m,
+                pointer.length_tolerance_m,
+                self.loc.rig.locator.max_ray_gap_m,
+                room,
+                look,
+            )
+
+        choice = choose(candidates)
+        if isinstance(choice, str):
+            # A ball of nearly its picture's hue stays merged with the picture in every camera that sees it
+            # there, and then no camera offers it. Split the merged groups (slower, and only now: the plain
+            # candidates make a pointer on nearly every first sighting) and choose again from all.
+            extra = [
+                split_candidates(image, self.loc.grids[index], self._radius_range_px(index))
+                for index, image in enumerate(images)
+            ]
+            if any(extra_per_camera[c] for extra_per_camera in extra for c in COLOURS):
+                again = choose(
+                    [{c: plain[c] + more[c] for c in COLOURS} for plain, more in zip(candidates, extra, strict=True)]
+                )
+                if not isinstance(again, str):
+                    choice = again
         if isinstance(choice, str):
             missing = self.loc._missing(detections)
             reason = "; ".join([choice, *missing]) if missing else choice

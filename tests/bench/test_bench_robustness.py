@@ -91,6 +91,32 @@ def test_figures_count_confident_wrong_answers_and_sigma_coverage() -> None:
     assert summarise(records)["misses"] == {"(no reason)": 1}
 
 
+def test_a_miss_is_counted_by_the_detectors_reason_and_the_searchs() -> None:
+    """A pair the detector's ends made impossible and the search did not find says both (trackerd/refine.py);
+    the count keeps both, without the figures, and without the cameras' own reasons."""
+    reasons = [
+        "ends are 1854 mm apart, the pointer is 454 +- 50 mm; searched: no blue ball seen consistently",
+        "ends are 2027 mm apart, the pointer is 435 +- 50 mm; searched: no blue ball seen consistently",
+        "no red ball seen consistently by two cameras; cam0: 2 red blobs, none ball-shaped",
+    ]
+    records = [
+        {
+            "eligible": True,
+            "error_m": None,
+            "sigma_m": None,
+            "naive_error_m": None,
+            "reason": r,
+            "factors": dict.fromkeys(FACTORS, "x"),
+            "seconds": 0.1,
+        }
+        for r in reasons
+    ]
+    misses = summarise(records)["misses"]
+    assert len(misses) == 2 and sorted(misses.values()) == [1, 2]
+    assert any("(searched: no blue ball seen consistently)" in k for k in misses)
+    assert "no red ball seen consistently by two cameras" in misses
+
+
 @pytest.mark.parametrize("placement", ["side-on", "behind high", "ceiling"])
 def test_the_geometric_floor_is_the_true_hit_when_the_ends_are_measured_exactly(monkeypatch, placement) -> None:
     """The floor runs the pointer fit on the true ends' images: with no noise it must land on the true hit

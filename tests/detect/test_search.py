@@ -9,7 +9,7 @@ from detect_synthetic import BLUE, RED, WALL, Scene, Shape
 from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
 from trackerd.detect.colour import sample_grid
-from trackerd.detect.search import search_candidates
+from trackerd.detect.search import search_candidates, split_candidates
 
 MAGENTA = (0.85, 0.15, 0.55)
 
@@ -52,3 +52,39 @@ def test_a_grey_room_offers_no_candidates(detect_rng) -> None:
     frame, _ = Scene(shapes=[Shape(100.0, 75.0, (0.7, 0.68, 0.66), radius=15.0)]).render("BayerRG8", detect_rng)
     cands = search_candidates(frame, sample_grid("BayerRG8", 200, 150), (6.0, 30.0))
     assert cands == {"red": [], "blue": []}
+
+
+def test_a_dark_ball_before_a_bright_picture_of_its_own_hue_is_split_from_it(detect_rng) -> None:
+    """A navy ball (or a shaded red one) wholly in front of a bright picture of its own hue, its rod
+    running off over the picture: every hue test takes ball and picture as one group, too large to be a
+    ball. The ball is the part of the group that is darker; its excess rises into the picture at its rim.
+    Random placements, sizes and shades."""
+    grid = sample_grid("BayerRG8", 240, 150)
+    for colour, paint, bright in (("blue", BLUE, (0.15, 0.35, 0.95)), ("red", RED, (0.95, 0.25, 0.15))):
+        for _ in range(3):
+            x, y = detect_rng.uniform(80.0, 160.0), detect_rng.uniform(55.0, 95.0)
+            radius = detect_rng.uniform(7.0, 12.0)
+            shade = detect_rng.uniform(0.35, 0.5)
+            angle = detect_rng.uniform(0.0, 2.0 * np.pi)
+            rod = (x, y, x + 200.0 * np.cos(angle), y + 200.0 * np.sin(angle), 0.3 * radius)
+            ball = Shape(x, y, tuple(shade * c for c in paint), radius=radius)
+            # The picture fills the view (the rod is drawn over it, the ball over the rod).
+            frame, _ = Scene(width=240, background=bright, shapes=[ball], rods=[rod]).render("BayerRG8", detect_rng)
+            # The plain search does not offer it; the split does.
+            assert _nearest(search_candidates(frame, grid, (5.0, 25.0))[colour], x, y) > 3.0
+            assert _nearest(split_candidates(frame, grid, (5.0, 25.0))[colour], x, y) < 0.5, (x, y, radius, shade)
+
+
+def test_a_bright_ball_touching_a_dark_picture_of_its_hue_is_split_from_it(detect_rng) -> None:
+    """A blue ball against the edge of a navy slide (a dark slide's blue): one group under every hue test,
+    whose centre is off the ball. The brighter part of the group is the ball. Random placements and sizes."""
+    grid = sample_grid("BayerRG8", 240, 150)
+    navy = (0.05, 0.08, 0.42)
+    for _ in range(4):
+        radius = detect_rng.uniform(8.0, 12.0)
+        x, y = detect_rng.uniform(70.0, 90.0), detect_rng.uniform(60.0, 90.0)
+        edge = x + detect_rng.uniform(0.3, 0.8) * radius  # the slide's left edge, under the ball
+        slide = Shape(edge + 60.0, 75.0, navy, half_size=(60.0, 55.0))
+        frame, _ = Scene(width=240, shapes=[slide, Shape(x, y, BLUE, radius=radius)]).render("BayerRG8", detect_rng)
+        assert _nearest(search_candidates(frame, grid, (5.0, 25.0))["blue"], x, y) > 1.0
+        assert _nearest(split_candidates(frame, grid, (5.0, 25.0))["blue"], x, y) < 0.5, (x, y, radius)

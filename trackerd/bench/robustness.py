@@ -431,13 +431,20 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _first_clause(reason: str | None) -> str:
-    """A miss's reason without the figures that make every one different, to count them."""
+    """A miss's reason without the figures that make every one different, to count them; where the
+    detector's ends made an impossible pointer and the search found none, the search's reason too."""
     if not reason:
         return "(no reason)"
+    reason, _, searched = reason.partition("; searched: ")
     text = reason.split(";")[0]
     if ":" in text:
         text = text.split(":", 1)[1]
-    return "".join(" N" if ch.isdigit() else ch for ch in text).replace(" N N", " N").replace("NN", "N").strip()[:90]
+    clause = _without_figures(text)[:90]
+    return f"{clause} (searched: {_without_figures(searched)[:70]})" if searched else clause
+
+
+def _without_figures(text: str) -> str:
+    return "".join(" N" if ch.isdigit() else ch for ch in text).replace(" N N", " N").replace("NN", "N").strip()
 
 
 def format_summary(summary: dict[str, Any]) -> str:

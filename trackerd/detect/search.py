@@ -43,6 +43,18 @@ STRICTER = (0.5, 0.65)
 MAX_SEEDS = 20
 """Seeds fitted per colour, best first."""
 
+DARKER_SHARE = 0.7
+"""Inside a group larger than the smallest ball, samples whose own channel is below this share of the
+group's median are looked at apart (a ball darker than a picture of its own hue behind it: navy before a
+bright blue, a shaded red before a lit red block), and so are those above the median over it (a bright
+ball touching a dark picture of its hue, a navy slide)."""
+
+SPLIT_FROM = 2.0
+"""Groups whose box reaches this many times the smallest ball's radius are split."""
+
+MAX_SPLIT_SEEDS = 12
+"""Seeds from the split of groups too large to be a ball, fitted per colour (:func:`split_candidates`)."""
+
 
 @dataclass(frozen=True, slots=True)
 class Candidate:
@@ -55,6 +67,47 @@ class Candidate:
     seed_radius_px: float
 
 
+@dataclass(frozen=True, slots=True)
+class _Sampled:
+    """The frame's channels on the search's subsampled grid (int16, one value per sample)."""
+
+    red: NDArray[np.int16]
+    green: NDArray[np.int16]
+    """The brighter of a Bayer cell's two greens."""
+    blue: NDArray[np.int16]
+    region: tuple[int, int, int, int]
+    step: int
+    spacing_px: float
+
+    def planes(self, colour: str) -> tuple[NDArray[np.int16], NDArray[np.int16]]:
+        """(own channel, the other colour's channel) for ``colour``."""
+        return (self.red, self.blue) if colour == "red" else (self.blue, self.red)
+
+    def excess(self, colour: str) -> NDArray[np.int16]:
+        """Each sample's own channel less the larger of the other two."""
+        own, other = self.planes(colour)
+        return own - np.maximum(self.green, other)
+
+
+def _hue_mask(own: NDArray[np.int16], excess: NDArray[np.int16]) -> NDArray[np.bool_]:
+    """The relative colour test (see the module) on every sample."""
+    return (excess >= MIN_EXCESS) & (10 * excess >= int(10 * RELATIVE_EXCESS) * own)
+
+
+def _sample(frame: NDArray[np.uint8], grid: SampleGrid, smallest_px: float) -> _Sampled:
+    """The frame subsampled finely enough that a ball of the smallest radius still covers a few samples."""
+    step = max(1, int(smallest_px // (1.5 * grid.cell_px)))
+    region = grid.interior()
+    r = _plane(frame, grid, "red", region, step).astype(np.int16)
+    b = _plane(frame, grid, "blue", region, step).astype(np.int16)
+    g = _plane(frame, grid, "green_a", region, step).astype(np.int16)
+    if grid.is_bayer:
+        np.maximum(g, _plane(frame, grid, "green_b", region, step), out=g)
+    rows = min(r.shape[0], b.shape[0], g.shape[0])
+    cols = min(r.shape[1], b.shape[1], g.shape[1])
+    return _Sampled(r[:rows, :cols], g[:rows, :cols], b[:rows, :cols], region, step, step * grid.cell_px)
+
+
 def search_candidates(
     frame: NDArray[np.uint8],
     grid: SampleGrid,
@@ -65,23 +118,13 @@ def search_candidates(
 ) -> dict[str, list[Candidate]]:
     """The fitted candidates of each colour (see the module), best seeds first."""
     smallest, largest = radius_range_px
-    # Sample spacing: a ball of the smallest radius still covers a few samples.
-    step = max(1, int(smallest // (1.5 * grid.cell_px)))
-    spacing = step * grid.cell_px
-    region = grid.interior()
-    r = _plane(frame, grid, "red", region, step).astype(np.int16)
-    b = _plane(frame, grid, "blue", region, step).astype(np.int16)
-    g = _plane(frame, grid, "green_a", region, step).astype(np.int16)
-    if grid.is_bayer:
-        np.maximum(g, _plane(frame, grid, "green_b", region, step), out=g)
-    rows = min(r.shape[0], b.shape[0], g.shape[0])
-    cols = min(r.shape[1], b.shape[1], g.shape[1])
-    r, g, b = r[:rows, :cols], g[:rows, :cols], b[:rows, :cols]
+    sampled = _sample(frame, grid, smallest)
+    region, step, spacing = sampled.region, sampled.step, sampled.spacing_px
     out: dict[str, list[Candidate]] = {}
     for colour in colours:
-        own, other = (r, b) if colour == "red" else (b, r)
-        excess = own - np.maximum(g, other)
-        mask = (excess >= MIN_EXCESS) & (10 * excess >= int(10 * RELATIVE_EXCESS) * own)
+        own, _ = sampled.planes(colour)
+        excess = sampled.excess(colour)
+        mask = _hue_mask(own, excess)
         seeds, merged = _seeds(mask, region, step, grid, colour, spacing, smallest, largest)
         # A ball in front of a picture of a nearby hue merges with it; a stricter hue test, inside the merged
         # group only, separates what is only nearly the paint's colour (a magenta beside a red).
@@ -97,6 +140,46 @@ def search_candidates(
         found: list[Candidate] = []
         for x, y, radius in seeds[:max_seeds]:
             fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
+            if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
+                found.append(Candidate(colour, fit, (x, y), radius))
+        out[colour] = _distinct(found)
+    return out
+
+
+def split_candidates(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    radius_range_px: tuple[float, float],
+    *,
+    colours: tuple[str, ...] = ("red", "blue"),
+) -> dict[str, list[Candidate]]:
+    """Candidates that :func:`search_candidates` cannot offer: balls of nearly the same hue as a picture
+    behind them, which stay merged with it under every hue test.
+
+    Such a ball still differs from the picture in brightness (a navy ball before a bright blue, a shaded
+    red one before a lit red block) or in which of the other two channels is the larger (an orange ball
+    before a magenta, a cyan-blue one before a violet). So inside every group of the colour larger than
+    SPLIT_FROM times the smallest ball's radius (one too large to be a ball, or one whose centre the
+    picture pulls off the ball), the samples darker than DARKER_SHARE of the group's median, those brighter
+    than the median over it, and each side of that channel split, are seeds of their own. Their outlines
+    are fitted taking rising rims too (the excess of a dark ball is *below* that of the bright picture
+    behind it; :func:`~trackerd.detect.ballfit.fit_ball`), with
+    the radius kept near the seed's. Slower than the plain search and more easily fooled, so the locator
+    asks for these only when the plain candidates do not make a pointer (trackerd/refine.py)."""
+    smallest, largest = radius_range_px
+    sampled = _sample(frame, grid, smallest)
+    region, step, spacing = sampled.region, sampled.step, sampled.spacing_px
+    out: dict[str, list[Candidate]] = {}
+    for colour in colours:
+        own, other = sampled.planes(colour)
+        mask = _hue_mask(own, sampled.excess(colour))
+        greener = sampled.green >= other
+        boxes = _large_groups(mask, spacing, SPLIT_FROM * smallest)
+        split = _split_seeds(mask, own, greener, boxes, region, step, grid, colour, spacing, smallest, largest)
+        found: list[Candidate] = []
+        for x, y, radius in split[:MAX_SPLIT_SEEDS]:
+            size = max(radius, smallest)
+            fit = fit_ball(frame, grid, colour, x, y, size, radius_range_px=(0.6 * size, 1.6 * size), rising_rims=True)
             if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
                 found.append(Candidate(colour, fit, (x, y), radius))
         out[colour] = _distinct(found)
@@ -143,6 +226,58 @@ def _seeds(
         scored.append((roundness * min(1.0, fill / 0.6) * min(1.0, radius / smallest), x, y, max(radius, area_radius)))
     scored.sort(reverse=True)
     return [(x, y, radius) for _, x, y, radius in scored], merged
+
+
+def _split_seeds(
+    mask: NDArray[np.bool_],
+    own: NDArray[np.int16],
+    greener: NDArray[np.bool_],
+    boxes: list[tuple[int, int, int, int]],
+    region: tuple[int, int, int, int],
+    step: int,
+    grid: SampleGrid,
+    colour: str,
+    spacing: float,
+    smallest: float,
+    largest: float,
+) -> list[tuple[float, float, float]]:
+    """Seeds of a ball's size inside the groups in ``boxes`` (mask samples): the group's samples darker than
+    DARKER_SHARE of its median, those brighter than the median over it, and those whose second channel is
+    green against those whose second is the other colour (``greener``), each looked at alone."""
+    if not boxes:
+        return []
+    darker = np.zeros_like(mask)
+    brighter = np.zeros_like(mask)
+    side_a = np.zeros_like(mask)
+    side_b = np.zeros_like(mask)
+    for y0, y1, x0, x1 in boxes:
+        inside = mask[y0:y1, x0:x1]
+        values = own[y0:y1, x0:x1]
+        median = float(np.median(values[inside]))
+        darker[y0:y1, x0:x1] = inside & (values < DARKER_SHARE * median)
+        brighter[y0:y1, x0:x1] = inside & (DARKER_SHARE * values > median)
+        side_a[y0:y1, x0:x1] = inside & greener[y0:y1, x0:x1]
+        side_b[y0:y1, x0:x1] = inside & ~greener[y0:y1, x0:x1]
+    seeds: list[tuple[float, float, float]] = []
+    for part in (darker, brighter, side_a, side_b):
+        found, _ = _seeds(part, region, step, grid, colour, spacing, smallest, largest)
+        seeds += found
+    return seeds
+
+
+def _large_groups(mask: NDArray[np.bool_], spacing: float, min_radius_px: float) -> list[tuple[int, int, int, int]]:
+    """Boxes (row0, row1, col0, col1 in mask samples) of the mask's groups whose box is at least
+    ``min_radius_px`` in half-extent."""
+    if not mask.any():
+        return []
+    runs = find_runs(mask)
+    labels, count = label_runs(runs)
+    stats = blob_stats(runs, labels, count)
+    half = 0.5 * spacing * np.maximum(stats.x1 - stats.x0 + 1, stats.y1 - stats.y0 + 1)
+    return [
+        (int(stats.y0[k]), int(stats.y1[k]) + 1, int(stats.x0[k]), int(stats.x1[k]) + 1)
+        for k in np.nonzero(half >= min_radius_px)[0]
+    ]
 
 
 def _distinct(candidates: list[Candidate]) -> list[Candidate]:
