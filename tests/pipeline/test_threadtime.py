@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -10,20 +11,12 @@ import time
 
 import pytest
 
-from trackerd.pipeline.threadtime import SCHEDSTAT, ThreadClock, ThreadTimes, off_cpu
+from trackerd.pipeline.threadtime import SCHEDSTAT, OffCpu, ThreadClock, ThreadTimes, off_cpu
 
 
 def _spin(seconds: float) -> None:
     end = time.perf_counter() + seconds
     while time.perf_counter() < end:
-        pass
-
-
-def _spin_cpu(seconds: float) -> None:
-    """Spin until this thread has run for ``seconds`` of CPU time (not of wall time: on a loaded
-    machine the two differ by whatever the rivals took)."""
-    end = time.thread_time_ns() + round(seconds * 1e9)
-    while time.thread_time_ns() < end:
         pass
 
 
@@ -45,14 +38,59 @@ def test_off_cpu_takes_an_interval_apart():
     assert unknown.runqueue_ns == 0 and unknown.unseen_ns == 4_000_000
 
 
-def test_a_sleeping_thread_is_asleep_and_a_spinning_one_is_running():
+# Measured in a child process with one thread: in the test process another thread (pytest-xdist's
+# channel, a test's leftover daemon thread) can want the GIL while the spinning thread holds it, and a
+# thread that waits for the GIL back has gone to sleep of its own accord (a voluntary switch): right
+# for the daemon's threads, but not what a lone spinning thread is meant to show.
+_MEASURE = """
+import json, os, sys, time
+from dataclasses import asdict
+from trackerd.pipeline.threadtime import ThreadClock, off_cpu
+
+def spin_wall(seconds):
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
+
+def spin_cpu(seconds):
+    # Until this thread has run for `seconds` of CPU time, not of wall time: on a loaded machine the
+    # two differ by whatever the rivals took.
+    end = time.thread_time_ns() + round(seconds * 1e9)
+    while time.thread_time_ns() < end:
+        pass
+
+def measure(act, seconds):
     with ThreadClock() as clock:
         before = clock.now()
-        time.sleep(0.05)
-        asleep = off_cpu(before, clock.now())
-        before = clock.now()
-        _spin_cpu(0.05)
-        running = off_cpu(before, clock.now())
+        act(seconds)
+        return asdict(off_cpu(before, clock.now()))
+
+cpu = sys.argv[1]
+if cpu != "any":
+    os.sched_setaffinity(0, {int(cpu)})
+print(json.dumps({
+    "asleep": measure(time.sleep, 0.05),
+    "running": measure(spin_cpu, 0.05),
+    "shared": measure(spin_wall, 0.4),
+}))
+"""
+
+
+def _measured_alone(cpu: int | None = None) -> dict[str, OffCpu]:
+    """A sleep of 50 ms, a spin of 50 ms of CPU and a spin of 0.4 s of wall time, each measured by a
+    ThreadClock in a child process with one thread (pinned to ``cpu`` if given)."""
+    child = subprocess.run(
+        [sys.executable, "-c", _MEASURE, "any" if cpu is None else str(cpu)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return {name: OffCpu(**fields) for name, fields in json.loads(child.stdout).items()}
+
+
+def test_a_sleeping_thread_is_asleep_and_a_spinning_one_is_running():
+    measured = _measured_alone()
+    asleep, running = measured["asleep"], measured["running"]
     assert asleep.slept and asleep.asleep_ns >= 45_000_000 and asleep.unseen_ns == 0
     assert not running.slept
     # The clock sees the 50 ms of CPU the spinning thread used, however busy the machine was (how much
@@ -78,19 +116,13 @@ def test_a_clock_measures_the_thread_that_made_it():
 @pytest.mark.skipif(not os.path.exists(SCHEDSTAT), reason="this kernel keeps no scheduler statistics")
 def test_a_rival_on_the_same_cpu_shows_as_run_queue_time():
     cpu = min(os.sched_getaffinity(0))
-    saved = os.sched_getaffinity(0)
     rival = subprocess.Popen(
         [sys.executable, "-c", f"import os; os.sched_setaffinity(0, {{{cpu}}})\nwhile True: pass"],
     )
     try:
         time.sleep(0.3)  # the rival is spinning
-        os.sched_setaffinity(0, {cpu})  # this thread only
-        with ThreadClock() as clock:
-            before = clock.now()
-            _spin(0.4)
-            shared = off_cpu(before, clock.now())
+        shared = _measured_alone(cpu)["shared"]
     finally:
-        os.sched_setaffinity(0, saved)
         rival.kill()
         rival.wait()
     # Two runnable tasks on one CPU share it: this one waits on the run queue for much of the time,
