@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import select
 import signal
 import subprocess
 import sys
@@ -36,19 +38,26 @@ def test_stopping_does_not_wait_for_the_search_for_a_missing_camera(simulated_ri
 
 
 def test_the_daemon_says_which_cameras_it_waits_for_and_stops_at_once_without_them() -> None:
-    run = subprocess.Popen(
-        [sys.executable, "-m", "trackerd", "run", "--config", str(RIG)],
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    run = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(RIG)], stderr=subprocess.PIPE)
+    assert run.stderr is not None
+    # Up when it says what it waits for (a fixed wait sent SIGTERM before a loaded machine had even
+    # imported the daemon, which then died of the signal's default action: exit -15). Read unbuffered:
+    # both lines may come in one read.
+    said = b""
+    deadline = time.monotonic() + 60.0
     try:
-        time.sleep(3.5)
+        while said.count(b"not available yet") < 2 and time.monotonic() < deadline:
+            if select.select([run.stderr], [], [], 1.0)[0]:
+                chunk = os.read(run.stderr.fileno(), 65536)
+                if not chunk:
+                    break  # it exited
+                said += chunk
     finally:
         start = time.monotonic()
         run.send_signal(signal.SIGTERM)
         code = run.wait(10)
         took = time.monotonic() - start
-    stderr = run.stderr.read()
+    stderr = (said + run.stderr.read()).decode()
     assert code == 0, stderr
     assert took < 1.0, f"exit took {took:.2f} s after SIGTERM"
     # At the default log level, one line per camera says what is missing.
