@@ -40,13 +40,18 @@ def test_stopping_does_not_wait_for_the_search_for_a_missing_camera(simulated_ri
 def test_the_daemon_says_which_cameras_it_waits_for_and_stops_at_once_without_them() -> None:
     run = subprocess.Popen([sys.executable, "-m", "trackerd", "run", "--config", str(RIG)], stderr=subprocess.PIPE)
     assert run.stderr is not None
-    # Up when it says what it waits for (a fixed wait sent SIGTERM before a loaded machine had even
-    # imported the daemon, which then died of the signal's default action: exit -15). Read unbuffered:
-    # both lines may come in one read.
+    # Up when it says where it publishes (after the pipeline and the console started) and what it waits
+    # for: a fixed wait sent SIGTERM before a loaded machine had even imported the daemon (exit -15),
+    # and a stop sent before it was up timed the rest of its start too. Read unbuffered: the lines may
+    # come in one read.
     said = b""
     deadline = time.monotonic() + 60.0
+
+    def up() -> bool:
+        return b"publishing on" in said and said.count(b"not available yet") >= 2
+
     try:
-        while said.count(b"not available yet") < 2 and time.monotonic() < deadline:
+        while not up() and time.monotonic() < deadline:
             if select.select([run.stderr], [], [], 1.0)[0]:
                 chunk = os.read(run.stderr.fileno(), 65536)
                 if not chunk:
