@@ -51,6 +51,18 @@ def test_ready_status_watchdog_reloading_stopping_arrive_in_order(notify_socket)
     assert received[4] == "STOPPING=1"
 
 
+def test_no_status_line_is_sent_after_stopping(notify_socket):
+    # The publishing thread may report the pair in hand after SIGTERM's handler said STOPPING=1:
+    # systemctl status must keep showing the stop, not "running".
+    path, sock = notify_socket
+    with SdNotify({"NOTIFY_SOCKET": path}) as notifier:
+        assert notifier.status("running: 60.0 pairs/s")
+        assert notifier.stopping("stopping")
+        assert not notifier.status("running: 59.8 pairs/s")
+        assert notifier.watchdog()
+    assert _drain(sock) == ["STATUS=running: 60.0 pairs/s", "STOPPING=1\nSTATUS=stopping", "WATCHDOG=1"]
+
+
 def test_abstract_namespace_socket(notify_socket):
     name = f"trackerd-test-{os.getpid()}"
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)

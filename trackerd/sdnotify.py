@@ -36,6 +36,7 @@ class SdNotify:
         self._lock = threading.Lock()
         self._last_watchdog = -float("inf")
         self._warned = False
+        self._stopping = False
         if self._address is not None:
             self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
 
@@ -76,7 +77,15 @@ class SdNotify:
         return self.notify(READY=1, **({"STATUS": status} if status else {}))
 
     def status(self, text: str) -> bool:
-        """One line shown by ``systemctl status``."""
+        """One line shown by ``systemctl status``; not sent once :meth:`stopping` was.
+
+        The publishing thread may still report the pair in hand ("running: ...") after the
+        signal handler said the daemon stops; systemd would show that line for the rest of
+        the stop, so it is dropped.
+        """
+        with self._lock:
+            if self._stopping:
+                return False
         return self.notify(STATUS=text)
 
     def watchdog(self) -> bool:
@@ -105,7 +114,9 @@ class SdNotify:
         return self.notify(RELOADING=1, MONOTONIC_USEC=time.clock_gettime_ns(time.CLOCK_MONOTONIC) // 1000)
 
     def stopping(self, status: str | None = None) -> bool:
-        """The daemon is shutting down."""
+        """The daemon is shutting down; later :meth:`status` lines are not sent."""
+        with self._lock:
+            self._stopping = True
         return self.notify(STOPPING=1, **({"STATUS": status} if status else {}))
 
     def close(self) -> None:
