@@ -146,21 +146,21 @@ def test_a_compressed_replay_decodes_each_camera_on_its_own_thread_to_the_raw_fr
     decoded_on: dict[int, set[str]] = {0: set(), 1: set()}
     frame = FrameDecoder.frame
 
-    def noting_the_thread(self, index, k, header, verify):  # type: ignore[no-untyped-def]
+    def noting_the_thread(self: FrameDecoder, index: int, k: int, header: RecordHeader, verify: bool) -> np.ndarray:
         decoded_on[k].add(threading.current_thread().name)
         return frame(self, index, k, header, verify)
 
     monkeypatch.setattr(FrameDecoder, "frame", noting_the_thread)
-    source = ReplayPairSource(compressed, speed=None)
-    source.start()
+    replay = ReplayPairSource(compressed, speed=None)
+    replay.start()
     try:
         replayed = []
-        while not source.finished:
-            pair = source.next_pair(5.0)
+        while not replay.finished:
+            pair = replay.next_pair(5.0)
             assert pair is not None, "the replay stopped delivering"
             replayed.append([np.array(image) for image in pair.images])
     finally:
-        source.stop()
+        replay.stop()
     assert decoded_on[0] == {"trackerd-replay-reader"}
     assert len(decoded_on[1]) == 1 and next(iter(decoded_on[1])).startswith("trackerd-replay-decode")
     original = _frames(noisy)
