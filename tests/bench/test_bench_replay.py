@@ -40,3 +40,35 @@ def test_a_short_run_completes_with_every_row(tmp_path) -> None:
     # trackerd hits every pair of the rendered motion, within the accuracy budget.
     assert rows["trackerd"]["hits"] == rows["trackerd"]["pairs"] and rows["trackerd"]["hit_error_mm"]["p50"] < 2.0
     assert figures["ratio_trackerd_to_opencv"] > 0
+
+
+def test_the_modes_run_puts_each_replay_beside_its_before_row_with_the_raw_hits(tmp_path) -> None:
+    """`--modes` prints the baseline ("before": pairs handed over one at a time, every frame rebuilt on
+    the reader thread) beside today's replay of each mode, and every replay's hits are the raw one's."""
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "trackerd",
+            "bench",
+            "replay",
+            "--record-seconds",
+            "0.5",
+            "--modes",
+            "--keyframe-interval",
+            "0.2",
+            "--dir",
+            str(tmp_path),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr
+    rows = json.loads(run.stdout)["mode_replays"]
+    for mode in ("raw", "raw --no-verify", "compressed", "windowed"):
+        assert {mode, f"{mode}, before"} <= set(rows), sorted(rows)
+    for name, row in rows.items():
+        assert row["pairs"] > 0 and row["hits"] > 0, name
+        assert row["hits_identical_to_raw"], name

@@ -10,8 +10,10 @@ import signal
 import struct
 import subprocess
 import sys
+import threading
 import time
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +27,7 @@ from trackerd.recording import format as format_module
 from trackerd.recording import reader as reader_module
 from trackerd.recording.codec import WINDOW, WINDOWS_HEADER, Canvases, Window
 from trackerd.recording.convert import convert_recording
+from trackerd.recording.decoding import FrameDecoder
 from trackerd.recording.format import (
     ENCODING_WINDOWS,
     ENCODING_ZSTD,
@@ -38,6 +41,7 @@ from trackerd.recording.format import (
     pack_record_header,
 )
 from trackerd.recording.reader import Recording
+from trackerd.recording.replay import ReplayPairSource
 from trackerd.recording.writer import RecordingWriter
 
 NOISE_DN = 2.0
@@ -130,10 +134,80 @@ def test_a_windowed_recording_replays_to_exactly_the_hits_of_the_full_frames(noi
     assert outcomes[1] == outcomes[0]
 
 
+def test_a_compressed_replay_decodes_each_camera_on_its_own_thread_to_the_raw_frames(
+    noisy, tmp_path, monkeypatch
+) -> None:
+    """Replaying a compressed recording, the reader thread rebuilds the first camera's frame while a
+    thread of its pool rebuilds the second's (replay.THREADED_DECODE_MODES); every pair delivered is
+    the raw source's, pixel for pixel, keyframes and differences alike."""
+    compressed = tmp_path / "c.trec"
+    with Recording.open(noisy) as source:
+        convert_recording(source, compressed, "compressed", keyframe_interval_s=0.3)
+    decoded_on: dict[int, set[str]] = {0: set(), 1: set()}
+    frame = FrameDecoder.frame
+
+    def noting_the_thread(self: FrameDecoder, index: int, k: int, header: RecordHeader, verify: bool) -> np.ndarray:
+        decoded_on[k].add(threading.current_thread().name)
+        return frame(self, index, k, header, verify)
+
+    monkeypatch.setattr(FrameDecoder, "frame", noting_the_thread)
+    replay = ReplayPairSource(compressed, speed=None)
+    replay.start()
+    try:
+        replayed = []
+        while not replay.finished:
+            pair = replay.next_pair(5.0)
+            assert pair is not None, "the replay stopped delivering"
+            replayed.append([np.array(image) for image in pair.images])
+    finally:
+        replay.stop()
+    assert decoded_on[0] == {"trackerd-replay-reader"}
+    assert len(decoded_on[1]) == 1 and next(iter(decoded_on[1])).startswith("trackerd-replay-decode")
+    original = _frames(noisy)
+    assert len(replayed) == len(original)
+    assert all(
+        np.array_equal(a, b)
+        for got, want in zip(replayed, original, strict=True)
+        for a, b in zip(got, want, strict=True)
+    )
+
+
+def test_a_damaged_frame_of_a_compressed_recording_is_named_alike_on_one_thread_or_two(noisy, tmp_path) -> None:
+    """With the decode pool, the error of a pair whose second camera's frame is damaged is the one
+    a single thread gives, and the pairs after it (differences building on it) are refused alike."""
+    compressed = tmp_path / "c.trec"
+    with Recording.open(noisy) as source:
+        convert_recording(source, compressed, "compressed", keyframe_interval_s=0.3)
+    with Recording.open(compressed) as recording:
+        header = recording.header(2)
+        offset = recording.entries[2].offset + header.header_bytes + header.frames[0].stored_bytes + 100
+    with (compressed / "pairs.dat").open("r+b") as data:
+        data.seek(offset)
+        byte = data.read(1)
+        data.seek(offset)
+        data.write(bytes([byte[0] ^ 0xFF]))
+    outcomes = []
+    with ThreadPoolExecutor(1) as pool:
+        for use in (None, pool):
+            with Recording.open(compressed) as recording:
+                seen = []
+                for index in range(6):
+                    try:
+                        recording.images(index, pool=use)
+                        seen.append("ok")
+                    except RecordingError as err:
+                        seen.append(str(err))
+                outcomes.append(seen)
+    assert outcomes[0] == outcomes[1]
+    assert outcomes[0][:2] == ["ok", "ok"] and "pair 2, camera" in outcomes[0][2] and "checksum" in outcomes[0][2]
+    assert "cannot be read" in outcomes[0][3]
+
+
 _KILLED_WRITER = """
 import sys, itertools, dataclasses, time
 from trackerd.config.recording import RecordingConfig
 from trackerd.recording.reader import Recording
+from trackerd.recording.replay import ReplayPairSource
 from trackerd.recording.recorder import Recorder
 source = Recording.open(sys.argv[1])
 pairs = [source.pair(i) for i in range(len(source))]

@@ -9,8 +9,9 @@ same pairs as `trackerd record` would (``writev`` and checksums). Then each
 recording is replayed at max speed through the pipeline exactly as
 `trackerd replay --speed max` runs it (today's raw replay with checksums, as
 the baseline, and without), each also as before batching (pairs handed over
-one at a time) beside the batched hand-over, and the hits of every replay are compared with the
-raw replay's, field for field.
+one at a time, every camera's frame rebuilt on the reader thread) beside the
+batched hand-over and the compressed mode's decode pool, and the hits of every
+replay are compared with the raw replay's, field for field.
 """
 
 from __future__ import annotations
@@ -81,12 +82,14 @@ def replay_modes(
     from trackerd.recording.reader import Recording
     from trackerd.recording.replay_rig import replay_rig
 
-    # "before": pairs handed from the reader thread one at a time, as before batching (old vs new, one run).
+    # "before": pairs handed from the reader thread one at a time, as before batching, and every
+    # camera's frame rebuilt on the reader thread, as before the decode pool (old vs new, one run).
     runs = [
         ("raw, before", "raw", True, False),
         ("raw", "raw", True, True),
         ("raw --no-verify, before", "raw", False, False),
         ("raw --no-verify", "raw", False, True),
+        ("compressed, before", "compressed", True, False),
         ("compressed", "compressed", True, True),
         ("windowed, before", "windowed", True, False),
         ("windowed", "windowed", True, True),
@@ -94,10 +97,12 @@ def replay_modes(
     out: dict[str, dict[str, Any]] = {}
     reference: dict[int, dict] | None = None
     progress = BenchProgress("replay", len(runs), "replays")
-    for name, mode, verify, batch in runs:
+    for name, mode, verify, new in runs:
         with Recording.open(written[mode]["path"]) as recording:
             rig, _ = replay_rig(recording, rig_path, ["tcp://127.0.0.1:*"])
-            figures = replay_once(recording, rig, None, verify, len(recording), truth, keep_hits=True, batch=batch)
+            figures = replay_once(
+                recording, rig, None, verify, len(recording), truth, keep_hits=True, batch=new, threaded_decode=new
+            )
         hits = {h["sequence"]: {k: v for k, v in h.items() if k != "publish_ns"} for h in figures.pop("hit_messages")}
         if reference is None:
             reference = hits

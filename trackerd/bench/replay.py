@@ -320,15 +320,19 @@ def replay_once(
     *,
     keep_hits: bool = False,
     batch: bool = True,
+    threaded_decode: bool = True,
 ) -> dict[str, Any]:
-    """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it."""
+    """One replay at max speed through the pipeline, as `trackerd replay --speed max` runs it
+    (``batch`` and ``threaded_decode`` False: as before those, for the side-by-side rows)."""
     from trackerd.interaction.extension import create as interaction_extension
     from trackerd.pipeline.daemon import Pipeline
     from trackerd.pipeline.extensions import ExtensionContext, PipelineExtension
     from trackerd.recording.extension import create as recording_extension
     from trackerd.recording.replay import ReplayPairSource
 
-    source = ReplayPairSource(recording, speed=None, verify=verify, count=count, batch=batch)
+    source = ReplayPairSource(
+        recording, speed=None, verify=verify, count=count, batch=batch, threaded_decode=threaded_decode
+    )
     publishers: list[_KeepingPublisher] = []
 
     def publisher_factory(r: RigConfig) -> _KeepingPublisher:

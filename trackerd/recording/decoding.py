@@ -4,6 +4,10 @@ A frame stored whole (raw) is served as a read-only view into the memory map; a 
 decompressed into its own buffer. A difference (zstd-delta) builds on the frame before it, and
 windows build on the last whole frame (docs/recording.md, "Modes"): :class:`FrameDecoder` keeps, per
 camera, the last frame it rebuilt, so reading pairs in order decodes each frame once.
+
+Each camera's frames build only on that camera's earlier frames, so each camera has its own lock and
+its own zstd decompressor: two threads can rebuild the two cameras' frames of a pair at once (zstd and
+NumPy let go of the GIL while they work; :meth:`Recording.images` with a ``pool``).
 """
 
 from __future__ import annotations
@@ -45,8 +49,10 @@ class FrameDecoder:
         """Per camera, the canvases windowed frames are rebuilt in."""
         self._whole: dict[int, int] = {}
         """Per camera, the last pair whose frame was checked to be whole (windows lie over it)."""
-        self._coder: ZstdCoder | None = None
-        self._lock = threading.Lock()
+        self._coders: dict[int, ZstdCoder] = {}
+        """Per camera: a zstd decompressor serves one thread at a time."""
+        self._locks = tuple(threading.Lock() for _ in recording.cameras)
+        """Per camera: everything above for camera k is touched under lock k only."""
 
     def _stored(self, index: int, k: int, header: RecordHeader, verify: bool) -> tuple[memoryview, str]:
         """Camera ``k``'s payload in pair ``index`` (checked) and where it is, for messages."""
@@ -65,12 +71,12 @@ class FrameDecoder:
         cam = self._recording.cameras[k]
         if frame.encoding in (ENCODING_RAW, ENCODING_DEFLATE):
             stored, where = self._stored(index, k, header, verify)
-            return self._full(stored, frame, cam, where)
-        with self._lock:
+            return self._full(k, stored, frame, cam, where)
+        with self._locks[k]:
             return self._rebuilt(index, k, header, verify)
 
-    def _full(self, stored: memoryview, frame: FrameEntry, cam: CameraMeta, where: str) -> NDArray[np.uint8]:
-        """A frame stored whole (raw, deflate, zstd)."""
+    def _full(self, k: int, stored: memoryview, frame: FrameEntry, cam: CameraMeta, where: str) -> NDArray[np.uint8]:
+        """Camera ``k``'s frame stored whole (raw, deflate, zstd: under lock k)."""
         if frame.encoding == ENCODING_RAW:
             if frame.stored_bytes != cam.frame_bytes:
                 raise RecordingError(
@@ -88,19 +94,21 @@ class FrameDecoder:
                 raise RecordingError(f"{where}: decompresses to {len(raw)} bytes, expected {cam.frame_bytes}")
             return np.frombuffer(raw, np.uint8).reshape(cam.shape)
         if frame.encoding == ENCODING_ZSTD:
-            raw = self._zstd().decompress(stored, cam.frame_bytes, where)
+            raw = self._zstd(k).decompress(stored, cam.frame_bytes, where)
             return np.frombuffer(raw, np.uint8).reshape(cam.shape)
         raise RecordingError(f"{where}: unknown frame encoding {frame.encoding} (a newer trackerd's?)")
 
-    def _zstd(self) -> ZstdCoder:
-        if self._coder is None:
+    def _zstd(self, k: int) -> ZstdCoder:
+        """Camera ``k``'s decompressor (under lock k)."""
+        coder = self._coders.get(k)
+        if coder is None:
             from trackerd.recording.codec import ZstdCoder
 
-            self._coder = ZstdCoder()
-        return self._coder
+            coder = self._coders[k] = ZstdCoder()
+        return coder
 
     def _rebuilt(self, index: int, k: int, header: RecordHeader, verify: bool) -> NDArray[np.uint8]:
-        """Camera ``k``'s frame of pair ``index`` for the compressed and windowed modes (under the lock)."""
+        """Camera ``k``'s frame of pair ``index`` for the compressed and windowed modes (under lock k)."""
         from trackerd.recording.codec import max_windows_bytes, undelta, unpack_windows
 
         cached = self._decoded.get(k)
@@ -110,15 +118,15 @@ class FrameDecoder:
         frame = header.frames[k]
         stored, where = self._stored(index, k, header, verify)
         if frame.encoding in FULL_ENCODINGS:
-            image = self._full(stored, frame, cam, where)
+            image = self._full(k, stored, frame, cam, where)
         elif frame.encoding == ENCODING_ZSTD_DELTA:
             if index == 0:
                 raise RecordingError(f"{where}: the first pair is stored as a difference to a pair before it")
             previous = self._base(index - 1, k, verify, where)
-            difference = np.frombuffer(self._zstd().decompress(stored, cam.frame_bytes, where), np.uint8)
+            difference = np.frombuffer(self._zstd(k).decompress(stored, cam.frame_bytes, where), np.uint8)
             image = undelta(difference.reshape(cam.shape), previous)
         elif frame.encoding == ENCODING_WINDOWS:
-            data = self._zstd().decompress(stored, max_windows_bytes(cam.frame_bytes), where, at_most=True)
+            data = self._zstd(k).decompress(stored, max_windows_bytes(cam.frame_bytes), where, at_most=True)
             base_pair, windows = unpack_windows(data, cam.shape, where)
             if base_pair >= index:
                 raise RecordingError(f"{where}: its windows lie over pair {base_pair}, not an earlier pair")

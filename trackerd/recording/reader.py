@@ -20,6 +20,7 @@ import json
 import mmap
 import os
 from collections.abc import Callable
+from concurrent.futures import Executor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -178,12 +179,27 @@ class Recording:
             raise RecordingError(f"{where}: {len(header.frames)} frames, the recording has {len(self.cameras)} cameras")
         return header
 
-    def images(self, index: int, header: RecordHeader | None = None, *, verify: bool = True) -> list[NDArray[np.uint8]]:
+    def images(
+        self, index: int, header: RecordHeader | None = None, *, verify: bool = True, pool: Executor | None = None
+    ) -> list[NDArray[np.uint8]]:
         """Pair ``index``'s frames in camera order, read-only; with ``verify``, checksums are checked
         (RecordingError naming the camera and byte offset of a damaged frame). A frame stored as a
-        difference or as windows is rebuilt from the frames it builds on, which are checked too."""
+        difference or as windows is rebuilt from the frames it builds on, which are checked too.
+
+        With ``pool``, the second camera's frame on (each camera's in turn) is rebuilt on the pool's
+        threads while this thread rebuilds the first's: the same frames, and the same error (the first
+        camera's in order) when one is damaged."""
         header = header or self.header(index)
-        return [self._decoder.frame(index, k, header, verify) for k in range(len(self.cameras))]
+        frame = self._decoder.frame
+        if pool is None or len(self.cameras) < 2:
+            return [frame(index, k, header, verify) for k in range(len(self.cameras))]
+        others = [pool.submit(frame, index, k, header, verify) for k in range(1, len(self.cameras))]
+        try:
+            first = frame(index, 0, header, verify)
+        finally:
+            # Not returned nor raised before every camera's work on this pair is done.
+            wait(others)
+        return [first, *(future.result() for future in others)]
 
     def pair(self, index: int, *, verify: bool = True) -> FramePair:
         """Pair ``index`` exactly as recorded (timestamps on the recording host's monotonic clock)."""

@@ -26,6 +26,7 @@ import queue
 import threading
 import time
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,6 +52,11 @@ BATCH_PAIRS = 2
 """At max speed the reader thread hands pairs over this many at a time: one queue operation (locks,
 a wake-up) per batch rather than per pair."""
 STOP_TIMEOUT_S = 1.0
+THREADED_DECODE_MODES = frozenset({"compressed"})
+"""Recording modes whose cameras' frames the reader rebuilds on threads of their own, one a camera:
+a compressed pair is two zstd frames of about 1 MB and two additions, 6.5 ms of CPU on one thread,
+which held a replay to 55-117 pairs/s. A windowed pair's windows take 0.2 ms (docs/recording.md,
+"Replay speed"): there the hand-over to a thread would cost about what it saves."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,11 +86,14 @@ class ReplayPairSource(PairSource):
         passes: int | None = None,
         shift_ns: int | None = None,
         batch: bool = True,
+        threaded_decode: bool = True,
     ) -> None:
         """``speed`` None replays as fast as the consumer takes pairs. ``shift_ns`` moves recorded
         timestamps (default: so that the first pair is due at construction plus ``start_delay_s``).
         ``batch`` False hands pairs over one by one at max speed too (as before batching; benchmarks).
-        ``passes``, when looping, ends the replay after that many passes (None: until stopped)."""
+        ``passes``, when looping, ends the replay after that many passes (None: until stopped).
+        ``threaded_decode`` False rebuilds every camera's frame on the reader thread in every mode
+        (as before :data:`THREADED_DECODE_MODES`; benchmarks)."""
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive (None: as fast as possible)")
         if passes is not None and passes < 1:
@@ -103,6 +112,11 @@ class ReplayPairSource(PairSource):
         self.verify = verify
         self.start_delay_s = start_delay_s
         self._batch = BATCH_PAIRS if batch and speed is None else 1
+        self._decode_threads = (
+            len(self.recording.cameras) - 1
+            if threaded_decode and self.recording.metadata.mode in THREADED_DECODE_MODES
+            else 0
+        )
         self._local: deque[_Read] = deque()
         entries = self.recording.entries
         self._t0_rec = entries[self.first].timestamp_ns
@@ -240,14 +254,24 @@ class ReplayPairSource(PairSource):
     def _read_ahead(self, halt: threading.Event, ahead: queue.Queue[list[_Read]]) -> None:
         """The reader thread: checks each pair (checksums: zlib releases the GIL, so this runs beside the
         pipeline on another core) and queues it, up to READ_AHEAD_PAIRS ahead of the consumer, in
-        batches of ``self._batch`` (the last of a pass may be shorter)."""
+        batches of ``self._batch`` (the last of a pass may be shorter). In THREADED_DECODE_MODES the
+        second camera's frames on are rebuilt on a pool's threads meanwhile."""
+        if self._decode_threads == 0:
+            self._read_pairs(halt, ahead, None)
+            return
+        with ThreadPoolExecutor(self._decode_threads, thread_name_prefix="trackerd-replay-decode") as pool:
+            self._read_pairs(halt, ahead, pool)
+
+    def _read_pairs(
+        self, halt: threading.Event, ahead: queue.Queue[list[_Read]], pool: ThreadPoolExecutor | None
+    ) -> None:
         loop_pass = 0
         batch: list[_Read] = []
         while not halt.is_set():
             for index in range(self.first, self.stop_at):
                 try:
                     header = self.recording.header(index)
-                    images = self.recording.images(index, header, verify=self.verify)
+                    images = self.recording.images(index, header, verify=self.verify, pool=pool)
                     item = _Read(index, loop_pass, header, images, None)
                 except RecordingError as err:
                     item = _Read(index, loop_pass, None, None, err)
