@@ -11,6 +11,7 @@ of these renders them again.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import shutil
@@ -18,6 +19,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import cv2
 import numpy as np
@@ -67,25 +69,75 @@ class FrameSet:
 
 
 def _cached(kind: str, key: str, build: Callable[[Path], dict]) -> FrameSet:
+    """The frame set ``kind`` rendered by ``build`` into a work folder, from the cache when there.
+
+    The suite's two xdist workers often want the same set at once (on a fresh clone every calibration
+    module starts by rendering): one renders it and the other waits for it, instead of both rendering it
+    (up to a minute of a core each). While it waits, the waiting worker renders the sets no process has
+    started yet (:data:`_PENDING`; tests/calibration/conftest.py registers them all), so that on a cold
+    cache the two workers render different sets side by side and each set is rendered once.
+    """
+    _PENDING.setdefault(kind, (key, build))
+    found = _in_cache(kind, key)
+    if found is not None:
+        return found
+    CACHE.mkdir(parents=True, exist_ok=True)
+    with open(CACHE / f".{kind}-{key}.lock", "w") as lock:
+        if not _try_lock(lock):
+            # Another worker renders this set: render the sets nobody has started meanwhile.
+            for other, (other_key, other_build) in list(_PENDING.items()):
+                if other != kind:
+                    _build_unless_busy(other, other_key, other_build)
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        return _build_locked(kind, key, build)
+
+
+_PENDING: dict[str, tuple[str, Callable[[Path], dict]]] = {}
+"""The sets this process knows, by kind (cache key and builder), from :func:`register` and
+:func:`_cached`: what a worker waiting for another's set may render meanwhile."""
+
+
+def register(kind: str, key: str, build: Callable[[Path], dict]) -> None:
+    """Make a set known to this process before it is asked for (conftest registers every set)."""
+    _PENDING.setdefault(kind, (key, build))
+
+
+def _in_cache(kind: str, key: str) -> FrameSet | None:
+    truth_path = CACHE / f"{kind}-{key}" / "truth.json"
+    return FrameSet(truth_path.parent, json.loads(truth_path.read_text())) if truth_path.exists() else None
+
+
+def _try_lock(lock: IO[str]) -> bool:
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def _build_unless_busy(kind: str, key: str, build: Callable[[Path], dict]) -> None:
+    """Render a set unless it is cached or another process is rendering it."""
+    if _in_cache(kind, key) is not None:
+        return
+    with open(CACHE / f".{kind}-{key}.lock", "w") as lock:
+        if _try_lock(lock):
+            _build_locked(kind, key, build)
+
+
+def _build_locked(kind: str, key: str, build: Callable[[Path], dict]) -> FrameSet:
+    """Render a set into the cache; the caller holds its lock (so it may have been finished meanwhile)."""
     folder = CACHE / f"{kind}-{key}"
     truth_path = folder / "truth.json"
-    if truth_path.exists():
-        return FrameSet(folder, json.loads(truth_path.read_text()))
-    # A work folder of this process's own: the suite's two workers may build the same set at once.
-    CACHE.mkdir(parents=True, exist_ok=True)
+    found = _in_cache(kind, key)
+    if found is not None:
+        return found
     work = Path(tempfile.mkdtemp(prefix=f".{kind}-{key}.", dir=CACHE))
     try:
         truth = build(work)
         (work / "truth.json").write_text(json.dumps(truth))
         if folder.exists() and not truth_path.exists():
             shutil.rmtree(folder, ignore_errors=True)  # left incomplete by an older version
-        try:
-            work.rename(folder)
-        except OSError:
-            if not truth_path.exists():
-                raise
-            # Another process finished the same set first: theirs is as good.
-            return FrameSet(folder, json.loads(truth_path.read_text()))
+        work.rename(folder)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return FrameSet(folder, truth)

@@ -5,6 +5,7 @@ See calibration_frames.py for what is rendered and how the cache is keyed.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -21,13 +22,16 @@ from calibration_frames import (
     _cached,
     _sources_digest,
     _write,
+    register,
 )
 
 from trackerd.config.models import RigConfig
 
+FrameSetRecipe = tuple[str, str, Callable[[Path], dict]]
+"""A frame set's kind, cache key and builder (which renders it into a folder and returns its truth)."""
 
-@pytest.fixture(scope="session")
-def intrinsics_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
+
+def _intrinsics_recipe(renderer, simulated_rig: RigConfig) -> FrameSetRecipe:
     """INTRINSICS_VIEWS board views per camera, chosen to cover each image; names '<camera>-NN'."""
     from trackerd.sim.board import BoardRenderer, poses_for_camera
 
@@ -44,11 +48,10 @@ def intrinsics_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
                 corners[name] = view.corners_px.tolist()
         return {"names": names, "corners_px": corners}
 
-    return _cached("intrinsics", _sources_digest(INTRINSICS_VIEWS, str(INTRINSICS_BOARD), 61), build)
+    return "intrinsics", _sources_digest(INTRINSICS_VIEWS, str(INTRINSICS_BOARD), 61), build
 
 
-@pytest.fixture(scope="session")
-def stereo_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
+def _stereo_recipe(renderer, simulated_rig: RigConfig) -> FrameSetRecipe:
     """STEREO_PAIRS pairs of the large board seen by both cameras; names 'NN'."""
     from trackerd.sim.board import BoardRenderer, poses_for_pair
 
@@ -62,11 +65,10 @@ def stereo_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
             names.append(f"{k:02d}")
         return {"names": names}
 
-    return _cached("stereo", _sources_digest(STEREO_PAIRS, str(STEREO_BOARD), 62), build)
+    return "stereo", _sources_digest(STEREO_PAIRS, str(STEREO_BOARD), 62), build
 
 
-@pytest.fixture(scope="session")
-def pointing_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
+def _pointing_recipe(renderer, simulated_rig: RigConfig) -> FrameSetRecipe:
     """The pointer aimed at the 3 x 3 wall targets from POINTING_PLACES places each; names '<label>-<n>'."""
     from trackerd.bench.calibration import aimed_poses, wall_targets
 
@@ -82,11 +84,10 @@ def pointing_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
                 names.append(name)
         return {"names": names}
 
-    return _cached("pointing", _sources_digest(POINTING_PLACES, 63), build)
+    return "pointing", _sources_digest(POINTING_PLACES, 63), build
 
 
-@pytest.fixture(scope="session")
-def pointer_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
+def _pointer_recipe(renderer, simulated_rig: RigConfig) -> FrameSetRecipe:
     """CHECK_POSES random pointer poses (the pointer waved around); names 'NN'."""
     from trackerd.sim.scene import random_pose, true_wall_hit
 
@@ -102,7 +103,49 @@ def pointer_frames(renderer, simulated_rig: RigConfig) -> FrameSet:
             hits[f"{k:02d}"] = None if truth.wall_xy_m is None else truth.wall_xy_m.tolist()
         return {"names": names, "wall_xy_m": hits}
 
-    return _cached("pointer", _sources_digest(CHECK_POSES, 64), build)
+    return "pointer", _sources_digest(CHECK_POSES, 64), build
+
+
+@pytest.fixture(scope="session")
+def frame_set_recipes(renderer, simulated_rig: RigConfig) -> dict[str, FrameSetRecipe]:
+    """Every rendered set, made known to calibration_frames at once: a worker that waits for a set
+    another worker renders renders one nobody has started meanwhile (calibration_frames._cached)."""
+    recipes = {
+        kind: recipe(renderer, simulated_rig)
+        for kind, recipe in (
+            ("intrinsics", _intrinsics_recipe),
+            ("stereo", _stereo_recipe),
+            ("pointing", _pointing_recipe),
+            ("pointer", _pointer_recipe),
+        )
+    }
+    for recipe in recipes.values():
+        register(*recipe)
+    return recipes
+
+
+@pytest.fixture(scope="session")
+def intrinsics_frames(frame_set_recipes: dict[str, FrameSetRecipe]) -> FrameSet:
+    """INTRINSICS_VIEWS board views per camera, chosen to cover each image; names '<camera>-NN'."""
+    return _cached(*frame_set_recipes["intrinsics"])
+
+
+@pytest.fixture(scope="session")
+def stereo_frames(frame_set_recipes: dict[str, FrameSetRecipe]) -> FrameSet:
+    """STEREO_PAIRS pairs of the large board seen by both cameras; names 'NN'."""
+    return _cached(*frame_set_recipes["stereo"])
+
+
+@pytest.fixture(scope="session")
+def pointing_frames(frame_set_recipes: dict[str, FrameSetRecipe]) -> FrameSet:
+    """The pointer aimed at the 3 x 3 wall targets from POINTING_PLACES places each; names '<label>-<n>'."""
+    return _cached(*frame_set_recipes["pointing"])
+
+
+@pytest.fixture(scope="session")
+def pointer_frames(frame_set_recipes: dict[str, FrameSetRecipe]) -> FrameSet:
+    """CHECK_POSES random pointer poses (the pointer waved around); names 'NN'."""
+    return _cached(*frame_set_recipes["pointer"])
 
 
 @pytest.fixture(scope="session")
