@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import argparse
 import signal
-import time
-from types import FrameType
 
 from trackerd.cpu_latency import MAX_REQUEST_US, current_us, held
 from trackerd.sdnotify import SdNotify
@@ -36,17 +34,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=cpu_latency_command)
 
 
-class _Stop(Exception):
-    """Raised by the signal handler: it unwinds the ``with`` that holds the request."""
+STOP_SIGNALS = frozenset({signal.SIGTERM, signal.SIGINT})
 
 
 def cpu_latency_command(args: argparse.Namespace) -> int:
-    # The handler raises rather than setting an Event: setting one from a handler can deadlock on the
-    # Event's lock if the signal lands while the main thread holds it in wait().
-    def on_stop(_signum: int, _frame: FrameType | None) -> None:
-        raise _Stop
-
-    previous = {sig: signal.signal(sig, on_stop) for sig in (signal.SIGTERM, signal.SIGINT)}
+    # The stop signals are blocked from the start and then waited for with sigwait: a signal that
+    # comes at any moment, even between READY and the wait, is kept pending and ends the wait at
+    # once. A handler with time.sleep had a window: a SIGTERM landing after the last check for
+    # signals and before the sleep began was seen only when the hour-long sleep ended (a test's
+    # SIGTERM sent right after READY hung it on a loaded machine).
+    previous_mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     notifier = SdNotify()
     try:
         with held(args.max_us):
@@ -56,13 +53,10 @@ def cpu_latency_command(args: argparse.Namespace) -> int:
                 text += f" ({in_force} µs in force: another request is stricter)"
             print(f"trackerd cpu-latency: {text}; stop with Ctrl-C or SIGTERM", flush=True)
             notifier.ready(text)
-            while True:
-                time.sleep(3600.0)
-    except _Stop:
-        notifier.stopping()
+            signal.sigwait(STOP_SIGNALS)
+            notifier.stopping()
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous_mask)
     return 0
 
 
