@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import threading
 
 import numpy as np
@@ -73,16 +74,29 @@ def lose_and_recover(virtual, source, consumer: Consumer) -> dict:
     return {"error": source.status().cameras[0].last_error}
 
 
-def check_pairs(pairs, frame_rate_hz: float, epochs: int) -> None:
+def check_pairs(pairs, frame_rate_hz: float, epochs: int, status) -> None:
     """Ground truth from the frames' tags: no pair mixes frames from before and after a loss
     (they would be captured the loss timeout apart), and within each connection every pair
-    holds the n-th frame served by both cameras (one served-count difference per connection)."""
+    holds the n-th frame served by both cameras: the served-count difference changes only where a
+    camera was restarted (camera 0's count starts again) or where one camera's frame was lost and
+    the source counted it (a failed buffer, or a frame dropped without a partner)."""
     from trackerd.sim.gvcamera import read_tag
 
     tags = [[read_tag(f.image) for f in p.frames] for p in pairs]
     skews = np.array([abs(a.capture_ns - b.capture_ns) for a, b in tags])
     assert skews.max() < 1e9 / frame_rate_hz
-    assert len({a.served - b.served for a, b in tags}) <= epochs
+    restarts = sum(now[0].served < before[0].served for before, now in itertools.pairwise(tags))
+    assert restarts <= epochs - 1
+    changes = sum(
+        (now[0].served - now[1].served) != (before[0].served - before[1].served) and now[0].served >= before[0].served
+        for before, now in itertools.pairwise(tags)
+    )
+    # A frame the source never delivered or paired shifts the count by one (seen once in 12 epochs
+    # on a machine at load 13: 14 differences); one nobody counted would be lost silently.
+    counted = sum(sum(camera.failed_buffers.values()) for camera in status.cameras) + sum(
+        count for cause, count in status.dropped_frames.items() if cause in ("no_partner", "queue_full", "skew")
+    )
+    assert changes <= counted, (changes, counted, status.to_json())
 
 
 def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(virtual, caplog) -> None:
@@ -109,7 +123,7 @@ def test_a_lost_camera_is_reported_the_other_keeps_running_and_it_comes_back(vir
     assert left.losses == left.reconnects >= 1  # see the ten-loss test for why not always 1
     assert status.cameras[1].losses == 0
     assert status.dropped_frames.get("partner_lost", 0) > 0  # camera 1's frames while camera 0 was away
-    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1)
+    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1, status=status)
     sequences = [p.sequence for p in consumer.pairs]
     assert sequences == sorted(set(sequences))
     stamps = [p.timestamp_ns for p in consumer.pairs]
@@ -158,4 +172,4 @@ def test_ten_losses_leak_no_thread_or_descriptor(virtual) -> None:
     assert left.reconnects == left.losses >= 11
     assert status.cameras[1].losses == 0
     assert after == baseline
-    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1)
+    check_pairs(consumer.pairs, virtual.rig.acquisition.frame_rate_hz, epochs=left.reconnects + 1, status=status)
