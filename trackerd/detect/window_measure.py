@@ -117,8 +117,8 @@ def measure_windows(
     for e, (i0, i1, j0, j1, _, _) in enumerate(boxes):
         ws.box_3d[e, i0 - 1 : i1 + 2, j0 - 1 : j1 + 2] = 1.0
     own_sums, excess_sums = np.vecdot(ws.own_and_excess, ws.strong_2d).tolist()
-    for e in range(n):
-        ws.level_2d[e] = 0.5 * excess_sums[e] / counts[e]
+    # One assignment for all windows (each cast to float32 as a window's own assignment would be).
+    ws.level_2d[...] = np.array([[0.5 * excess_sums[e] / counts[e]] for e in range(n)])
     run(ws.ops("own coverage", _own_coverage_ops))
 
     if every_pixel:
