@@ -117,12 +117,27 @@ def pointer_line(
     """:func:`pointer_line.estimate_pointer_line` for two cameras (centres c0, c1; world rays
     through each camera's front and back end); None when the planes are too close to parallel
     for their line, where the caller uses the two triangulated points instead."""
+    ends = pointer_ends(c0, c1, front0, back0, front1, back1, min_plane_sin)
+    return None if ends is None else line_through(c0, c1, front0, back0, front1, back1, ends)
+
+
+def pointer_ends(
+    c0: Vec, c1: Vec, front0: Vec, back0: Vec, front1: Vec, back1: Vec, min_plane_sin: float
+) -> tuple[Vec, Vec, float] | None:
+    """The ends of :func:`pointer_line` alone, (front, back, sine of the angle between the planes):
+    what a first line is needed for when it is corrected for the balls' size."""
     found = planes_line(c0, c1, plane_normal(front0, back0), plane_normal(front1, back1))
     if found is None or found[2] < min_plane_sin:
         return None
     point, u, conditioning = found
-    front = _end_on_line(point, u, c0, c1, front0, front1)
-    back = _end_on_line(point, u, c0, c1, back0, back1)
+    return _end_on_line(point, u, c0, c1, front0, front1), _end_on_line(point, u, c0, c1, back0, back1), conditioning
+
+
+def line_through(
+    c0: Vec, c1: Vec, front0: Vec, back0: Vec, front1: Vec, back1: Vec, ends: tuple[Vec, Vec, float]
+) -> PointerLine:
+    """The :class:`PointerLine` of :func:`pointer_ends`' ``ends`` for those rays, with the rays' gaps."""
+    front, back, conditioning = ends
     return PointerLine(
         np.array(front),
         np.array(back),
