@@ -22,7 +22,7 @@ from trackerd.detect.centroid import measure, sample
 from trackerd.detect.colour import Threshold, sample_grid
 from trackerd.detect.coverage import rim_centres
 from trackerd.detect.flat import WorkspaceCache
-from trackerd.detect.window_measure import ANY_SHAPE, measure_windows, window_interior
+from trackerd.detect.window_measure import ANY_SHAPE, measure_windows, window_interior, window_origin
 
 BAYER = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8")
 CFG = DetectorConfig()
@@ -146,6 +146,45 @@ def test_rims_at_the_frame_edge_keep_the_own_samples_centre(detect_rng) -> None:
     got = rim_centres(frame, grid, rims, WorkspaceCache())
     assert got[0] is None  # the red ball's rim reaches the region's (and frame's) left edge
     assert got[1] is not None
+
+
+def test_windows_placed_by_the_caller_are_the_ones_measured(detect_rng) -> None:
+    """detect_all_cameras hands measure_windows the windows it has placed already (``origins``):
+    given window_origin's, for some ends or all, the measurement is the same to the bit; a window
+    given elsewhere is measured there (here one without the ball: nothing measured)."""
+    x, y, half = 80.0, 60.0, 8
+    scene = Scene(width=200, height=130, shapes=pointer(x, y, 70.0, 10.0, 6.0))
+    frame, _ = scene.render("BayerRG8", detect_rng)
+    grid = sample_grid("BayerRG8", scene.width, scene.height)
+    ends = [("red", x, y), ("blue", x + 70.0, y + 10.0)]
+    origins = [window_origin(frame.shape, grid, *end, half) for end in ends]
+    assert None not in origins
+    placed = measure_windows(frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, WorkspaceCache())
+    assert placed is not None
+    for given in (origins, [None, origins[1]], [origins[0], None]):
+        again = measure_windows(frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, WorkspaceCache(), origins=given)
+        assert again == placed
+    r0, c0, dr, dc = origins[0]
+    away = [(r0 + 2 * half + 4, c0, dr, dc), origins[1]]  # below the red ball, clear of it
+    assert measure_windows(frame, grid, ends, half, THRESHOLDS, ANY_SHAPE, WorkspaceCache(), origins=away) is None
+
+
+def test_a_window_is_slid_back_into_the_frame_or_refused() -> None:
+    """window_origin against its plain statement (clamp the first cell to the frame, ring included)
+    for ends in, at the edges of and beyond a frame, in every Bayer layout."""
+    for layout in BAYER:
+        grid = sample_grid(layout, 60, 40)
+        for half in (1, 4, 9, 13):
+            rows = 2 * half + 3
+            for colour in ("red", "blue"):
+                dr, dc = grid.red if colour == "red" else grid.blue
+                for y in np.arange(-5.0, 46.0, 1.5):
+                    for x in np.arange(-5.0, 66.0, 2.5):
+                        r0 = max(1, min(round((y - dr) / 2.0) - half, (40 - dr) // 2 - rows + 1))
+                        c0 = max(1, min(round((x - dc) / 2.0) - half, (60 - dc) // 2 - rows + 1))
+                        fits = 2 * r0 - 2 + dr + 2 * rows <= 40 and 2 * c0 - 2 + dc + 2 * rows <= 60
+                        got = window_origin((40, 60), grid, colour, float(x), float(y), half)
+                        assert got == ((r0, c0, dr, dc) if fits else None)
 
 
 def test_a_larger_window_measures_what_the_own_window_does_or_nothing(detect_rng) -> None:

@@ -158,8 +158,8 @@ def solve(ws: Workspace, own_levels: list[float]) -> list[tuple[float, float, fl
     pixel right of the own sample), the same for rows), columns and rows counted
     from the measured region's first cell: a centre is sum / coverage from there.
     """
-    for e, level in enumerate(own_levels):
-        ws.level_2d[e] = DARK_FRACTION * level
+    # One assignment for all windows (each cast to float32 as a window's own assignment would be).
+    ws.level_2d[...] = np.array([[DARK_FRACTION * level] for level in own_levels])
     run(ws.ops("solve", _solve_ops))
     # Per window and pixel of the cell (the other pixels, then the own sample): summed
     # coverage, and its moments about the region's first cell in columns and rows.

@@ -36,11 +36,11 @@ from trackerd.config.models import DetectorConfig, PointerConfig
 from trackerd.detect.blob_search import BlobSearch, EndTrack
 from trackerd.detect.candidates import Limits, shape_score
 from trackerd.detect.centroid import Measurement, keep_nearest_blob, measure, sample
-from trackerd.detect.colour import Region, SampleGrid, Threshold, sample_grid
+from trackerd.detect.colour import SampleGrid, Threshold, sample_grid
 from trackerd.detect.flat import WorkspaceCache
 from trackerd.detect.result import COLOURS, EndDetection, ImageDetections
 from trackerd.detect.select import pair_consistency
-from trackerd.detect.window_measure import BlobShape, measure_windows, window_interior
+from trackerd.detect.window_measure import BlobShape, WindowOrigin, interior_of, measure_windows, window_origin
 from trackerd.errors import ImageError
 
 DEFAULT_LENGTH_OVER_DIAMETER = 12.0
@@ -310,9 +310,8 @@ def detect_all_cameras(
     consistent pair), that camera's frame does.
     """
     results: list[ImageDetections | None] = [None] * len(detectors)
-    # Per camera that can join: (index, its ends, its windows' half size, where its own windows
-    # would let each end lie).
-    planned: list[tuple[int, list[tuple[str, float, float]], int, list[Region]]] = []
+    # Per camera that can join: (index, its ends, its windows' half size, its own windows' origins).
+    planned: list[tuple[int, list[tuple[str, float, float]], int, list[WindowOrigin]]] = []
     reference = detectors[0]
     for index, (detector, frame) in enumerate(zip(detectors, frames, strict=True)):
         detector._check(frame)
@@ -330,15 +329,18 @@ def detect_all_cameras(
         if plan is None:
             continue
         own_ends, own_half = plan
-        own = [window_interior(frame.shape, detector.grid, *end, own_half) for end in own_ends]
-        regions = [region for region in own if region is not None]
-        if len(regions) == len(own):  # else its own windows would not fit in the frame
-            planned.append((index, own_ends, own_half, regions))
+        own = [window_origin(frame.shape, detector.grid, *end, own_half) for end in own_ends]
+        origins = [origin for origin in own if origin is not None]
+        if len(origins) == len(own):  # else its own windows would not fit in the frame
+            planned.append((index, own_ends, own_half, origins))
     if len(planned) >= 2:
         joined = [index for index, _, _, _ in planned]
         half_cells = max(half for _, _, half, _ in planned)
         ends = [end for _, plan_ends, _, _ in planned for end in plan_ends]
-        within = [region for _, _, _, regions in planned for region in regions]
+        # Where each end may lie (its own window's interior), and the joint windows' origins where a
+        # camera's own windows are of the joint size (the same windows: not placed again).
+        within = [interior_of(origin, half) for _, _, half, origins in planned for origin in origins]
+        known = [origin if half == half_cells else None for _, _, half, origins in planned for origin in origins]
         first = detectors[joined[0]]
         found = measure_windows(
             [frames[i] for i in joined for _ in COLOURS],
@@ -350,6 +352,7 @@ def detect_all_cameras(
             first._work,
             within=within,
             every_pixel=first.rim_pixels,
+            origins=known,
         )
         if found is not None:
             for k, i in enumerate(joined):

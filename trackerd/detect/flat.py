@@ -17,7 +17,11 @@ slice (it cannot run as one loop). So:
   :data:`Ops` list) when a layout is first used, and each frame just runs the
   list (:func:`run`);
 * masks are float32 0/1, not bool (a product with a bool array converts it, at
-  the cost of another call).
+  the cost of another call);
+* a Python number in a computation is made a 0-d float32 array once, when the
+  computation is built: NumPy converts a Python scalar on every call (about
+  0.7 us a call at these sizes), and the array is the float32 value that
+  conversion gives, so the results are the same.
 
 Each window (``rows`` x ``cols`` cells) is the region measured with a ring of one
 cell around it. Reading neighbours on the ring wraps round into the next row,
@@ -119,8 +123,15 @@ class Workspace:
         """The computation ``build`` makes for this layout (made on first use)."""
         ops = self._built.get(name)
         if ops is None:
-            ops = self._built[name] = build(self)
+            ops = self._built[name] = [tuple(_as_array(arg) for arg in op) for op in build(self)]
         return ops
+
+
+def _as_array(arg: Any) -> Any:
+    """A Python number as the 0-d float32 array NumPy would convert it to (the arrays are float32)."""
+    if isinstance(arg, (float, int)) and not isinstance(arg, bool):
+        return np.array(arg, dtype=F32)
+    return arg
 
 
 class WorkspaceCache:

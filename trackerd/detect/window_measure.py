@@ -45,6 +45,10 @@ class BlobShape:
 
 ANY_SHAPE = BlobShape(float("inf"), 0.0)
 
+WindowOrigin = tuple[int, int, int, int]
+"""Where a window lies: (r0, c0, dr, dc), the frame cell of its first cell (ring included) and
+the end's colour offset in a cell (:func:`window_origin`)."""
+
 
 def measure_windows(
     frame: NDArray[np.uint8] | Sequence[NDArray[np.uint8]],
@@ -56,6 +60,7 @@ def measure_windows(
     cache: WorkspaceCache,
     within: list[Region] | None = None,
     every_pixel: bool = True,
+    origins: Sequence[WindowOrigin | None] | None = None,
 ) -> list[Measurement] | None:
     """Each (colour, x_px, y_px) end measured in the cells within ``half_cells`` of that point.
 
@@ -65,13 +70,15 @@ def measure_windows(
     ``every_pixel=False`` from the own samples alone), or None as soon as one end
     is not clearly there: nothing of its colour, touching the window's border,
     not of ``shape``, outside its region of ``within`` (frame cells, one per end),
-    or the window not fitting in the frame.
+    or the window not fitting in the frame. ``origins`` gives, per end, the
+    :func:`window_origin` of its window where the caller has it already (None
+    where not).
     """
     n = len(ends)
     size = 2 * half_cells + 1
     ws = cache.get(n, size + 2, size + 2, "window")
-    origins = _gather(frame, grid, ends, half_cells, ws)
-    if origins is None:
+    placed = _gather(frame, grid, ends, half_cells, ws, origins)
+    if placed is None:
         return None
     if _set_thresholds(ws, [thresholds[colour] for colour, _, _ in ends]):
         run(ws.ops("excess and value", _excess_ops))
@@ -98,7 +105,7 @@ def measure_windows(
             return None  # on the window's border: may be cut, or something else is there
         if within is not None:
             # Window cell (i, j) is frame cell (r0 + i - 1, c0 + j - 1).
-            r0, c0, _, _ = origins[e]
+            r0, c0, _, _ = placed[e]
             top, bottom, first, last = within[e]
             if not (top <= r0 + i0 - 1 and r0 + i1 - 1 < bottom):
                 return None
@@ -117,8 +124,8 @@ def measure_windows(
     for e, (i0, i1, j0, j1, _, _) in enumerate(boxes):
         ws.box_3d[e, i0 - 1 : i1 + 2, j0 - 1 : j1 + 2] = 1.0
     own_sums, excess_sums = np.vecdot(ws.own_and_excess, ws.strong_2d).tolist()
-    for e in range(n):
-        ws.level_2d[e] = 0.5 * excess_sums[e] / counts[e]
+    # One assignment for all windows (each cast to float32 as a window's own assignment would be).
+    ws.level_2d[...] = np.array([[0.5 * excess_sums[e] / counts[e]] for e in range(n)])
     run(ws.ops("own coverage", _own_coverage_ops))
 
     if every_pixel:
@@ -130,7 +137,7 @@ def measure_windows(
         sums = [(4.0 * total, 4.0 * x, 4.0 * y) for total, x, y in moments]
     out = []
     for (r0, c0, dr, dc), (i0, i1, j0, j1, elongation, fill), (total, x_sum, y_sum) in zip(
-        origins, boxes, sums, strict=True
+        placed, boxes, sums, strict=True
     ):
         if not total > 0.0:
             return None
@@ -148,19 +155,23 @@ def _gather(
     ends: list[tuple[str, float, float]],
     half_cells: int,
     ws: Workspace,
-) -> list[tuple[int, int, int, int]] | None:
+    known: Sequence[WindowOrigin | None] | None = None,
+) -> list[WindowOrigin] | None:
     """Copy each end's window and ring into the workspace's planes; (r0, c0, dr, dc) per end.
 
     (r0, c0) is the frame cell of the window's first cell, (dr, dc) the end's
-    colour offset in the cell. None if a window does not fit in the frame.
+    colour offset in the cell (:func:`window_origin`, or ``known``'s where it
+    has one). None if a window does not fit in the frame.
     """
     rows, cols = ws.rows, ws.cols
     origins = []
     for e, (colour, x_px, y_px) in enumerate(ends):
         frame = frames if isinstance(frames, np.ndarray) else frames[e]
-        origin = window_origin(frame.shape, grid, colour, x_px, y_px, half_cells)
+        origin = None if known is None else known[e]
         if origin is None:
-            return None
+            origin = window_origin(frame.shape, grid, colour, x_px, y_px, half_cells)
+            if origin is None:
+                return None
         r0, c0, dr, dc = origin
         y, x = 2 * r0 - 2 + dr, 2 * c0 - 2 + dc
         ws.pixels[e] = frame[y : y + 2 * rows, x : x + 2 * cols]
@@ -171,19 +182,22 @@ def _gather(
 
 def window_origin(
     frame_shape: tuple[int, ...], grid: SampleGrid, colour: str, x_px: float, y_px: float, half_cells: int
-) -> tuple[int, int, int, int] | None:
+) -> WindowOrigin | None:
     """Where :func:`measure_windows` puts the window of ``half_cells`` around an end: (r0, c0, dr, dc),
     the frame cell of its first cell and the colour's offset in a cell; None if it does not fit."""
-    height_px, width_px = frame_shape[:2]
+    height_px, width_px = frame_shape[0], frame_shape[1]
     rows = cols = 2 * half_cells + 3  # the window and its ring
     dr, dc = grid.red if colour == "red" else grid.blue
     r0 = round((y_px - dr) / 2.0) - half_cells
     c0 = round((x_px - dc) / 2.0) - half_cells
-    # Slide a window that would leave the frame back in (its ring included).
-    r0 = max(1, min(r0, (height_px - dr) // 2 - rows + 1))
-    c0 = max(1, min(c0, (width_px - dc) // 2 - cols + 1))
-    y, x = 2 * r0 - 2 + dr, 2 * c0 - 2 + dc
-    if y + 2 * rows > height_px or x + 2 * cols > width_px:
+    # Slide a window that would leave the frame back in (its ring included). Several times a
+    # pair for each end: comparisons rather than min() and max() calls.
+    last_row, last_col = (height_px - dr) // 2 - rows + 1, (width_px - dc) // 2 - cols + 1
+    r0 = r0 if r0 < last_row else last_row
+    r0 = r0 if r0 > 1 else 1
+    c0 = c0 if c0 < last_col else last_col
+    c0 = c0 if c0 > 1 else 1
+    if 2 * r0 - 2 + dr + 2 * rows > height_px or 2 * c0 - 2 + dc + 2 * cols > width_px:
         return None
     return r0, c0, dr, dc
 
@@ -194,8 +208,11 @@ def window_interior(
     """The frame cells of that window off its border: a blob measured in it lies there, or it is not
     measured (it touches the border). None if the window does not fit in the frame."""
     origin = window_origin(frame_shape, grid, colour, x_px, y_px, half_cells)
-    if origin is None:
-        return None
+    return None if origin is None else interior_of(origin, half_cells)
+
+
+def interior_of(origin: WindowOrigin, half_cells: int) -> Region:
+    """:func:`window_interior` of the window at ``origin`` (:func:`window_origin`'s)."""
     r0, c0, _, _ = origin
     size = 2 * half_cells + 1
     return (r0 + 1, r0 + size - 1, c0 + 1, c0 + size - 1)

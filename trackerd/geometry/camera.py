@@ -83,9 +83,10 @@ class CameraModel:
         # Asked for every pair (normalized_from_pixels); the model is frozen, so once is enough.
         return bool(self.distortion.size and np.any(self.distortion != 0.0))
 
-    @property
+    @cached_property
     def focal_px(self) -> float:
-        """Mean focal length in pixels, a scale for converting angles to pixels."""
+        """Mean focal length in pixels, a scale for converting angles to pixels (asked for every pair:
+        the model is frozen, so computed once)."""
         return float((self.matrix[0, 0] + self.matrix[1, 1]) / 2.0)
 
     def with_intrinsics(self, matrix: Array, distortion: Array) -> CameraModel:

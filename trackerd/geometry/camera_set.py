@@ -113,34 +113,37 @@ def _estimate_two(
     (centre0, rows0, t0), (centre1, rows1, t1) = view.scalar_poses
     (x0f, y0f), (x0b, y0b) = normalised[0].tolist()
     (x1f, y1f), (x1b, y1b) = normalised[1].tolist()
-
-    def line_of(
-        x0f: float, y0f: float, x0b: float, y0b: float, x1f: float, y1f: float, x1b: float, y1b: float
-    ) -> PointerLine | None:
-        return two_cameras.pointer_line(
-            centre0,
-            centre1,
-            two_cameras.world_ray(rows0, x0f, y0f),
-            two_cameras.world_ray(rows0, x0b, y0b),
-            two_cameras.world_ray(rows1, x1f, y1f),
-            two_cameras.world_ray(rows1, x1b, y1b),
-            min_plane_sin,
-        )
-
-    line = line_of(x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b)
-    if line is None or ball_radius_m is None:
-        return line
-    front, back = line.front_floats, line.back_floats
-    depths = [
-        rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
-        for rows, t in ((rows0, t0), (rows1, t1))
-        for p in (front, back)
-    ]
-    if min(depths) <= ball_radius_m:
-        return line
-    # As sphere_centre_direction: the ellipse's centre lies (1 - r^2 / Z^2) further out.
-    k0f, k0b, k1f, k1b = (1.0 - (ball_radius_m / z) ** 2 for z in depths)
-    return line_of(x0f * k0f, y0f * k0f, x0b * k0b, y0b * k0b, x1f * k1f, y1f * k1f, x1b * k1b, y1b * k1b)
+    world_ray = two_cameras.world_ray
+    rays = (
+        world_ray(rows0, x0f, y0f),
+        world_ray(rows0, x0b, y0b),
+        world_ray(rows1, x1f, y1f),
+        world_ray(rows1, x1b, y1b),
+    )
+    ends = two_cameras.pointer_ends(centre0, centre1, *rays, min_plane_sin)
+    if ends is None:
+        return None
+    if ball_radius_m is not None:
+        front, back, _ = ends
+        depths = [
+            rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
+            for rows, t in ((rows0, t0), (rows1, t1))
+            for p in (front, back)
+        ]
+        if not min(depths) <= ball_radius_m:  # (as the test always was, should a depth be NaN)
+            # As sphere_centre_direction: the ellipse's centre lies (1 - r^2 / Z^2) further out.
+            k0f, k0b, k1f, k1b = (1.0 - (ball_radius_m / z) ** 2 for z in depths)
+            return two_cameras.pointer_line(
+                centre0,
+                centre1,
+                world_ray(rows0, x0f * k0f, y0f * k0f),
+                world_ray(rows0, x0b * k0b, y0b * k0b),
+                world_ray(rows1, x1f * k1f, y1f * k1f),
+                world_ray(rows1, x1b * k1b, y1b * k1b),
+                min_plane_sin,
+            )
+    # The first line is the answer (no correction, or an end too close to a camera for one).
+    return two_cameras.line_through(centre0, centre1, *rays, ends)
 
 
 def _line_from_camera_rays(front_cam: Array, back_cam: Array, view: CameraSet, min_plane_sin: float) -> PointerLine:
