@@ -52,6 +52,10 @@ while two other cameras measured the end well)."""
 COMBINED_FLOOR_SHARE = 0.5
 """An outline joined by its centroid keeps this share of the outline's error floor (RESIDUAL_SHARE)."""
 
+WHOLE_RIM_FRACTION = 0.9
+"""An outline whose rim agrees with its circle on fewer of the rays off the pointer's axis than this is
+partly hidden by something besides the rod (a ray or two lost to noise leaves more)."""
+
 AGREE_SIGMAS = 3.0
 """The centroid joins the outline's measurement across the pointer when the two agree there within
 this many of their combined standard errors."""
@@ -76,6 +80,11 @@ class EndMeasurement:
     rim_fraction: float
     """Share of the outline seen (0 for a centroid alone)."""
     fit: BallFit | None = None
+    error_covariance: Array | None = None
+    """(2, 2) covariance of ``normalised``'s actual error (:func:`honest_covariance`), for the hit's
+    uncertainty; None: ``covariance``. ``covariance`` stays the weight the pointer fit gives the
+    measurement (with RESIDUAL_SHARE's floor, which stood in for what this models per measurement), so
+    that modelling the errors moves no hit."""
 
 
 def measure_end(
@@ -135,6 +144,19 @@ def measure_end(
     # The centroid sharpens the measurement across the pointer; part of the model's own error stays.
     floor_px = COMBINED_FLOOR_SHARE * max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
     covariance = covariance + np.eye(2) * (floor_px / camera.focal_px) ** 2
+    # Across the pointer the centroid measures the end, with the floor above (it is what the centroid's
+    # errors on randomized scenes need); along it the outline alone does, so the outline's actual error
+    # there where it exceeds its weight.
+    outline_error = measurement.covariance if measurement.error_covariance is None else measurement.error_covariance
+    along = np.array([-across_px[1], across_px[0]]) / max(float(np.linalg.norm(across_px)), 1e-12)
+    along_excess = max(float(along @ (outline_error - measurement.covariance) @ along), 0.0)
+    error_covariance = covariance + np.outer(along, along) * along_excess
+    if fit.rim_fraction < WHOLE_RIM_FRACTION:
+        # Something besides the rod hides part of the ball (a hand, the presenter, a picture of its colour):
+        # that pulls its centroid across the pointer, and the outline of what is left along with it, by more
+        # than either's error says. The centroid's pull on the outline's value is then an error of its size.
+        shift = normalised - measurement.normalised
+        error_covariance = outline_error + np.outer(shift, shift)
     return EndMeasurement(
         camera_index,
         colour,
@@ -145,6 +167,7 @@ def measure_end(
         "outline+centroid",
         fit.rim_fraction,
         fit,
+        error_covariance,
     )
 
 
@@ -167,7 +190,26 @@ def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) 
         "outline",
         fit.rim_fraction,
         fit,
+        honest_covariance(fit, cone.covariance, focal) + np.eye(2) * (floor_px / focal) ** 2,
     )
+
+
+def honest_covariance(fit: BallFit, cone_covariance: Array, focal_px: float) -> Array:
+    """The error an outline's centre direction actually has (normalised units squared, without the floor),
+    where the cone's covariance (from its rim points' scatter, each taken as independent) says less:
+
+    * neighbouring rim points on a small ball share their noise (:func:`trackerd.detect.ballfit.independent_rims`):
+      the cone's covariance is for len(rim) independent points, the rim holds only ``independent_rims``;
+    * a partial outline takes part of any smooth departure from a circle (blur, shading, the mixed pixels
+      where a hand meets the ball) for a shift of its centre
+      (:func:`trackerd.detect.ballfit.arc_deformation_covariance`).
+    """
+    covariance = cone_covariance
+    if fit.independent_rims > 0:
+        covariance = covariance * max(1.0, len(fit.rim_px) / fit.independent_rims)
+    if fit.arc_covariance_px is not None:
+        covariance = covariance + fit.arc_covariance_px / (focal_px * focal_px)
+    return covariance
 
 
 def _with_centroid(

@@ -336,6 +336,9 @@ class RefinedPath:
         start_points = np.stack([np.asarray(init[0], dtype=np.float64), np.asarray(init[1], dtype=np.float64)])
         measured = np.zeros((len(used), 2, 2))
         covariances = np.zeros((len(used), 2, 2, 2))
+        # What each measurement's error truly is, where its weight says less (trackerd/ends.py): the hit's
+        # uncertainty is the weighted fit's under these errors.
+        errors = np.zeros((len(used), 2, 2, 2))
         for k, i in enumerate(used):
             for e, colour in enumerate((front, back)):
                 m = per_camera[i][colour]
@@ -343,9 +346,11 @@ class RefinedPath:
                     xc = rotations[k] @ start_points[e] + translations[k]
                     measured[k, e] = xc[:2] / xc[2]
                     covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
+                    errors[k, e] = covariances[k, e]
                 else:
                     measured[k, e] = m.normalised
                     covariances[k, e] = m.covariance
+                    errors[k, e] = m.covariance if m.error_covariance is None else m.error_covariance
         # A ball's outline of the wrong size for its distance is likely a fit to something else (the part of a
         # ball a hand leaves, a disc on the display beside it). Off by more than GUIDED_SIZE, the ball is looked
         # for again where the start puts it, told its size; off by more than MAX_RADIUS_RATIO and not found
@@ -368,18 +373,27 @@ class RefinedPath:
                     per_camera[i][colour] = again
                     measured[k, e] = again.normalised
                     covariances[k, e] = again.covariance
+                    errors[k, e] = again.covariance if again.error_covariance is None else again.error_covariance
                     continue
                 if 1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO:
                     continue
                 seen_by = int(np.count_nonzero(np.trace(covariances[:, e], axis1=1, axis2=2) < DROPPED_VARIANCE))
                 if seen_by > 2:
                     covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
+                    errors[k, e] = covariances[k, e]
                 else:
                     wrong = abs(m.radius_px - expected) / camera.focal_px
                     covariances[k, e] = covariances[k, e] + np.eye(2) * wrong * wrong
+                    errors[k, e] = errors[k, e] + np.eye(2) * wrong * wrong
         try:
             views = EndViews.of(
-                rotations, translations, measured, covariances, pointer.length_m, self.loc.rig.locator.length_sigma_m
+                rotations,
+                translations,
+                measured,
+                covariances,
+                pointer.length_m,
+                self.loc.rig.locator.length_sigma_m,
+                error_covariances=errors,
             )
             fitted = fit_pointer_robust(views, start_points[0], start_points[1])
         except GeometryError as err:

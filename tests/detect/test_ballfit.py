@@ -9,7 +9,7 @@ from detect_synthetic import RED, ROD, WALL, Scene, Shape
 
 from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
-from trackerd.detect.ballfit import fit_ball, robust_circle
+from trackerd.detect.ballfit import arc_deformation_covariance, fit_ball, independent_rims, robust_circle
 from trackerd.detect.colour import sample_grid
 
 FORMATS = ("BayerRG8", "BayerGB8", "RGB8")
@@ -132,3 +132,33 @@ def test_robust_circle_ignores_a_quarter_of_wild_points() -> None:
     centre, radius, weights, _ = circle
     assert np.hypot(*(centre - [50, 40])) < 0.05 and abs(radius - 9) < 0.05
     assert np.all(weights[:10] == 0) and np.all(weights[10:] > 0)
+
+
+@pytest.mark.parametrize("phase", np.linspace(0.0, np.pi, 7))
+def test_a_waved_partial_outline_moves_its_centre_by_what_its_arc_covariance_says(phase) -> None:
+    """Issue 13: an outline that departs from a circle by a smooth wave (blur, shading, a hand's mixed
+    pixels) fitted on half of it moves the centre; the arc covariance says by how much, for any phase of
+    the wave (whitened shift 1), and a whole outline is not moved and says so."""
+    angles = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 25)
+    radius, amplitude = 10.0, 0.4
+    rim = radius + amplitude * np.cos(2.0 * angles + phase)
+    points = np.column_stack([rim * np.cos(angles), rim * np.sin(angles)])
+    fitted = robust_circle(points)
+    assert fitted is not None
+    centre, _, weights, _ = fitted
+    directions = (points - centre) / np.linalg.norm(points - centre, axis=1, keepdims=True)
+    covariance = arc_deformation_covariance(directions, weights, amplitude)
+    z = float(centre @ np.linalg.solve(covariance, centre))
+    assert np.hypot(*centre) > 0.1  # half an outline is moved
+    assert z < 1.5**2
+    whole = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
+    around = np.column_stack([np.cos(whole), np.sin(whole)])
+    assert np.max(np.abs(arc_deformation_covariance(around, np.ones(48), amplitude))) < 1e-12
+
+
+def test_rims_closer_than_the_lattice_share_their_noise() -> None:
+    """On a Bayer lattice (2 px) the 48 rays cross a 5 px ball's rim 0.65 px apart: about ten independent
+    rims; on a 30 px ball they are 4 px apart and all count."""
+    assert 9.0 < independent_rims(48, 5.0, 2.0) < 12.0
+    assert independent_rims(48, 30.0, 2.0) == 48.0
+    assert independent_rims(48, 5.0, 1.0) == pytest.approx(2.0 * independent_rims(48, 5.0, 2.0))

@@ -79,6 +79,39 @@ def test_the_covariance_describes_the_scatter_of_fits_to_noisy_measurements() ->
     assert 2.6 < np.mean(z) < 3.4
 
 
+def test_weights_that_understate_the_errors_still_give_the_fits_true_scatter() -> None:
+    """Monte Carlo (issue 13, honest uncertainty): the measurements weighed as 0.2 px, but one camera's
+    truly off by 0.8 px along one direction (a partly hidden ball). Given those errors, the fit's
+    covariance is that of the weighted estimate (the sandwich), and describes the fits' scatter; the
+    estimate itself is the one the weights give, whatever the errors said."""
+    cameras = [*_behind_pair(), _camera("c", [-1.0, 1.8, 3.0])]
+    rot, trans = _arrays(cameras)
+    truth = predict(rot, trans, FRONT, BACK)
+    sigma = 0.2 / 1600
+    weights = np.tile(np.eye(2) * sigma**2, (3, 2, 1, 1))
+    errors = weights.copy()
+    errors[1, 0] = np.diag([(0.8 / 1600) ** 2, sigma**2])
+    length = float(np.linalg.norm(FRONT - BACK))
+    rng = np.random.default_rng(5)
+    chol = np.linalg.cholesky(errors)
+    fronts, covariances = [], []
+    for _ in range(400):
+        noisy = truth + np.einsum("ceij,cej->cei", chol, rng.normal(size=truth.shape))
+        weighted = fit_pointer(EndViews.of(rot, trans, noisy, weights, length, 1e-4), FRONT, BACK)
+        honest = fit_pointer(
+            EndViews.of(rot, trans, noisy, weights, length, 1e-4, error_covariances=errors), FRONT, BACK
+        )
+        assert np.allclose(honest.front_m, weighted.front_m, atol=1e-12)
+        fronts.append(honest.front_m - FRONT)
+        covariances.append(honest.covariance[:3, :3] / honest.inflation)
+    scatter = np.cov(np.array(fronts).T)
+    claimed = np.mean(covariances, axis=0)
+    # The trace (the mean squared error) within 15 %; the weights alone claim less than half of it.
+    assert 0.85 < np.trace(claimed) / np.trace(scatter) < 1.15
+    weighted_only = fit_pointer(EndViews.of(rot, trans, truth, weights, length, 1e-4), FRONT, BACK).covariance
+    assert np.trace(weighted_only[:3, :3]) < 0.5 * np.trace(scatter)
+
+
 def test_one_measurement_pulled_by_an_occluder_is_left_out() -> None:
     """Four cameras, one end in one camera 6 px off (an outline fitted to the wrong arc): the robust fit
     drops it and lands on the truth; the plain fit is pulled by it."""

@@ -67,6 +67,10 @@ MAX_SCATTER_SHARE = 0.12
 """A rim scattering about its circle by more than the larger of these (pixels, share of the radius) is
 not a ball's outline (a bar, a letter, a smear)."""
 
+CORRELATION_CELLS = 1.5
+"""The length (in lattice spacings) over which the noise of a bilinearly interpolated lattice of independent
+samples stays correlated: (integral of the triangle kernel)^2 / integral of its square = 1.5 spacings."""
+
 MIN_SCALE_PX = 0.25
 """The rim residuals' scale is never taken below this (exact renders would otherwise give zero)."""
 
@@ -91,6 +95,13 @@ class BallFit:
     contrast: float
     """Median ball-over-background excess on the agreeing rays, grey levels."""
     reason: str | None = None
+    independent_rims: float = math.nan
+    """How many of the agreeing rim points are independent measurements of the outline: fewer than there
+    are on a small ball, whose neighbouring rays cross the rim closer together than the samples each
+    rim is interpolated from (:func:`independent_rims`)."""
+    arc_covariance_px: Array | None = None
+    """(2, 2) error of the centre (pixels squared) from a smooth departure of the visible arc from a circle
+    (:func:`arc_deformation_covariance`): zero for a whole outline, large for half of one."""
 
     @staticmethod
     def missing(reason: str) -> BallFit:
@@ -200,8 +211,48 @@ def _one_pass(
     directions = (used - centre) / r
     information = directions.T @ (directions * weights[agree, None])
     smallest = float(np.linalg.eigvalsh(information)[0])
-    sigma = scale / math.sqrt(max(smallest, 1e-9))
-    return BallFit(True, centre, r, used, fraction, scale, sigma, float(np.median(contrast[ok][agree])))
+    independent = independent_rims(len(used), r, float(s))
+    sigma = scale / math.sqrt(max(smallest, 1e-9)) * math.sqrt(len(used) / independent)
+    contrast_level = float(np.median(contrast[ok][agree]))
+    arc = arc_deformation_covariance(directions, weights[agree], scale)
+    return BallFit(True, centre, r, used, fraction, scale, sigma, contrast_level, None, independent, arc)
+
+
+def arc_deformation_covariance(directions: Array, weights: Array, amplitude_px: float) -> Array:
+    """The centre's error (2, 2), pixels squared, when the outline departs from a circle by smooth waves of
+    ``amplitude_px`` (two per turn, either phase) that the fit on the rim points at unit
+    ``directions`` (N, 2) from the centre, with ``weights`` (N,), does not model.
+
+    Motion blur stretches a ball's image, shading and the mixed pixels where a hand or the rod meets the
+    ball bend its outline; a fit to the whole outline averages such waves out (they are orthogonal to a
+    shift of the centre), but a fit to part of it takes part of each wave for a shift: the more of the
+    outline is missing, the more. The rim's own scatter about its circle is the measured size of such
+    departures."""
+    c, s = directions[:, 0], directions[:, 1]
+    design = np.column_stack([c, s, np.ones_like(c)]) * weights[:, None]
+    try:
+        projection = np.linalg.solve(design.T @ design, design.T)  # (3, N): the fit's response to the rims
+    except np.linalg.LinAlgError:
+        return np.eye(2) * (10.0 * amplitude_px) ** 2
+    waves = np.stack([c * c - s * s, 2.0 * c * s])
+    shifts = (projection @ (waves * weights[None, :]).T)[:2] * amplitude_px  # (2, 2)
+    covariance: Array = shifts @ shifts.T
+    return covariance
+
+
+def independent_rims(count: int, radius_px: float, lattice_px: float) -> float:
+    """How many independent outline measurements ``count`` rim points on neighbouring rays of a circle of
+    ``radius_px`` are, on a colour lattice of ``lattice_px`` spacing.
+
+    Each rim is found on samples bilinearly interpolated from the lattice, so two rims closer than a
+    lattice spacing or two share their noise: the noise of a bilinearly interpolated white lattice is
+    correlated over CORRELATION_CELLS spacings (the integral of the interpolation kernel's
+    autocorrelation). The rays are 2 pi r / RAYS apart on the rim; where that is less than the
+    correlation length, the rim points count only as often as the correlation length fits into the arc
+    they cover. Taking all 48 as independent made the centre of a ball 5 px across two to three times
+    more certain than its errors on randomized scenes (`trackerd bench robustness`)."""
+    spacing_px = 2.0 * math.pi * radius_px / RAYS
+    return max(3.0, count * min(1.0, spacing_px / (CORRELATION_CELLS * lattice_px)))
 
 
 def _bilinear(image: NDArray[np.float32], u: Array, v: Array) -> Array:

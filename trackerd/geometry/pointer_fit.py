@@ -55,6 +55,10 @@ class EndViews:
     ball_radius_m: float = 0.0
     """> 0: each measurement is the centre of the ball's image ellipse (a centroid); 0: the projection of
     the ball's centre (a fitted outline)."""
+    error_covariances: Array | None = None
+    """(C, 2, 2, 2): the covariances of the measurements' actual errors where they exceed the weights
+    ``covariances`` give them (None: the same). The fit weighs by ``covariances``; its covariance is that
+    of the weighted estimate under these errors (:func:`fit_pointer`)."""
 
     @staticmethod
     def of(
@@ -65,6 +69,7 @@ class EndViews:
         length_m: float,
         length_sigma_m: float,
         ball_radius_m: float = 0.0,
+        error_covariances: Array | None = None,
     ) -> EndViews:
         """The views as float64 arrays (the covariances copied: the robust fit changes them)."""
         return EndViews(
@@ -75,6 +80,7 @@ class EndViews:
             float(length_m),
             float(length_sigma_m),
             float(ball_radius_m),
+            None if error_covariances is None else np.array(error_covariances, dtype=np.float64),
         )
 
 
@@ -90,7 +96,8 @@ class PointerFit:
     """Sum of squared whitened residuals (length prior included)."""
     dof: int
     inflation: float
-    """Factor the covariance was multiplied by: max(1, chi2 / dof)."""
+    """Factor the covariance was multiplied by: max(1, chi2 / dof), the chi-square taken against the
+    measurements' error covariances where they are given."""
     iterations: int
     dropped: tuple[tuple[int, int], ...] = ()
     """(camera, end) measurements left out as not agreeing with the others (a ball's outline fitted
@@ -119,9 +126,10 @@ def fit_pointer_robust(
     pull the fit so far along their common direction that its own residual is small.
     """
     cov = np.array(views.covariances, dtype=np.float64)  # a copy: measurements left out change it
+    errors = None if views.error_covariances is None else np.array(views.error_covariances, dtype=np.float64)
     present = np.array([[float(np.trace(cov[c, e])) < DROPPED_VARIANCE for e in range(2)] for c in range(len(cov))])
     dropped: list[tuple[int, int]] = []
-    fit = fit_pointer(replace(views, covariances=cov), front0_m, back0_m)
+    fit = fit_pointer(replace(views, covariances=cov, error_covariances=errors), front0_m, back0_m)
     for _ in range(rounds):
         if fit.chi2 <= INCONSISTENT * _dof(present):
             break
@@ -131,8 +139,13 @@ def fit_pointer_robust(
                 continue
             trial = cov.copy()
             trial[c, e] = np.eye(2) * DROPPED_VARIANCE
+            trial_errors = None if errors is None else errors.copy()
+            if trial_errors is not None:
+                trial_errors[c, e] = np.eye(2) * DROPPED_VARIANCE
             try:
-                candidate = fit_pointer(replace(views, covariances=trial), fit.front_m, fit.back_m)
+                candidate = fit_pointer(
+                    replace(views, covariances=trial, error_covariances=trial_errors), fit.front_m, fit.back_m
+                )
             except GeometryError:
                 continue
             if best is None or candidate.chi2 < best[0]:
@@ -141,6 +154,8 @@ def fit_pointer_robust(
             break
         _, (c, e), fit = best
         cov[c, e] = np.eye(2) * DROPPED_VARIANCE
+        if errors is not None:
+            errors[c, e] = np.eye(2) * DROPPED_VARIANCE
         present[c, e] = False
         dropped.append((c, e))
     if dropped:
@@ -204,8 +219,39 @@ def fit_pointer(views: EndViews, front0_m: Array, back0_m: Array, max_iterations
     except np.linalg.LinAlgError as err:
         raise GeometryError("the cameras do not constrain the pointer (singular fit)") from err
     dof = max(residuals.size - 6, 1)
-    inflation = max(1.0, chi2 / dof)
+    disagreement = chi2
+    if views.error_covariances is not None:
+        covariance, disagreement = _sandwich(covariance, jacobian, residuals, whiten, views.error_covariances)
+    inflation = max(1.0, disagreement / dof)
     return PointerFit(params[:3].copy(), params[3:].copy(), covariance * inflation, chi2, dof, inflation, iterations)
+
+
+def _sandwich(
+    covariance: Array, jacobian: Array, residuals: Array, whiten: Array, error_covariances: Array
+) -> tuple[Array, float]:
+    """The covariance of the weighted fit when the measurements' errors have ``error_covariances`` (C, 2,
+    2, 2) rather than the covariances the weights ``whiten`` were made from, and the chi-square of the
+    residuals against those errors.
+
+    The estimate is linear in the whitened residuals r: d(params) = -H^-1 J^T r with H = J^T J (the
+    ``covariance`` given is H^-1); if r has covariance S, the estimate has H^-1 J^T S J H^-1 (the
+    "sandwich"). A measurement's whitened error is its raw error times its whitening W, so S holds W E
+    W^T in its 2x2 blocks (E: its error covariance), and 1 for the length prior, whose weight is its
+    error."""
+    blocks = np.einsum("cekl,celm,ceqm->cekq", whiten, error_covariances, whiten)  # (C, 2, 2, 2)
+    count = blocks.shape[0] * 2
+    spread = np.zeros((2 * count + 1, 2 * count + 1))
+    for index, block in enumerate(blocks.reshape(count, 2, 2)):
+        spread[2 * index : 2 * index + 2, 2 * index : 2 * index + 2] = block
+    spread[-1, -1] = 1.0
+    middle = jacobian.T @ spread @ jacobian
+    sandwich = np.asarray(covariance @ middle @ covariance, dtype=np.float64)
+    # The residuals against the errors' own covariances: what the errors do not explain.
+    try:
+        information = np.linalg.inv(spread)
+    except np.linalg.LinAlgError:
+        return sandwich, float(residuals @ residuals)
+    return sandwich, float(residuals @ information @ residuals)
 
 
 def _linearise(
