@@ -7,31 +7,21 @@ import subprocess
 import sys
 
 
-def test_a_short_run_completes_with_every_row(tmp_path) -> None:
-    """It crashed once, unnoticed, when the locator's detection changed under its baseline locator."""
+def _bench_replay(tmp_path, *arguments: str) -> dict:
+    """`trackerd bench replay ARGUMENTS --dir TMP --json`, its figures (it must exit 0)."""
     run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "trackerd",
-            "bench",
-            "replay",
-            "--record-seconds",
-            "1",
-            "--pairs",
-            "30",
-            "--reference-pairs",
-            "10",
-            "--dir",
-            str(tmp_path),
-            "--json",
-        ],
+        [sys.executable, "-m", "trackerd", "bench", "replay", *arguments, "--dir", str(tmp_path), "--json"],
         capture_output=True,
         text=True,
         timeout=600,
     )
     assert run.returncode == 0, run.stderr
-    figures = json.loads(run.stdout)
+    return json.loads(run.stdout)
+
+
+def test_a_short_run_completes_with_every_row(tmp_path) -> None:
+    """It crashed once, unnoticed, when the locator's detection changed under its baseline locator."""
+    figures = _bench_replay(tmp_path, "--record-seconds", "1", "--pairs", "30", "--reference-pairs", "10")
     rows = figures["replay"]
     assert {"trackerd", "trackerd, checksums off", "report's method (eq. 10-12, whole image)"} <= set(rows)
     assert any(name.startswith("opencv") for name in rows)
@@ -45,28 +35,8 @@ def test_a_short_run_completes_with_every_row(tmp_path) -> None:
 def test_the_modes_run_puts_each_replay_beside_its_before_row_with_the_raw_hits(tmp_path) -> None:
     """`--modes` prints the baseline ("before": pairs handed over one at a time, every frame rebuilt on
     the reader thread) beside today's replay of each mode, and every replay's hits are the raw one's."""
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "trackerd",
-            "bench",
-            "replay",
-            "--record-seconds",
-            "0.5",
-            "--modes",
-            "--keyframe-interval",
-            "0.2",
-            "--dir",
-            str(tmp_path),
-            "--json",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert run.returncode == 0, run.stderr
-    rows = json.loads(run.stdout)["mode_replays"]
+    figures = _bench_replay(tmp_path, "--record-seconds", "0.5", "--modes", "--keyframe-interval", "0.2")
+    rows = figures["mode_replays"]
     for mode in ("raw", "raw --no-verify", "compressed", "windowed"):
         assert {mode, f"{mode}, before"} <= set(rows), sorted(rows)
     for name, row in rows.items():
