@@ -86,6 +86,12 @@ class EndMeasurement:
     measurement (with RESIDUAL_SHARE's floor, which stood in for what this models per measurement), so
     that modelling the errors moves no hit."""
 
+    @property
+    def actual_covariance(self) -> Array:
+        """The covariance of the measurement's actual error: ``error_covariance`` where modelled, else
+        ``covariance``."""
+        return self.covariance if self.error_covariance is None else self.error_covariance
+
 
 def measure_end(
     frame: NDArray[np.uint8],
@@ -147,7 +153,7 @@ def measure_end(
     # Across the pointer the centroid measures the end, with the floor above (it is what the centroid's
     # errors on randomized scenes need); along it the outline alone does, so the outline's actual error
     # there where it exceeds its weight.
-    outline_error = measurement.covariance if measurement.error_covariance is None else measurement.error_covariance
+    outline_error = measurement.actual_covariance
     along = np.array([-across_px[1], across_px[0]]) / max(float(np.linalg.norm(across_px)), 1e-12)
     along_excess = max(float(along @ (outline_error - measurement.covariance) @ along), 0.0)
     error_covariance = covariance + np.outer(along, along) * along_excess

@@ -350,7 +350,7 @@ class RefinedPath:
                 else:
                     measured[k, e] = m.normalised
                     covariances[k, e] = m.covariance
-                    errors[k, e] = m.covariance if m.error_covariance is None else m.error_covariance
+                    errors[k, e] = m.actual_covariance
         # A ball's outline of the wrong size for its distance is likely a fit to something else (the part of a
         # ball a hand leaves, a disc on the display beside it). Off by more than GUIDED_SIZE, the ball is looked
         # for again where the start puts it, told its size; off by more than MAX_RADIUS_RATIO and not found
@@ -373,7 +373,7 @@ class RefinedPath:
                     per_camera[i][colour] = again
                     measured[k, e] = again.normalised
                     covariances[k, e] = again.covariance
-                    errors[k, e] = again.covariance if again.error_covariance is None else again.error_covariance
+                    errors[k, e] = again.actual_covariance
                     continue
                 if 1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO:
                     continue

@@ -119,13 +119,12 @@ def search_candidates(
     """The fitted candidates of each colour (see the module), best seeds first."""
     smallest, largest = radius_range_px
     sampled = _sample(frame, grid, smallest)
-    region, step, spacing = sampled.region, sampled.step, sampled.spacing_px
     out: dict[str, list[Candidate]] = {}
     for colour in colours:
         own, _ = sampled.planes(colour)
         excess = sampled.excess(colour)
         mask = _hue_mask(own, excess)
-        seeds, merged = _seeds(mask, region, step, grid, colour, spacing, smallest, largest)
+        seeds, merged = _seeds(mask, sampled, grid, colour, smallest, largest)
         # A ball in front of a picture of a nearby hue merges with it; a stricter hue test, inside the merged
         # group only, separates what is only nearly the paint's colour (a magenta beside a red).
         for share in STRICTER:
@@ -135,7 +134,7 @@ def search_candidates(
             keep = np.zeros_like(mask)
             for y0, y1, x0, x1 in merged:
                 keep[y0:y1, x0:x1] = stricter[y0:y1, x0:x1]
-            more, merged = _seeds(keep, region, step, grid, colour, spacing, smallest, largest)
+            more, merged = _seeds(keep, sampled, grid, colour, smallest, largest)
             seeds += more
         found: list[Candidate] = []
         for x, y, radius in seeds[:max_seeds]:
@@ -168,14 +167,13 @@ def split_candidates(
     asks for these only when the plain candidates do not make a pointer (trackerd/refine.py)."""
     smallest, largest = radius_range_px
     sampled = _sample(frame, grid, smallest)
-    region, step, spacing = sampled.region, sampled.step, sampled.spacing_px
     out: dict[str, list[Candidate]] = {}
     for colour in colours:
         own, other = sampled.planes(colour)
         mask = _hue_mask(own, sampled.excess(colour))
         greener = sampled.green >= other
-        boxes = _large_groups(mask, spacing, SPLIT_FROM * smallest)
-        split = _split_seeds(mask, own, greener, boxes, region, step, grid, colour, spacing, smallest, largest)
+        boxes = _large_groups(mask, sampled.spacing_px, SPLIT_FROM * smallest)
+        split = _split_seeds(mask, own, greener, boxes, sampled, grid, colour, smallest, largest)
         found: list[Candidate] = []
         for x, y, radius in split[:MAX_SPLIT_SEEDS]:
             size = max(radius, smallest)
@@ -188,11 +186,9 @@ def split_candidates(
 
 def _seeds(
     mask: NDArray[np.bool_],
-    region: tuple[int, int, int, int],
-    step: int,
+    sampled: _Sampled,
     grid: SampleGrid,
     colour: str,
-    spacing: float,
     smallest: float,
     largest: float,
 ) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int, int]]]:
@@ -204,8 +200,8 @@ def _seeds(
     labels, count = label_runs(runs)
     stats = blob_stats(runs, labels, count)
     dr, dc = grid.offset(colour)
-    r0, _, c0, _ = region
-    s = grid.cell_px
+    r0, _, c0, _ = sampled.region
+    step, spacing, s = sampled.step, sampled.spacing_px, grid.cell_px
     scored = []
     merged = []
     for k in range(count):
@@ -233,11 +229,9 @@ def _split_seeds(
     own: NDArray[np.int16],
     greener: NDArray[np.bool_],
     boxes: list[tuple[int, int, int, int]],
-    region: tuple[int, int, int, int],
-    step: int,
+    sampled: _Sampled,
     grid: SampleGrid,
     colour: str,
-    spacing: float,
     smallest: float,
     largest: float,
 ) -> list[tuple[float, float, float]]:
@@ -260,7 +254,7 @@ def _split_seeds(
         side_b[y0:y1, x0:x1] = inside & ~greener[y0:y1, x0:x1]
     seeds: list[tuple[float, float, float]] = []
     for part in (darker, brighter, side_a, side_b):
-        found, _ = _seeds(part, region, step, grid, colour, spacing, smallest, largest)
+        found, _ = _seeds(part, sampled, grid, colour, smallest, largest)
         seeds += found
     return seeds
 
