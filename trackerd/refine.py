@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from trackerd.errors import GeometryError
 from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, EndViews, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
+from trackerd.geometry.sphere import view_map
 from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
@@ -40,6 +41,11 @@ MAX_GUIDED_RESIDUAL_PX = 1.0
 
 GUIDED_SIZE = 1.15
 """And its radius within this factor of a ball's at the distance the geometry puts it."""
+
+VIEW_TOLERANCE = 0.05
+"""Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
+this share away from 1, a ball's outline is not a circle of the expected radius in pixels: a fit that
+fails in pixels there is tried again in the view's units."""
 
 
 def blob_radius_px(end: EndDetection) -> float:
@@ -151,7 +157,7 @@ class RefinedPath:
         from trackerd.joint import choose_jointly
 
         candidates = [
-            search_candidates(image, self.loc.grids[index], self._radius_range_px(index))
+            search_candidates(image, self.loc.grids[index], self._radius_range_px(index), view=self._view_at(index))
             for index, image in enumerate(images)
         ]
         pointer = self.loc.pointer
@@ -160,21 +166,28 @@ class RefinedPath:
         def look(
             camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
         ) -> Candidate | None:
-            # The geometry knows the ball's size to a few percent and where the rod meets it.
-            fit = fit_ball(
-                images[camera],
-                self.loc.grids[camera],
-                colour,
-                x_px,
-                y_px,
-                radius_px,
-                axis=axis,
-                radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
-                rising_rims=True,
-            )
-            if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
-                return None
-            return Candidate(colour, fit, (x_px, y_px), radius_px)
+            # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
+            # size, which is its size in pixels only near the lens's axis.
+            local = None
+            for attempt in range(2):
+                fit = fit_ball(
+                    images[camera],
+                    self.loc.grids[camera],
+                    colour,
+                    x_px,
+                    y_px,
+                    radius_px,
+                    axis=axis,
+                    radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
+                    rising_rims=True,
+                    view=local,
+                )
+                if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX:
+                    return Candidate(colour, fit, (x_px, y_px), radius_px)
+                local = self._view_at(camera)(x_px, y_px) if attempt == 0 else None
+                if local is None:
+                    return None
+            return None
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(
@@ -258,6 +271,20 @@ class RefinedPath:
         if float(np.hypot(*(fit.centre_px - at))) > max(3.0, 0.5 * expected_px):
             return None
         return from_fit(camera, camera_index, colour, fit)
+
+    def _view_at(self, index: int) -> Callable[[float, float], Array | None]:
+        """Camera ``index``'s view map at a pixel, or None where it is within VIEW_TOLERANCE of the identity
+        (a ball's outline there is a circle of its expected radius in pixels)."""
+        camera = self.loc.cameras[index]
+
+        def at(x_px: float, y_px: float) -> Array | None:
+            local = view_map(camera, np.array([x_px, y_px]))
+            scales = np.linalg.svd(local, compute_uv=False)
+            if float(np.max(np.abs(scales - 1.0))) <= VIEW_TOLERANCE:
+                return None
+            return local
+
+        return at
 
     def _radius_range_px(self, index: int) -> tuple[float, float]:
         """The image radius a ball can have in camera ``index``: from half a metre away to as far as the
