@@ -167,9 +167,8 @@ class RefinedPath:
             camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
         ) -> Candidate | None:
             # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
-            # size, which is its size in pixels only near the lens's axis.
-            local = None
-            for attempt in range(2):
+            # size, which is its size in pixels only near the lens's axis (VIEW_TOLERANCE).
+            def guided(view: Array | None) -> Candidate | None:
                 fit = fit_ball(
                     images[camera],
                     self.loc.grids[camera],
@@ -180,14 +179,17 @@ class RefinedPath:
                     axis=axis,
                     radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
                     rising_rims=True,
-                    view=local,
+                    view=view,
                 )
-                if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX:
-                    return Candidate(colour, fit, (x_px, y_px), radius_px)
-                local = self._view_at(camera)(x_px, y_px) if attempt == 0 else None
-                if local is None:
+                if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
                     return None
-            return None
+                return Candidate(colour, fit, (x_px, y_px), radius_px)
+
+            found = guided(None)
+            if found is not None:
+                return found
+            local = self._view_at(camera)(x_px, y_px)
+            return None if local is None else guided(local)
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(
