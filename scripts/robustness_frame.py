@@ -1,0 +1,100 @@
+"""Render one frame of `trackerd bench robustness` again, locate it, and save what each camera saw.
+
+A miss or a slow frame in the bench's records (`--records F`: installation and frame numbers) is looked
+into here: the installation is drawn and its frames rendered exactly as `trackerd.bench.robustness.run_rig`
+does (one random generator per installation, shared by all its frames, so every earlier frame is
+rendered too), and for each frame asked: the locator's status and reason, the wall error and sigma, each
+camera's truth (ball centre, visible centroid, visible fraction) beside the centroid the fix used, and
+the locate time. Each camera's frame is saved as OUT/rRIG_fFRAME_camK.npy (as the camera delivers it)
+and .png (demosaiced, for looking at).
+
+    .venv/bin/python scripts/robustness_frame.py RIG FRAME [FRAME ...] [--seed 2026] [--out /tmp/frames]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from trackerd.config.rig_geometry import wall_frame
+from trackerd.locator import Locator
+from trackerd.pixelformat import to_bgr
+from trackerd.sim.appearance import wall_content
+from trackerd.sim.randomized import random_rig, random_shot
+from trackerd.sim.render import SceneRenderer
+from trackerd.sim.scene import true_wall_hit
+
+COLOURS = ("red", "blue")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("rig", type=int, help="installation number (the records' 'rig')")
+    parser.add_argument("frames", type=int, nargs="+", help="frame numbers (the records' 'frame')")
+    parser.add_argument("--seed", type=int, default=2026, help="the bench's --seed (default 2026)")
+    parser.add_argument("--out", type=Path, default=Path("/tmp/frames"), help="where the images go")
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    rng = np.random.default_rng([args.seed, args.rig])
+    drawn = random_rig(rng, name=f"random-{args.seed}-{args.rig}")
+    widest = max(c.width_px for c in drawn.cameras)
+    renderer = SceneRenderer(
+        drawn.rig,
+        list(drawn.cameras),
+        look=drawn.look,
+        cache_dir=False,
+        background_step=1 if widest <= 2000 else 2,
+        noise_field=True,
+    )
+    assert drawn.rig.wall is not None
+    wall = wall_frame(drawn.rig.wall)
+    locator = Locator(drawn.rig, cameras=drawn.cameras)
+    print("installation", args.rig, drawn.factors, drawn.rig.pointer)
+    for frame in range(max(args.frames) + 1):
+        shot = random_shot(drawn, rng, wall)
+        content = wall_content(shot.content_kind, rng)
+        views = [
+            renderer.render(
+                i,
+                shot.pose,
+                rng,
+                motion_to=shot.motion_to,
+                motion_steps=shot.motion_steps,
+                occluders=shot.occluders,
+                content=content,
+            )
+            for i in range(len(drawn.cameras))
+        ]
+        if frame not in args.frames:
+            continue
+        middle = shot.pose if shot.motion_to is None else shot.pose.interpolate(shot.motion_to, 0.5)
+        truth = true_wall_hit(middle, wall).wall_xy_m
+        locator.reset()
+        began = time.perf_counter()
+        fix = locator.locate([v.image for v in views])
+        took_s = time.perf_counter() - began
+        print(f"\nframe {frame} {shot.factors}: {fix.status} in {took_s:.2f} s; {fix.reason or ''}")
+        if fix.hit is not None and truth is not None and fix.uncertainty_m is not None:
+            error_mm = 1000 * float(np.linalg.norm(fix.hit.wall_xy_m - truth))
+            print(f"  wall error {error_mm:.2f} mm, sigma {1000 * fix.uncertainty_m:.2f} mm")
+        for k, view in enumerate(views):
+            for colour in COLOURS:
+                used = fix.centroids_px[k].get(colour)
+                print(
+                    f"  camera {k} {colour}: centre {np.round(view.truth.centre_px[colour], 1)},"
+                    f" visible centroid {np.round(view.truth.centroid_px[colour], 1)},"
+                    f" visible {view.truth.visible_fraction(colour):.2f}; used"
+                    f" {None if used is None else np.round(used, 1)}"
+                )
+            base = args.out / f"r{args.rig}_f{frame}_cam{k}"
+            np.save(base.with_suffix(".npy"), view.image)
+            cv2.imwrite(str(base.with_suffix(".png")), to_bgr(view.image, view.pixel_format))
+
+
+if __name__ == "__main__":
+    main()
