@@ -1,8 +1,8 @@
 """Render one frame of `trackerd bench robustness` again, locate it, and save what each camera saw.
 
 A miss or a slow frame in the bench's records (`--records F`: installation and frame numbers) is looked
-into here: the installation is drawn and its frames rendered exactly as `trackerd.bench.robustness.run_rig`
-does (one random generator per installation, shared by all its frames, so every earlier frame is
+into here: the installation is drawn and its frames rendered by the functions `trackerd.bench.robustness.run_rig`
+uses (one random generator per installation, shared by all its frames, so every earlier frame is
 rendered too), and for each frame asked: the locator's status and reason, the wall error and sigma, each
 camera's truth (ball centre, visible centroid, visible fraction) beside the centroid the fix used, and
 the locate time. Each camera's frame is saved as OUT/rRIG_fFRAME_camK.npy (as the camera delivers it)
@@ -20,13 +20,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from trackerd.bench.robustness import draw_installation, drawn_frames, renderer_for
 from trackerd.config.rig_geometry import wall_frame
 from trackerd.locator import Locator
 from trackerd.pixelformat import to_bgr
-from trackerd.sim.appearance import wall_content
-from trackerd.sim.randomized import random_rig, random_shot
-from trackerd.sim.render import SceneRenderer
-from trackerd.sim.scene import true_wall_hit
 
 COLOURS = ("red", "blue")
 
@@ -40,45 +37,20 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
 
-    rng = np.random.default_rng([args.seed, args.rig])
-    drawn = random_rig(rng, name=f"random-{args.seed}-{args.rig}")
-    widest = max(c.width_px for c in drawn.cameras)
-    renderer = SceneRenderer(
-        drawn.rig,
-        list(drawn.cameras),
-        look=drawn.look,
-        cache_dir=False,
-        background_step=1 if widest <= 2000 else 2,
-        noise_field=True,
-    )
+    drawn, rng = draw_installation(args.seed, args.rig)
     assert drawn.rig.wall is not None
     wall = wall_frame(drawn.rig.wall)
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     print("installation", args.rig, drawn.factors, drawn.rig.pointer)
-    for frame in range(max(args.frames) + 1):
-        shot = random_shot(drawn, rng, wall)
-        content = wall_content(shot.content_kind, rng)
-        views = [
-            renderer.render(
-                i,
-                shot.pose,
-                rng,
-                motion_to=shot.motion_to,
-                motion_steps=shot.motion_steps,
-                occluders=shot.occluders,
-                content=content,
-            )
-            for i in range(len(drawn.cameras))
-        ]
+    for drawn_frame in drawn_frames(drawn, renderer_for(drawn), wall, rng, max(args.frames) + 1):
+        frame, views, truth = drawn_frame.number, drawn_frame.views, drawn_frame.truth_xy_m
         if frame not in args.frames:
             continue
-        middle = shot.pose if shot.motion_to is None else shot.pose.interpolate(shot.motion_to, 0.5)
-        truth = true_wall_hit(middle, wall).wall_xy_m
         locator.reset()
         began = time.perf_counter()
         fix = locator.locate([v.image for v in views])
         took_s = time.perf_counter() - began
-        print(f"\nframe {frame} {shot.factors}: {fix.status} in {took_s:.2f} s; {fix.reason or ''}")
+        print(f"\nframe {frame} {drawn_frame.factors}: {fix.status} in {took_s:.2f} s; {fix.reason or ''}")
         if fix.hit is not None and truth is not None and fix.uncertainty_m is not None:
             error_mm = 1000 * float(np.linalg.norm(fix.hit.wall_xy_m - truth))
             print(f"  wall error {error_mm:.2f} mm, sigma {1000 * fix.uncertainty_m:.2f} mm")

@@ -34,7 +34,8 @@ import json
 import multiprocessing
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
     from trackerd.geometry.camera import CameraModel
     from trackerd.geometry.wall import WallFrame
     from trackerd.sim.randomized import RandomRig
-    from trackerd.sim.render import SceneRenderer
+    from trackerd.sim.render import RenderedView, SceneRenderer
     from trackerd.sim.scene import PointerPose
 
 FACTORS = ("placement", "content", "lighting", "blur", "occlusion", "paint", "cameras", "resolution")
@@ -143,23 +144,27 @@ def run(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- one installation
 
 
-def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]:
-    """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
-    from trackerd.config.rig_geometry import wall_frame
-    from trackerd.locator import Locator
-    from trackerd.sim.appearance import wall_content
-    from trackerd.sim.randomized import random_rig, random_shot
-    from trackerd.sim.render import SceneRenderer
-    from trackerd.sim.scene import true_wall_hit
+@dataclass(frozen=True)
+class DrawnFrame:
+    """One frame of an installation as the bench renders it."""
 
-    seed, index, poses, refine, learn_pairs = task
-    rng = np.random.default_rng([seed, index])
-    drawn = random_rig(rng, name=f"random-{seed}-{index}")
-    rig = drawn.rig
-    if refine is not None:
-        rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": refine})})
+    number: int
+    factors: dict[str, str]
+    """The installation's factors and the shot's."""
+    views: list[RenderedView]
+    middle: PointerPose
+    """The pointer's pose in the middle of the exposure (a blurred frame's truth)."""
+    truth_xy_m: NDArray[np.float64] | None
+    """Where ``middle`` points on the wall (None: not at the wall's plane)."""
+
+
+def renderer_for(drawn: RandomRig) -> SceneRenderer:
+    """The renderer of a drawn installation, as the bench makes it (each renderer draws its noise field
+    from the first generator it is given)."""
+    from trackerd.sim.render import SceneRenderer
+
     widest = max(c.width_px for c in drawn.cameras)
-    renderer = SceneRenderer(
+    return SceneRenderer(
         drawn.rig,
         list(drawn.cameras),
         look=drawn.look,
@@ -167,25 +172,26 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
         background_step=1 if widest <= 2000 else 2,
         noise_field=True,
     )
-    assert drawn.rig.wall is not None and drawn.rig.pointer is not None  # a drawn rig has both
-    wall = wall_frame(drawn.rig.wall)
-    learned = False
-    if learn_pairs:
-        # Shots of their own, from their own generator and renderer (a renderer draws its noise field from the
-        # first generator it is given): the measured frames are exactly those of a run without learning.
-        learning = SceneRenderer(
-            drawn.rig,
-            list(drawn.cameras),
-            look=drawn.look,
-            cache_dir=False,
-            background_step=1 if widest <= 2000 else 2,
-            noise_field=True,
-        )
-        rig, learned = _learn_colours(rig, drawn, learning, wall, np.random.default_rng([seed, index, 1]), learn_pairs)
-    locator = Locator(rig, cameras=drawn.cameras)
-    floor_rng = np.random.default_rng([seed, index, 2])  # its own: the scenes are those of a run without it
-    records = []
-    for frame in range(poses):
+
+
+def draw_installation(seed: int, index: int) -> tuple[RandomRig, np.random.Generator]:
+    """Installation ``index`` of a run with ``seed``, and the generator its frames are then drawn from."""
+    from trackerd.sim.randomized import random_rig
+
+    rng = np.random.default_rng([seed, index])
+    return random_rig(rng, name=f"random-{seed}-{index}"), rng
+
+
+def drawn_frames(
+    drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame, rng: np.random.Generator, poses: int
+) -> Iterator[DrawnFrame]:
+    """The installation's first ``poses`` frames, in order (every frame draws from ``rng`` in turn, so
+    frame k is the same only after frames 0..k-1 were drawn: scripts/robustness_frame.py relies on it)."""
+    from trackerd.sim.appearance import wall_content
+    from trackerd.sim.randomized import random_shot
+    from trackerd.sim.scene import true_wall_hit
+
+    for number in range(poses):
         shot = random_shot(drawn, rng, wall)
         content = wall_content(shot.content_kind, rng)
         views = [
@@ -203,6 +209,33 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
         # The truth of a blurred frame is the middle of the exposure.
         middle = shot.pose if shot.motion_to is None else shot.pose.interpolate(shot.motion_to, 0.5)
         truth = true_wall_hit(middle, wall).wall_xy_m
+        yield DrawnFrame(number, {**drawn.factors, **shot.factors}, views, middle, truth)
+
+
+def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]:
+    """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
+    from trackerd.config.rig_geometry import wall_frame
+    from trackerd.locator import Locator
+
+    seed, index, poses, refine, learn_pairs = task
+    drawn, rng = draw_installation(seed, index)
+    rig = drawn.rig
+    if refine is not None:
+        rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": refine})})
+    renderer = renderer_for(drawn)
+    assert drawn.rig.wall is not None and drawn.rig.pointer is not None  # a drawn rig has both
+    wall = wall_frame(drawn.rig.wall)
+    learned = False
+    if learn_pairs:
+        # Shots of their own, from their own generator and renderer: the measured frames are exactly
+        # those of a run without learning.
+        learning = renderer_for(drawn)
+        rig, learned = _learn_colours(rig, drawn, learning, wall, np.random.default_rng([seed, index, 1]), learn_pairs)
+    locator = Locator(rig, cameras=drawn.cameras)
+    floor_rng = np.random.default_rng([seed, index, 2])  # its own: the scenes are those of a run without it
+    records = []
+    for frame in drawn_frames(drawn, renderer, wall, rng, poses):
+        views, middle, truth = frame.views, frame.middle, frame.truth_xy_m
         visible = [[v.truth.visible_fraction(c) for c in ("red", "blue")] for v in views]
         seeing = sum(1 for pair in visible if min(pair) >= MIN_VISIBLE)
         images = [v.image for v in views]
@@ -212,8 +245,8 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
         seconds = time.perf_counter() - began
         record: dict[str, Any] = {
             "rig": index,
-            "frame": frame,
-            "factors": {**drawn.factors, **shot.factors},
+            "frame": frame.number,
+            "factors": frame.factors,
             "eligible": seeing >= 2,
             "visible": visible,
             "status": fix.status,
