@@ -25,6 +25,8 @@ from trackerd.geometry.pointer_line import PointerLine
 from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
+    from trackerd.detect.ballfit import BallFit
+    from trackerd.detect.colour import SampleGrid
     from trackerd.detect.result import EndDetection
     from trackerd.detect.search import Candidate
     from trackerd.locator import Locator
@@ -41,6 +43,15 @@ MAX_GUIDED_RESIDUAL_PX = 1.0
 GUIDED_SIZE = 1.15
 """And its radius within this factor of a ball's at the distance the geometry puts it."""
 
+TOUCHING_LARGEST = 1.05
+"""Where that fails, the ball may touch something of its colour; it is fitted again with its radius at most
+this factor of the geometry's (an outline's rim lies on or just inside the ball's silhouette; a circle through
+the ball's arc and the far edge of a letter it touches is larger; :func:`guided_fit`)..."""
+
+TOUCHING_SLACK_PX = 3.0
+"""...and the rim points that no such circle centred within this of where the geometry puts the ball can
+pass through left out (the far edges of what it touches)."""
+
 
 def blob_radius_px(end: EndDetection) -> float:
     """A ball's image radius as its blob suggests: the larger of the blob's area's and its box's, since
@@ -50,6 +61,56 @@ def blob_radius_px(end: EndDetection) -> float:
         x0, y0, x1, y1 = end.bbox_px
         radius = max(radius, 0.5 * max(x1 - x0 + 1, y1 - y0 + 1))
     return radius
+
+
+def guided_fit(
+    image: NDArray[np.uint8],
+    grid: SampleGrid,
+    colour: str,
+    x_px: float,
+    y_px: float,
+    radius_px: float,
+    axis: tuple[float, float] | None,
+) -> BallFit | None:
+    """The ball looked for where the geometry puts it (centre, image radius, and the direction where the rod
+    meets it), for the joint choice's ``look``: its outline if it is round within MAX_GUIDED_RESIDUAL_PX,
+    else None.
+
+    The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
+    takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails the ball may
+    touch something of its colour (a letter, a picture): on those rays the colour falls only at that
+    thing's far edge, and a larger circle through the ball's arc and that edge fits best. So it is fitted
+    again with the radius at most TOUCHING_LARGEST of the geometry's and the rims no such circle centred
+    within TOUCHING_SLACK_PX of the start can pass through left out."""
+    from trackerd.detect.ballfit import fit_ball
+
+    fit = fit_ball(
+        image,
+        grid,
+        colour,
+        x_px,
+        y_px,
+        radius_px,
+        axis=axis,
+        radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
+        rising_rims=True,
+    )
+    if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
+        fit = fit_ball(
+            image,
+            grid,
+            colour,
+            x_px,
+            y_px,
+            radius_px,
+            axis=axis,
+            radius_range_px=(radius_px / GUIDED_SIZE, radius_px * TOUCHING_LARGEST),
+            rising_rims=True,
+            centre_slack_px=TOUCHING_SLACK_PX,
+        )
+    if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
+        return None
+    return fit
 
 
 def _tracks(detection: Any, red: Any, blue: Any) -> bool:
@@ -145,7 +206,6 @@ class RefinedPath:
 
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
-        from trackerd.detect.ballfit import fit_ball
         from trackerd.detect.search import Candidate, search_candidates, split_candidates
         from trackerd.ends import from_fit
         from trackerd.joint import choose_jointly
@@ -160,19 +220,8 @@ class RefinedPath:
         def look(
             camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
         ) -> Candidate | None:
-            # The geometry knows the ball's size to a few percent and where the rod meets it.
-            fit = fit_ball(
-                images[camera],
-                self.loc.grids[camera],
-                colour,
-                x_px,
-                y_px,
-                radius_px,
-                axis=axis,
-                radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
-                rising_rims=True,
-            )
-            if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
+            fit = guided_fit(images[camera], self.loc.grids[camera], colour, x_px, y_px, radius_px, axis)
+            if fit is None:
                 return None
             return Candidate(colour, fit, (x_px, y_px), radius_px)
 

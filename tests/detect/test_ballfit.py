@@ -162,3 +162,39 @@ def test_rims_closer_than_the_lattice_share_their_noise() -> None:
     assert 9.0 < independent_rims(48, 5.0, 2.0) < 12.0
     assert independent_rims(48, 30.0, 2.0) == 48.0
     assert independent_rims(48, 5.0, 1.0) == pytest.approx(2.0 * independent_rims(48, 5.0, 2.0))
+
+
+def test_a_ball_in_the_corner_of_a_letter_of_its_colour_is_found_where_the_geometry_says(detect_rng) -> None:
+    """A shaded red ball in the corner of a red or orange letter (a stroke beside it and a bar above it, both
+    reaching a few pixels past its rim): on those rays its colour falls only at the letter's far edge, and
+    the guided fit's best circle ran through the ball's arc and that edge, larger than any ball there, so
+    the joint choice's look found nothing (`bench robustness`, red text). The look leaves out the rims no
+    circle of the ball's size near where the geometry puts it can pass through (trackerd/refine.py)."""
+    from trackerd.refine import GUIDED_SIZE, guided_fit
+
+    grid = sample_grid("BayerRG8", 240, 150)
+    failed_before = 0
+    for letter in ((0.92, 0.45, 0.08), (0.95, 0.15, 0.12)):
+        for radius, beyond in ((11.5, 4.7), (10.0, 4.6), (10.8, 4.1)):
+            x, y = 120.3, 75.6
+            inner = 0.45 * radius
+            half = 0.5 * (radius + beyond - inner)
+            stroke = Shape(x + inner + half, y, letter, half_size=(half, 3.0 * radius))
+            bar = Shape(x + inner, y - inner - half, letter, half_size=(2.0 * radius, half))
+            ball = Shape(x, y, tuple(0.75 * c for c in RED), radius=radius, shading=0.3)
+            frame, _ = Scene(width=240, shapes=[stroke, bar, ball]).render("BayerRG8", detect_rng)
+            start = (x + 0.8, y - 0.6)  # where the geometry puts it, to a pixel
+            before = fit_ball(
+                frame,
+                grid,
+                "red",
+                *start,
+                radius,
+                radius_range_px=(radius / GUIDED_SIZE, radius * GUIDED_SIZE),
+                rising_rims=True,
+            )
+            failed_before += not before.found
+            fit = guided_fit(frame, grid, "red", *start, radius, None)
+            assert fit is not None, (letter, radius, beyond)
+            assert np.hypot(*(fit.centre_px - [x, y])) < 1.0, (letter, radius, beyond, fit.centre_px)
+    assert failed_before >= 3

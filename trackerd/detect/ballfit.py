@@ -125,6 +125,7 @@ def fit_ball(
     radius_range_px: tuple[float, float] | None = None,
     passes: int = 2,
     rising_rims: bool = False,
+    centre_slack_px: float | None = None,
 ) -> BallFit:
     """The circle of the ``colour`` ball near (x_px, y_px), of roughly ``radius_px`` (see the module).
 
@@ -139,13 +140,19 @@ def fit_ball(
     (:func:`_rising_rims`). Only where the geometry has said where the ball is and how large: elsewhere
     such a rise is as often the edge of a hand or a picture as a ball's, and on randomized scenes taking
     it everywhere moved more good fits than it rescued.
+    ``centre_slack_px`` (with ``radius_range_px``): the ball's centre is known to within this of each
+    pass's start, so a rim point nearer than the smallest radius, or farther than the largest, by more
+    than this cannot be on the ball's outline, and is left out before the circle is fitted
+    (:func:`_annulus`): where the ball touches something of its colour (a letter, a picture), the colour
+    falls only at that thing's far edge, and those rims would pull the fit into a larger circle through
+    both.
     """
     if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:
         return BallFit.missing("no position to look at")
     fit = BallFit.missing("not looked for")
     cx, cy, radius = float(x_px), float(y_px), max(float(radius_px), 2.0)
     for _ in range(passes):
-        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims)
+        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims, centre_slack_px)
         if not fit.found:
             return fit
         cx, cy = (float(v) for v in fit.centre_px)
@@ -163,6 +170,7 @@ def _one_pass(
     axis: tuple[float, float] | None,
     radius_range_px: tuple[float, float] | None = None,
     rising_rims: bool = False,
+    centre_slack_px: float | None = None,
 ) -> BallFit:
     reach = 2.0 * radius + 3.0
     s = grid.cell_px
@@ -192,6 +200,8 @@ def _one_pass(
         off_axis = np.abs(_COS * ax + _SIN * ay) < math.cos(math.radians(ROD_EXCLUSION_DEG))
         rim = np.where(off_axis, rim, np.nan)
         usable = int(np.count_nonzero(off_axis))
+    if centre_slack_px is not None and radius_range_px is not None:
+        rim = _annulus(rim, radius_range_px, centre_slack_px)
     ok = np.isfinite(rim)
     if np.count_nonzero(ok) < max(6, int(MIN_RIM_FRACTION * usable)):
         return BallFit.missing(f"the ball's outline is not visible (rim on {np.count_nonzero(ok)} of {usable} rays)")
@@ -216,6 +226,13 @@ def _one_pass(
     contrast_level = float(np.median(contrast[ok][agree]))
     arc = arc_deformation_covariance(directions, weights[agree], scale)
     return BallFit(True, centre, r, used, fraction, scale, sigma, contrast_level, None, independent, arc)
+
+
+def _annulus(rim: Array, radius_range_px: tuple[float, float], slack_px: float) -> Array:
+    """The rims (distances from a pass's start, NaN for none) that a circle of a radius in
+    ``radius_range_px`` centred within ``slack_px`` of the start can pass through; NaN for the others."""
+    inside = (rim >= radius_range_px[0] - slack_px) & (rim <= radius_range_px[1] + slack_px)
+    return np.where(inside, rim, np.nan)
 
 
 def arc_deformation_covariance(directions: Array, weights: Array, amplitude_px: float) -> Array:
