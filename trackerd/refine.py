@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from trackerd.errors import GeometryError
 from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, EndViews, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
+from trackerd.geometry.sphere import view_map
 from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
@@ -52,6 +53,11 @@ TOUCHING_SLACK_PX = 3.0
 """...and the rim points that no such circle centred within this of where the geometry puts the ball can
 pass through left out (the far edges of what it touches)."""
 
+VIEW_TOLERANCE = 0.05
+"""Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
+this share away from 1, a ball's outline is not a circle of the expected radius in pixels: a fit that
+fails in pixels there is tried again in the view's units."""
+
 
 def blob_radius_px(end: EndDetection) -> float:
     """A ball's image radius as its blob suggests: the larger of the blob's area's and its box's, since
@@ -71,10 +77,12 @@ def guided_fit(
     y_px: float,
     radius_px: float,
     axis: tuple[float, float] | None,
+    view: Array | None = None,
 ) -> BallFit | None:
     """The ball looked for where the geometry puts it (centre, image radius, and the direction where the rod
     meets it), for the joint choice's ``look``: its outline if it is round within MAX_GUIDED_RESIDUAL_PX,
-    else None.
+    else None. With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the circle and its
+    scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
 
     The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
     takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails the ball may
@@ -94,6 +102,7 @@ def guided_fit(
         axis=axis,
         radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
         rising_rims=True,
+        view=view,
     )
     if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
         fit = fit_ball(
@@ -107,6 +116,7 @@ def guided_fit(
             radius_range_px=(radius_px / GUIDED_SIZE, radius_px * TOUCHING_LARGEST),
             rising_rims=True,
             centre_slack_px=TOUCHING_SLACK_PX,
+            view=view,
         )
     if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
         return None
@@ -211,7 +221,7 @@ class RefinedPath:
         from trackerd.joint import choose_jointly
 
         candidates = [
-            search_candidates(image, self.loc.grids[index], self._radius_range_px(index))
+            search_candidates(image, self.loc.grids[index], self._radius_range_px(index), view=self._view_at(index))
             for index, image in enumerate(images)
         ]
         pointer = self.loc.pointer
@@ -220,10 +230,15 @@ class RefinedPath:
         def look(
             camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
         ) -> Candidate | None:
-            fit = guided_fit(images[camera], self.loc.grids[camera], colour, x_px, y_px, radius_px, axis)
+            # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
+            # size, which is its size in pixels only near the lens's axis (VIEW_TOLERANCE).
+            grid = self.loc.grids[camera]
+            fit = guided_fit(images[camera], grid, colour, x_px, y_px, radius_px, axis)
             if fit is None:
-                return None
-            return Candidate(colour, fit, (x_px, y_px), radius_px)
+                local = self._view_at(camera)(x_px, y_px)
+                if local is not None:
+                    fit = guided_fit(images[camera], grid, colour, x_px, y_px, radius_px, axis, view=local)
+            return None if fit is None else Candidate(colour, fit, (x_px, y_px), radius_px)
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(
@@ -307,6 +322,20 @@ class RefinedPath:
         if float(np.hypot(*(fit.centre_px - at))) > max(3.0, 0.5 * expected_px):
             return None
         return from_fit(camera, camera_index, colour, fit)
+
+    def _view_at(self, index: int) -> Callable[[float, float], Array | None]:
+        """Camera ``index``'s view map at a pixel, or None where it is within VIEW_TOLERANCE of the identity
+        (a ball's outline there is a circle of its expected radius in pixels)."""
+        camera = self.loc.cameras[index]
+
+        def at(x_px: float, y_px: float) -> Array | None:
+            local = view_map(camera, np.array([x_px, y_px]))
+            scales = np.linalg.svd(local, compute_uv=False)
+            if float(np.max(np.abs(scales - 1.0))) <= VIEW_TOLERANCE:
+                return None
+            return local
+
+        return at
 
     def _radius_range_px(self, index: int) -> tuple[float, float]:
         """The image radius a ball can have in camera ``index``: from half a metre away to as far as the

@@ -15,7 +15,7 @@ from trackerd.geometry.pointer_fit import (
     hit_covariance,
     predict,
 )
-from trackerd.geometry.sphere import fit_sphere_direction
+from trackerd.geometry.sphere import fit_sphere_direction, view_map
 
 K = np.array([[1600.0, 0.0, 960.0], [0.0, 1600.0, 540.0], [0.0, 0.0, 1.0]])
 
@@ -187,6 +187,35 @@ def test_a_balls_outline_gives_its_centres_direction_exactly(distortion) -> None
     # Half the rim (the other half hidden) still gives the centre.
     half = fit_sphere_direction(cam.normalized_from_pixels(rim_px[:20]))
     assert half is not None and np.allclose(half.normalised, centre[:2] / centre[2], atol=1e-9)
+
+
+@pytest.mark.parametrize("distortion", [np.zeros(0), np.array([-0.3, 0.1, 0.001, -0.001, 0.0])])
+def test_a_balls_outline_is_a_circle_of_its_angular_size_in_the_view_map(distortion) -> None:
+    """A sphere 35 degrees off the axis images as an ellipse stretched away from the axis by about
+    1 / cos(35 deg) = 1.22 (less through a barrel lens); mapped by the view map at its image, its rim is
+    a circle of radius focal * tan(half-angle) about the image of its centre (to the map's linearisation
+    over the ball)."""
+    cam = CameraModel("c", 1920, 1080, K, distortion, np.eye(3), np.zeros(3))
+    assert np.allclose(view_map(cam, np.array([960.0, 540.0])), np.eye(2), atol=1e-6)
+    centre = np.array([0.9, -0.95, 1.9])  # 35 degrees off-axis
+    radius, d = 0.02, float(np.linalg.norm(np.array([0.9, -0.95, 1.9])))
+    u = centre / d
+    e1 = np.cross(u, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    ring = (centre - radius**2 / d * u) + radius * np.sqrt(1 - (radius / d) ** 2) * (
+        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2
+    )
+    rim_px = cam.project(ring)
+    at = cam.project(centre[None])[0]
+    in_pixels = np.linalg.norm(rim_px - rim_px.mean(axis=0), axis=1)
+    if not distortion.size:  # (a barrel lens undoes part of the stretch)
+        assert in_pixels.max() / in_pixels.min() > 1.15  # not a circle in pixels
+    mapped = (rim_px - at) @ view_map(cam, at).T
+    distances = np.linalg.norm(mapped, axis=1)
+    expected = cam.focal_px * radius / np.sqrt(d * d - radius * radius)
+    assert np.all(np.abs(distances - expected) < 0.02 * expected), (distances.min(), distances.max(), expected)
 
 
 def test_near_parallel_interpretation_planes_a_good_line_and_an_honest_uncertainty() -> None:

@@ -126,6 +126,7 @@ def fit_ball(
     passes: int = 2,
     rising_rims: bool = False,
     centre_slack_px: float | None = None,
+    view: Array | None = None,
 ) -> BallFit:
     """The circle of the ``colour`` ball near (x_px, y_px), of roughly ``radius_px`` (see the module).
 
@@ -146,13 +147,17 @@ def fit_ball(
     (:func:`_annulus`): where the ball touches something of its colour (a letter, a picture), the colour
     falls only at that thing's far edge, and those rims would pull the fit into a larger circle through
     both.
+    ``view``: a 2x2 map from image offsets near the ball to offsets in which its outline is a circle
+    (:func:`trackerd.geometry.sphere.view_map`: a ball far off a wide lens's axis images as an ellipse
+    stretched away from the axis). The rays, the circle and ``radius_px``, ``radius_range_px`` and the
+    result's radius and scatter are then in those units; the centre and the rim points stay in pixels.
     """
     if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:
         return BallFit.missing("no position to look at")
     fit = BallFit.missing("not looked for")
     cx, cy, radius = float(x_px), float(y_px), max(float(radius_px), 2.0)
     for _ in range(passes):
-        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims, centre_slack_px)
+        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims, centre_slack_px, view)
         if not fit.found:
             return fit
         cx, cy = (float(v) for v in fit.centre_px)
@@ -171,16 +176,22 @@ def _one_pass(
     radius_range_px: tuple[float, float] | None = None,
     rising_rims: bool = False,
     centre_slack_px: float | None = None,
+    view: Array | None = None,
 ) -> BallFit:
+    # The rays run in the view's units (where the outline is a circle); ``image`` takes them back to pixels.
+    image = np.eye(2) if view is None else np.linalg.inv(view)
     reach = 2.0 * radius + 3.0
+    reach_px = reach if view is None else reach * float(np.linalg.norm(image, 2))
     s = grid.cell_px
+    # The colour's sample lattice's spacing in the rays' units.
+    lattice = float(s) if view is None else float(s) * math.sqrt(abs(float(np.linalg.det(view))))
     dr, dc = grid.offset(colour)
     lo_r, hi_r, lo_c, hi_c = grid.interior()
     region = (
-        max(lo_r, math.floor((cy - reach - dr) / s) - 1),
-        min(hi_r, math.ceil((cy + reach - dr) / s) + 2),
-        max(lo_c, math.floor((cx - reach - dc) / s) - 1),
-        min(hi_c, math.ceil((cx + reach - dc) / s) + 2),
+        max(lo_r, math.floor((cy - reach_px - dr) / s) - 1),
+        min(hi_r, math.ceil((cy + reach_px - dr) / s) + 2),
+        max(lo_c, math.floor((cx - reach_px - dc) / s) - 1),
+        min(hi_c, math.ceil((cx + reach_px - dc) / s) + 2),
     )
     if region[1] - region[0] < 3 or region[3] - region[2] < 3:
         return BallFit.missing("the ball is at the frame's edge")
@@ -188,13 +199,19 @@ def _one_pass(
     levels = excess.astype(np.float32) / np.float32(EXCESS_SCALE)
     # Samples along the rays, as lattice coordinates of the window.
     rho = np.arange(0.15 * radius, reach, STEP_PX)
-    xs = cx + _COS[:, None] * rho[None, :]
-    ys = cy + _SIN[:, None] * rho[None, :]
+    if view is None:
+        xs = cx + _COS[:, None] * rho[None, :]
+        ys = cy + _SIN[:, None] * rho[None, :]
+    else:
+        xs = cx + (image[0, 0] * _COS + image[0, 1] * _SIN)[:, None] * rho[None, :]
+        ys = cy + (image[1, 0] * _COS + image[1, 1] * _SIN)[:, None] * rho[None, :]
     u = (xs - dc) / s - region[2]
     v = (ys - dr) / s - region[0]
     profile = _bilinear(levels, u, v)  # (RAYS, M), NaN outside the window
-    rim, contrast = _rims(profile, rho, radius, float(s), rising_rims)
+    rim, contrast = _rims(profile, rho, radius, lattice, rising_rims)
     usable = RAYS
+    if axis is not None and view is not None:
+        axis = (float(view[0, 0] * axis[0] + view[0, 1] * axis[1]), float(view[1, 0] * axis[0] + view[1, 1] * axis[1]))
     if axis is not None and math.hypot(*axis) > 0:
         ax, ay = axis[0] / math.hypot(*axis), axis[1] / math.hypot(*axis)
         off_axis = np.abs(_COS * ax + _SIN * ay) < math.cos(math.radians(ROD_EXCLUSION_DEG))
@@ -210,6 +227,11 @@ def _one_pass(
     if circle is None:
         return BallFit.missing("the rim points are not a circle")
     centre, r, weights, scale = circle
+    if view is not None:
+        # Back to pixels: the centre, and the rim points (for the exact cone fit, which undistorts them).
+        origin = np.array([cx, cy])
+        centre = origin + image @ (centre - origin)
+        points = origin + (points - origin) @ image.T
     agree = weights > 0.0
     fraction = float(np.count_nonzero(agree)) / usable
     if fraction < MIN_RIM_FRACTION or not (0.3 * radius <= r <= 3.0 * radius):
@@ -219,9 +241,11 @@ def _one_pass(
     used = points[agree]
     # The centre's standard error: the scatter over the rim, spread over the directions it covers.
     directions = (used - centre) / r
+    if view is not None:
+        directions = (used - centre) @ view.T / r
     information = directions.T @ (directions * weights[agree, None])
     smallest = float(np.linalg.eigvalsh(information)[0])
-    independent = independent_rims(len(used), r, float(s))
+    independent = independent_rims(len(used), r, lattice)
     sigma = scale / math.sqrt(max(smallest, 1e-9)) * math.sqrt(len(used) / independent)
     contrast_level = float(np.median(contrast[ok][agree]))
     arc = arc_deformation_covariance(directions, weights[agree], scale)

@@ -22,6 +22,7 @@ together; it is not on the tracking path.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +55,11 @@ SPLIT_FROM = 2.0
 
 MAX_SPLIT_SEEDS = 12
 """Seeds from the split of groups too large to be a ball, fitted per colour (:func:`split_candidates`)."""
+
+
+ViewAt = Callable[[float, float], "NDArray[np.float64] | None"]
+"""``view(x_px, y_px)``: the camera's map from image offsets there to units in which a ball's outline is a
+circle (:func:`trackerd.geometry.sphere.view_map`), or None where it is a circle in pixels already."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,8 +121,13 @@ def search_candidates(
     *,
     colours: tuple[str, ...] = ("red", "blue"),
     max_seeds: int = MAX_SEEDS,
+    view: ViewAt | None = None,
 ) -> dict[str, list[Candidate]]:
-    """The fitted candidates of each colour (see the module), best seeds first."""
+    """The fitted candidates of each colour (see the module), best seeds first.
+
+    ``view``: where a seed's outline is not a circle in pixels (far off a wide lens's axis) and its fit in
+    pixels fails, it is fitted again in the units ``view`` gives there; its radius is then in those units
+    (the focal length times the ball's angular radius, what the joint choice expects)."""
     smallest, largest = radius_range_px
     sampled = _sample(frame, grid, smallest)
     out: dict[str, list[Candidate]] = {}
@@ -139,6 +150,11 @@ def search_candidates(
         found: list[Candidate] = []
         for x, y, radius in seeds[:max_seeds]:
             fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
+            local = None if fit.found or view is None else view(x, y)
+            if local is not None:
+                # The seed's size is in pixels: in the view's units, by its mean scale there.
+                scale = math.sqrt(abs(float(np.linalg.det(local))))
+                fit = fit_ball(frame, grid, colour, x, y, scale * max(radius, smallest), view=local)
             if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
                 found.append(Candidate(colour, fit, (x, y), radius))
         out[colour] = _distinct(found)

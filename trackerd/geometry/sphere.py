@@ -17,9 +17,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from trackerd.geometry.camera import CameraModel
 
 Array = NDArray[np.float64]
 
@@ -82,3 +86,30 @@ def fit_sphere_direction(
     cov_a = variance * inverse
     jac = np.array([[1.0 / a[2], 0.0, -a[0] / a[2] ** 2], [0.0, 1.0 / a[2], -a[1] / a[2] ** 2]])
     return SphereDirection(normalised, alpha, jac @ cov_a @ jac.T)
+
+
+def view_map(camera: CameraModel, at_px: Array, step_px: float = 1.0) -> Array:
+    """The 2x2 map from image offsets near pixel ``at_px`` to the focal length times the angles they make
+    with the ray through it (on the plane at right angles to that ray), lens distortion included.
+
+    A ball's grazing rays are a circular cone, so in these units its outline is a circle of radius
+    ``focal * tan(half-angle)`` wherever it is in the image. In pixels it is not: seen at an angle theta
+    off the optical axis it is stretched away from the axis by about 1 / cos(theta) (its image is an
+    ellipse), 1.27 at 38 degrees, where a wide lens sees a ball held close to it. Near the axis the map
+    is the identity to within the lens's aspect ratio."""
+    centre = np.asarray(at_px, dtype=np.float64).reshape(2)
+    h = float(step_px)
+    around = centre + np.array([[0.0, 0.0], [h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
+    rays = camera.rays_camera(around)
+    axis = rays[0]
+    # An orthonormal basis of the plane at right angles to the ray, as close to the image's x and y as
+    # can be (the identity on the optical axis).
+    first = np.array([1.0, 0.0, 0.0]) - axis * axis[0]
+    first /= np.linalg.norm(first)
+    second = np.cross(axis, first)
+    # Gnomonic coordinates on that plane: where each ray meets it.
+    on_plane = rays / (rays @ axis)[:, None] - axis
+    coords = np.column_stack([on_plane @ first, on_plane @ second])
+    jacobian = np.column_stack([coords[1] - coords[2], coords[3] - coords[4]]) / (2.0 * h)
+    mapped: Array = camera.focal_px * jacobian
+    return mapped
