@@ -202,9 +202,13 @@ def _guided(
     and the partner's small error can make it miss the sphere altogether: a ray passing outside it by
     no more than the length's tolerance is taken at its closest point to the partner."""
     found: list[_Point] = []
+    # The rays looked along are the searches' own candidates: what a look finds joins ``candidates`` (for
+    # the pairing) but is not looked from again, or each find would seed more looks in every other camera
+    # and their number would grow with every partner (a 4-camera installation made 240,000 looks).
+    offered = [len(per_camera[colour]) for per_camera in candidates]
     for partner in partners:
         for a, cam in enumerate(cameras):
-            for i, cand in enumerate(candidates[a][colour]):
+            for i, cand in enumerate(candidates[a][colour][: offered[a]]):
                 _, d = cam.pixel_to_ray(cand.fit.centre_px[None])
                 d = d[0] / np.linalg.norm(d[0])
                 # |c + s d - P| = L: s^2 + 2 s d.(c - P) + |c - P|^2 - L^2 = 0.
