@@ -125,3 +125,31 @@ def test_no_pointer_is_a_reason() -> None:
     reason = _choose(candidates)
     assert isinstance(reason, str) and "length apart" in reason
     assert "no red" in _choose([{"red": [], "blue": []} for _ in CAMERAS])
+
+
+def test_what_a_look_finds_is_not_looked_from_again() -> None:
+    """The red ball merged in two of three cameras: looking from the one camera's red candidate finds it
+    in the other two. Those finds join the candidates for the pairing, but the rays looked along stay the
+    searches' own: were each find looked from again, every find would seed looks in every other camera,
+    and a 4-camera installation made 240,000 looks for one frame."""
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, BLUE, "blue")]} for cam in CAMERAS]
+    candidates[1]["red"] = []
+    candidates[2]["red"] = []
+    asked = []
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
+        asked.append((camera, colour))
+        truth = _ball(CAMERAS[camera], RED if colour == "red" else BLUE, colour)
+        return truth if np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0 else None
+
+    choice = _choose(candidates, look=look)
+    assert isinstance(choice, JointChoice), choice
+    assert choice.chosen[1]["red"] is not None and choice.chosen[2]["red"] is not None
+    assert np.linalg.norm(choice.red_m - RED) < 1e-6
+    # Red is looked for from camera 0's one candidate only (into the two other cameras, at most two
+    # crossings of the length's sphere, around each of at most GUIDED_POINTS blue points); blue from the
+    # three offered blue candidates around the one red point.
+    from trackerd.joint import GUIDED_POINTS
+
+    assert sum(1 for _, colour in asked if colour == "red") <= GUIDED_POINTS * 2 * 2
+    assert sum(1 for _, colour in asked if colour == "blue") <= 3 * 2 * 2
