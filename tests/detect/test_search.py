@@ -88,3 +88,31 @@ def test_a_bright_ball_touching_a_dark_picture_of_its_hue_is_split_from_it(detec
         frame, _ = Scene(width=240, shapes=[slide, Shape(x, y, BLUE, radius=radius)]).render("BayerRG8", detect_rng)
         assert _nearest(search_candidates(frame, grid, (5.0, 25.0))["blue"], x, y) > 1.0
         assert _nearest(split_candidates(frame, grid, (5.0, 25.0))["blue"], x, y) < 0.5, (x, y, radius)
+
+
+def test_a_ball_on_a_plain_wall_is_fitted_before_the_specks_of_a_textured_picture(detect_rng) -> None:
+    """A picture of red specks as round and as large as a ball (a textured print, flowers, a crowd) beside
+    the red ball on the plain wall: every speck is a seed as ball-like as the ball, and with more of them
+    than the seeds fitted, the ball must come first for being alone."""
+    x, y = 40.3, 75.6
+    specks = [
+        Shape(110.0 + 17.0 * i + 4.0 * (j % 2), 12.0 + 16.0 * j, RED, radius=5.0 + (i + j) % 3)
+        for i in range(8)
+        for j in range(9)
+    ]
+    scene = Scene(width=260, height=150, shapes=[Shape(x, y, RED, radius=7.0), *specks])
+    frame, _ = scene.render("BayerRG8", detect_rng)
+    cands = search_candidates(frame, sample_grid("BayerRG8", 260, 150), (5.0, 25.0), colours=("red",), max_seeds=8)
+    assert _nearest(cands["red"], x, y) < 0.4
+
+
+def test_a_ball_on_a_wall_of_a_nearby_hue_is_fitted_before_the_walls_noise(detect_rng) -> None:
+    """A warm-lit tan wall whose hue is just short of the relative test's edge: its sensor noise passes the
+    test in hundreds of specks of a few samples, some as round as a small ball. The painted ball's hue is
+    well beyond the edge, and it must come first."""
+    x, y = 60.4, 70.2
+    warm_wall = (0.66, 0.48, 0.42)
+    scene = Scene(width=320, height=200, background=warm_wall, shapes=[Shape(x, y, RED, radius=6.0)])
+    frame, _ = scene.render("BayerRG8", detect_rng, noise=6.0)
+    cands = search_candidates(frame, sample_grid("BayerRG8", 320, 200), (3.0, 25.0), colours=("red",), max_seeds=3)
+    assert _nearest(cands["red"], x, y) < 0.4

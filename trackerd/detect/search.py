@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.detect.ballfit import BallFit, fit_ball
-from trackerd.detect.blobs import blob_stats, find_runs, label_runs
+from trackerd.detect.blobs import Runs, blob_stats, find_runs, label_runs
 from trackerd.detect.colour import SampleGrid, _plane
 
 RELATIVE_EXCESS = 0.3
@@ -43,6 +43,14 @@ STRICTER = (0.5, 0.65)
 
 MAX_SEEDS = 20
 """Seeds fitted per colour, best first."""
+
+VIVID_MARGIN = 0.2
+"""A seed whose mean hue strength (:func:`_strength`) is this far above RELATIVE_EXCESS keeps its whole
+score; one at the test's edge a tenth of it."""
+
+CROWDING_WEIGHT = 4.0
+"""A seed's score is divided by 1 + this times its crowding (:func:`_crowding`: the share of samples of
+its colour in a frame of half its size around it): a quarter crowded halves it."""
 
 DARKER_SHARE = 0.7
 """Inside a group larger than the smallest ball, samples whose own channel is below this share of the
@@ -218,6 +226,8 @@ def _seeds(
     dr, dc = grid.offset(colour)
     r0, _, c0, _ = sampled.region
     step, spacing, s = sampled.step, sampled.spacing_px, grid.cell_px
+    crowding = _crowding(mask, stats.y0, stats.y1, stats.x0, stats.x1)
+    strength = _strength(sampled, colour, runs, labels, count)
     scored = []
     merged = []
     for k in range(count):
@@ -234,10 +244,60 @@ def _seeds(
         x = (c0 + step * float(stats.mean_x[k])) * s + dc
         y = (r0 + step * float(stats.mean_y[k])) * s + dr
         roundness = min(width, height) / max(width, height)
-        # Ball-like first, whatever the size: a small ball must not wait behind the large letters of a slide.
-        scored.append((roundness * min(1.0, fill / 0.6) * min(1.0, radius / smallest), x, y, max(radius, area_radius)))
+        # Ball-like first, whatever the size: a small ball must not wait behind the large letters of a slide;
+        # and alone before crowded: the specks of a textured picture are as round as a ball, and hundreds
+        # of them kept a clear ball on a plain wall beyond MAX_SEEDS.
+        shape = roundness * min(1.0, fill / 0.6) * min(1.0, radius / smallest)
+        vivid = min(1.0, max(0.0, float(strength[k]) - RELATIVE_EXCESS) / VIVID_MARGIN)
+        scored.append(
+            (shape * (0.1 + 0.9 * vivid) / (1.0 + CROWDING_WEIGHT * float(crowding[k])), x, y, max(radius, area_radius))
+        )
     scored.sort(reverse=True)
     return [(x, y, radius) for _, x, y, radius in scored], merged
+
+
+def _strength(sampled: _Sampled, colour: str, runs: Runs, labels: NDArray[np.int64], count: int) -> NDArray[np.float64]:
+    """Each blob's mean hue strength: its samples' excess over their own channel (RELATIVE_EXCESS at the
+    hue test's edge; a painted ball's is well above it, where the noise of a wall of a nearby hue only
+    just passes)."""
+    own, _ = sampled.planes(colour)
+    ratio = sampled.excess(colour) / np.maximum(own, 1).astype(np.float64)
+    summed = np.zeros((ratio.shape[0], ratio.shape[1] + 1))
+    np.cumsum(ratio, axis=1, out=summed[:, 1:])
+    along = summed[runs.rows, runs.last + 1] - summed[runs.rows, runs.first]
+    totals = np.bincount(labels, along, count)
+    sizes = np.bincount(labels, runs.last - runs.first + 1, count)
+    mean: NDArray[np.float64] = totals / np.maximum(sizes, 1)
+    return mean
+
+
+def _crowding(
+    mask: NDArray[np.bool_],
+    y0: NDArray[np.int64],
+    y1: NDArray[np.int64],
+    x0: NDArray[np.int64],
+    x1: NDArray[np.int64],
+) -> NDArray[np.float64]:
+    """For each blob (its box, inclusive, in mask samples): the share of the mask's samples in the frame of
+    half the box's size around the box (other blobs of the colour nearby; 0 for a blob alone)."""
+    table = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), dtype=np.int64)
+    np.cumsum(np.cumsum(mask, axis=0), axis=1, out=table[1:, 1:])
+    rows, cols = mask.shape
+    half_h = (y1 - y0 + 2) // 2
+    half_w = (x1 - x0 + 2) // 2
+    oy0, oy1 = np.maximum(y0 - half_h, 0), np.minimum(y1 + 1 + half_h, rows)
+    ox0, ox1 = np.maximum(x0 - half_w, 0), np.minimum(x1 + 1 + half_w, cols)
+
+    def total(
+        a0: NDArray[np.int64], a1: NDArray[np.int64], b0: NDArray[np.int64], b1: NDArray[np.int64]
+    ) -> NDArray[np.int64]:
+        counts: NDArray[np.int64] = table[a1, b1] - table[a0, b1] - table[a1, b0] + table[a0, b0]
+        return counts
+
+    around = total(oy0, oy1, ox0, ox1) - total(y0, y1 + 1, x0, x1 + 1)
+    area = (oy1 - oy0) * (ox1 - ox0) - (y1 - y0 + 1) * (x1 - x0 + 1)
+    crowding: NDArray[np.float64] = around / np.maximum(area, 1)
+    return crowding
 
 
 def _split_seeds(
