@@ -25,6 +25,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -227,7 +228,7 @@ def _seeds(
     r0, _, c0, _ = sampled.region
     step, spacing, s = sampled.step, sampled.spacing_px, grid.cell_px
     crowding = _crowding(mask, stats.y0, stats.y1, stats.x0, stats.x1)
-    strength = _strength(sampled, colour, runs, labels, count)
+    strength = _strength(mask, sampled, colour, runs, labels, count)
     scored = []
     merged = []
     for k in range(count):
@@ -256,17 +257,19 @@ def _seeds(
     return [(x, y, radius) for _, x, y, radius in scored], merged
 
 
-def _strength(sampled: _Sampled, colour: str, runs: Runs, labels: NDArray[np.int64], count: int) -> NDArray[np.float64]:
+def _strength(
+    mask: NDArray[np.bool_], sampled: _Sampled, colour: str, runs: Runs, labels: NDArray[np.int64], count: int
+) -> NDArray[np.float64]:
     """Each blob's mean hue strength: its samples' excess over their own channel (RELATIVE_EXCESS at the
     hue test's edge; a painted ball's is well above it, where the noise of a wall of a nearby hue only
     just passes)."""
-    own, _ = sampled.planes(colour)
-    ratio = sampled.excess(colour) / np.maximum(own, 1).astype(np.float64)
-    summed = np.zeros((ratio.shape[0], ratio.shape[1] + 1))
-    np.cumsum(ratio, axis=1, out=summed[:, 1:])
-    along = summed[runs.rows, runs.last + 1] - summed[runs.rows, runs.first]
-    totals = np.bincount(labels, along, count)
-    sizes = np.bincount(labels, runs.last - runs.first + 1, count)
+    # Only the blobs' samples: in mask order (row by row), which is the runs' order.
+    mask_own, mask_other = (plane[mask] for plane in sampled.planes(colour))
+    mask_excess = mask_own - np.maximum(sampled.green[mask], mask_other)
+    ratio = mask_excess / np.maximum(mask_own, 1).astype(np.float64)
+    sizes = runs.last - runs.first + 1
+    totals = np.bincount(np.repeat(labels, sizes), ratio, count)
+    sizes = np.bincount(labels, sizes, count)
     mean: NDArray[np.float64] = totals / np.maximum(sizes, 1)
     return mean
 
@@ -280,8 +283,9 @@ def _crowding(
 ) -> NDArray[np.float64]:
     """For each blob (its box, inclusive, in mask samples): the share of the mask's samples in the frame of
     half the box's size around the box (other blobs of the colour nearby; 0 for a blob alone)."""
-    table = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), dtype=np.int64)
-    np.cumsum(np.cumsum(mask, axis=0), axis=1, out=table[1:, 1:])
+    if len(y0) < 2:
+        return np.zeros(len(y0))
+    table: NDArray[np.int32] = np.asarray(cv2.integral(mask.view(np.uint8), sdepth=cv2.CV_32S))
     rows, cols = mask.shape
     half_h = (y1 - y0 + 2) // 2
     half_w = (x1 - x0 + 2) // 2
@@ -290,8 +294,8 @@ def _crowding(
 
     def total(
         a0: NDArray[np.int64], a1: NDArray[np.int64], b0: NDArray[np.int64], b1: NDArray[np.int64]
-    ) -> NDArray[np.int64]:
-        counts: NDArray[np.int64] = table[a1, b1] - table[a0, b1] - table[a1, b0] + table[a0, b0]
+    ) -> NDArray[np.int32]:
+        counts: NDArray[np.int32] = table[a1, b1] - table[a0, b1] - table[a1, b0] + table[a0, b0]
         return counts
 
     around = total(oy0, oy1, ox0, ox1) - total(y0, y1 + 1, x0, x1 + 1)
