@@ -98,19 +98,8 @@ def guided_fit(
     within TOUCHING_SLACK_PX of the start can pass through left out."""
     from trackerd.detect.ballfit import fit_ball
 
-    fit = fit_ball(
-        image,
-        grid,
-        colour,
-        x_px,
-        y_px,
-        radius_px,
-        axis=axis,
-        radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
-        rising_rims=True,
-        view=view,
-    )
-    if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
+    # Plain first; then as a ball touching something of its colour.
+    for largest, slack_px in ((GUIDED_SIZE, None), (TOUCHING_LARGEST, TOUCHING_SLACK_PX)):
         fit = fit_ball(
             image,
             grid,
@@ -119,14 +108,14 @@ def guided_fit(
             y_px,
             radius_px,
             axis=axis,
-            radius_range_px=(radius_px / GUIDED_SIZE, radius_px * TOUCHING_LARGEST),
+            radius_range_px=(radius_px / GUIDED_SIZE, radius_px * largest),
             rising_rims=True,
-            centre_slack_px=TOUCHING_SLACK_PX,
+            centre_slack_px=slack_px,
             view=view,
         )
-    if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
-        return None
-    return fit
+        if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX:
+            return fit
+    return None
 
 
 def _tracks(detection: Any, red: Any, blue: Any) -> bool:

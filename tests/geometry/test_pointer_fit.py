@@ -163,6 +163,19 @@ def test_the_hit_covariance_is_the_linearised_hit() -> None:
         hit_covariance(FRONT, FRONT + np.array([1.0, 0.0, 0.0]), covariance, normal, offset, axes)
 
 
+def _grazing_circle(centre, radius: float, points: int = 40):
+    """Where the rays from the origin that graze a sphere touch it: a circle on the sphere (its outline)."""
+    d = float(np.linalg.norm(centre))
+    u = centre / d
+    e1 = np.cross(u, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    angles = np.linspace(0, 2 * np.pi, points, endpoint=False)
+    return (centre - radius**2 / d * u) + radius * np.sqrt(1 - (radius / d) ** 2) * (
+        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2
+    )
+
+
 @pytest.mark.parametrize("distortion", [np.zeros(0), np.array([-0.3, 0.1, 0.001, -0.001, 0.0])])
 def test_a_balls_outline_gives_its_centres_direction_exactly(distortion) -> None:
     """The rim of a sphere, projected through a distorted lens and undistorted again, fits a cone whose
@@ -171,14 +184,7 @@ def test_a_balls_outline_gives_its_centres_direction_exactly(distortion) -> None
     centre = np.array([0.9, -0.4, 2.0])  # far off-axis
     radius = 0.03
     d = np.linalg.norm(centre)
-    u = centre / d
-    e1 = np.cross(u, [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
-    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
-    ring = (centre - radius**2 / d * u) + radius * np.sqrt(1 - (radius / d) ** 2) * (
-        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2
-    )
+    ring = _grazing_circle(centre, radius)
     rim_px = cam.project(ring)
     cone = fit_sphere_direction(cam.normalized_from_pixels(rim_px))
     assert cone is not None
@@ -199,14 +205,7 @@ def test_a_balls_outline_is_a_circle_of_its_angular_size_in_the_view_map(distort
     assert np.allclose(view_map(cam, np.array([960.0, 540.0])), np.eye(2), atol=1e-6)
     centre = np.array([0.9, -0.95, 1.9])  # 35 degrees off-axis
     radius, d = 0.02, float(np.linalg.norm(np.array([0.9, -0.95, 1.9])))
-    u = centre / d
-    e1 = np.cross(u, [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
-    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
-    ring = (centre - radius**2 / d * u) + radius * np.sqrt(1 - (radius / d) ** 2) * (
-        np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2
-    )
+    ring = _grazing_circle(centre, radius)
     rim_px = cam.project(ring)
     at = cam.project(centre[None])[0]
     in_pixels = np.linalg.norm(rim_px - rim_px.mean(axis=0), axis=1)
