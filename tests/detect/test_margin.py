@@ -96,6 +96,10 @@ def test_unhidden_leaves_out_what_covers_part_of_a_ball_and_keeps_its_shading():
     kept = unhidden(np.concatenate([ball, hand]))
     assert kept.size == ball.size and np.array_equal(np.sort(kept), np.sort(ball))
     assert unhidden(np.array([], dtype=np.int16)).size == 0
+    # Samples with no excess of the colour at all (the ball hidden, or not the ball): the median's stay,
+    # never none (the pointer's colour learning took the smallest of what was kept, and raised).
+    flat = np.full(40, -10, dtype=np.int16)
+    assert np.array_equal(unhidden(flat), flat)
     # A quarter of a widely shaded core hidden (the case of a ball half behind the rod seen along it):
     # the hidden samples go all the same.
     wide = np.round(rng.uniform(87, 143, 20)).astype(np.int16)

@@ -219,7 +219,10 @@ class ColourLearner:
             for colour in COLOURS:
                 samples = colour_samples(image, grid, colour, discs, rod_half_width_px=rod_px + 1.5)
                 seen = self._cameras[index]
-                if self._centre_agrees(fix, index, colour, discs[colour]) and samples.ball_excess.size:
+                # A ball whose core shows no excess of its colour (hidden in this camera, though the fix's
+                # centre agrees) teaches nothing about it.
+                shows = samples.ball_excess.size > 0 and float(np.median(samples.ball_excess)) > 0
+                if self._centre_agrees(fix, index, colour, discs[colour]) and shows:
                     kept = unhidden(samples.ball_excess)
                     seen.ball[colour].append(kept)
                     seen.value[colour].append(samples.ball_value[samples.ball_excess >= kept.min()])

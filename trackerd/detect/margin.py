@@ -192,7 +192,11 @@ def unhidden(samples: NDArray[np.int16]) -> NDArray[np.int16]:
     median = float(np.median(samples))
     upper = samples[samples >= median]
     spread = max(2.0, 1.4826 * float(np.median(upper - median)))
-    return samples[samples >= max(median - OUTLIER_SPREADS * spread, HIDDEN_SHARE * median)]
+    floor = median - OUTLIER_SPREADS * spread
+    if median > 0:
+        # A share of a median that shows no excess of the colour would leave out the median itself.
+        floor = max(floor, HIDDEN_SHARE * median)
+    return samples[samples >= floor]
 
 
 def ball_excess(samples: NDArray[np.int16]) -> float | None:
