@@ -10,8 +10,9 @@ geometry that follows (:mod:`trackerd.joint`):
   :data:`MIN_EXCESS` grey levels (above the sensor's noise): a hue test, the
   same at any exposure;
 * connected groups of such samples on a subsampled grid are *seeds*; those of a
-  size a ball can have in this camera (``radius_range_px``) are kept, largest
-  and roundest first;
+  size a ball can have in this camera (``radius_range_px``) are kept, the most
+  ball-like first: round, vivid (well past the hue test's edge) and alone (not
+  one speck among many of its colour);
 * each seed's outline is fitted (:func:`trackerd.detect.ballfit.fit_ball`); the
   fits are the candidates.
 
