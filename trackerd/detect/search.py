@@ -99,10 +99,13 @@ class _Sampled:
         """(own channel, the other colour's channel) for ``colour``."""
         return (self.red, self.blue) if colour == "red" else (self.blue, self.red)
 
-    def excess(self, colour: str) -> NDArray[np.int16]:
-        """Each sample's own channel less the larger of the other two."""
+    def excess(self, colour: str, where: NDArray[np.bool_] | None = None) -> NDArray[np.int16]:
+        """Each sample's own channel less the larger of the other two (only the samples ``where`` is set,
+        in row order, when given)."""
         own, other = self.planes(colour)
-        return own - np.maximum(self.green, other)
+        if where is None:
+            return own - np.maximum(self.green, other)
+        return own[where] - np.maximum(self.green[where], other[where])
 
 
 def _hue_mask(own: NDArray[np.int16], excess: NDArray[np.int16]) -> NDArray[np.bool_]:
@@ -265,9 +268,8 @@ def _strength(
     hue test's edge; a painted ball's is well above it, where the noise of a wall of a nearby hue only
     just passes)."""
     # Only the blobs' samples: in mask order (row by row), which is the runs' order.
-    mask_own, mask_other = (plane[mask] for plane in sampled.planes(colour))
-    mask_excess = mask_own - np.maximum(sampled.green[mask], mask_other)
-    ratio = mask_excess / np.maximum(mask_own, 1).astype(np.float64)
+    own, _ = sampled.planes(colour)
+    ratio = sampled.excess(colour, mask) / np.maximum(own[mask], 1).astype(np.float64)
     sizes = runs.last - runs.first + 1
     totals = np.bincount(np.repeat(labels, sizes), ratio, count)
     sizes = np.bincount(labels, sizes, count)
