@@ -104,15 +104,15 @@ class DisplayScreen:
         if cached is not None:
             return cached
         cam = self.cameras[index]
-        xs = np.arange(cam.width_px, dtype=np.float64)
+        xs = np.arange(cam.width_px)
         map_x = np.full((cam.height_px, cam.width_px), -1.0, dtype=np.float32)
         map_y = np.full((cam.height_px, cam.width_px), -1.0, dtype=np.float32)
         x0, y0, x1, y1 = self.room.display
         rows_per_chunk = max(1, 400_000 // cam.width_px)
         for r0 in range(0, cam.height_px, rows_per_chunk):
-            ys = np.arange(r0, min(cam.height_px, r0 + rows_per_chunk), dtype=np.float64)
+            ys = np.arange(r0, min(cam.height_px, r0 + rows_per_chunk))
             gx, gy = np.meshgrid(xs, ys)
-            dirs = self.lens.rays(index, gx.ravel(), gy.ravel())
+            dirs = self.lens.pixel_rays(index, gx.ravel(), gy.ravel())
             axis, t, points = room_hits(self.room, cam.centre_m, dirs)
             on_wall = (axis == self.room.faces[0].axis) & np.isclose(points[:, 2], self.room.faces[0].value, atol=1e-6)
             for ball in self.room.balls:

@@ -87,7 +87,7 @@ class PointerRenderer:
                 tile_y * TILE_PX - y0 : (tile_y + 1) * TILE_PX - y0, tile_x * TILE_PX - x0 : (tile_x + 1) * TILE_PX - x0
             ] = True
         local_y, local_x = np.nonzero(in_tiles)
-        centre_dirs = self.lens.rays(index, (local_x + x0).astype(np.float64), (local_y + y0).astype(np.float64))
+        centre_dirs = self.lens.pixel_rays(index, local_x + x0, local_y + y0)
         rgb = np.zeros((y1 - y0, x1 - x0, 3))
         coverage = np.zeros((y1 - y0, x1 - x0))
         sums = {"red": np.zeros(3), "blue": np.zeros(3)}

@@ -28,7 +28,8 @@ def ray_sphere(origin: Array, dirs: Array, centre: Array, radius: float) -> Arra
 
 
 def ray_cylinder(origin: Array, dirs: Array, start: Array, end: Array, radius: float) -> tuple[Array, Array]:
-    """First hit of unit rays with the side of a finite cylinder (no caps): distances (N,) and normals (N, 3)."""
+    """First hit of unit rays with the side of a finite cylinder (no caps): distances (N,) and outward unit
+    normals (N, 3), zero where a ray misses."""
     axis = end - start
     length = float(np.linalg.norm(axis))
     axis = axis / length
@@ -48,9 +49,10 @@ def ray_cylinder(origin: Array, dirs: Array, start: Array, end: Array, radius: f
     along = w_par + near * d_par
     valid = ok & (near > 1e-9) & (along >= 0) & (along <= length)
     t[valid] = near[valid]
-    points = origin + np.where(np.isfinite(t), t, 0.0)[:, None] * dirs
-    rel = points - start
-    normal = rel - (rel @ axis)[:, None] * axis
-    norm = np.linalg.norm(normal, axis=1, keepdims=True)
-    normal = normal / np.where(norm > 0, norm, 1.0)
+    # Normals only where a ray hits: most rays near a thin rod miss it.
+    normal = np.zeros((len(dirs), 3))
+    rel = origin + near[valid, None] * dirs[valid] - start
+    outward = rel - (rel @ axis)[:, None] * axis
+    norm = np.linalg.norm(outward, axis=1, keepdims=True)
+    normal[valid] = outward / np.where(norm > 0, norm, 1.0)
     return t, normal

