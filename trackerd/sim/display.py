@@ -45,6 +45,15 @@ class ShownDisplay(NamedTuple):
     """(r1 - r0, c1 - c0, 3) RGB."""
 
 
+class _Lookup(NamedTuple):
+    x: FloatImage
+    """Texture column sampled at each pixel of the display's crop (-1 and below: not the display)."""
+    y: FloatImage
+    """Texture row likewise."""
+    room_seen: FloatImage
+    """The room behind the crop times the share of each pixel the display leaves uncovered."""
+
+
 def cv2_remap(image: FloatImage, map_x: FloatImage, map_y: FloatImage) -> FloatImage:
     """Bilinear lookup of ``image`` at (map_x, map_y) pixel positions, zero outside it."""
     import cv2
@@ -75,28 +84,35 @@ class DisplayScreen:
         self.room = room
         self.lens = lens
         self._maps: dict[int, DisplayMap] = {}
-        self._lookups: dict[tuple[int, int, int], tuple[FloatImage, FloatImage]] = {}
+        self._lookups: dict[tuple[int, int, int], _Lookup] = {}
 
     def showing(self, index: int, content: FloatImage, room_rgb: FloatImage) -> ShownDisplay:
         """Camera ``index``'s view of the display showing ``content`` (a texture, row 0 at the top) over
-        ``room_rgb`` (the camera's view of the empty room, (H, W, 3))."""
-        map_x, map_y, (r0, r1, c0, c1) = self.map(index)
-        room = room_rgb[r0:r1, c0:c1]
+        ``room_rgb`` (the camera's view of the empty room, (H, W, 3); the same array on every call for
+        a camera: what of it the display leaves seen is kept)."""
+        r0, r1, c0, c1 = self.map(index).box
         if r1 <= r0:
-            return ShownDisplay(r0, r1, c0, c1, room)
+            return ShownDisplay(r0, r1, c0, c1, room_rgb[r0:r1, c0:c1])
         h, w = content.shape[:2]
-        key = (index, h, w)
-        scaled = self._lookups.get(key)
-        if scaled is None:
-            scaled = (map_x * np.float32(w) - np.float32(0.5), map_y * np.float32(h) - np.float32(0.5))
-            self._lookups[key] = scaled
-        # A fourth channel of ones says where the texture was sampled: the display's own coverage.
-        rgba = np.dstack([content.astype(np.float32), np.ones((h, w), dtype=np.float32)])
-        shown = cv2_remap(rgba, *scaled)
-        alpha = shown[..., 3:4]
-        blended = room * (np.float32(1.0) - alpha)
-        blended += shown[..., :3]
-        return ShownDisplay(r0, r1, c0, c1, blended)
+        lookup = self._lookups.get((index, h, w))
+        if lookup is None:
+            lookup = self._lookup(index, h, w, room_rgb[r0:r1, c0:c1])
+            self._lookups[(index, h, w)] = lookup
+        shown = cv2_remap(np.ascontiguousarray(content, dtype=np.float32), lookup.x, lookup.y)
+        shown += lookup.room_seen
+        return ShownDisplay(r0, r1, c0, c1, shown)
+
+    def _lookup(self, index: int, h: int, w: int, room: FloatImage) -> _Lookup:
+        """The display map in pixels of an (h, w) texture, and the room behind the display weighted by
+        how much of each pixel the display leaves uncovered: the same for every frame of a camera, so
+        a frame costs one remap and one addition."""
+        map_x, map_y, _ = self.map(index)
+        x = map_x * np.float32(w) - np.float32(0.5)
+        y = map_y * np.float32(h) - np.float32(0.5)
+        # Where the texture is sampled, and how much: the display's own coverage of each pixel.
+        coverage = cv2_remap(np.ones((h, w), dtype=np.float32), x, y)
+        room_seen = room * (np.float32(1.0) - coverage)[..., None]
+        return _Lookup(x, y, room_seen)
 
     def map(self, index: int) -> DisplayMap:
         """Where each pixel's ray meets the display (see :class:`DisplayMap`), computed once per camera."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -139,14 +140,13 @@ class PointerRenderer:
         ids_c, colours_c = shade_pointer(self.scene, cam.centre_m, centre_dirs, pose, occluders)
         id_grid = np.zeros(shape, dtype=np.int8)
         id_grid[local_y, local_x] = ids_c
-        padded = np.pad(id_grid, 1, mode="edge")
-        edge = np.zeros(shape, dtype=bool)
-        h, w = shape
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                if dx or dy:
-                    edge |= padded[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w] != id_grid
-        is_edge = edge[local_y, local_x]
+        # A pixel is on an edge where its 3 x 3 neighbourhood (the frame's border repeated) holds more than
+        # one id: where the neighbourhood's largest id is not its smallest.
+        ids_u8 = id_grid.view(np.uint8)
+        square = np.ones((3, 3), dtype=np.uint8)
+        largest = cv2.dilate(ids_u8, square, borderType=cv2.BORDER_REPLICATE)
+        smallest = cv2.erode(ids_u8, square, borderType=cv2.BORDER_REPLICATE)
+        is_edge = (largest != smallest)[local_y, local_x]
         # Interior pixels: one sample stands for the whole pixel.
         interior = ~is_edge & (ids_c != NOTHING)
         iy, ix = local_y[interior], local_x[interior]

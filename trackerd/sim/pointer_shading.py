@@ -8,6 +8,7 @@ ball a view shows.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 from trackerd.config.models import RigConfig
 from trackerd.geometry.camera import CameraModel
 from trackerd.sim.appearance import Look, Occluder
-from trackerd.sim.raycast import ray_cylinder, ray_sphere
+from trackerd.sim.raycast import points_along, ray_cylinder, ray_sphere, row_dots
 from trackerd.sim.scene import HAND_RADIUS_M, HANDLE_LENGTH_FACTOR, PointerPose, Room, scene_pointer
 
 Array = NDArray[np.float64]
@@ -73,7 +74,9 @@ def shade_pointer(
     best_t = np.full(n, np.inf)
     ids = np.zeros(n, dtype=np.int8)
     normals = np.zeros((n, 3))
-    base = np.zeros((n, 3))
+    # Each ray's paint as an index into ``paints``: filled in once at the end, not a row per hit solid.
+    paints: list[RGB] = [(0.0, 0.0, 0.0)]
+    paint = np.zeros(n, dtype=np.intp)
 
     def near(centre: Array, bound_m: float) -> NDArray[np.intp]:
         """The rays that pass within ``bound_m`` of ``centre``: the only ones that can hit what it bounds."""
@@ -82,27 +85,39 @@ def shade_pointer(
         miss2 = offset @ offset - along * along
         return np.flatnonzero((miss2 <= bound_m * bound_m) | (offset @ offset <= bound_m * bound_m))
 
-    def consider(rays: NDArray[np.intp], t: Array, normal: Array, prim: int, rgb: RGB) -> None:
-        closer = t < best_t[rays]
-        if np.any(closer):
+    def consider(
+        rays: NDArray[np.intp], t: Array, normal_of: Callable[[NDArray[np.intp]], Array], prim: int, rgb: RGB
+    ) -> None:
+        """Take the rays ``rays`` whose hit ``t`` is nearer than any before; ``normal_of`` gives the
+        normals of some of them (indices into ``rays``)."""
+        closer = np.flatnonzero(t < best_t[rays])
+        if closer.size:
             chosen = rays[closer]
             best_t[chosen] = t[closer]
             ids[chosen] = prim
-            normals[chosen] = normal[closer]
-            base[chosen] = rgb
+            normals[chosen] = normal_of(closer)
+            paint[chosen] = len(paints)
+            paints.append(rgb)
 
     def sphere(centre: Array, radius: float, prim: int, rgb: RGB) -> None:
         rays = near(centre, radius * 1.001)
         if rays.size:
             sub = dirs[rays]
             t = ray_sphere(origin, sub, centre, radius)
-            consider(rays, t, (origin + t[:, None] * sub - centre) / radius, prim, rgb)
+
+            def normal_of(closer: NDArray[np.intp]) -> Array:
+                normal = points_along(origin, sub[closer], t[closer])
+                normal -= centre
+                normal /= radius
+                return normal
+
+            consider(rays, t, normal_of, prim, rgb)
 
     def cylinder(start: Array, end: Array, radius: float, prim: int, rgb: RGB) -> None:
         rays = near(0.5 * (start + end), 0.5 * float(np.linalg.norm(end - start)) + radius * 1.001)
         if rays.size:
             t, normal = ray_cylinder(origin, dirs[rays], start, end, radius)
-            consider(rays, t, normal, prim, rgb)
+            consider(rays, t, lambda closer: normal[closer], prim, rgb)
 
     sphere(pose.front_m, ball_r, front_id, front_rgb)
     sphere(pose.back_m, ball_r, back_id, back_rgb)
@@ -118,21 +133,34 @@ def shade_pointer(
             half = np.array([0.0, occ.height_m / 2.0, 0.0])
             cylinder(centre - half, centre + half, occ.radius_m, OCCLUDER, occ.rgb)
 
-    hit = ids != NOTHING
     colours = np.zeros((n, 3))
-    if np.any(hit):
-        points = origin + best_t[hit, None] * dirs[hit]
-        to_light = light - points
-        to_light /= np.linalg.norm(to_light, axis=1, keepdims=True)
-        lambert = np.clip(np.sum(normals[hit] * to_light, axis=1), 0.0, 1.0)
-        colours[hit] = base[hit] * (look.ambient + look.diffuse * lambert)[:, None]
+    hit = np.flatnonzero(ids != NOTHING)
+    if hit.size:
+        ray = dirs[hit]
+        normal = normals[hit]
+        to_light = points_along(origin, ray, best_t[hit])
+        np.subtract(light, to_light, out=to_light)
+        distance = np.sqrt(row_dots(to_light, to_light))
+        for k in range(3):
+            to_light[:, k] /= distance
+        facing_light = row_dots(normal, to_light)
+        brightness = look.ambient + look.diffuse * np.clip(facing_light, 0.0, 1.0)
+        base = np.asarray(paints)[paint[hit]]
+        shaded = np.empty_like(base)
+        for k in range(3):
+            np.multiply(base[:, k], brightness, out=shaded[:, k])
         if look.specular > 0.0:
             # A white Phong highlight on the glossy balls: the light mirrored about the normal, seen along the ray.
             ball = (ids[hit] == RED_BALL) | (ids[hit] == BLUE_BALL)
-            n_hit = normals[hit]
-            reflected = 2.0 * np.sum(n_hit * to_light, axis=1)[:, None] * n_hit - to_light
-            facing = np.clip(-np.sum(reflected * dirs[hit], axis=1), 0.0, 1.0)
-            colours[hit] += (ball * look.specular * facing**look.shininess)[:, None]
+            twice = 2.0 * facing_light
+            reflected = np.empty_like(normal)
+            for k in range(3):
+                np.multiply(twice, normal[:, k], out=reflected[:, k])
+            reflected -= to_light
+            highlight = ball * look.specular * np.clip(-row_dots(reflected, ray), 0.0, 1.0) ** look.shininess
+            for k in range(3):
+                shaded[:, k] += highlight
+        colours[hit] = shaded
     return ids, colours
 
 
