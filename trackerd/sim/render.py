@@ -130,6 +130,7 @@ class SceneRenderer:
         )
         self._noise = NoiseFields()
         self._illumination: dict[int, FloatImage | None] = {}
+        self._buffers: dict[tuple[str, tuple[int, ...], str], FloatImage] = {}
 
     @property
     def background_step(self) -> int:
@@ -161,7 +162,9 @@ class SceneRenderer:
         camera = self.cameras[camera_index]
         # The room, lit and mosaiced, is cached per format; each frame changes only the display's region
         # (its content) and the pointer's, which are composed in RGB, lit and mosaiced on their own.
-        mosaic = self.backgrounds.lit_in_format(camera_index, fmt, self._illumination_map(camera_index)).copy()
+        lit = self.backgrounds.lit_in_format(camera_index, fmt, self._illumination_map(camera_index))
+        mosaic = self._buffer("frame", lit)
+        np.copyto(mosaic, lit)
         display: ShownDisplay | None = None
         if content is not None:
             display = self.display.showing(camera_index, content, self.backgrounds.rgb(camera_index))
@@ -197,7 +200,9 @@ class SceneRenderer:
                 full_area[colour] = silhouette_area_px(camera, centre, radius)
         draws = self._noise.window(camera_index, mosaic.shape, rng) if (noise and self.noise_field) else None
         sim = self.rig.simulation
-        image = sensor_output(mosaic, rng, sim.noise_sigma, sim.shot_noise, noise, draws)
+        image = sensor_output(
+            mosaic, rng, sim.noise_sigma, sim.shot_noise, noise, draws, scratch=self._buffer("noise", mosaic)
+        )
         return RenderedView(image, fmt, ViewTruth(truth_centre, truth_centroid, truth_area, full_area))
 
     def background_rgb(self, camera_index: int) -> FloatImage:
@@ -222,6 +227,17 @@ class SceneRenderer:
             mosaic[y0 : y0 + h, x0 : x0 + w] = region
         else:
             mosaic[y0 : y0 + h, x0 : x0 + w, :] = region
+
+    def _buffer(self, use: str, like: FloatImage) -> FloatImage:
+        """A working array of ``like``'s shape for one use, kept between frames: the frame's raw values
+        are built and turned into the sensor's output in the same memory every frame (new arrays of a
+        frame's size cost more in page faults than the arithmetic done in them)."""
+        key = (use, like.shape, like.dtype.str)
+        buffer = self._buffers.get(key)
+        if buffer is None:
+            buffer = np.empty_like(like)
+            self._buffers[key] = buffer
+        return buffer
 
     def _illumination_map(self, index: int) -> FloatImage | None:
         if index not in self._illumination:

@@ -46,14 +46,26 @@ def sensor_output(
     shot: float,
     noise: bool,
     draws: NDArray[np.float32] | None = None,
+    *,
+    scratch: NDArray[np.float32] | None = None,
 ) -> NDArray[np.uint8]:
     """[0, 1] values -> 8-bit sensor output with read and shot noise (``draws``: the standard normal
-    draws to use, fresh ones from ``rng`` when None)."""
-    grey = values * np.float32(255.0)
+    draws to use, fresh ones from ``rng`` when None).
+
+    ``scratch``: an array of ``values``' shape and type the work may be done in, ``values`` itself
+    included: a renderer that makes many frames reuses its buffers (a new 100 MB array for a 4K RGB
+    frame costs more in page faults than the arithmetic in it)."""
+    if scratch is None:
+        grey = values * np.float32(255.0)
+        sigma = None
+    else:
+        grey = values
+        grey *= np.float32(255.0)
+        sigma = scratch
     if noise and (read_sigma > 0 or shot > 0):
         # In place (a 1080p frame is 2 M values): the same arithmetic as
         # grey + sqrt(read^2 + shot^2 * max(grey, 0)) * N(0, 1), bit for bit.
-        sigma = np.maximum(grey, np.float32(0.0))
+        sigma = np.maximum(grey, np.float32(0.0), out=sigma)
         sigma *= np.float32(shot**2)
         sigma += np.float32(read_sigma**2)
         np.sqrt(sigma, out=sigma)
