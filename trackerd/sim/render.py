@@ -89,7 +89,10 @@ class RenderedView:
 
 
 class SceneRenderer:
-    """Renders what each camera of a rig sees, with the pointer at any pose."""
+    """Renders what each camera of a rig sees, with the pointer at any pose.
+
+    One thread at a time: a renderer keeps its working buffers and the last pointer it cast between
+    frames (each process of a benchmark's pool, and each loop worker, has its own)."""
 
     def __init__(
         self,
