@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import threading
 import time
@@ -52,16 +53,26 @@ def resources() -> tuple[int, int]:
     return len(os.listdir("/proc/self/task")), len(os.listdir("/proc/self/fd"))
 
 
-def settled_resources(timeout_s: float = 3.0) -> tuple[int, int]:
-    """``resources()`` once unchanged for 0.3 s (Aravis ends some of its threads asynchronously)."""
+def settled_resources(timeout_s: float = 15.0, steady_s: float = 0.6) -> tuple[int, int]:
+    """``resources()`` once nothing is left to collect and the counts have not changed for ``steady_s``.
+
+    Earlier tests in the same process leave cameras' objects (pylon's, GenTL's, Aravis's) in reference
+    cycles that hold threads and descriptors until the garbage collector runs, whenever that is; and
+    Aravis ends some of its threads asynchronously. So the collector is run before every reading, and
+    the counts must hold still (under load a thread's exit shows late).
+    """
     deadline = time.monotonic() + timeout_s
+    gc.collect()
     last = resources()
+    steady_since = time.monotonic()
     while time.monotonic() < deadline:
-        time.sleep(0.3)
+        time.sleep(0.1)
+        gc.collect()
         now = resources()
-        if now == last:
+        if now != last:
+            last, steady_since = now, time.monotonic()
+        elif time.monotonic() - steady_since >= steady_s:
             return now
-        last = now
     return last
 
 
