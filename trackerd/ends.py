@@ -56,6 +56,13 @@ WHOLE_RIM_FRACTION = 0.9
 """An outline whose rim agrees with its circle on fewer of the rays off the pointer's axis than this is
 partly hidden by something besides the rod (a ray or two lost to noise leaves more)."""
 
+CLEAN_RIM_SCATTER_PX = 0.5
+"""A ball's rim points scatter about its circle by up to about this much (pixels, RMS) where only sensor noise,
+pixel sampling and blur disturb them (the median whole rim on randomized scenes scatters 0.3 px). A partly
+hidden outline that scatters more has taken some other edge into its rim (a hand's, a picture's), and the
+centre it fits is pulled by about that excess; being one systematic pull, it does not shrink with the number
+of rim points as the cone's covariance does."""
+
 AGREE_SIGMAS = 3.0
 """The centroid joins the outline's measurement across the pointer when the two agree there within
 this many of their combined standard errors."""
@@ -208,14 +215,46 @@ def honest_covariance(fit: BallFit, cone_covariance: Array, focal_px: float) -> 
       the cone's covariance is for len(rim) independent points, the rim holds only ``independent_rims``;
     * a partial outline takes part of any smooth departure from a circle (blur, shading, the mixed pixels
       where a hand meets the ball) for a shift of its centre
-      (:func:`trackerd.detect.ballfit.arc_deformation_covariance`).
+      (:func:`trackerd.detect.ballfit.arc_deformation_covariance`);
+    * a partial outline (rim fraction under WHOLE_RIM_FRACTION) whose rim scatters more than
+      CLEAN_RIM_SCATTER_PX has some other edge in its rim: the excess scatter, in quadrature, is an isotropic
+      error of its centre.
     """
     covariance = cone_covariance
     if fit.independent_rims > 0:
         covariance = covariance * max(1.0, len(fit.rim_px) / fit.independent_rims)
     if fit.arc_covariance_px is not None:
         covariance = covariance + fit.arc_covariance_px / (focal_px * focal_px)
+    if fit.rim_fraction < WHOLE_RIM_FRACTION:
+        excess_px2 = max(fit.residual_px**2 - CLEAN_RIM_SCATTER_PX**2, 0.0)
+        covariance = covariance + np.eye(2) * (excess_px2 / (focal_px * focal_px))
     return covariance
+
+
+def partial_arc_error(fit: BallFit, expected_radius_px: float, focal_px: float) -> Array:
+    """The error (normalised units squared) of a partial outline's centre whose radius is not the one a ball
+    has at its distance, and which the guided look could not fit again at that radius.
+
+    A circle fitted to an arc can grow or shrink and still follow the arc by moving its centre along the
+    arc's axis: to first order, forcing the radius down by dr moves the least-squares centre by
+    dr (sum u u^T)^-1 (sum u), u the unit vectors from the centre to the rim points (towards the arc).
+    That is zero for a whole outline, two thirds of dr for three quarters of one, dr for half, more for less
+    (tests/test_refine.py holds it to the centre a circle of the expected radius fits). That shift is the
+    error's size, along its direction.
+    """
+    if len(fit.rim_px) < 3:
+        wrong = abs(fit.radius_px - expected_radius_px) / focal_px
+        return np.eye(2) * wrong * wrong
+    outward = fit.rim_px - fit.centre_px
+    outward = outward / np.maximum(np.linalg.norm(outward, axis=1, keepdims=True), 1e-12)
+    spread = outward.T @ outward
+    if np.linalg.cond(spread) > 1e6:
+        # Rim points all along one line (a sliver of arc): the centre is free along it.
+        wrong = abs(fit.radius_px - expected_radius_px) / focal_px
+        return np.eye(2) * wrong * wrong
+    shift_px = (fit.radius_px - expected_radius_px) * np.linalg.solve(spread, outward.sum(axis=0))
+    shift = shift_px / focal_px
+    return np.outer(shift, shift)
 
 
 def _with_centroid(

@@ -433,7 +433,11 @@ class RefinedPath:
         # ball a hand leaves, a disc on the display beside it). Off by more than GUIDED_SIZE, the ball is looked
         # for again where the start puts it, told its size; off by more than MAX_RADIUS_RATIO and not found
         # again, it is left out while each end keeps two cameras, and otherwise kept with an error as large as
-        # its radius is wrong, so that the hit's uncertainty says what it rests on.
+        # its radius is wrong, so that the hit's uncertainty says what it rests on. Within MAX_RADIUS_RATIO
+        # and not found again, it keeps its weight, and a partial outline has an error along its arc's axis,
+        # where its centre moves with its radius (:func:`trackerd.ends.partial_arc_error`).
+        from trackerd.ends import partial_arc_error
+
         ball_radius = pointer.end_diameter_m / 2.0
         for k, i in enumerate(used):
             for e, colour in enumerate((front, back)):
@@ -454,6 +458,8 @@ class RefinedPath:
                     errors[k, e] = again.actual_covariance
                     continue
                 if 1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO:
+                    if m.fit is not None:
+                        errors[k, e] = errors[k, e] + partial_arc_error(m.fit, expected, camera.focal_px)
                     continue
                 seen_by = int(np.count_nonzero(np.trace(covariances[:, e], axis1=1, axis2=2) < DROPPED_VARIANCE))
                 if seen_by > 2:
