@@ -176,3 +176,18 @@ def test_tracked_pairs_take_the_quick_path_unless_the_centroids_are_pulled() -> 
             assert fix.found, fix.reason
             methods.append(fix.line.method)
         assert methods == expected, (look, methods)
+
+
+def test_a_blue_ball_before_a_violet_picture_with_as_much_blue_is_found() -> None:
+    """`trackerd bench robustness --seed 2026`, installation 26, frame 1: two cameras close to the
+    presenter, dim light, orange-red and blue paint, no hand, no blur. Camera 0 sees the blue ball (15, 40,
+    104 grey levels) before a violet block (34, 22, 96): blue exceeds the other channels by 64 and 62, so
+    the ball has no outline in its colour's excess and the guided look found no rim on any of 32 rays: not
+    found. In the direction from the block's colour to the ball's (less red, more green) its outline is
+    plain (trackerd/refine.py, ball_tint)."""
+    from trackerd.bench.robustness import run_rig
+
+    frame = run_rig((2026, 26, 2, None, 0))[1]
+    assert frame["factors"]["occlusion"] == "none" and frame["eligible"]
+    assert frame["status"] == "hit", frame["reason"]
+    assert frame["error_m"] < 3.0 * frame["sigma_m"] and frame["error_m"] < 0.01, frame

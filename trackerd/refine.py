@@ -44,6 +44,14 @@ MAX_GUIDED_RESIDUAL_PX = 1.0
 GUIDED_SIZE = 1.15
 """And its radius within this factor of a ball's at the distance the geometry puts it."""
 
+TINT_PAINT_DN = 10.0
+"""Where the geometry puts a ball, its colour's own channel must exceed both others by this (grey levels) for
+the ball to be looked for by its tint (:func:`ball_tint`): it is the pointer's paint, however dull."""
+
+TINT_CONTRAST_DN = 15.0
+"""And it must differ from its surroundings by this (grey levels, the length of the colour difference): less
+is no outline to fit."""
+
 TOUCHING_LARGEST = 1.05
 """Where that fails, the ball may touch something of its colour; it is fitted again with its radius at most
 this factor of the geometry's (an outline's rim lies on or just inside the ball's silhouette; a circle through
@@ -87,7 +95,8 @@ def guided_fit(
 ) -> BallFit | None:
     """The ball looked for where the geometry puts it (centre, image radius, and the direction where the rod
     meets it), for the joint choice's ``look``: its outline if it is round within MAX_GUIDED_RESIDUAL_PX,
-    else None. With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the circle and its
+    else None. Tried in its colour's excess, then as touching something of its colour (below), then in its
+    tint (:func:`ball_tint`). With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the circle and its
     scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
 
     The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
@@ -115,7 +124,68 @@ def guided_fit(
         )
         if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX:
             return fit
-    return None
+    # Last, a ball before a picture of nearly its colour: as much of its colour's excess as the picture, so no
+    # rim in it, but a rim in the direction (in colour) from the picture to the ball.
+    tint = ball_tint(image, grid, colour, x_px, y_px, radius_px)
+    if tint is None:
+        return None
+    fit = fit_ball(
+        image,
+        grid,
+        colour,
+        x_px,
+        y_px,
+        radius_px,
+        axis=axis,
+        radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
+        view=view,
+        tint=tint,
+    )
+    return fit if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX else None
+
+
+def ball_tint(
+    image: NDArray[np.uint8], grid: SampleGrid, colour: str, x_px: float, y_px: float, radius_px: float
+) -> Array | None:
+    """The direction in colour (weights of the colour's own channel, green and the other colour) from what
+    surrounds the place where the geometry puts a ball to what is there, for ``fit_ball``'s ``tint``; None
+    where that place is not of the ball's colour (its own channel not above both others by TINT_PAINT_DN) or
+    does not differ from its surroundings by TINT_CONTRAST_DN.
+
+    The ball is the median over the inner half of its radius, its surroundings the median over the ring
+    from 1.5 to 2.2 radii: a rod or a hand across part of either does not move a median."""
+    from trackerd.detect.colour import channel_windows
+
+    s = grid.cell_px
+    dr, dc = grid.offset(colour)
+    reach = 2.2 * radius_px + s
+    lo_r, hi_r, lo_c, hi_c = grid.interior()
+    region = (
+        max(lo_r, math.floor((y_px - reach - dr) / s)),
+        min(hi_r, math.ceil((y_px + reach - dr) / s) + 1),
+        max(lo_c, math.floor((x_px - reach - dc) / s)),
+        min(hi_c, math.ceil((x_px + reach - dc) / s) + 1),
+    )
+    if region[1] - region[0] < 3 or region[3] - region[2] < 3:
+        return None
+    channels = channel_windows(image, grid, colour, region)
+    rows = (np.arange(region[0], region[1]) * s + dr - y_px)[:, None]
+    cols = (np.arange(region[2], region[3]) * s + dc - x_px)[None, :]
+    distance = np.hypot(rows, cols)
+    inner = distance <= max(0.5 * radius_px, 0.75 * s)
+    ring = (distance >= 1.5 * radius_px) & (distance <= 2.2 * radius_px)
+    if not inner.any() or np.count_nonzero(ring) < 8:
+        return None
+    ball = np.median(channels[:, inner], axis=1)
+    around = np.median(channels[:, ring], axis=1)
+    if ball[0] < max(ball[1], ball[2]) + TINT_PAINT_DN:
+        return None
+    direction = (ball - around).astype(np.float64)
+    size = float(np.linalg.norm(direction))
+    if size < TINT_CONTRAST_DN:
+        return None
+    tint: Array = direction / size
+    return tint
 
 
 def _tracks(detection: Any, red: Any, blue: Any) -> bool:

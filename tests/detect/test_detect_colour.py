@@ -12,6 +12,7 @@ from trackerd.detect.colour import (
     EXCESS_SCALE,
     Threshold,
     _exceeds,
+    channel_windows,
     coarse_masks,
     excess_window,
     green_at,
@@ -73,6 +74,20 @@ def test_excess_of_a_flat_colour(pixel_format: str) -> None:
     assert r_mask is not None and not r_mask.any()
 
 
+@pytest.mark.parametrize("pixel_format", FORMATS)
+def test_channels_of_a_flat_colour(pixel_format: str) -> None:
+    """Each colour's samples see the frame's own channel, green and the other colour, in grey levels."""
+    rgb = np.empty((20, 24, 3), dtype=np.uint8)
+    rgb[:] = (200, 50, 80)
+    frame = from_rgb(rgb, pixel_format)
+    grid = sample_grid(pixel_format, 24, 20)
+    red = channel_windows(frame, grid, "red", grid.interior())
+    blue = channel_windows(frame, grid, "blue", grid.interior())
+    assert red.shape[0] == 3 and red.shape[1:] == excess_window(frame, grid, "red", grid.interior())[0].shape
+    assert np.all(red == np.array([200, 50, 80], dtype=np.float32)[:, None, None])
+    assert np.all(blue == np.array([80, 50, 200], dtype=np.float32)[:, None, None])
+
+
 @pytest.mark.parametrize("pixel_format", [f for f in FORMATS if f.startswith("Bayer")])
 @pytest.mark.parametrize("colour", ["red", "blue"])
 def test_excess_is_symmetric_about_each_sample(pixel_format: str, colour: str) -> None:
@@ -99,6 +114,9 @@ def test_excess_is_symmetric_about_each_sample(pixel_format: str, colour: str) -
     excess, _ = excess_window(mosaic, grid, colour, (i - k, i + k + 1, j - k, j + k + 1))
     assert excess.shape == (2 * k + 1, 2 * k + 1)
     assert np.array_equal(excess, excess[::-1, ::-1])
+    # So are all three channels at the colour's samples (the guided look's tint, trackerd/refine.py).
+    channels = channel_windows(mosaic, grid, colour, (i - k, i + k + 1, j - k, j + k + 1))
+    assert np.array_equal(channels, channels[:, ::-1, ::-1])
 
 
 def test_green_at_reads_green_pixels() -> None:

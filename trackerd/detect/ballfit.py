@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.colour import EXCESS_SCALE, SampleGrid, excess_window
+from trackerd.detect.colour import EXCESS_SCALE, SampleGrid, channel_windows, excess_window
 
 Array = NDArray[np.float64]
 
@@ -127,6 +127,7 @@ def fit_ball(
     rising_rims: bool = False,
     centre_slack_px: float | None = None,
     view: Array | None = None,
+    tint: Array | None = None,
 ) -> BallFit:
     """The circle of the ``colour`` ball near (x_px, y_px), of roughly ``radius_px`` (see the module).
 
@@ -151,13 +152,19 @@ def fit_ball(
     (:func:`trackerd.geometry.sphere.view_map`: a ball far off a wide lens's axis images as an ellipse
     stretched away from the axis). The rays, the circle and ``radius_px``, ``radius_range_px`` and the
     result's radius and scatter are then in those units; the centre and the rim points stay in pixels.
+    ``tint``: weights (3,) of the colour's own channel, green and the other colour; the rims are then looked
+    for in that combination of the channels (in grey levels) instead of the colour's excess over the others
+    (:func:`trackerd.refine.ball_tint`: a ball before a picture of nearly its colour can differ from it in
+    another direction).
     """
     if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:
         return BallFit.missing("no position to look at")
     fit = BallFit.missing("not looked for")
     cx, cy, radius = float(x_px), float(y_px), max(float(radius_px), 2.0)
     for _ in range(passes):
-        fit = _one_pass(frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims, centre_slack_px, view)
+        fit = _one_pass(
+            frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims, centre_slack_px, view, tint
+        )
         if not fit.found:
             return fit
         cx, cy = (float(v) for v in fit.centre_px)
@@ -177,6 +184,7 @@ def _one_pass(
     rising_rims: bool = False,
     centre_slack_px: float | None = None,
     view: Array | None = None,
+    tint: Array | None = None,
 ) -> BallFit:
     # The rays run in the view's units (where the outline is a circle); ``image`` takes them back to pixels.
     image = np.eye(2) if view is None else np.linalg.inv(view)
@@ -195,8 +203,11 @@ def _one_pass(
     )
     if region[1] - region[0] < 3 or region[3] - region[2] < 3:
         return BallFit.missing("the ball is at the frame's edge")
-    excess, _ = excess_window(frame, grid, colour, region)
-    levels = excess.astype(np.float32) / np.float32(EXCESS_SCALE)
+    if tint is None:
+        excess, _ = excess_window(frame, grid, colour, region)
+        levels = excess.astype(np.float32) / np.float32(EXCESS_SCALE)
+    else:
+        levels = np.tensordot(tint.astype(np.float32), channel_windows(frame, grid, colour, region), axes=1)
     # Samples along the rays, as lattice coordinates of the window.
     rho = np.arange(0.15 * radius, reach, STEP_PX)
     if view is None:

@@ -205,6 +205,34 @@ def excess_window(
         excess -= others
         excess <<= 2
         return excess, value
+    value, greens, others = _bayer_neighbours(frame, grid, colour, region)
+    np.maximum(greens, others, out=greens)
+    excess = value.astype(np.int16)
+    excess <<= 2
+    excess -= greens
+    return excess, value
+
+
+def channel_windows(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, region: Region) -> NDArray[np.float32]:
+    """All three channels at the colour's samples in ``region``: shape (3, rows, cols), the colour's own
+    channel, green and the other colour, in grey levels (on a Bayer frame the green and the other colour
+    are the means of the sample's four neighbours of each). The same region rules as :func:`excess_window`."""
+    r0, r1, c0, c1 = region
+    if not grid.is_bayer:
+        ch = grid.channels
+        own, other = (ch[0], ch[2]) if colour == "red" else (ch[2], ch[0])
+        window = frame[r0:r1, c0:c1]
+        return np.stack([window[..., own], window[..., ch[1]], window[..., other]]).astype(np.float32)
+    value, greens, others = _bayer_neighbours(frame, grid, colour, region)
+    return np.stack([value.astype(np.float32), greens / np.float32(4), others / np.float32(4)])
+
+
+def _bayer_neighbours(
+    frame: NDArray[np.uint8], grid: SampleGrid, colour: str, region: Region
+) -> tuple[NDArray[np.uint8], NDArray[np.int16], NDArray[np.int16]]:
+    """The colour's samples in ``region`` of a Bayer frame, and the sums of their four green and their four
+    other-colour neighbours (int16)."""
+    r0, r1, c0, c1 = region
     dr, dc = grid.red if colour == "red" else grid.blue
     h, w = r1 - r0, c1 - c0
     # A patch with one pixel of border: local cell (i, j) has its sample at
@@ -218,12 +246,7 @@ def excess_window(
     cols = slice(1 + dc, 1 + dc + 2 * w, 2)
     greens = np.add(pair[rows, dc : dc + 2 * w : 2], patch[dr : dr + 2 * h : 2, cols], dtype=np.int16)
     greens += patch[2 + dr : 2 + dr + 2 * h : 2, cols]
-    np.maximum(greens, quad[dr : dr + 2 * h : 2, dc : dc + 2 * w : 2], out=greens)
-    value = patch[rows, cols]
-    excess = value.astype(np.int16)
-    excess <<= 2
-    excess -= greens
-    return excess, value
+    return patch[rows, cols], greens, quad[dr : dr + 2 * h : 2, dc : dc + 2 * w : 2]
 
 
 def green_at(frame: NDArray[np.uint8], grid: SampleGrid, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
