@@ -107,8 +107,19 @@ def guided_fit(
     within TOUCHING_SLACK_PX of the start can pass through left out."""
     from trackerd.detect.ballfit import fit_ball
 
-    # Plain first; then as a ball touching something of its colour.
-    for largest, slack_px in ((GUIDED_SIZE, None), (TOUCHING_LARGEST, TOUCHING_SLACK_PX)):
+    # Plain first; then as a ball touching something of its colour; last in its tint.
+    for largest, slack_px, in_excess in (
+        (GUIDED_SIZE, None, True),
+        (TOUCHING_LARGEST, TOUCHING_SLACK_PX, True),
+        (GUIDED_SIZE, None, False),
+    ):
+        tint = None
+        if not in_excess:
+            # A ball before a picture with as much of its colour's excess has no rim in the excess, but has one
+            # in the direction (in colour) from the picture to the ball.
+            tint = ball_tint(image, grid, colour, x_px, y_px, radius_px)
+            if tint is None:
+                return None
         fit = fit_ball(
             image,
             grid,
@@ -118,30 +129,14 @@ def guided_fit(
             radius_px,
             axis=axis,
             radius_range_px=(radius_px / GUIDED_SIZE, radius_px * largest),
-            rising_rims=True,
+            rising_rims=in_excess,
             centre_slack_px=slack_px,
             view=view,
+            tint=tint,
         )
         if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX:
             return fit
-    # Last, a ball before a picture of nearly its colour: as much of its colour's excess as the picture, so no
-    # rim in it, but a rim in the direction (in colour) from the picture to the ball.
-    tint = ball_tint(image, grid, colour, x_px, y_px, radius_px)
-    if tint is None:
-        return None
-    fit = fit_ball(
-        image,
-        grid,
-        colour,
-        x_px,
-        y_px,
-        radius_px,
-        axis=axis,
-        radius_range_px=(radius_px / GUIDED_SIZE, radius_px * GUIDED_SIZE),
-        view=view,
-        tint=tint,
-    )
-    return fit if fit.found and fit.residual_px <= MAX_GUIDED_RESIDUAL_PX else None
+    return None
 
 
 def ball_tint(

@@ -58,7 +58,7 @@ def test_each_colour_sample_is_at_its_own_pixel(pixel_format: str) -> None:
 
 
 @pytest.mark.parametrize("pixel_format", FORMATS)
-def test_excess_of_a_flat_colour(pixel_format: str) -> None:
+def test_excess_and_channels_of_a_flat_colour(pixel_format: str) -> None:
     rgb = np.empty((20, 24, 3), dtype=np.uint8)
     rgb[:] = (200, 50, 80)
     frame = from_rgb(rgb, pixel_format)
@@ -72,20 +72,12 @@ def test_excess_of_a_flat_colour(pixel_format: str) -> None:
     assert r_mask.all() and not b_mask.any()
     r_mask, _ = coarse_masks(frame, grid, Threshold(121, 0), None, grid.interior(), 2)
     assert r_mask is not None and not r_mask.any()
-
-
-@pytest.mark.parametrize("pixel_format", FORMATS)
-def test_channels_of_a_flat_colour(pixel_format: str) -> None:
-    """Each colour's samples see the frame's own channel, green and the other colour, in grey levels."""
-    rgb = np.empty((20, 24, 3), dtype=np.uint8)
-    rgb[:] = (200, 50, 80)
-    frame = from_rgb(rgb, pixel_format)
-    grid = sample_grid(pixel_format, 24, 20)
-    red = channel_windows(frame, grid, "red", grid.interior())
-    blue = channel_windows(frame, grid, "blue", grid.interior())
-    assert red.shape[0] == 3 and red.shape[1:] == excess_window(frame, grid, "red", grid.interior())[0].shape
-    assert np.all(red == np.array([200, 50, 80], dtype=np.float32)[:, None, None])
-    assert np.all(blue == np.array([80, 50, 200], dtype=np.float32)[:, None, None])
+    # Each colour's samples see the frame's own channel, green and the other colour, in grey levels.
+    red_channels = channel_windows(frame, grid, "red", grid.interior())
+    assert red_channels.shape == (3, *red.shape)
+    assert np.all(red_channels == np.array([200, 50, 80], dtype=np.float32)[:, None, None])
+    blue_channels = channel_windows(frame, grid, "blue", grid.interior())
+    assert np.all(blue_channels == np.array([80, 50, 200], dtype=np.float32)[:, None, None])
 
 
 @pytest.mark.parametrize("pixel_format", [f for f in FORMATS if f.startswith("Bayer")])
