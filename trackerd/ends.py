@@ -242,14 +242,11 @@ def partial_arc_error(fit: BallFit, expected_radius_px: float, focal_px: float) 
     (tests/test_refine.py holds it to the centre a circle of the expected radius fits). That shift is the
     error's size, along its direction.
     """
-    if len(fit.rim_px) < 3:
-        wrong = abs(fit.radius_px - expected_radius_px) / focal_px
-        return np.eye(2) * wrong * wrong
     outward = fit.rim_px - fit.centre_px
     outward = outward / np.maximum(np.linalg.norm(outward, axis=1, keepdims=True), 1e-12)
     spread = outward.T @ outward
-    if np.linalg.cond(spread) > 1e6:
-        # Rim points all along one line (a sliver of arc): the centre is free along it.
+    if len(fit.rim_px) < 3 or np.linalg.cond(spread) > 1e6:
+        # Too few rim points, or all along one line (a sliver of arc): the centre is free; as wrong as the radius.
         wrong = abs(fit.radius_px - expected_radius_px) / focal_px
         return np.eye(2) * wrong * wrong
     shift_px = (fit.radius_px - expected_radius_px) * np.linalg.solve(spread, outward.sum(axis=0))

@@ -149,18 +149,11 @@ def ball_tint(
 
     The ball is the median over the inner half of its radius, its surroundings the median over the ring
     from 1.5 to 2.2 radii: a rod or a hand across part of either does not move a median."""
-    from trackerd.detect.colour import channel_windows
+    from trackerd.detect.colour import cells_around, channel_windows
 
     s = grid.cell_px
     dr, dc = grid.offset(colour)
-    reach = 2.2 * radius_px + s
-    lo_r, hi_r, lo_c, hi_c = grid.interior()
-    region = (
-        max(lo_r, math.floor((y_px - reach - dr) / s)),
-        min(hi_r, math.ceil((y_px + reach - dr) / s) + 1),
-        max(lo_c, math.floor((x_px - reach - dc) / s)),
-        min(hi_c, math.ceil((x_px + reach - dc) / s) + 1),
-    )
+    region = cells_around(grid, colour, x_px, y_px, 2.2 * radius_px)
     if region[1] - region[0] < 3 or region[3] - region[2] < 3:
         return None
     channels = channel_windows(image, grid, colour, region)

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.colour import EXCESS_SCALE, SampleGrid, channel_windows, excess_window
+from trackerd.detect.colour import EXCESS_SCALE, SampleGrid, cells_around, channel_windows, excess_window
 
 Array = NDArray[np.float64]
 
@@ -194,13 +194,7 @@ def _one_pass(
     # The colour's sample lattice's spacing in the rays' units.
     lattice = float(s) if view is None else float(s) * math.sqrt(abs(float(np.linalg.det(view))))
     dr, dc = grid.offset(colour)
-    lo_r, hi_r, lo_c, hi_c = grid.interior()
-    region = (
-        max(lo_r, math.floor((cy - reach_px - dr) / s) - 1),
-        min(hi_r, math.ceil((cy + reach_px - dr) / s) + 2),
-        max(lo_c, math.floor((cx - reach_px - dc) / s) - 1),
-        min(hi_c, math.ceil((cx + reach_px - dc) / s) + 2),
-    )
+    region = cells_around(grid, colour, cx, cy, reach_px)
     if region[1] - region[0] < 3 or region[3] - region[2] < 3:
         return BallFit.missing("the ball is at the frame's edge")
     if tint is None:

@@ -28,6 +28,7 @@ Two scores are computed:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -211,6 +212,20 @@ def excess_window(
     excess <<= 2
     excess -= greens
     return excess, value
+
+
+def cells_around(grid: SampleGrid, colour: str, x_px: float, y_px: float, reach_px: float) -> Region:
+    """The region (cells, inside :meth:`SampleGrid.interior`) holding every sample of ``colour`` within
+    ``reach_px`` of (x_px, y_px), with a sample to spare on each side for bilinear interpolation."""
+    s = grid.cell_px
+    dr, dc = grid.offset(colour)
+    lo_r, hi_r, lo_c, hi_c = grid.interior()
+    return (
+        max(lo_r, math.floor((y_px - reach_px - dr) / s) - 1),
+        min(hi_r, math.ceil((y_px + reach_px - dr) / s) + 2),
+        max(lo_c, math.floor((x_px - reach_px - dc) / s) - 1),
+        min(hi_c, math.ceil((x_px + reach_px - dc) / s) + 2),
+    )
 
 
 def channel_windows(frame: NDArray[np.uint8], grid: SampleGrid, colour: str, region: Region) -> NDArray[np.float32]:
