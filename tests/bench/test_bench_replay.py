@@ -32,13 +32,13 @@ def test_a_short_run_completes_with_every_row(tmp_path) -> None:
     assert figures["ratio_trackerd_to_opencv"] > 0
 
 
-def test_the_modes_run_puts_each_replay_beside_its_before_row_with_the_raw_hits(tmp_path) -> None:
-    """`--modes` prints the baseline ("before": pairs handed over one at a time, every frame rebuilt on
-    the reader thread) beside today's replay of each mode, and every replay's hits are the raw one's."""
+def test_the_modes_run_puts_each_replay_beside_its_one_process_row_with_the_raw_hits(tmp_path) -> None:
+    """`--modes` prints the baseline ("one process": located in the pipeline, not in the worker ahead
+    of it) beside today's replay of each mode, and every replay's hits are the raw one's."""
     figures = _bench_replay(tmp_path, "--record-seconds", "0.5", "--modes", "--keyframe-interval", "0.2")
     rows = figures["mode_replays"]
     for mode in ("raw", "raw --no-verify", "compressed", "windowed"):
-        assert {mode, f"{mode}, before"} <= set(rows), sorted(rows)
+        assert {mode, f"{mode}, one process"} <= set(rows), sorted(rows)
     for name, row in rows.items():
         assert row["pairs"] > 0 and row["hits"] > 0, name
         assert row["hits_identical_to_raw"], name

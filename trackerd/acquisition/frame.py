@@ -11,9 +11,13 @@ machine (docs/acquisition.md, "Buffer ownership").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from trackerd.locator import PointerFix
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,6 +56,10 @@ class FramePair:
     fresh_start: bool = False
     """True when the pair does not follow from the one before (a looped replay starting its next
     pass): the pipeline's trackers and filters start afresh rather than take the jump for motion."""
+    located: PointerFix | None = None
+    """The pointer already located in these frames, by a locator that went through the same pairs
+    in the same order (a replay at max speed locates in a worker process ahead of the pipeline,
+    trackerd.recording.ahead); None: the pipeline's locator locates them."""
 
     @property
     def images(self) -> list[NDArray[np.uint8]]:

@@ -23,6 +23,11 @@ from trackerd.acquisition.status import SourceStatus
 class PairSource(ABC):
     """A context manager that starts on entry and stops on exit."""
 
+    every_pair_published: bool = False
+    """True: the pipeline waits for its publishing thread rather than drop a pair's messages when
+    that thread falls behind (a replay as fast as possible, where nothing can be late); False:
+    the oldest waiting pair is dropped and counted, so latency stays bounded (cameras)."""
+
     @abstractmethod
     def start(self) -> None:
         """Begin acquiring. Raises CameraError (or RecordingError) when the source cannot start."""

@@ -8,10 +8,11 @@ gives the recorder's CPU share at the recorded rate. The raw row writes the
 same pairs as `trackerd record` would (``writev`` and checksums). Then each
 recording is replayed at max speed through the pipeline exactly as
 `trackerd replay --speed max` runs it (today's raw replay with checksums, as
-the baseline, and without), each also as before batching (pairs handed over
-one at a time, every camera's frame rebuilt on the reader thread) beside the
-batched hand-over and the compressed mode's decode pool, and the hits of every
-replay are compared with the raw replay's, field for field.
+the baseline, and without), each also located in the pipeline's own process
+(``one process``, as `--one-process` and as before the worker locating ahead,
+trackerd.recording.ahead) beside the default, and the hits of every replay are
+compared with the raw replay's, field for field. The CPU figures count the
+worker too, its start (about a second of imports) included.
 """
 
 from __future__ import annotations
@@ -82,26 +83,26 @@ def replay_modes(
     from trackerd.recording.reader import Recording
     from trackerd.recording.replay_rig import replay_rig
 
-    # "before": pairs handed from the reader thread one at a time, as before batching, and every
-    # camera's frame rebuilt on the reader thread, as before the decode pool (old vs new, one run).
+    # "one process": located in the pipeline, as before the worker locating ahead
+    # (trackerd.recording.ahead) and as `trackerd replay --speed max --one-process` (old vs new, one run).
     runs = [
-        ("raw, before", "raw", True, False),
+        ("raw, one process", "raw", True, False),
         ("raw", "raw", True, True),
-        ("raw --no-verify, before", "raw", False, False),
+        ("raw --no-verify, one process", "raw", False, False),
         ("raw --no-verify", "raw", False, True),
-        ("compressed, before", "compressed", True, False),
+        ("compressed, one process", "compressed", True, False),
         ("compressed", "compressed", True, True),
-        ("windowed, before", "windowed", True, False),
+        ("windowed, one process", "windowed", True, False),
         ("windowed", "windowed", True, True),
     ]
     out: dict[str, dict[str, Any]] = {}
     reference: dict[int, dict] | None = None
     progress = BenchProgress("replay", len(runs), "replays")
-    for name, mode, verify, new in runs:
+    for name, mode, verify, ahead in runs:
         with Recording.open(written[mode]["path"]) as recording:
             rig, _ = replay_rig(recording, rig_path, ["tcp://127.0.0.1:*"])
             figures = replay_once(
-                recording, rig, None, verify, len(recording), truth, keep_hits=True, batch=new, threaded_decode=new
+                recording, rig, None, verify, len(recording), truth, keep_hits=True, locate_ahead=ahead
             )
         hits = {h["sequence"]: {k: v for k, v in h.items() if k != "publish_ns"} for h in figures.pop("hit_messages")}
         if reference is None:
@@ -138,7 +139,7 @@ def format_modes(written: dict[str, dict[str, Any]], replays: dict[str, dict[str
         dropped = f["dropped_before_publishing"]
         note = f"; {dropped} pairs dropped before publishing (load)" if dropped else ""
         lines.append(
-            f"  {name:<26} {f['pair_rate_hz']:>7} pairs/s, {f['cpu_ms_per_pair']:>5} ms CPU/pair over"
+            f"  {name:<30} {f['pair_rate_hz']:>7} pairs/s, {f['cpu_ms_per_pair']:>5} ms CPU/pair over"
             f" {f['pairs']} pairs, {f['hits']} hits ({same}{note})"
         )
     return "\n".join(lines)

@@ -80,6 +80,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="skip the frame checksums (faster at --speed max; record headers are still checked)",
     )
+    parser.add_argument(
+        "--one-process",
+        action="store_true",
+        help="at --speed max, locate in the pipeline as at any other speed, not in a worker process"
+        " ahead of it (the same hits, about half the rate; docs/recording.md, 'Replay speed')",
+    )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     add_console_option(parser)
     parser.set_defaults(handler=replay_command)
@@ -117,6 +123,7 @@ def replay_command(args: argparse.Namespace) -> int:
         first=args.first,
         count=args.count,
         passes=args.passes,
+        locate_with=None if args.one_process else rig,
     )
     pace = "max speed" if args.speed is None else f"{args.speed:g}x the recorded pace"
     meta = recording.metadata
@@ -171,6 +178,8 @@ def replay_command(args: argparse.Namespace) -> int:
     else:
         print(_format(summary))
     recording.close()
+    if code == 0 and source.failure is not None:
+        return 1  # said above, among the problems
     if code == 0 and source.skipped:
         print(f"trackerd replay: {source.skipped} damaged pair(s) skipped (listed above)", file=sys.stderr)
         return 1

@@ -124,7 +124,9 @@ class ProcessingStage:
                 self.locator.reset()
                 for extension in self.extensions:
                     extension.reset()
-            fix = self.locator.locate(pair.images)
+            # A replay locating ahead (trackerd.recording.ahead) went through every pair before with a
+            # locator of this rig, started afresh and reset where this one would have been.
+            fix = pair.located if pair.located is not None else self.locator.locate(pair.images)
             capture = pair.timestamp_ns + links.clock_offset_ns
             located = Located(pair, fix, capture)
             events = NOTHING
@@ -164,7 +166,10 @@ class ProcessingStage:
             processed.messages()
             if observer is not None:
                 processed.queued_ns = time.monotonic_ns()
-            links.queue.put(processed)
+            if self.slot.every_pair_published():
+                links.queue.put_waiting(processed, stop)
+            else:
+                links.queue.put(processed)
             figures.processing_cpu.add(time.thread_time_ns() - start_cpu)
             figures.pairs_processed += 1
             self._links.notifier.progress()

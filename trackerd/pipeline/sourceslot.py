@@ -90,6 +90,10 @@ class SourceSlot:
         # A copy only when the numbers differ: the first source's pairs go through as they are.
         return pair if sequence == pair.sequence else dataclasses.replace(pair, sequence=sequence)
 
+    def every_pair_published(self) -> bool:
+        """The source wants every pair's messages published, late or not (PairSource.every_pair_published)."""
+        return self.source is not None and self.source.every_pair_published
+
     def some_camera_recovering(self) -> bool:
         """A camera is lost or reconnecting (a power-cycled camera is not a stalled pipeline)."""
         assert self.source is not None

@@ -37,7 +37,10 @@ from trackerd.acquisition.frame import FramePair
 from trackerd.acquisition.pacing import wait_until_due
 from trackerd.acquisition.source import PairSource
 from trackerd.acquisition.status import CameraState, CameraStatus, SourceStatus
+from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
+from trackerd.locator import PointerFix
+from trackerd.recording.ahead import LocateAhead, WorkerFailed, located_pair
 from trackerd.recording.format import RecordHeader
 from trackerd.recording.reader import Recording, make_pair
 
@@ -68,6 +71,10 @@ class _Read:
     header: RecordHeader | None
     images: list[NDArray[np.uint8]] | None
     error: RecordingError | None
+    fix: PointerFix | None = None
+    """Located ahead (trackerd.recording.ahead): the pixels are read only if looked at."""
+    failure: str | None = None
+    """The worker locating ahead stopped: the replay cannot go on."""
 
 
 class ReplayPairSource(PairSource):
@@ -87,13 +94,16 @@ class ReplayPairSource(PairSource):
         shift_ns: int | None = None,
         batch: bool = True,
         threaded_decode: bool = True,
+        locate_with: RigConfig | None = None,
     ) -> None:
         """``speed`` None replays as fast as the consumer takes pairs. ``shift_ns`` moves recorded
         timestamps (default: so that the first pair is due at construction plus ``start_delay_s``).
         ``batch`` False hands pairs over one by one at max speed too (as before batching; benchmarks).
         ``passes``, when looping, ends the replay after that many passes (None: until stopped).
         ``threaded_decode`` False rebuilds every camera's frame on the reader thread in every mode
-        (as before :data:`THREADED_DECODE_MODES`; benchmarks)."""
+        (as before :data:`THREADED_DECODE_MODES`; benchmarks). ``locate_with``, at max speed: a
+        worker process locates every pair ahead of the pipeline with a locator of this rig (the
+        pipeline's) and the pairs come with their fixes (trackerd.recording.ahead)."""
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive (None: as fast as possible)")
         if passes is not None and passes < 1:
@@ -107,6 +117,7 @@ class ReplayPairSource(PairSource):
                 f"{self.recording.path}: no intact pairs to replay" + (f" from pair {first}" if first else "")
             )
         self.speed = speed
+        self.every_pair_published = speed is None
         self.loop = loop
         self.passes = passes if loop else 1
         self.verify = verify
@@ -117,6 +128,8 @@ class ReplayPairSource(PairSource):
             if threaded_decode and self.recording.metadata.mode in THREADED_DECODE_MODES
             else 0
         )
+        self._locate_with = locate_with if speed is None else None
+        self._worker: LocateAhead | None = None
         self._local: deque[_Read] = deque()
         entries = self.recording.entries
         self._t0_rec = entries[self.first].timestamp_ns
@@ -139,6 +152,8 @@ class ReplayPairSource(PairSource):
         self.skipped = 0
         """Pairs not delivered because they are damaged."""
         self.problems: list[str] = []
+        self.failure: str | None = None
+        """Why the replay ended before its last pair (the worker locating ahead stopped), else None."""
         self.lag_ms = 0.0
         """How late the last pair was delivered against the recorded pace (0 at max speed)."""
         self.max_lag_ms = 0.0
@@ -173,8 +188,15 @@ class ReplayPairSource(PairSource):
         self._halt = threading.Event()
         self._ahead = queue.Queue(maxsize=self._queue_batches())
         self._local = deque()
+        if self._locate_with is not None:
+            self._worker = LocateAhead(
+                self.recording, self._locate_with, self.first, self.stop_at, self.passes, self.verify
+            )
         self._reader = threading.Thread(
-            target=self._read_ahead, args=(self._halt, self._ahead), name="trackerd-replay-reader", daemon=True
+            target=self._read_ahead if self._worker is None else self._receive_located,
+            args=(self._halt, self._ahead),
+            name="trackerd-replay-reader",
+            daemon=True,
         )
         self._reader.start()
 
@@ -188,6 +210,9 @@ class ReplayPairSource(PairSource):
             self._halt.set()
             self._reader.join(STOP_TIMEOUT_S)
             self._reader = None
+        if self._worker is not None:
+            self._worker.stop()
+            self._worker = None
 
     def _due_ns(self, index: int, loop_pass: int) -> int:
         if self.speed is None:
@@ -225,17 +250,37 @@ class ReplayPairSource(PairSource):
                 return None
 
     def _deliver(self, item: _Read) -> FramePair | None:
+        if item.failure is not None:
+            # The replay ends here, as at its last pair: what was published stays, the summary says why.
+            with self._lock:
+                self.failure = item.failure
+                self.problems.append(item.failure)
+                self._finished = True
+            return None
         if item.error is not None:
             with self._lock:
                 self.skipped += 1
                 if len(self.problems) < 100:
                     self.problems.append(f"{item.error}; pair skipped")
             return None
-        assert item.header is not None and item.images is not None
+        assert item.header is not None
         now = time.monotonic_ns()
         shift = self.shift_ns + item.loop_pass * self._pass_ns
         sequence = item.header.sequence + item.loop_pass * self._sequence_step
-        pair = make_pair(self.recording, item.header, item.images, shift_ns=shift, host_ns=now, sequence=sequence)
+        if item.fix is not None:
+            pair = located_pair(
+                self.recording,
+                item.index,
+                item.header,
+                item.fix,
+                verify=self.verify,
+                shift_ns=shift,
+                host_ns=now,
+                sequence=sequence,
+            )
+        else:
+            assert item.images is not None
+            pair = make_pair(self.recording, item.header, item.images, shift_ns=shift, host_ns=now, sequence=sequence)
         if item.loop_pass > self._delivered_pass:
             # The jump from the last pair back to the first is no motion of the pointer.
             self._delivered_pass = item.loop_pass
@@ -278,18 +323,42 @@ class ReplayPairSource(PairSource):
                 batch.append(item)
                 if len(batch) < self._batch and index < self.stop_at - 1:
                     continue
-                while not halt.is_set():
-                    try:
-                        ahead.put(batch, timeout=0.1)
-                        break
-                    except queue.Full:
-                        continue
+                self._put(halt, ahead, batch)
                 batch = []
                 if halt.is_set():
                     return
             if self._last_pass(loop_pass):
                 return
             loop_pass += 1
+
+    def _receive_located(self, halt: threading.Event, ahead: queue.Queue[list[_Read]]) -> None:
+        """The reader thread when locating ahead: the worker's fixes with each pair's header, queued
+        as :meth:`_read_pairs` queues pairs (the pixels are read only if looked at)."""
+        worker = self._worker
+        assert worker is not None
+        batch: list[_Read] = []
+        try:
+            for located in worker.results(halt):
+                if located.fix is None:
+                    item = _Read(located.index, located.loop_pass, None, None, RecordingError(located.damaged or ""))
+                else:
+                    header = self.recording.header(located.index)
+                    item = _Read(located.index, located.loop_pass, header, None, None, located.fix)
+                batch.append(item)
+                if len(batch) >= self._batch or located.index == self.stop_at - 1:
+                    self._put(halt, ahead, batch)
+                    batch = []
+        except (WorkerFailed, RecordingError) as err:
+            self._put(halt, ahead, [*batch, _Read(self.first, 0, None, None, None, failure=str(err))])
+
+    @staticmethod
+    def _put(halt: threading.Event, ahead: queue.Queue[list[_Read]], batch: list[_Read]) -> None:
+        while not halt.is_set():
+            try:
+                ahead.put(batch, timeout=0.1)
+                return
+            except queue.Full:
+                continue
 
     def _last_pass(self, loop_pass: int) -> bool:
         return self.passes is not None and loop_pass >= self.passes - 1
