@@ -168,6 +168,18 @@ def search_candidates(
                 # The seed's size is in pixels: in the view's units, by its mean scale there.
                 scale = math.sqrt(abs(float(np.linalg.det(local))))
                 fit = fit_ball(frame, grid, colour, x, y, scale * max(radius, smallest), view=local)
+            if not fit.found:
+                # A ball touching something that only just passes the hue test (a hand's skin beside a
+                # red ball) is one seed with it, and the outline fitted from there is not round: fitted
+                # again from the vivid part of the seed alone.
+                for share in STRICTER:
+                    vivid = _vivid_part(sampled, grid, colour, x, y, radius, share, smallest)
+                    if vivid is None:
+                        break
+                    vx, vy, vradius = vivid
+                    fit = fit_ball(frame, grid, colour, vx, vy, max(vradius, smallest))
+                    if fit.found:
+                        break
             if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
                 found.append(Candidate(colour, fit, (x, y), radius))
         out[colour] = _distinct(found)
@@ -259,6 +271,48 @@ def _seeds(
         )
     scored.sort(reverse=True)
     return [(x, y, radius) for _, x, y, radius in scored], merged
+
+
+def _vivid_part(
+    sampled: _Sampled,
+    grid: SampleGrid,
+    colour: str,
+    x_px: float,
+    y_px: float,
+    radius_px: float,
+    share: float,
+    smallest: float,
+) -> tuple[float, float, float] | None:
+    """(x, y, radius) in pixels of the largest group of samples within 1.5 radii of a seed at (x, y) whose
+    excess reaches ``share`` of their own channel; None when it is smaller than half the smallest ball, or
+    is the seed again (within a fifth of its radius, in place and size: its fit would fail alike)."""
+    own, _ = sampled.planes(colour)
+    excess = sampled.excess(colour)
+    r0, _, c0, _ = sampled.region
+    step, spacing, cell = sampled.step, sampled.spacing_px, grid.cell_px
+    dr, dc = grid.offset(colour)
+    row = ((y_px - dr) / cell - r0) / step
+    col = ((x_px - dc) / cell - c0) / step
+    reach = 1.5 * radius_px / spacing + 1.0
+    top, left = max(0, int(row - reach)), max(0, int(col - reach))
+    bottom, right = min(own.shape[0], int(row + reach) + 1), min(own.shape[1], int(col + reach) + 1)
+    if bottom <= top or right <= left:
+        return None
+    window_excess = excess[top:bottom, left:right]
+    strict = (window_excess >= MIN_EXCESS) & (100 * window_excess >= int(100 * share) * own[top:bottom, left:right])
+    count, _, stats, centroids = cv2.connectedComponentsWithStats(strict.view(np.uint8), connectivity=8)
+    if count < 2:
+        return None
+    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    samples = float(stats[biggest, cv2.CC_STAT_AREA])
+    radius = math.sqrt(samples / math.pi) * spacing
+    if radius < 0.5 * smallest:
+        return None
+    x = (c0 + step * (left + float(centroids[biggest, 0]))) * cell + dc
+    y = (r0 + step * (top + float(centroids[biggest, 1]))) * cell + dr
+    if math.hypot(x - x_px, y - y_px) < 0.2 * radius_px and radius > 0.8 * radius_px:
+        return None
+    return x, y, radius
 
 
 def _strength(
