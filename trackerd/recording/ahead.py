@@ -56,7 +56,7 @@ JOIN_S = 2.0
 
 
 @dataclass(frozen=True, slots=True)
-class Located:
+class WorkerResult:
     """What the worker says about one pair: its fix, or why the pair was skipped (a damaged frame)."""
 
     index: int
@@ -93,14 +93,14 @@ def _locate_all(
     verify: bool,
     pool: ThreadPoolExecutor | None,
 ) -> None:
-    batch: list[Located] = []
+    batch: list[WorkerResult] = []
     loop_pass, located_pass = 0, 0
     while True:
         for index in range(first, stop_at):
             try:
                 images = recording.images(index, recording.header(index), verify=verify, pool=pool)
             except RecordingError as err:
-                batch.append(Located(index, loop_pass, None, str(err)))
+                batch.append(WorkerResult(index, loop_pass, None, str(err)))
             else:
                 if loop_pass > located_pass:
                     # The source marks this pair fresh_start; the processing stage resets its locator.
@@ -109,7 +109,7 @@ def _locate_all(
                 fix = locator.locate(images)
                 if fix.status == "not_found":
                     locator.reset()  # as the processing stage does: tracking windows are stale
-                batch.append(Located(index, loop_pass, fix, None))
+                batch.append(WorkerResult(index, loop_pass, fix, None))
             if len(batch) >= SEND_PAIRS or index == stop_at - 1:
                 connection.send(batch)
                 batch = []
@@ -148,22 +148,24 @@ class LocateAhead:
         # multiprocessing's spawn, which runs the parent's main script again in the child.
         parameters_read, parameters_write = os.pipe()
         results_read, results_write = os.pipe()
+        # The worker imports this trackerd, however the replay's process found it: the folder holding
+        # the package goes first on its path unless its path has it already (an installed trackerd's
+        # site-packages stays where it is, behind the standard library).
         package_root = str(Path(__file__).resolve().parents[2])
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
         try:
             self._process = subprocess.Popen(
                 [
                     sys.executable,
                     "-c",
-                    "import sys; from trackerd.recording.ahead import worker_main;"
+                    "import sys; root = sys.argv[3]; root in sys.path or sys.path.insert(0, root);"
+                    " from trackerd.recording.ahead import worker_main;"
                     " worker_main(int(sys.argv[1]), int(sys.argv[2]))",
                     str(parameters_read),
                     str(results_write),
+                    package_root,
                 ],
                 pass_fds=(parameters_read, results_write),
                 stdin=subprocess.DEVNULL,
-                env=env,
                 start_new_session=True,
             )
         finally:
@@ -173,7 +175,7 @@ class LocateAhead:
         with Connection(parameters_write, readable=False) as parameters:
             parameters.send((str(recording.path), rig, first, stop_at, passes, verify))
 
-    def results(self, halt: threading.Event) -> Iterator[Located]:
+    def results(self, halt: threading.Event) -> Iterator[WorkerResult]:
         """The worker's results in order until its last pair (WorkerFailed if it stops before);
         returns early once ``halt`` is set."""
         while not halt.is_set():
