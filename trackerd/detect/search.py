@@ -173,7 +173,7 @@ def search_candidates(
                 # red ball) is one seed with it, and the outline fitted from there is not round: fitted
                 # again from the vivid part of the seed alone.
                 for share in STRICTER:
-                    vivid = _vivid_part(sampled, grid, colour, x, y, radius, share, smallest)
+                    vivid = _vivid_part(own, excess, sampled, grid, colour, x, y, radius, share, smallest)
                     if vivid is None:
                         break
                     vx, vy, vradius = vivid
@@ -274,6 +274,8 @@ def _seeds(
 
 
 def _vivid_part(
+    own: NDArray[np.int16],
+    excess: NDArray[np.int16],
     sampled: _Sampled,
     grid: SampleGrid,
     colour: str,
@@ -284,10 +286,9 @@ def _vivid_part(
     smallest: float,
 ) -> tuple[float, float, float] | None:
     """(x, y, radius) in pixels of the largest group of samples within 1.5 radii of a seed at (x, y) whose
-    excess reaches ``share`` of their own channel; None when it is smaller than half the smallest ball, or
-    is the seed again (within a fifth of its radius, in place and size: its fit would fail alike)."""
-    own, _ = sampled.planes(colour)
-    excess = sampled.excess(colour)
+    ``excess`` reaches ``share`` of their ``own`` channel (the search's sampled planes); None when it is
+    smaller than half the smallest ball, or is the seed again (within a fifth of its radius, in place and
+    size: its fit would fail alike)."""
     r0, _, c0, _ = sampled.region
     step, spacing, cell = sampled.step, sampled.spacing_px, grid.cell_px
     dr, dc = grid.offset(colour)
