@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import os
+from pathlib import Path
 
 # One OpenBLAS thread per process, set before NumPy loads OpenBLAS (which reads it once) and inherited
 # by the xdist workers and every trackerd the tests start. The suite runs two workers on two cores, or
@@ -16,7 +17,13 @@ import os
 # on this 2-core machine under load). Results are the same bit for bit (tests/sim/test_rendered_bits.py).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pathlib import Path
+# OpenBLAS picks its matrix kernels by CPU model unless told, and kernels differ in the last bit of a
+# product; the renderer's ray rotations are matrix products, so tests/sim/test_rendered_bits.py's hashes
+# hold for one kernel only (an Intel CPU's "SkylakeX" kernels recorded them first; this machine's
+# environment asks for "Haswell", under which all 8 of its tests failed on unchanged code). The hashes are
+# now those of the Haswell kernels, which every x86 CPU with AVX2 runs, set here whatever the environment says.
+if Path("/proc/cpuinfo").exists() and " avx2" in Path("/proc/cpuinfo").read_text(encoding="ascii", errors="replace"):
+    os.environ["OPENBLAS_CORETYPE"] = "Haswell"
 
 import numpy as np
 import pytest
