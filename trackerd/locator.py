@@ -32,9 +32,9 @@ from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.detect.result import ImageDetections
 from trackerd.errors import ConfigError, GeometryError
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.camera_set import CameraSet, estimate_line, hit_uncertainty_m
+from trackerd.geometry.camera_set import CameraSet, LineEstimate, estimate_line, hit_uncertainty_m
 from trackerd.geometry.pointer_line import PointerLine
-from trackerd.geometry.wall import WallFloats, WallFrame, WallHitFloats
+from trackerd.geometry.wall import LineHit, WallFrame, intersect_line_plane
 
 if TYPE_CHECKING:
     from trackerd.detect.detector import ColourEndDetector
@@ -133,8 +133,7 @@ class Locator:
         self._detectors: list[ColourEndDetector] | None = None
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
-        self._plane = self.wall.plane  # a property that recomputes; used several times per fix
-        self.wall_scalars = WallFloats.of(self.wall)  # the wall in plain floats, for the per-pair geometry
+        self._plane = self.wall.plane
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         self.camera_set = CameraSet.build(self.cameras)
         self._centres = self.camera_set.centres_m
@@ -275,28 +274,28 @@ class Locator:
             ]
         )
         try:
-            line = self._estimate(normalised, self.rig.locator.sphere_correction, view)
+            estimate = self._estimate(normalised, self.rig.locator.sphere_correction, view)
         except GeometryError as err:
             return PointerFix("rejected", str(err), centroids, timings_ns={"triangulate_ns": 0})
-        fix = self._judge(line, centroids, normalised, view)
+        fix = self._judge(estimate.line, centroids, estimate)
         fix.timings_ns["triangulate_ns"] = time.perf_counter_ns() - start
         return fix
 
-    def _estimate(self, normalised: Array, sphere_correction: bool, view: CameraSet) -> PointerLine:
-        """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``."""
+    def _estimate(self, normalised: Array, sphere_correction: bool, view: CameraSet) -> LineEstimate:
+        """Pointer line from normalised coordinates (C, 2 ends, 2) of the cameras in ``view``, with the
+        planes of each centroid moved by centroid_sigma_px across the pointer for its uncertainty."""
         radius = self.pointer.end_diameter_m / 2.0 if sphere_correction else None
-        return estimate_line(normalised, view, self._min_plane_sin, radius)
+        return estimate_line(normalised, view, self._min_plane_sin, radius, self.rig.locator.centroid_sigma_px)
 
     def _judge(
         self,
         line: PointerLine,
         centroids: tuple[dict[str, Array | None], ...],
-        normalised: Array,
-        view: CameraSet,
+        estimate: LineEstimate | None = None,
         uncertainty_m: float | None = None,
     ) -> PointerFix:
         """The fix for a line: rejected (length, ray gap), parallel, away, or a hit on or off the display
-        with its uncertainty (``uncertainty_m``, or the planes' estimate from ``normalised``)."""
+        with its uncertainty (``uncertainty_m``, or the spread of the ``estimate``'s moved planes)."""
         pointer = self.pointer
         length_error = line.length_m - pointer.length_m
         if abs(length_error) > pointer.length_tolerance_m:
@@ -317,8 +316,7 @@ class Locator:
                 line,
                 timings_ns={},
             )
-        back, front = line.back_floats, line.front_floats
-        if self.wall_scalars.direction_sin(back, front) < self._parallel_sin:
+        if not abs(float(line.direction @ self._plane.normal)) >= self._parallel_sin:
             return PointerFix(
                 "parallel",
                 f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
@@ -327,23 +325,22 @@ class Locator:
                 timings_ns={},
             )
         try:
-            intersection = self.wall_scalars.hit(back, front)  # eq. 26-28, and the wall's frame
+            intersection = intersect_line_plane(line.back_m, line.front_m, self._plane)  # eq. 26-28
         except GeometryError as err:
             return PointerFix("parallel", str(err), centroids, line, timings_ns={})
-        if intersection.u <= 0.0:
+        if not float(intersection.u) > 0.0:
             return PointerFix("away", "the pointer points away from the wall", centroids, line, timings_ns={})
         hit = self._wall_hit(intersection, line)
-        uncertainty = uncertainty_m if uncertainty_m is not None else self._uncertainty(normalised, view)
+        uncertainty = uncertainty_m
+        if uncertainty is None and estimate is not None:
+            uncertainty = hit_uncertainty_m(estimate, self.wall)
         status: FixStatus = "hit" if hit.on_wall else "off_wall"
         reason = None if hit.on_wall else "the pointer points at the wall outside the display"
         return PointerFix(status, reason, centroids, line, hit, uncertainty, timings_ns={})
 
-    def _wall_hit(self, hit: WallHitFloats, line: PointerLine) -> WallHit:
-        display = None if hit.display_px is None else np.array(hit.display_px)
-        distance = (hit.u - 1.0) * line.length_m
-        return WallHit(np.array(hit.wall_xy_m), np.array(hit.point_m), display, hit.on_wall, distance)
-
-    def _uncertainty(self, normalised: Array, view: CameraSet) -> float | None:
-        """RMS radius of the hit's error when every centroid moves by centroid_sigma_px across the pointer
-        (:func:`~trackerd.geometry.camera_set.hit_uncertainty_m`)."""
-        return hit_uncertainty_m(normalised, view, self.rig.locator.centroid_sigma_px, self.wall, self.wall_scalars)
+    def _wall_hit(self, intersection: LineHit, line: PointerLine) -> WallHit:
+        """The hit in the wall's frame and the display's pixels."""
+        wall_xy = self.wall.to_wall_m(intersection.point_m)
+        display = self.wall.to_display_px(wall_xy) if self.wall.has_display else None
+        distance = (float(intersection.u) - 1.0) * line.length_m
+        return WallHit(wall_xy, intersection.point_m, display, bool(self.wall.on_wall(wall_xy)), distance)

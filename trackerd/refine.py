@@ -444,13 +444,14 @@ class RefinedPath:
                 [np.stack([per_camera[used[k]][front].normalised, per_camera[used[k]][back].normalised]) for k in both]
             )
             try:
-                first = self.loc._estimate(normalised_both, False, sub)
+                estimate = self.loc._estimate(normalised_both, False, sub)
+                first = estimate.line
             except GeometryError as err:
                 return PointerFix("rejected", str(err), centroids, timings_ns=timings, detections=detections)
             if abs(first.length_m - pointer.length_m) > pointer.length_tolerance_m or (
                 first.gap_m > self.loc.rig.locator.max_ray_gap_m
             ):
-                fix = self.loc._judge(first, centroids, normalised_both, sub)
+                fix = self.loc._judge(first, centroids, estimate)
                 return PointerFix(
                     fix.status,
                     fix.reason,
@@ -543,19 +544,14 @@ class RefinedPath:
         line = PointerLine(fitted.front_m, fitted.back_m, gaps[0], gaps[1], "fit", gaps[2])
         uncertainty = None
         try:
-            wall = self.loc.wall_scalars
+            wall = self.loc.wall
             covariance = hit_covariance(
-                fitted.front_m,
-                fitted.back_m,
-                fitted.covariance,
-                np.array(wall.normal),
-                wall.offset_m,
-                np.array([wall.x_axis, wall.y_axis]),
+                fitted.front_m, fitted.back_m, fitted.covariance, wall.plane.normal, wall.plane.offset_m, wall.axes
             )
             uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))
         except GeometryError:
             pass
-        fix = self.loc._judge(line, centroids, measured, view, uncertainty)
+        fix = self.loc._judge(line, centroids, uncertainty_m=uncertainty)
         return PointerFix(
             fix.status,
             fix.reason,

@@ -12,9 +12,7 @@ from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import rotation_from_rvec
 from trackerd.geometry.triangulation import closest_approach
 from trackerd.geometry.wall import (
-    MIN_LINE_PLANE_SIN,
     Plane,
-    WallFloats,
     WallFrame,
     fit_plane,
     intersect_line_plane,
@@ -185,69 +183,6 @@ def test_property_build_a_plane_and_intersect(
     assert np.linalg.norm(hit.point_m - target) < 1e-9
     assert hit.u == pytest.approx(distance / gap_m, rel=1e-9)
     assert abs(plane.signed_distance_m(hit.point_m)) < 1e-9
-
-
-# ----------------------------------------------------------------- in plain floats (the daemon's per-pair path)
-
-
-@settings(max_examples=300, deadline=None)
-@given(start=points3, through=points3, display=st.booleans())
-def test_property_wall_floats_hit_is_the_numpy_reference(start: Vec3, through: Vec3, display: bool) -> None:
-    """WallFloats.hit against intersect_line_plane and the frame's to_wall_m, to_display_px, on_wall,
-    on a tilted wall: the same hit, or the same refusal."""
-    wall = WallFrame.from_corners(tilted_corners(), display_px=(3840, 1920) if display else None)
-    plain = WallFloats.of(wall)
-    direction = np.subtract(through, start)
-    length = float(np.linalg.norm(direction))
-    if length > 0.0:
-        # Not within rounding of the refusal's threshold, where the two may round to different sides.
-        sin = abs(float(direction @ wall.plane.normal)) / length
-        assume(abs(sin / MIN_LINE_PLANE_SIN - 1.0) > 1e-6)
-    try:
-        reference = intersect_line_plane(start, through, wall.plane)
-    except GeometryError as err:
-        with pytest.raises(GeometryError, match=str(err)):
-            plain.hit(start, through)
-        return
-    hit = plain.hit(start, through)
-    # Rounding in u grows as the line nears the plane's direction (the denominator of eq. 28 shrinks)
-    # and with the coordinates; a wrong formula is off by far more.
-    denominator = abs(float(direction @ wall.plane.normal))
-    reach = 1.0 + max(abs(v) for v in (*start, *through))
-    u_tolerance = 1e-12 * reach * (1.0 + reach / denominator)
-    assert hit.u == pytest.approx(float(reference.u), rel=1e-9, abs=u_tolerance)
-    point_tolerance = 1e-9 * reach * (1.0 + abs(float(reference.u)))
-    np.testing.assert_allclose(hit.point_m, reference.point_m, rtol=1e-9, atol=point_tolerance)
-    xy = wall.to_wall_m(reference.point_m)
-    np.testing.assert_allclose(hit.wall_xy_m, xy, rtol=1e-9, atol=point_tolerance)
-    # The reference's answer, but for a hit within rounding of the display's edge.
-    on_edge = min(abs(v) for v in (*xy, xy[0] - wall.width_m, xy[1] - wall.height_m)) < 1e-9
-    assert hit.on_wall == bool(wall.on_wall(xy)) or on_edge
-    if display:
-        display_tolerance = 2000 * point_tolerance  # about a thousand pixels a metre
-        np.testing.assert_allclose(hit.display_px, wall.to_display_px(xy), rtol=1e-9, atol=display_tolerance)
-    else:
-        assert hit.display_px is None
-
-
-@pytest.mark.parametrize(
-    ("start", "through", "message"),
-    [([0, 0, 1], [1, 0, 1], "parallel"), ([0, 0, 1], [1, 0, 1 + 1e-9], "parallel"), ([1, 1, 1], [1, 1, 1], "coincide")],
-)
-def test_wall_floats_refuses_what_the_reference_refuses(start: list[float], through: list[float], message: str) -> None:
-    wall = WallFrame.from_corners(DATAWALL_CORNERS)
-    with pytest.raises(GeometryError, match=message):
-        intersect_line_plane(start, through, wall.plane)
-    with pytest.raises(GeometryError, match=message):
-        WallFloats.of(wall).hit(tuple(start), tuple(through))
-
-
-def test_wall_floats_direction_sin() -> None:
-    plain = WallFloats.of(WallFrame.from_corners(DATAWALL_CORNERS))  # the plane z = 0
-    assert plain.direction_sin((0.0, 0.0, 1.0), (0.0, 0.0, 3.0)) == pytest.approx(1.0)
-    assert plain.direction_sin((0.0, 0.0, 1.0), (1.0, 0.0, 2.0)) == pytest.approx(np.sqrt(0.5))
-    assert plain.direction_sin((0.0, 0.0, 1.0), (5.0, 2.0, 1.0)) == 0.0
-    assert plain.direction_sin((1.0, 1.0, 1.0), (1.0, 1.0, 1.0)) == 0.0
 
 
 # ----------------------------------------------------------------- the wall's frame

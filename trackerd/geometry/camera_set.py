@@ -3,55 +3,64 @@
 The locator's geometry for each pair, on normalised image coordinates (pixels
 with the lens removed, eq. 1-2 and 14): the pointer's line from the cameras'
 interpretation planes and each end's closest approach (eq. 15-17,
-:mod:`trackerd.geometry.pointer_line`; two cameras by the closed forms of
-:mod:`trackerd.geometry.two_cameras`), and the uncertainty of the line's wall
-hit (eq. 23-28) when each centroid moves across the pointer.
+:mod:`trackerd.geometry.pointer_line`), corrected for the balls' size, and the
+uncertainty of the line's wall hit (eq. 23-28) when each centroid moves across
+the pointer. One path for any number of cameras: the measurement and its moved
+copies go through the same batched functions together.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.errors import GeometryError
-from trackerd.geometry import two_cameras
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.pointer_line import (
+    PARALLEL_PLANES_SIN,
     PointerLine,
-    cross3,
-    estimate_pointer_line,
-    line_from_planes,
-    sphere_centre_direction,
+    interpretation_plane_normals,
+    line_on_planes,
+    lines_from_planes,
+    sphere_centre_scale,
+    world_rays,
 )
-from trackerd.geometry.wall import WallFloats, WallFrame
+from trackerd.geometry.triangulation import nearest_points_m
+from trackerd.geometry.wall import MIN_LINE_PLANE_SIN, WallFrame
 
 Array = NDArray[np.float64]
-
-ScalarPose = tuple[two_cameras.Vec, two_cameras.Rows, two_cameras.Vec]
-"""A camera's centre, world-to-camera rotation rows and translation as tuples of floats."""
 
 
 @dataclass(frozen=True)
 class CameraSet:
-    """Cameras with their stacked centres (C, 3) and world-to-camera rotations (C, 3, 3)."""
+    """Cameras with their poses stacked for the batched geometry."""
 
     cameras: list[CameraModel]
     centres_m: Array
+    """(C, 3) optical centres in the world."""
     rotations: Array
-    scalar_poses: tuple[ScalarPose, ...]
-    """Per camera, its pose as floats (trackerd.geometry.two_cameras)."""
+    """(C, 3, 3) world-to-camera rotations."""
+    depth_rows: Array
+    """(C, 3) each rotation's last row: with :attr:`depth_offsets_m`, a world point's depth in each camera."""
+    depth_offsets_m: Array
+    """(C,) each translation's z."""
+    focal_px: Array
+    """(C,) each camera's focal length in pixels (pixels to normalised coordinates)."""
 
     @staticmethod
     def build(cameras: Sequence[CameraModel]) -> CameraSet:
-        centres = np.array([cam.centre_m for cam in cameras])
-        # d_world = d_cam @ R (R is world-to-camera), stacked for all cameras.
         rotations = np.stack([cam.rotation for cam in cameras])
-        poses = tuple(_scalar_pose(cam) for cam in cameras)
-        return CameraSet(list(cameras), centres, rotations, poses)
+        return CameraSet(
+            list(cameras),
+            np.array([cam.centre_m for cam in cameras]),
+            rotations,
+            rotations[:, 2, :].copy(),
+            np.array([float(cam.translation_m[2]) for cam in cameras]),
+            np.array([cam.focal_px for cam in cameras]),
+        )
 
     def subset(self, used: Sequence[int] | None) -> CameraSet:
         """All these cameras (``used`` None or all of them), or those listed."""
@@ -62,179 +71,113 @@ class CameraSet:
             [self.cameras[i] for i in used],
             self.centres_m[index],
             self.rotations[index],
-            tuple(self.scalar_poses[i] for i in used),
+            self.depth_rows[index],
+            self.depth_offsets_m[index],
+            self.focal_px[index],
         )
 
 
-def _scalar_pose(cam: CameraModel) -> ScalarPose:
-    cx, cy, cz = (float(v) for v in cam.centre_m)
-    tx, ty, tz = (float(v) for v in cam.translation_m)
-    r = cam.rotation
-    rows = (
-        (float(r[0, 0]), float(r[0, 1]), float(r[0, 2])),
-        (float(r[1, 0]), float(r[1, 1]), float(r[1, 2])),
-        (float(r[2, 0]), float(r[2, 1]), float(r[2, 2])),
-    )
-    return (cx, cy, cz), rows, (tx, ty, tz)
+@dataclass(frozen=True)
+class LineEstimate:
+    """The pointer's line, and the interpretation planes' lines its uncertainty is read from."""
+
+    line: PointerLine
+    plane_points_m: Array
+    """(B, 3) a point of each set's planes' line: set 0 as measured, then each end of each camera moved
+    across the pointer in turn (none when no move was asked for)."""
+    plane_directions: Array
+    """(B, 3) those lines' unit directions."""
+    plane_conditioning: Array
+    """(B,) sine of the angle between each set's planes."""
 
 
-def estimate_line(normalised: Array, view: CameraSet, min_plane_sin: float, ball_radius_m: float | None) -> PointerLine:
-    """Pointer line from normalised coordinates (C, 2 ends (front, back), 2) of the cameras in ``view``.
+def moved_across(normalised: Array, focal_px: Array, across_px: float) -> Array:
+    """The measurement (C, 2 ends, 2) and 2C copies, each with one end of one camera moved ``across_px``
+    across that camera's image of the pointer -> (1 + 2C, C, 2, 2); set 1 + 2k + e moves camera k's end e.
 
-    With ``ball_radius_m``, each end's ray is corrected to its ball's centre
-    (:func:`~trackerd.geometry.pointer_line.sphere_centre_direction`) at the
-    depth a first line puts it. Raises GeometryError as estimate_pointer_line does.
+    Only moves across the pointer's image move the line (along it they only slide the
+    ends), so these sets are what the hit's uncertainty needs: :func:`hit_uncertainty_m`.
     """
-    if len(view.cameras) == 2:
-        fast = _estimate_two(normalised, view, min_plane_sin, ball_radius_m)
-        if fast is not None:
-            return fast
-    rays = np.concatenate([normalised, np.ones((*normalised.shape[:2], 1))], axis=2)
-    rays /= np.sqrt(np.sum(rays * rays, axis=2, keepdims=True))
-    line = _line_from_camera_rays(rays[:, 0], rays[:, 1], view, min_plane_sin)
-    if ball_radius_m is not None:
-        front_depth = np.array([cam.to_camera_frame(line.front_m[None])[0, 2] for cam in view.cameras])
-        back_depth = np.array([cam.to_camera_frame(line.back_m[None])[0, 2] for cam in view.cameras])
-        if np.all(front_depth > ball_radius_m) and np.all(back_depth > ball_radius_m):
-            line = _line_from_camera_rays(
-                sphere_centre_direction(rays[:, 0], front_depth, ball_radius_m),
-                sphere_centre_direction(rays[:, 1], back_depth, ball_radius_m),
-                view,
-                min_plane_sin,
-            )
-    return line
+    sets_moved, camera, end = _moved_index(normalised.shape[0])
+    along = normalised[:, 0] - normalised[:, 1]
+    # A pixel is 1 / focal in normalised coordinates (distortion's local scale change of a
+    # few percent is ignored: this is an estimate).
+    scale = across_px / (focal_px * np.maximum(np.sqrt((along * along).sum(axis=-1)), 1e-12))
+    step = along[:, ::-1] * (scale[:, None] * _PERPENDICULAR)  # (-y, x): along turned a quarter
+    sets = np.repeat(normalised[None], len(sets_moved) + 1, axis=0)
+    sets[sets_moved, camera, end] += step[camera]
+    return sets
 
 
-def _estimate_two(
-    normalised: Array, view: CameraSet, min_plane_sin: float, ball_radius_m: float | None
-) -> PointerLine | None:
-    """:func:`estimate_line` for two cameras in plain floats (trackerd.geometry.two_cameras); None where
-    the planes are too close to parallel, for the general path's two-point line."""
-    (centre0, rows0, t0), (centre1, rows1, t1) = view.scalar_poses
-    (x0f, y0f), (x0b, y0b) = normalised[0].tolist()
-    (x1f, y1f), (x1b, y1b) = normalised[1].tolist()
-    world_ray = two_cameras.world_ray
-    rays = (
-        world_ray(rows0, x0f, y0f),
-        world_ray(rows0, x0b, y0b),
-        world_ray(rows1, x1f, y1f),
-        world_ray(rows1, x1b, y1b),
-    )
-    ends = two_cameras.pointer_ends(centre0, centre1, *rays, min_plane_sin)
-    if ends is None:
-        return None
-    if ball_radius_m is not None:
-        front, back, _ = ends
-        depths = [
-            rows[2][0] * p[0] + rows[2][1] * p[1] + rows[2][2] * p[2] + t[2]
-            for rows, t in ((rows0, t0), (rows1, t1))
-            for p in (front, back)
-        ]
-        if not min(depths) <= ball_radius_m:  # (as the test always was, should a depth be NaN)
-            # As sphere_centre_direction: the ellipse's centre lies (1 - r^2 / Z^2) further out.
-            k0f, k0b, k1f, k1b = (1.0 - (ball_radius_m / z) ** 2 for z in depths)
-            return two_cameras.pointer_line(
-                centre0,
-                centre1,
-                world_ray(rows0, x0f * k0f, y0f * k0f),
-                world_ray(rows0, x0b * k0b, y0b * k0b),
-                world_ray(rows1, x1f * k1f, y1f * k1f),
-                world_ray(rows1, x1b * k1b, y1b * k1b),
-                min_plane_sin,
-            )
-    # The first line is the answer (no correction, or an end too close to a camera for one).
-    return two_cameras.line_through(centre0, centre1, *rays, ends)
+_PERPENDICULAR = np.array([-1.0, 1.0])
 
 
-def _line_from_camera_rays(front_cam: Array, back_cam: Array, view: CameraSet, min_plane_sin: float) -> PointerLine:
-    """Line from camera-frame unit rays (C, 3) through the front and back ends."""
-    front_world = np.einsum("cj,cjk->ck", front_cam, view.rotations)
-    back_world = np.einsum("cj,cjk->ck", back_cam, view.rotations)
-    return estimate_pointer_line(view.centres_m, front_world, back_world, min_plane_sin)
+@lru_cache(maxsize=8)
+def _moved_index(cameras: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Which set moves which camera's which end (:func:`moved_across`)."""
+    camera = np.repeat(np.arange(cameras), 2)
+    return 1 + np.arange(2 * cameras), camera, np.tile([0, 1], cameras)
 
 
-def hit_uncertainty_m(
-    normalised: Array, view: CameraSet, sigma_px: float, wall: WallFrame, wall_scalars: WallFloats
-) -> float | None:
-    """RMS radius of the hit's error when every centroid moves by ``sigma_px`` across the pointer.
+def estimate_line(
+    normalised: Array,
+    view: CameraSet,
+    min_plane_sin: float,
+    ball_radius_m: float | None,
+    across_px: float | None = None,
+) -> LineEstimate:
+    """The pointer's line from normalised coordinates (C, 2 ends (front, back), 2) of the cameras in ``view``.
 
-    Only displacements across each camera's image of the pointer move the
-    line (along it they only slide the ends), so one perturbation per end per
-    camera gives the Jacobian of the hit. Pixels are converted to normalised
-    coordinates with each camera's focal length (distortion's local scale
-    change of a few percent is ignored: this is an estimate). None when a
-    moved line is parallel to the wall.
+    The interpretation planes' line with each end placed on it by its rays, or the two
+    triangulated ends where the planes are too close to parallel (below ``min_plane_sin``).
+    With ``ball_radius_m``, each end's ray is first corrected to its ball's centre
+    (:func:`~trackerd.geometry.pointer_line.sphere_centre_scale`) at the depth that end's
+    rays triangulate to in each camera. With ``across_px``, the moved sets of
+    :func:`moved_across` go through the same steps beside the measurement. Raises
+    GeometryError when an end's two rays coincide in a camera or the line's ends are not found.
     """
-    if len(view.cameras) == 2:
-        return hit_uncertainty_two_m(normalised, view, sigma_px, wall_scalars)
-    return hit_uncertainty_reference_m(normalised, view, sigma_px, wall)
+    sets = normalised[None] if across_px is None else moved_across(normalised, view.focal_px, across_px)
+    if ball_radius_m is not None:
+        depths = _end_depths_m(normalised, view)
+        # Not where an end is within a ball's radius of a camera's centre (the correction is undefined).
+        if depths is not None and (depths > ball_radius_m).all():
+            sets = sets * sphere_centre_scale(depths, ball_radius_m)[..., None]
+    rays = world_rays(sets, view.rotations)  # (B, C, 2 ends, 3)
+    normals = interpretation_plane_normals(rays[..., 0, :], rays[..., 1, :])
+    points, directions, conditioning = lines_from_planes(view.centres_m, normals)
+    line = line_on_planes(
+        view.centres_m, np.swapaxes(rays[0], 0, 1), points[0], directions[0], float(conditioning[0]), min_plane_sin
+    )
+    return LineEstimate(line, points, directions, conditioning)
 
 
-def hit_uncertainty_reference_m(normalised: Array, view: CameraSet, sigma_px: float, wall: WallFrame) -> float | None:
-    """:func:`hit_uncertainty_m` for any number of cameras: the reference of :func:`hit_uncertainty_two_m`."""
-    n_cameras = len(view.cameras)
-    # Variant 0 is the measurement; then each end of each camera moved across the pointer.
-    variants = np.repeat(normalised[None], 1 + 2 * n_cameras, axis=0)
-    for index, cam in enumerate(view.cameras):
-        along = normalised[index, 0] - normalised[index, 1]
-        across = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
-        for end in (0, 1):
-            variants[1 + 2 * index + end, index, end] += across * sigma_px / cam.focal_px
+def _end_depths_m(normalised: Array, view: CameraSet) -> Array | None:
+    """Each end's depth (C, 2 ends) in each camera, where its rays' least-squares point puts it (eq. 15-17);
+    None when an end's rays are parallel. Only the correction's scale, 1 - r^2 / Z^2, depends on it: a
+    depth a few centimetres off changes that scale by a few millionths of r^2 / Z^2's own few 1e-5."""
+    rays = np.swapaxes(world_rays(normalised, view.rotations), 0, 1)  # (2 ends, C, 3)
     try:
-        hits = _plane_hits_xy(variants, view, wall)
-    except GeometryError:
+        ends = nearest_points_m(view.centres_m, rays)
+    except np.linalg.LinAlgError:
         return None
-    return float(np.sqrt(np.sum((hits[1:] - hits[0]) ** 2)))
+    depths: Array = (ends @ view.depth_rows.T + view.depth_offsets_m).T
+    return depths
 
 
-def hit_uncertainty_two_m(
-    normalised: Array, view: CameraSet, sigma_px: float, wall_scalars: WallFloats
-) -> float | None:
-    """:func:`hit_uncertainty_m` for two cameras, in plain floats (trackerd.geometry.two_cameras)."""
-    (centre0, rows0, _), (centre1, rows1, _) = view.scalar_poses
-    measured = normalised.reshape(8).tolist()  # x0f, y0f, x0b, y0b, x1f, y1f, x1b, y1b
-    variants = [tuple(measured)]
-    for index, cam in enumerate(view.cameras):
-        xf, yf, xb, yb = measured[4 * index : 4 * index + 4]
-        along_x, along_y = xf - xb, yf - yb
-        scale = sigma_px / cam.focal_px / max(math.hypot(along_x, along_y), 1e-12)
-        shift = (-along_y * scale, along_x * scale)
-        for end in (0, 1):
-            moved = list(measured)
-            moved[4 * index + 2 * end] += shift[0]
-            moved[4 * index + 2 * end + 1] += shift[1]
-            variants.append(tuple(moved))
-    try:
-        hits = two_cameras.plane_line_hits(
-            centre0, centre1, (rows0, rows1), variants, wall_scalars.normal, wall_scalars.offset_m
-        )
-    except GeometryError:
+def hit_uncertainty_m(estimate: LineEstimate, wall: WallFrame) -> float | None:
+    """RMS radius of the hit's error when every centroid moves across the pointer by the
+    ``across_px`` the estimate was made with: the spread, in the wall's frame, of where the
+    moved sets' lines meet the wall (eq. 26-28) around the measured set's.
+
+    None without moved sets, or when a set's planes or line are parallel (to each other, to the wall).
+    """
+    points, directions = estimate.plane_points_m, estimate.plane_directions
+    if len(points) < 2 or np.any(~(estimate.plane_conditioning >= PARALLEL_PLANES_SIN)):
         return None
-    # The hits lie in the wall's plane: their spread in the wall's frame, along its two axes.
-    (hx, hy, hz), x_axis, y_axis = hits[0], wall_scalars.x_axis, wall_scalars.y_axis
-    total = 0.0
-    for px, py, pz in hits[1:]:
-        dx, dy, dz = px - hx, py - hy, pz - hz
-        along_x = dx * x_axis[0] + dy * x_axis[1] + dz * x_axis[2]
-        along_y = dx * y_axis[0] + dy * y_axis[1] + dz * y_axis[2]
-        total += along_x * along_x + along_y * along_y
-    return math.sqrt(total)
-
-
-def _plane_hits_xy(variants: Array, view: CameraSet, wall: WallFrame) -> Array:
-    """Wall hits (B, 2) of the interpretation planes' lines for B sets of normalised
-    coordinates (B, C, 2 ends, 2), in NumPy (two cameras take :func:`hit_uncertainty_two_m`)."""
-    rays = np.concatenate([variants, np.ones((*variants.shape[:3], 1))], axis=3)
-    world = np.einsum("bcej,cjk->bcek", rays, view.rotations)
-    normals = cross3(world[:, :, 0], world[:, :, 1])
-    normals /= np.sqrt(np.sum(normals * normals, axis=-1, keepdims=True))
-    lines = [line_from_planes(view.centres_m, n) for n in normals]
-    points = np.array([line[0] for line in lines])
-    directions = np.array([line[1] for line in lines])
     plane = wall.plane
     denominator = directions @ plane.normal
-    if np.any(np.abs(denominator) < 1e-9):
-        raise GeometryError("the pointer is parallel to the wall")
-    hits = points - (plane.signed_distance_m(points) / denominator)[:, None] * directions
-    result: Array = wall.to_wall_m(hits)
-    return result
+    if np.any(~(np.abs(denominator) >= MIN_LINE_PLANE_SIN)):
+        return None
+    hits = points - ((points @ plane.normal + plane.offset_m) / denominator)[:, None] * directions
+    moved = (hits[1:] - hits[0]) @ wall.axes.T  # along the wall's x and y
+    return float(np.sqrt(np.sum(moved * moved)))

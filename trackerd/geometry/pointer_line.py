@@ -17,14 +17,18 @@ nearly parallel (the pointer lies close to a plane containing the cameras'
 baseline) their intersection is ill-conditioned and the line through the two
 triangulated ends is used instead.
 
-All functions are pure: NumPy arrays in, dataclasses of arrays out.
+All functions are pure: NumPy arrays in, dataclasses of arrays out. Those on
+planes and rays take leading dimensions, sets of measurements computed together:
+the locator puts one pair's measurement and the moved copies of it that its
+uncertainty needs through one call of each (trackerd/geometry/camera_set.py), since
+with three-element vectors NumPy's cost is its calls, not the arithmetic.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +41,9 @@ Array = NDArray[np.float64]
 MIN_PLANE_ANGLE_SIN = 0.08
 """Below this sine of the angle between two interpretation planes (about 4.6 degrees),
 their intersection is too ill-conditioned and the two-point line is used."""
+
+PARALLEL_PLANES_SIN = 1e-12
+"""Planes closer to parallel than this (sine of their angle) have no common line at all."""
 
 
 @dataclass(frozen=True)
@@ -60,34 +67,16 @@ class PointerLine:
 
     # Computed once, on first use: the judging and the messages of a pair read them several times.
     @cached_property
-    def front_floats(self) -> tuple[float, float, float]:
-        """:attr:`front_m` as plain floats."""
-        x, y, z = self.front_m.tolist()
-        return x, y, z
-
-    @cached_property
-    def back_floats(self) -> tuple[float, float, float]:
-        """:attr:`back_m` as plain floats."""
-        x, y, z = self.back_m.tolist()
-        return x, y, z
+    def length_m(self) -> float:
+        return math.sqrt(float(np.sum((self.front_m - self.back_m) ** 2)))
 
     @cached_property
     def direction(self) -> Array:
-        """Unit vector from the back end to the front end."""
-        (fx, fy, fz), (bx, by, bz) = self.front_floats, self.back_floats
+        """Unit vector from the back end to the front end (NaN when the ends coincide)."""
         length = self.length_m
-        direction = (
-            np.full(3, np.nan)
-            if not length > 0.0  # coincident ends: no direction
-            else np.array([(fx - bx) / length, (fy - by) / length, (fz - bz) / length])
-        )
+        direction = (self.front_m - self.back_m) / length if length > 0.0 else np.full(3, np.nan)
         direction.flags.writeable = False  # one array for every caller
         return direction
-
-    @cached_property
-    def length_m(self) -> float:
-        (fx, fy, fz), (bx, by, bz) = self.front_floats, self.back_floats
-        return math.sqrt((fx - bx) ** 2 + (fy - by) ** 2 + (fz - bz) ** 2)
 
     @property
     def gap_m(self) -> float:
@@ -95,93 +84,133 @@ class PointerLine:
         return max(self.front_gap_m, self.back_gap_m)
 
 
+_NEXT = np.array([1, 2, 0])
+_PREV = np.array([2, 0, 1])
+_FIRST = np.array([1.0, 0.0, 0.0])
+
+
 def cross3(a: Array, b: Array) -> Array:
-    """Cross product of (..., 3) arrays; np.cross is slow for the handful of vectors used here."""
-    return np.stack(
-        [
-            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-        ],
-        axis=-1,
-    )
+    """Cross product of (..., 3) arrays; np.cross costs twice as much for the handful of vectors used here."""
+    product: Array = a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
+    return product
+
+
+def world_rays(normalised: Array, rotations: Array) -> Array:
+    """World directions (not unit) of the rays through normalised image points: ``R^T (x, y, 1)`` (eq. 14).
+
+    Shapes: normalised coordinates (..., C, E, 2) of E points in each of C cameras,
+    world-to-camera rotations (C, 3, 3) -> (..., C, E, 3).
+    """
+    # As rows: (x, y, 1) @ R = x R[0] + y R[1] + R[2].
+    rays: Array = normalised @ rotations[:, :2, :] + rotations[:, 2:, :]
+    return rays
 
 
 def interpretation_plane_normals(front_dirs: Array, back_dirs: Array) -> Array:
-    """Unit normals (C, 3) of the planes spanned by each camera's two end rays (C, 3) and (C, 3)."""
+    """Unit normals (..., C, 3) of the planes spanned by each camera's two end rays (..., C, 3) and (..., C, 3)."""
     normals = cross3(front_dirs, back_dirs)
-    norms = np.sqrt(np.sum(normals * normals, axis=1, keepdims=True))
-    if np.any(norms < 1e-12):
+    norms = np.sqrt((normals * normals).sum(axis=-1))[..., None]
+    if not (norms >= 1e-12).all():
         raise GeometryError("the pointer's two ends coincide in an image: it is seen end-on")
     unit: Array = normals / norms
     return unit
 
 
-def line_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, float]:
-    """Least-squares line common to planes through ``centres_m`` (C, 3) with unit ``normals`` (C, 3).
+def lines_from_planes(centres_m: Array, normals: Array) -> tuple[Array, Array, Array]:
+    """Least-squares lines common to C >= 2 planes through ``centres_m`` (C, 3), for sets of unit normals (..., C, 3).
 
-    Returns (point (3,), unit direction (3,), conditioning): the direction is the
-    vector most nearly perpendicular to every normal, and conditioning is the sine
-    of the angle that separates the planes (0 when they are parallel). Raises
-    GeometryError when the planes are parallel.
+    Returns (points (..., 3), unit directions (..., 3), conditioning (...,)): each
+    direction is the vector most nearly perpendicular to all of its set's normals, and
+    conditioning is the sine of the angle that separates the planes (0 when they are
+    parallel; then the point is NaN). For two planes the line is where they meet; the
+    point is the one nearest the mean of the centres.
     """
-    if len(normals) == 2:
-        points, directions, conditionings = two_plane_lines(centres_m, normals[None])
-        return points[0], directions[0], float(conditionings[0])
-    scatter = normals.T @ normals
+    transposed = np.swapaxes(normals, -1, -2)
+    scatter = transposed @ normals
     eigenvalues, eigenvectors = np.linalg.eigh(scatter)
-    direction = eigenvectors[:, 0]
+    direction = eigenvectors[..., :, 0]
     # Two planes whose normals are theta apart give eigenvalues 0, 1 - cos, 1 + cos,
     # so sqrt(l1 * l2) is sin(theta); dividing by C / 2 extends that to C planes.
-    conditioning = float(np.sqrt(max(eigenvalues[1], 0.0) * eigenvalues[2]) / (len(normals) / 2.0))
-    if conditioning < 1e-12:
-        raise GeometryError("the cameras' planes through the pointer are parallel: no line")
-    # Point: least squares on n_i . x = n_i . c_i, regularised along the free direction.
-    offsets = np.sum(normals * centres_m, axis=1)
-    lhs = scatter + np.outer(direction, direction)
-    rhs = normals.T @ offsets + direction * (direction @ centres_m.mean(axis=0))
-    point: Array = np.linalg.solve(lhs, rhs)
-    return point, np.asarray(direction, dtype=np.float64), conditioning
+    cameras = normals.shape[-2]
+    conditioning = np.sqrt(np.maximum(eigenvalues[..., 1], 0.0) * eigenvalues[..., 2]) * (2.0 / cameras)
+    # The point: least squares on n_i . x = n_i . c_i, with its place along the line fixed
+    # at the centres' mean, i.e. (scatter + u u^T) x = N^T offsets + u (u . mean). In the
+    # scatter's eigenvectors V that matrix is V diag(l0 + 1, l1, l2) V^T: no solve needed.
+    offsets = (normals * centres_m).sum(axis=-1)
+    along = direction @ (centres_m.sum(axis=0) / cameras)
+    rhs = (transposed @ offsets[..., None])[..., 0] + direction * along[..., None]
+    scale = eigenvalues + _FIRST
+    parallel = not (conditioning >= PARALLEL_PLANES_SIN).all()
+    if parallel:
+        scale = np.where(conditioning[..., None] >= PARALLEL_PLANES_SIN, scale, 1.0)
+    coefficients = (np.swapaxes(eigenvectors, -1, -2) @ rhs[..., None]) / scale[..., None]
+    points = (eigenvectors @ coefficients)[..., 0]
+    if parallel:
+        points = np.where(conditioning[..., None] >= PARALLEL_PLANES_SIN, points, np.nan)
+    return points, direction, conditioning
 
 
-def two_plane_lines(centres_m: Array, normals: Array) -> tuple[Array, Array, Array]:
-    """Lines where pairs of planes meet, in closed form, for B pairs at once.
+def ends_along_line(points_m: Array, directions: Array, origins_m: Array, rays: Array) -> Array:
+    """Where each end's rays come closest to its line: one point on the line per end.
 
-    Shapes: plane points (2, 3), unit normals (B, 2, 3) -> points (B, 3), unit
-    directions (B, 3), conditioning (B,) = |n0 x n1|, the sine of the angle
-    between the planes. The point is the one nearest the two plane points' midpoint.
+    Shapes: line points and unit directions (..., 3), ray origins (C, 3), rays
+    (..., E, C, 3) -> (..., E, 3). For the line p + s u and a unit ray o + t d, the
+    closest point has s = (b e - d1) / (1 - b^2) with b = u.d, d1 = u.(p - o),
+    e = d.(p - o) (the common perpendicular of eq. 17); the cameras' s are averaged
+    with weights 1 - b^2, since a ray nearly parallel to the line fixes the position
+    along it poorly (so the weighted sum of s is that of b e - d1).
     """
-    n0, n1 = normals[:, 0], normals[:, 1]
-    cross = cross3(n0, n1)
-    conditioning = np.sqrt(np.sum(cross * cross, axis=1))
-    if np.any(conditioning < 1e-12):
-        raise GeometryError("the cameras' planes through the pointer are parallel: no line")
-    direction = cross / conditioning[:, None]
-    middle = 0.5 * (centres_m[0] + centres_m[1])
-    lhs = np.stack([n0, n1, direction], axis=1)
-    rhs = np.stack([n0 @ centres_m[0], n1 @ centres_m[1], direction @ middle], axis=1)
-    return np.linalg.solve(lhs, rhs[..., None])[..., 0], direction, conditioning
-
-
-def _ends_along_line(point: Array, direction: Array, origins: Array, dirs: Array) -> Array:
-    """Where each end's rays come closest to a line: one point on the line per end.
-
-    Shapes: line point and unit direction (3,), ray origins (C, 3), rays (E, C, 3)
-    -> (E, 3). For the line p + s u and a unit ray o + t d, the closest point has
-    s = (b e - d1) / (1 - b^2) with b = u.d, d1 = u.(p - o), e = d.(p - o) (the
-    common perpendicular of eq. 17); the cameras' s are averaged with weights
-    1 - b^2, since a ray nearly parallel to the line fixes the position along it poorly.
-    """
-    unit = dirs / np.sqrt(np.sum(dirs * dirs, axis=-1, keepdims=True))
-    rel = point - origins
-    b = unit @ direction
-    d1 = rel @ direction
-    e = np.sum(unit * rel, axis=-1)
-    sin2 = np.maximum(1.0 - b * b, 1e-18)
-    s = (b * e - d1) / sin2
-    s_mean = np.sum(s * sin2, axis=-1) / np.sum(sin2, axis=-1)
-    placed: Array = point + s_mean[:, None] * direction
+    unit = rays / np.sqrt((rays * rays).sum(axis=-1))[..., None]
+    line_dir = directions[..., None, None, :]
+    relative = points_m[..., None, None, :] - origins_m  # (..., 1, C, 3)
+    b = (unit * line_dir).sum(axis=-1)
+    d1 = (relative * line_dir).sum(axis=-1)
+    e = (unit * relative).sum(axis=-1)
+    s_mean = (b * e - d1).sum(axis=-1) / np.maximum(1.0 - b * b, 1e-18).sum(axis=-1)  # (..., E)
+    placed: Array = points_m[..., None, :] + s_mean[..., None] * directions[..., None, :]
     return placed
+
+
+@lru_cache(maxsize=8)
+def _camera_pairs(cameras: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    first, second = np.triu_indices(cameras, 1)
+    return first, second
+
+
+def ray_gaps_m(origins_m: Array, directions: Array) -> Array:
+    """How far rays through one point miss each other: the largest pairwise closest-approach distance.
+
+    Shapes: ray origins (C, 3), rays (..., E, C, 3) for E points -> (..., E). For two
+    rays this is the length of their common perpendicular (eq. 16 is the case where it
+    is zero): ``|(C2 - C1) . (A x B)| / |A x B|``.
+    """
+    first, second = _camera_pairs(origins_m.shape[0])
+    normals = cross3(directions[..., first, :], directions[..., second, :])  # (..., E, pairs, 3)
+    norms = np.sqrt((normals * normals).sum(axis=-1))
+    offsets = np.abs((normals * (origins_m[second] - origins_m[first])).sum(axis=-1))
+    gaps = np.where(norms > 1e-12, offsets / np.maximum(norms, 1e-300), 0.0)
+    worst: Array = gaps.max(axis=-1)
+    return worst
+
+
+def ray_gap_m(origins_m: Array, directions: Array) -> float:
+    """:func:`ray_gaps_m` for the rays (C, 3) of a single point."""
+    return float(ray_gaps_m(np.asarray(origins_m, float), np.asarray(directions, float)[None])[0])
+
+
+def line_on_planes(
+    centres_m: Array, rays: Array, point_m: Array, direction: Array, conditioning: float, min_plane_sin: float
+) -> PointerLine:
+    """The pointer for one set of world rays (2 ends (front, back), C, 3) and its planes' line
+    (:func:`lines_from_planes`): each end placed on that line by its rays, or, where the planes
+    are too close to parallel (``conditioning`` below ``min_plane_sin``), the two triangulated ends."""
+    if not conditioning >= min_plane_sin:
+        return _line_from_points(centres_m, rays[0], rays[1], conditioning)
+    front, back = ends_along_line(point_m, direction, centres_m, rays)
+    # The planes fix the line; the ends' own rays fix where on it they are. The
+    # gaps are those of the ends' rays, which the line cannot hide.
+    front_gap, back_gap = ray_gaps_m(centres_m, rays).tolist()
+    return PointerLine(front, back, front_gap, back_gap, "planes", conditioning)
 
 
 def estimate_pointer_line(
@@ -203,42 +232,10 @@ def estimate_pointer_line(
     if not (np.all(np.isfinite(front_dirs)) and np.all(np.isfinite(back_dirs))):
         raise GeometryError("an end's ray is undefined (NaN): every camera must see both ends")
     normals = interpretation_plane_normals(front_dirs, back_dirs)
-    try:
-        point, direction, conditioning = line_from_planes(centres, normals)
-    except GeometryError:
-        conditioning = 0.0
-    if conditioning < min_plane_sin:
-        return _line_from_points(centres, front_dirs, back_dirs, conditioning)
-    ends = np.stack([front_dirs, back_dirs])
-    front, back = _ends_along_line(point, direction, centres, ends)
-    # The planes fix the line; the ends' own rays fix where on it they are. The
-    # gaps are those of the ends' rays, which the line cannot hide.
-    gaps = ray_gaps_m(centres, ends)
-    return PointerLine(front, back, float(gaps[0]), float(gaps[1]), "planes", conditioning)
-
-
-def ray_gaps_m(origins_m: Array, directions: Array) -> Array:
-    """How far rays through one point miss each other: the largest pairwise closest-approach distance.
-
-    Shapes: ray origins (C, 3), rays (E, C, 3) for E points -> (E,). For two rays
-    this is the length of their common perpendicular (eq. 16 is the case where it
-    is zero): ``|(C2 - C1) . (A x B)| / |A x B|``.
-    """
-    worst = np.zeros(directions.shape[0])
-    n = origins_m.shape[0]
-    for i in range(n):
-        for j in range(i + 1, n):
-            normals = cross3(directions[:, i], directions[:, j])
-            norms = np.sqrt(np.sum(normals * normals, axis=-1))
-            offsets = np.abs(normals @ (origins_m[j] - origins_m[i]))
-            gap = np.where(norms > 1e-12, offsets / np.maximum(norms, 1e-300), 0.0)
-            worst = np.maximum(worst, gap)
-    return worst
-
-
-def ray_gap_m(origins_m: Array, directions: Array) -> float:
-    """:func:`ray_gaps_m` for the rays (C, 3) of a single point."""
-    return float(ray_gaps_m(np.asarray(origins_m, float), np.asarray(directions, float)[None])[0])
+    point, direction, conditioning = lines_from_planes(centres, normals)
+    return line_on_planes(
+        centres, np.stack([front_dirs, back_dirs]), point, direction, float(conditioning), min_plane_sin
+    )
 
 
 def _line_from_points(centres: Array, front_dirs: Array, back_dirs: Array, conditioning: float) -> PointerLine:
@@ -263,8 +260,9 @@ def pointer_from_points(centres_m: Array, front_dirs: Array, back_dirs: Array) -
     return _line_from_points(centres, front_dirs, back_dirs, conditioning)
 
 
-def sphere_centre_direction(centroid_dirs_cam: Array, depth_m: Array, radius_m: float) -> Array:
-    """Correct the ray through a ball's image centroid to the ray through its centre.
+def sphere_centre_scale(depth_m: Array, radius_m: float) -> Array:
+    """How much to scale a ball's normalised image coordinates to move its centroid onto the
+    projection of its centre, for balls at camera depths ``depth_m`` (any shape, same shape out).
 
     Under perspective a sphere images as an ellipse whose centre is not the
     projection of the sphere's centre: with the sphere at camera coordinates
@@ -272,12 +270,6 @@ def sphere_centre_direction(centroid_dirs_cam: Array, depth_m: Array, radius_m: 
     the normalised image plane, against (X, Y) / Z for the centre (the image of
     the tangent cone, whose gradient vanishes there). So the normalised
     coordinates shrink by (1 - r^2 / Z^2).
-
-    Shapes: (N, 3) camera-frame directions through the centroids, (N,) depths -> (N, 3) unit directions.
     """
-    dirs = np.asarray(centroid_dirs_cam, dtype=np.float64).reshape(-1, 3)
-    normalised = dirs[:, :2] / dirs[:, 2:3]
-    scale = 1.0 - (radius_m / np.asarray(depth_m, dtype=np.float64)) ** 2
-    corrected = np.column_stack([normalised * scale[:, None], np.ones(len(dirs))])
-    unit: Array = corrected / np.linalg.norm(corrected, axis=1, keepdims=True)
-    return unit
+    scale: Array = 1.0 - (radius_m / np.asarray(depth_m, dtype=np.float64)) ** 2
+    return scale

@@ -10,7 +10,7 @@ images as an ellipse whose centre is not the projection of its centre) and the
 lens distortion: the rim points are undistorted one by one before the fit.
 
 This replaces, for fitted outlines, the (1 - r^2 / Z^2) correction of a
-centroid (trackerd/geometry/pointer_line.py, ``sphere_centre_direction``).
+centroid (trackerd/geometry/pointer_line.py, ``sphere_centre_scale``).
 """
 
 from __future__ import annotations

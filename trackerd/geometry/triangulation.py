@@ -109,6 +109,20 @@ def triangulate_least_squares(origins_m: Array, directions: Array) -> tuple[Arra
     return point, np.linalg.norm(perpendicular, axis=1)
 
 
+def nearest_points_m(origins_m: Array, directions: Array) -> Array:
+    """:func:`triangulate_least_squares` for many points at once, without its checks: the point nearest
+    the rays of each set. Shapes: origins (C, 3), directions (..., C, 3), not necessarily unit -> (..., 3).
+
+    Raises numpy.linalg.LinAlgError when a set's rays are all parallel.
+    """
+    unit = directions / np.sqrt((directions * directions).sum(axis=-1))[..., None]
+    projectors = np.eye(3) - unit[..., :, None] * unit[..., None, :]  # (..., C, 3, 3)
+    lhs = projectors.sum(axis=-3)
+    rhs = (projectors @ origins_m[..., None]).sum(axis=-3)
+    points: Array = np.linalg.solve(lhs, rhs)[..., 0]
+    return points
+
+
 def triangulate_pixels(cameras: list, pixels_px: Array) -> tuple[Array, Array]:
     """Triangulate one point seen at ``pixels_px[i]`` (C, 2) by ``cameras[i]`` -> (point (3,), ray distances (C,))."""
     pix = np.asarray(pixels_px, dtype=np.float64).reshape(-1, 2)

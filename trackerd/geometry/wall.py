@@ -7,8 +7,8 @@ distance of a point from the plane in metres (positive on the normal's side).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -99,102 +99,19 @@ def intersect_line_plane(start_m: Array, through_m: Array, plane: Plane) -> Line
     of eq. 28 vanishes) or the two points coincide.
     """
     p0 = np.asarray(start_m, dtype=np.float64)
-    p1 = np.asarray(through_m, dtype=np.float64)
-    direction = p1 - p0
-    length = np.linalg.norm(direction, axis=-1)
-    if np.any(~(length > 0.0)):
+    direction = np.asarray(through_m, dtype=np.float64) - p0
+    length = np.sqrt((direction * direction).sum(axis=-1))
+    if not (length > 0.0).all():
         raise GeometryError("the pointer's two ends coincide: no line to extend")
-    numerator = plane.signed_distance_m(p0)
+    numerator = p0 @ plane.normal + plane.offset_m
     denominator = -(direction @ plane.normal)
-    if np.any(~(np.abs(denominator) >= MIN_LINE_PLANE_SIN * length)):
+    if not (np.abs(denominator) >= MIN_LINE_PLANE_SIN * length).all():
         raise GeometryError("the pointer is parallel to the wall: it points at no point on it")
     u = numerator / denominator
     return LineHit(p0 + u[..., None] * direction, u)
 
 
 Vec3 = tuple[float, float, float]
-
-
-@dataclass(frozen=True, slots=True)
-class WallHitFloats:
-    """Where one line meets the wall, in plain floats (:meth:`WallFloats.hit`)."""
-
-    u: float
-    """Line parameter of the hit (eq. 28), as :attr:`LineHit.u`."""
-    point_m: Vec3
-    wall_xy_m: tuple[float, float]
-    display_px: tuple[float, float] | None
-    on_wall: bool
-
-
-@dataclass(frozen=True, slots=True)
-class WallFloats:
-    """A :class:`WallFrame` as plain floats, for one line at a time: what the daemon does every pair.
-
-    Each NumPy call on a 3-vector costs about a microsecond, several after the
-    caches went cold between two frames; the dozen products of eq. 26-28 and the
-    wall's frame cost less as Python floats. :func:`intersect_line_plane` and the
-    frame's methods are the reference (tests compare them).
-    """
-
-    normal: Vec3
-    offset_m: float
-    origin_m: Vec3
-    x_axis: Vec3
-    y_axis: Vec3
-    width_m: float
-    height_m: float
-    display_px: tuple[int, int] | None
-
-    @classmethod
-    def of(cls, wall: WallFrame) -> WallFloats:
-        plane = wall.plane
-        width_px, height_px = wall.display_width_px, wall.display_height_px
-        display = (width_px, height_px) if width_px is not None and height_px is not None else None
-        return cls(
-            as_vec3(plane.normal),
-            float(plane.offset_m),
-            as_vec3(wall.origin_m),
-            as_vec3(wall.x_axis),
-            as_vec3(wall.y_axis),
-            float(wall.width_m),
-            float(wall.height_m),
-            display,
-        )
-
-    def direction_sin(self, start_m: Vec3, through_m: Vec3) -> float:
-        """Sine of the angle between the line through the two points and the wall's plane (0 if they coincide)."""
-        dx, dy, dz = through_m[0] - start_m[0], through_m[1] - start_m[1], through_m[2] - start_m[2]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if not length > 0.0:
-            return 0.0
-        nx, ny, nz = self.normal
-        return abs(dx * nx + dy * ny + dz * nz) / length
-
-    def hit(self, start_m: Vec3, through_m: Vec3) -> WallHitFloats:
-        """The line through ``start_m`` and ``through_m`` meets the wall (eq. 26-28), as
-        :func:`intersect_line_plane` then :meth:`WallFrame.to_wall_m`, ``to_display_px`` and
-        ``on_wall``; the same GeometryError for coincident points or a line parallel to the wall."""
-        (sx, sy, sz), (nx, ny, nz) = start_m, self.normal
-        dx, dy, dz = through_m[0] - sx, through_m[1] - sy, through_m[2] - sz
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if not length > 0.0:
-            raise GeometryError("the pointer's two ends coincide: no line to extend")
-        numerator = sx * nx + sy * ny + sz * nz + self.offset_m  # eq. 28's numerator: start's distance
-        denominator = -(dx * nx + dy * ny + dz * nz)
-        if not abs(denominator) >= MIN_LINE_PLANE_SIN * length:
-            raise GeometryError("the pointer is parallel to the wall: it points at no point on it")
-        u = numerator / denominator
-        point = (sx + u * dx, sy + u * dy, sz + u * dz)  # eq. 26
-        (ox, oy, oz), (xx, xy, xz), (yx, yy, yz) = self.origin_m, self.x_axis, self.y_axis
-        rx, ry, rz = point[0] - ox, point[1] - oy, point[2] - oz
-        wall_x, wall_y = rx * xx + ry * xy + rz * xz, rx * yx + ry * yy + rz * yz
-        display = None
-        if self.display_px is not None:
-            width_px, height_px = self.display_px
-            display = (wall_x / self.width_m * width_px, (1.0 - wall_y / self.height_m) * height_px)
-        on_wall = 0.0 <= wall_x <= self.width_m and 0.0 <= wall_y <= self.height_m
-        return WallHitFloats(u, point, (wall_x, wall_y), display, on_wall)
 
 
 def as_vec3(values: Array) -> Vec3:
@@ -217,14 +134,20 @@ class WallFrame:
     fit_residuals_m: Array | None = None
     """Distance of each defining point from the fitted plane (zero for exactly three points)."""
 
-    @property
+    # Computed once, on first use: every fix reads them.
+    @cached_property
     def normal(self) -> Array:
         """Unit normal x cross y: out of the display, toward the room for a wall seen from the front."""
         return np.cross(self.x_axis, self.y_axis)
 
-    @property
+    @cached_property
     def plane(self) -> Plane:
         return Plane(self.normal, float(-self.normal @ self.origin_m))
+
+    @cached_property
+    def axes(self) -> Array:
+        """(2, 3): the wall's x and y axes, rows; ``(point - origin) @ axes.T`` is :meth:`to_wall_m`."""
+        return np.stack([self.x_axis, self.y_axis])
 
     @property
     def corners_m(self) -> Array:
