@@ -8,14 +8,16 @@ into modules (issue 16); a change that moves code without changing what it compu
 They hold for one set of OpenBLAS matrix kernels (the last bit of a product differs between
 kernels): tests/conftest.py asks for the "Haswell" ones, which every AVX2 CPU runs; the hashes
 were recorded again with those on 2026-12-04, at 9560820 (the first ones were of the "SkylakeX"
-kernels an Intel CPU chose by itself).
+kernels an Intel CPU chose by itself); without AVX2 the module is skipped.
 A change meant to alter the images (and bumping RENDER_VERSION) records them again: run this
-module as a script to print them.
+module as a script to print them, with the kernels the tests use:
+``OPENBLAS_CORETYPE=Haswell OPENBLAS_NUM_THREADS=1 .venv/bin/python tests/sim/test_rendered_bits.py``.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +33,11 @@ if TYPE_CHECKING:
     from trackerd.sim.render import SceneRenderer
 
 REPO = Path(__file__).resolve().parents[2]
+
+pytestmark = pytest.mark.skipif(
+    os.environ.get("OPENBLAS_CORETYPE") != "Haswell",
+    reason="the hashes are of OpenBLAS's Haswell kernels, which tests/conftest.py asks for only on a CPU with AVX2",
+)
 
 EXPECTED = {
     "demo figure8 frame 0 camera 0": "79f5170a660e73e0b39255477632da2854733773c52e54d445abcbe1c136c964",
