@@ -8,10 +8,13 @@ so a batching or broadcasting mistake shows as a disagreement.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 from trackerd.errors import GeometryError
+from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.camera_set import CameraSet, estimate_line, hit_uncertainty_m, moved_across
 from trackerd.geometry.pointer_line import (
     MIN_PLANE_ANGLE_SIN,
@@ -137,6 +140,31 @@ def test_world_rays_are_each_cameras_rotation_applied(simulated_cameras) -> None
 # ----------------------------------------------------------------- one pair's estimate and its spread
 
 
+def _looking_at(camera_id: str, like: CameraModel, position_m: np.ndarray, target_m: np.ndarray) -> CameraModel:
+    """A lens-free camera with ``like``'s intrinsics at ``position_m`` looking at ``target_m`` (image y down)."""
+    forward = (target_m - position_m) / np.linalg.norm(target_m - position_m)
+    right = np.cross([0.0, -1.0, 0.0], forward)
+    right /= np.linalg.norm(right)
+    axes = np.column_stack([right, np.cross(forward, right), forward])
+    return CameraModel.from_pose(camera_id, like.width_px, like.height_px, like.matrix, np.zeros(0), position_m, axes)
+
+
+@pytest.fixture(params=[2, 3], ids=["2 cameras", "3 cameras"])
+def rig_cameras(request, simulated_cameras) -> list[CameraModel]:
+    """The simulated rig's two cameras, or those and a third above and behind the room's middle."""
+    if request.param == 2:
+        return list(simulated_cameras)
+    above = _looking_at("above", simulated_cameras[0], np.array([1.8, 2.6, 4.0]), np.array([1.8, 0.7, 1.5]))
+    return [*simulated_cameras, above]
+
+
+def _random_pointer(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    middle = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.3, 1.2), rng.uniform(1.0, 2.5)])
+    axis = np.array([rng.normal(0, 0.3), rng.normal(0, 0.3), -1.0])
+    axis /= np.linalg.norm(axis)
+    return middle + 0.2 * axis, middle - 0.2 * axis
+
+
 def _normalised_of(cameras, front_m: np.ndarray, back_m: np.ndarray) -> np.ndarray:
     """Exact normalised coordinates (C, 2 ends, 2) of two points (no lens, so no undistortion's rounding)."""
     in_camera = [cam.to_camera_frame(np.stack([front_m, back_m])) for cam in cameras]
@@ -153,19 +181,40 @@ def _reference_hit_xy(view: CameraSet, normalised: np.ndarray, wall: WallFrame) 
     return wall.to_wall_m(hit)
 
 
-def test_the_moved_sets_and_the_spread_are_the_reference_set_by_set(simulated_cameras, datawall_wall) -> None:
+def test_the_pairs_line_is_the_reference(rig_cameras) -> None:
+    """What the locator takes: estimate_line's line from normalised coordinates, against the reference on
+    the same rays (the batched sets' axes (set, camera, end) turned into the reference's (end, camera))."""
+    view = CameraSet.build(rig_cameras)
+    rng = np.random.default_rng(6)
+    methods: list[str] = []
+    for _ in range(20):
+        normalised = _normalised_of(rig_cameras, *_random_pointer(rng)) + rng.normal(0, 2e-4, (len(rig_cameras), 2, 2))
+        line = estimate_line(normalised, view, MIN_PLANE_ANGLE_SIN, None, across_px=0.5).line
+        rays = np.array(
+            [[cam.rotation.T @ np.append(normalised[k, e], 1.0) for k, cam in enumerate(rig_cameras)] for e in (0, 1)]
+        )
+        front, back, front_gap, back_gap, method = reference_line(view.centres_m, rays[0], rays[1], MIN_PLANE_ANGLE_SIN)
+        assert line.method == method
+        methods.append(method)
+        np.testing.assert_allclose(line.front_m, front, atol=1e-9)
+        np.testing.assert_allclose(line.back_m, back, atol=1e-9)
+        assert line.front_gap_m == pytest.approx(front_gap, abs=1e-12)
+        assert line.back_gap_m == pytest.approx(back_gap, abs=1e-12)
+        assert line.front_gap_m > 1e-5  # the noise makes the rays miss: the gaps are measured, not zero
+    assert methods.count("planes") >= 15
+
+
+def test_the_moved_sets_and_the_spread_are_the_reference_set_by_set(rig_cameras, datawall_wall) -> None:
     """Every moved set's line is what the same coordinates give alone, and the uncertainty is the spread
     of those sets' planes' wall hits around the measurement's, summed in quadrature."""
-    view = CameraSet.build(simulated_cameras)
+    view = CameraSet.build(rig_cameras)
+    cameras = len(rig_cameras)
     rng = np.random.default_rng(4)
     for _ in range(10):
-        middle = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.3, 1.2), rng.uniform(1.0, 2.5)])
-        axis = np.array([rng.normal(0, 0.3), rng.normal(0, 0.3), -1.0])
-        axis /= np.linalg.norm(axis)
-        normalised = _normalised_of(simulated_cameras, middle + 0.2 * axis, middle - 0.2 * axis)
+        normalised = _normalised_of(rig_cameras, *_random_pointer(rng))
         estimate = estimate_line(normalised, view, MIN_PLANE_ANGLE_SIN, None, across_px=0.5)
         sets = moved_across(normalised, view.focal_px, 0.5)
-        assert sets.shape == (5, 2, 2, 2)
+        assert sets.shape == (1 + 2 * cameras, cameras, 2, 2)
         for index, moved in enumerate(sets):
             changed = np.argwhere(np.any(moved != normalised, axis=-1))
             if index == 0:
@@ -185,24 +234,22 @@ def test_the_moved_sets_and_the_spread_are_the_reference_set_by_set(simulated_ca
         assert hit_uncertainty_m(estimate, datawall_wall) == pytest.approx(expected, rel=1e-9)
 
 
-def test_the_sphere_correction_scales_each_end_by_its_own_depth(simulated_cameras) -> None:
+def test_the_sphere_correction_scales_each_end_by_its_own_depth(rig_cameras) -> None:
     """A ball's image centroid lies (1 - r^2 / Z^2) further from the image centre than its centre's image:
     the corrected line is the line of the coordinates scaled by each end's depth in each camera, the
     depth at which that end's rays triangulate."""
-    view = CameraSet.build(simulated_cameras)
+    view = CameraSet.build(rig_cameras)
     rng = np.random.default_rng(5)
     front, back = np.array([1.2, 0.8, 0.9]), np.array([1.1, 0.7, 1.3])
-    normalised = _normalised_of(simulated_cameras, front, back) + rng.normal(0, 1e-4, (2, 2, 2))
+    normalised = _normalised_of(rig_cameras, front, back) + rng.normal(0, 1e-4, (len(rig_cameras), 2, 2))
     radius = 0.2  # a huge ball, so that the correction is far above rounding
     plain = estimate_line(normalised, view, MIN_PLANE_ANGLE_SIN, None).line
     corrected = estimate_line(normalised, view, MIN_PLANE_ANGLE_SIN, radius).line
-    depths = np.zeros((2, 2))
+    depths = np.zeros((len(rig_cameras), 2))
     for end in (0, 1):
-        rays = np.array(
-            [cam.rotation.T @ np.append(normalised[k, end], 1.0) for k, cam in enumerate(simulated_cameras)]
-        )
+        rays = np.array([cam.rotation.T @ np.append(normalised[k, end], 1.0) for k, cam in enumerate(rig_cameras)])
         point, _ = triangulate_least_squares(view.centres_m, rays)
-        depths[:, end] = [cam.to_camera_frame(point[None])[0, 2] for cam in simulated_cameras]
+        depths[:, end] = [cam.to_camera_frame(point[None])[0, 2] for cam in rig_cameras]
     scaled = normalised * sphere_centre_scale(depths, radius)[..., None]
     again = estimate_line(scaled, view, MIN_PLANE_ANGLE_SIN, None).line
     np.testing.assert_allclose(corrected.front_m, again.front_m, atol=1e-12)
@@ -210,8 +257,13 @@ def test_the_sphere_correction_scales_each_end_by_its_own_depth(simulated_camera
     assert np.linalg.norm(corrected.front_m - plain.front_m) > 1e-3
 
 
-def test_degenerate_views_are_refused_or_fall_back() -> None:
+def test_degenerate_views_are_refused_or_fall_back(simulated_cameras) -> None:
     centres = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    view = CameraSet.build(simulated_cameras)
+    with pytest.raises(GeometryError, match="undefined"):
+        estimate_line(
+            np.array([[[0.1, 0.2], [np.nan, 0.1]], [[0.0, 0.1], [0.2, 0.3]]]), view, MIN_PLANE_ANGLE_SIN, 0.02, 0.5
+        )
     with pytest.raises(GeometryError, match="end-on"):
         estimate_pointer_line(centres, [[0.0, 0.0, 1.0], [0.0, 0.1, 1.0]], [[0.0, 0.0, 2.0], [0.1, 0.0, 1.0]])
     # Both planes the same plane (the pointer in the plane of the baseline): the two triangulated points.
@@ -221,8 +273,10 @@ def test_degenerate_views_are_refused_or_fall_back() -> None:
         np.array([[[0.2, 0.0, 1.0], [-0.2, 0.0, 1.0]], [[0.2, 0.1, 1.0], [-0.2, 0.0, 1.0]]]),
         np.array([[[0.4, 0.0, 1.0], [0.1, 0.0, 1.0]], [[0.4, 0.0, 1.0], [0.1, 0.0, 1.0]]]),
     )
-    points, _, conditioning = lines_from_planes(centres, normals)
-    assert np.all(np.isnan(points[0])) and conditioning[0] < 1e-12  # parallel: no point, no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division by zero on the way
+        points, _, conditioning = lines_from_planes(centres, normals)
+    assert np.all(np.isnan(points[0])) and conditioning[0] < 1e-12  # parallel: no point
     assert np.all(np.isfinite(points[1])) and conditioning[1] > 0.01  # the other set is unaffected
 
 

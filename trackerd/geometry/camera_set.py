@@ -18,6 +18,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.errors import GeometryError
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.pointer_line import (
     PARALLEL_PLANES_SIN,
@@ -115,8 +116,10 @@ _PERPENDICULAR = np.array([-1.0, 1.0])
 @lru_cache(maxsize=8)
 def _moved_index(cameras: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
     """Which set moves which camera's which end (:func:`moved_across`)."""
-    camera = np.repeat(np.arange(cameras), 2)
-    return 1 + np.arange(2 * cameras), camera, np.tile([0, 1], cameras)
+    index = (1 + np.arange(2 * cameras), np.repeat(np.arange(cameras), 2), np.tile([0, 1], cameras))
+    for array in index:
+        array.flags.writeable = False  # the same arrays for every caller
+    return index
 
 
 def estimate_line(
@@ -134,8 +137,11 @@ def estimate_line(
     (:func:`~trackerd.geometry.pointer_line.sphere_centre_scale`) at the depth that end's
     rays triangulate to in each camera. With ``across_px``, the moved sets of
     :func:`moved_across` go through the same steps beside the measurement. Raises
-    GeometryError when an end's two rays coincide in a camera or the line's ends are not found.
+    GeometryError for a coordinate that is not finite, when an end's two rays coincide in a camera, or
+    when the line's ends are not found.
     """
+    if not np.isfinite(normalised).all():
+        raise GeometryError("an end's ray is undefined (NaN): every camera must see both ends")
     sets = normalised[None] if across_px is None else moved_across(normalised, view.focal_px, across_px)
     if ball_radius_m is not None:
         depths = _end_depths_m(normalised, view)

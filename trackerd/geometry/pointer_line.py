@@ -42,8 +42,10 @@ MIN_PLANE_ANGLE_SIN = 0.08
 """Below this sine of the angle between two interpretation planes (about 4.6 degrees),
 their intersection is too ill-conditioned and the two-point line is used."""
 
-PARALLEL_PLANES_SIN = 1e-12
-"""Planes closer to parallel than this (sine of their angle) have no common line at all."""
+PARALLEL_PLANES_SIN = 1e-6
+"""Planes closer to parallel than this (sine of their angle) have no common line: the angle comes from the
+eigenvalues of sum n n^T, which hold it squared, so below about 1e-8 it is rounding (and the line is
+already ill-conditioned far above, at MIN_PLANE_ANGLE_SIN)."""
 
 
 @dataclass(frozen=True)
@@ -56,8 +58,9 @@ class PointerLine:
     """Centre of the back end, (3,)."""
     front_gap_m: float
     """How far the cameras' rays through the front end miss each other (eq. 17's closest
-    approach; for more than two cameras twice the largest distance from their least-squares
-    point). The quality signal: a wrong blob in one camera gives rays that do not meet."""
+    approach; for more than two cameras the largest of the pairs' gaps, or with method 'points'
+    twice the largest distance from their least-squares point). The quality signal: a wrong blob
+    in one camera gives rays that do not meet."""
     back_gap_m: float
     """Same for the back end."""
     method: str
@@ -174,6 +177,7 @@ def ends_along_line(points_m: Array, directions: Array, origins_m: Array, rays: 
 @lru_cache(maxsize=8)
 def _camera_pairs(cameras: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     first, second = np.triu_indices(cameras, 1)
+    first.flags.writeable = second.flags.writeable = False  # one pair of arrays for every caller
     return first, second
 
 

@@ -138,7 +138,9 @@ class WallFrame:
     @cached_property
     def normal(self) -> Array:
         """Unit normal x cross y: out of the display, toward the room for a wall seen from the front."""
-        return np.cross(self.x_axis, self.y_axis)
+        normal: Array = np.cross(self.x_axis, self.y_axis)
+        normal.flags.writeable = False  # one array for every caller, and the plane's
+        return normal
 
     @cached_property
     def plane(self) -> Plane:
@@ -147,7 +149,9 @@ class WallFrame:
     @cached_property
     def axes(self) -> Array:
         """(2, 3): the wall's x and y axes, rows; ``(point - origin) @ axes.T`` is :meth:`to_wall_m`."""
-        return np.stack([self.x_axis, self.y_axis])
+        axes = np.stack([self.x_axis, self.y_axis])
+        axes.flags.writeable = False  # one array for every caller
+        return axes
 
     @property
     def corners_m(self) -> Array:
