@@ -133,7 +133,6 @@ class Locator:
         self._detectors: list[ColourEndDetector] | None = None
         self.pixel_formats = list(pixel_formats) if pixel_formats else [c.pixel_format for c in rig.cameras]
         self._min_plane_sin = float(np.sin(np.radians(rig.locator.min_plane_angle_deg)))
-        self._plane = self.wall.plane
         self._parallel_sin = float(np.sin(np.radians(PARALLEL_ANGLE_DEG)))
         self.camera_set = CameraSet.build(self.cameras)
         self._centres = self.camera_set.centres_m
@@ -316,7 +315,7 @@ class Locator:
                 line,
                 timings_ns={},
             )
-        if not abs(float(line.direction @ self._plane.normal)) >= self._parallel_sin:
+        if not abs(float(line.direction @ self.wall.plane.normal)) >= self._parallel_sin:
             return PointerFix(
                 "parallel",
                 f"the pointer is within {PARALLEL_ANGLE_DEG} degrees of parallel to the wall",
@@ -325,7 +324,7 @@ class Locator:
                 timings_ns={},
             )
         try:
-            intersection = intersect_line_plane(line.back_m, line.front_m, self._plane)  # eq. 26-28
+            intersection = intersect_line_plane(line.back_m, line.front_m, self.wall.plane)  # eq. 26-28
         except GeometryError as err:
             return PointerFix("parallel", str(err), centroids, line, timings_ns={})
         if not float(intersection.u) > 0.0:

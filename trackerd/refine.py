@@ -405,7 +405,7 @@ class RefinedPath:
 
     def _room_side(self) -> tuple[Array, float]:
         """The wall's plane, oriented so that the cameras (the room) are on its positive side."""
-        plane = self.loc._plane
+        plane = self.loc.wall.plane
         sign = 1.0 if float(np.mean(plane.signed_distance_m(self.loc._centres))) >= 0 else -1.0
         return sign * plane.normal, sign * plane.offset_m
 

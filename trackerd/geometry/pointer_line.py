@@ -197,11 +197,6 @@ def ray_gaps_m(origins_m: Array, directions: Array) -> Array:
     return worst
 
 
-def ray_gap_m(origins_m: Array, directions: Array) -> float:
-    """:func:`ray_gaps_m` for the rays (C, 3) of a single point."""
-    return float(ray_gaps_m(np.asarray(origins_m, float), np.asarray(directions, float)[None])[0])
-
-
 def line_on_planes(
     centres_m: Array, rays: Array, point_m: Array, direction: Array, conditioning: float, min_plane_sin: float
 ) -> PointerLine:

@@ -97,13 +97,11 @@ def triangulate_least_squares(origins_m: Array, directions: Array) -> tuple[Arra
     if np.any(lengths < 1e-12):
         raise GeometryError("a ray's direction has no length: nothing to triangulate")
     dirs = dirs / lengths
-    projectors = np.eye(3)[None, :, :] - dirs[:, :, None] * dirs[:, None, :]
-    lhs = projectors.sum(axis=0)
-    rhs = np.einsum("nij,nj->i", projectors, origins)
+    lhs, rhs = _normal_equations(origins, dirs)
     # The smallest eigenvalue of lhs measures how far from parallel the rays are.
     if np.linalg.eigvalsh(lhs)[0] < np.sin(MIN_RAY_ANGLE_RAD) ** 2:
         raise GeometryError("rays are parallel: the cameras cannot triangulate this point")
-    point = np.linalg.solve(lhs, rhs)
+    point = np.asarray(np.linalg.solve(lhs, rhs)[..., 0], dtype=np.float64)
     offsets = point - origins
     perpendicular = offsets - np.sum(offsets * dirs, axis=1, keepdims=True) * dirs
     return point, np.linalg.norm(perpendicular, axis=1)
@@ -115,12 +113,18 @@ def nearest_points_m(origins_m: Array, directions: Array) -> Array:
 
     Raises numpy.linalg.LinAlgError when a set's rays are all parallel.
     """
-    unit = directions / np.sqrt((directions * directions).sum(axis=-1))[..., None]
-    projectors = np.eye(3) - unit[..., :, None] * unit[..., None, :]  # (..., C, 3, 3)
-    lhs = projectors.sum(axis=-3)
-    rhs = (projectors @ origins_m[..., None]).sum(axis=-3)
-    points: Array = np.linalg.solve(lhs, rhs)[..., 0]
+    unit: Array = directions / np.sqrt((directions * directions).sum(axis=-1))[..., None]
+    lhs, rhs = _normal_equations(origins_m, unit)
+    points = np.asarray(np.linalg.solve(lhs, rhs)[..., 0], dtype=np.float64)
     return points
+
+
+def _normal_equations(origins_m: Array, unit_directions: Array) -> tuple[Array, Array]:
+    """``sum_i (I - d_i d_i^T) x = sum_i (I - d_i d_i^T) o_i``, the least-squares point of rays with unit
+    directions (..., C, 3) from origins (C, 3): (lhs (..., 3, 3), rhs (..., 3, 1))."""
+    projectors = np.eye(3) - unit_directions[..., :, None] * unit_directions[..., None, :]  # (..., C, 3, 3)
+    rhs: Array = (projectors @ origins_m[..., None]).sum(axis=-3)
+    return projectors.sum(axis=-3), rhs
 
 
 def triangulate_pixels(cameras: list, pixels_px: Array) -> tuple[Array, Array]:
