@@ -32,8 +32,11 @@ def test_a_hand_over_half_a_ball_makes_the_hit_less_certain_not_wrong_and_confid
     for frame in frames:
         assert frame["status"] == "hit" and frame["error_m"] is not None and frame["sigma_m"]
         assert frame["error_m"] < 3.0 * frame["sigma_m"], frame
-    # Not by making every hit vague: the clear frame's sigma stays a few millimetres.
-    assert clear["sigma_m"] < 0.006
+    # Not by making every hit vague: the clear frame's sigma stays a few millimetres. (It was 4.6 mm, under
+    # the 6 mm this asked; its rims scatter 0.5-0.86 px about their circles, so its centroids weigh less
+    # since DISTURBED_CENTROID_SHARE: 7.4 mm on a 1.3 mm error. test_a_strongly_blurred_ball_... holds
+    # still, clean frames under 4 mm.)
+    assert clear["sigma_m"] < 0.008
 
 
 def test_a_ball_held_close_to_a_wide_lens_far_off_its_axis_is_found() -> None:
@@ -135,3 +138,22 @@ def test_a_partial_outline_with_another_edge_in_its_rim_is_not_a_confident_hit()
     assert fix.hit is not None and fix.uncertainty_m is not None, fix.reason
     error = float(np.linalg.norm(fix.hit.wall_xy_m - last.truth_xy_m))
     assert error < 4.0 * fix.uncertainty_m, (error, fix.uncertainty_m)
+
+
+def test_a_strongly_blurred_ball_is_not_a_confident_hit() -> None:
+    """`trackerd bench robustness --seed 7`, installation 0, frame 7: three cameras, the tip sweeping 4-5 px
+    in the exposure, a hand over part of the blue ball. A blurred ball's rim scatters about its circle
+    (0.8 px where a clean one scatters 0.25), and its coverage centroid is moved by what moves the rim;
+    but the centroid joined the outline across the pointer as if it were a clean ball's (0.05 px), and
+    pulled it there. The hit was 24.5 mm off with a sigma of 4.6 mm (5.3 sigma). A centroid now weighs as
+    an error grown with its outline's scatter (DISTURBED_CENTROID_SHARE), so it pulls less: 9.6 mm, sigma
+    4.0."""
+    frames = run_rig((7, 0, 8, None, 0))
+    blurred = frames[7]
+    assert blurred["factors"]["blur"] == "strong" and blurred["eligible"]
+    assert blurred["status"] == "hit" and blurred["error_m"] is not None and blurred["sigma_m"]
+    assert blurred["error_m"] < 3.0 * blurred["sigma_m"], blurred
+    assert blurred["error_m"] < 0.015, blurred
+    # The still frames' sigmas stay a few millimetres (two of them see the presenter's body over an end).
+    still = [f for f in frames if f["factors"]["blur"] == "none" and f["factors"]["occlusion"] == "none"]
+    assert still and all(f["sigma_m"] < 0.004 for f in still), still

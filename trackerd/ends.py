@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.ballfit import BallFit, fit_ball
+from trackerd.detect.ballfit import MIN_SCALE_PX, BallFit, fit_ball
 from trackerd.detect.colour import SampleGrid
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.sphere import fit_sphere_direction
@@ -62,6 +62,15 @@ noise, pixel sampling and blur disturb them (whole rims on randomized scenes: 0.
 third quartile, 0.61 px at the ninth decile). A partly hidden outline that scatters more has taken some other
 edge into its rim (a hand's, a picture's), and the centre it fits is pulled by about that excess; being one
 systematic pull, it does not shrink with the number of rim points as the cone's covariance does."""
+
+DISTURBED_CENTROID_SHARE = 1.0
+"""A centroid's weight across the pointer is that of an error grown by this share of its outline's scatter
+beyond the fit's least (BallFit.residual_px beyond ballfit.MIN_SCALE_PX, in quadrature): what moves a rim off
+its circle (motion blur's smear, shading, the mixed pixels at a hand) moves the coverage centroid of the same
+pixels too. Weighed at centroid_sigma_px whatever its rim, a blurred ball's centroid pulled the outline's
+centre with it (trackerd bench robustness --seed 7, blur "strong": 5.8 % of hits beyond 3 sigma, 1.2 %
+beyond 5). Measured from the clean rim's 0.5 px instead (CLEAN_RIM_SCATTER_PX), one hit of seed 2026 stayed
+beyond 5 sigma (docs/geometry.md, "Weights and errors")."""
 
 AGREE_SIGMAS = 3.0
 """The centroid joins the outline's measurement across the pointer when the two agree there within
@@ -150,6 +159,7 @@ def measure_end(
         np.asarray(across_px, dtype=np.float64),
         centroid_sigma_px,
         fit.radius_px,
+        fit.residual_px,
     )
     if combined is None:
         return measurement
@@ -262,9 +272,13 @@ def _with_centroid(
     across_px: Array,
     centroid_sigma_px: float,
     radius_px: float,
+    rim_scatter_px: float,
 ) -> tuple[Array, Array] | None:
     """The outline's measurement with the centroid's across-the-pointer information added, when they
-    agree across the pointer; None when they do not (the centroid is pulled by something)."""
+    agree across the pointer; None when they do not (the centroid is pulled by something).
+
+    The centroid joins where it agrees as a clean ball's would (``centroid_sigma_px``), and is weighed by a
+    larger error where its outline's rim scatters (DISTURBED_CENTROID_SHARE)."""
     focal = camera.focal_px
     # Across the pointer in normalised units: the pixel direction is close enough (the lens map is smooth).
     across = across_px / max(float(np.linalg.norm(across_px)), 1e-12)
@@ -277,6 +291,10 @@ def _with_centroid(
     sigma_o = math.sqrt(max(float(across @ covariance @ across), 0.0))
     if abs(difference) > AGREE_SIGMAS * math.hypot(sigma_c, sigma_o):
         return None
+    # Joined only where a clean ball's centroid would agree (a disturbed one's larger error must not admit
+    # a pulled centroid), but weighed by its disturbed error: it pulls the outline less.
+    disturbance_px = math.sqrt(max(rim_scatter_px**2 - MIN_SCALE_PX**2, 0.0))
+    sigma_c = math.hypot(centroid_sigma_px, DISTURBED_CENTROID_SHARE * disturbance_px) / focal
     # Information form: the outline's full 2x2 plus the centroid's across the pointer only.
     info_o = np.linalg.inv(covariance)
     info_c = np.outer(across, across) / (sigma_c * sigma_c)
