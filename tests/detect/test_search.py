@@ -116,3 +116,23 @@ def test_a_ball_on_a_wall_of_a_nearby_hue_is_fitted_before_the_walls_noise(detec
     frame, _ = scene.render("BayerRG8", detect_rng, noise=6.0)
     cands = search_candidates(frame, sample_grid("BayerRG8", 320, 200), (3.0, 25.0), colours=("red",), max_seeds=3)
     assert _nearest(cands["red"], x, y) < 0.4
+
+
+def test_a_ball_split_from_a_picture_is_ranked_with_the_other_seeds_not_after_them(detect_rng) -> None:
+    """A red ball before a magenta picture (only the stricter hue test separates it) and, elsewhere, a print
+    of red specks, each a seed of the plain test: the ball's seed comes from a later pass than the specks',
+    and must still be among the seeds fitted (`bench robustness` seed 7, installation 24, frame 28: a clear
+    orange ball was seed 21 of 28, cut off behind the plain pass's seeds). Random placements."""
+    grid = sample_grid("BayerRG8", 300, 150)
+    specks = [
+        Shape(180.0 + 14.0 * i + 3.0 * (j % 2), 12.0 + 14.0 * j, RED, radius=3.0 + 0.5 * ((i + j) % 3))
+        for i in range(8)
+        for j in range(10)
+    ]
+    for _ in range(3):
+        x, y = detect_rng.uniform(60.0, 90.0), detect_rng.uniform(55.0, 95.0)
+        picture = Shape(x + 40.0, 75.0, MAGENTA, half_size=(45.0, 60.0))
+        scene = Scene(width=300, height=150, shapes=[picture, Shape(x, y, RED, radius=9.0), *specks])
+        frame, _ = scene.render("BayerRG8", detect_rng)
+        cands = search_candidates(frame, grid, (5.0, 25.0), colours=("red",), max_seeds=8)
+        assert _nearest(cands["red"], x, y) < 0.4, (x, y)

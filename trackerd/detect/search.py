@@ -148,7 +148,7 @@ def search_candidates(
         own, _ = sampled.planes(colour)
         excess = sampled.excess(colour)
         mask = _hue_mask(own, excess)
-        seeds, merged = _seeds(mask, sampled, grid, colour, smallest, largest)
+        scored, merged = _seeds(mask, sampled, grid, colour, smallest, largest)
         # A ball in front of a picture of a nearby hue merges with it; a stricter hue test, inside the merged
         # group only, separates what is only nearly the paint's colour (a magenta beside a red).
         for share in STRICTER:
@@ -159,9 +159,13 @@ def search_candidates(
             for y0, y1, x0, x1 in merged:
                 keep[y0:y1, x0:x1] = stricter[y0:y1, x0:x1]
             more, merged = _seeds(keep, sampled, grid, colour, smallest, largest)
-            seeds += more
+            scored += more
+        # Every pass's seeds ranked together before the cap: appended in turn, a ball split from a picture by
+        # the last pass came after the first pass's specks and was cut off (`bench robustness` seed 7,
+        # installation 24, frame 28: camera 1's clear orange ball was seed 21 of 28, first of its pass).
+        scored.sort(reverse=True)
         found: list[Candidate] = []
-        for x, y, radius in seeds[:max_seeds]:
+        for _, x, y, radius in scored[:max_seeds]:
             fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
             local = None if fit.found or view is None else view(x, y)
             if local is not None:
@@ -216,7 +220,7 @@ def split_candidates(
         boxes = _large_groups(mask, sampled.spacing_px, SPLIT_FROM * smallest)
         split = _split_seeds(mask, own, greener, boxes, sampled, grid, colour, smallest, largest)
         found: list[Candidate] = []
-        for x, y, radius in split[:MAX_SPLIT_SEEDS]:
+        for _, x, y, radius in split[:MAX_SPLIT_SEEDS]:
             size = max(radius, smallest)
             fit = fit_ball(frame, grid, colour, x, y, size, radius_range_px=(0.6 * size, 1.6 * size), rising_rims=True)
             if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
@@ -232,9 +236,10 @@ def _seeds(
     colour: str,
     smallest: float,
     largest: float,
-) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int, int]]]:
-    """(x, y, radius) in pixels of the mask's blobs of a ball's size, roundest and largest first; and the
-    boxes (row0, row1, col0, col1 in mask samples) of the blobs too large to be one ball."""
+) -> tuple[list[tuple[float, float, float, float]], list[tuple[int, int, int, int]]]:
+    """(score, x, y, radius), in pixels, of the mask's blobs of a ball's size, best (roundest, most vivid,
+    least crowded) first; and the boxes (row0, row1, col0, col1 in mask samples) of the blobs too large to
+    be one ball."""
     if not mask.any():
         return [], []
     runs = find_runs(mask)
@@ -270,7 +275,7 @@ def _seeds(
             (shape * (0.1 + 0.9 * vivid) / (1.0 + CROWDING_WEIGHT * float(crowding[k])), x, y, max(radius, area_radius))
         )
     scored.sort(reverse=True)
-    return [(x, y, radius) for _, x, y, radius in scored], merged
+    return scored, merged
 
 
 def _vivid_part(
@@ -372,10 +377,15 @@ def _split_seeds(
     colour: str,
     smallest: float,
     largest: float,
-) -> list[tuple[float, float, float]]:
-    """Seeds of a ball's size inside the groups in ``boxes`` (mask samples): the group's samples darker than
-    DARKER_SHARE of its median, those brighter than the median over it, and those whose second channel is
-    green against those whose second is the other colour (``greener``), each looked at alone."""
+) -> list[tuple[float, float, float, float]]:
+    """Seeds (score, x, y, radius) of a ball's size inside the groups in ``boxes`` (mask samples): the group's
+    samples darker than DARKER_SHARE of its median, those brighter than the median over it, and those whose
+    second channel is green against those whose second is the other colour (``greener``), each looked at
+    alone. Taken in turn, each part's best, then each part's second, and so on: each part is its own guess at
+    how the ball differs from the picture, and ranked together by score the ball's part could lose all its
+    places to another's round fragments of the picture (`bench robustness` seed 2026, installation 2, frame
+    13: a red ball before red text, the darker part's first seed); appended part after part, the last
+    parts' balls never came (seed 7, installation 1, frame 16: a blue ball touching a blue square)."""
     if not boxes:
         return []
     darker = np.zeros_like(mask)
@@ -390,11 +400,9 @@ def _split_seeds(
         brighter[y0:y1, x0:x1] = inside & (DARKER_SHARE * values > median)
         side_a[y0:y1, x0:x1] = inside & greener[y0:y1, x0:x1]
         side_b[y0:y1, x0:x1] = inside & ~greener[y0:y1, x0:x1]
-    seeds: list[tuple[float, float, float]] = []
-    for part in (darker, brighter, side_a, side_b):
-        found, _ = _seeds(part, sampled, grid, colour, smallest, largest)
-        seeds += found
-    return seeds
+    parts = [_seeds(part, sampled, grid, colour, smallest, largest)[0] for part in (darker, brighter, side_a, side_b)]
+    # Round robin: each part's best, then each part's second, ...
+    return [seeds[rank] for rank in range(max(map(len, parts), default=0)) for seeds in parts if rank < len(seeds)]
 
 
 def _large_groups(mask: NDArray[np.bool_], spacing: float, min_radius_px: float) -> list[tuple[int, int, int, int]]:
