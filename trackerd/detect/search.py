@@ -148,7 +148,8 @@ def search_candidates(
         own, _ = sampled.planes(colour)
         excess = sampled.excess(colour)
         mask = _hue_mask(own, excess)
-        scored, merged = _seeds(mask, sampled, grid, colour, smallest, largest)
+        plain, merged = _seeds(mask, sampled, grid, colour, smallest, largest)
+        passes = [plain]
         # A ball in front of a picture of a nearby hue merges with it; a stricter hue test, inside the merged
         # group only, separates what is only nearly the paint's colour (a magenta beside a red).
         for share in STRICTER:
@@ -159,13 +160,9 @@ def search_candidates(
             for y0, y1, x0, x1 in merged:
                 keep[y0:y1, x0:x1] = stricter[y0:y1, x0:x1]
             more, merged = _seeds(keep, sampled, grid, colour, smallest, largest)
-            scored += more
-        # Every pass's seeds ranked together before the cap: appended in turn, a ball split from a picture by
-        # the last pass came after the first pass's specks and was cut off (`bench robustness` seed 7,
-        # installation 24, frame 28: camera 1's clear orange ball was seed 21 of 28, first of its pass).
-        scored.sort(reverse=True)
+            passes.append(more)
         found: list[Candidate] = []
-        for _, x, y, radius in scored[:max_seeds]:
+        for _, x, y, radius in _in_turn(passes)[:max_seeds]:
             fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
             local = None if fit.found or view is None else view(x, y)
             if local is not None:
@@ -381,11 +378,8 @@ def _split_seeds(
     """Seeds (score, x, y, radius) of a ball's size inside the groups in ``boxes`` (mask samples): the group's
     samples darker than DARKER_SHARE of its median, those brighter than the median over it, and those whose
     second channel is green against those whose second is the other colour (``greener``), each looked at
-    alone. Taken in turn, each part's best, then each part's second, and so on: each part is its own guess at
-    how the ball differs from the picture, and ranked together by score the ball's part could lose all its
-    places to another's round fragments of the picture (`bench robustness` seed 2026, installation 2, frame
-    13: a red ball before red text, the darker part's first seed); appended part after part, the last
-    parts' balls never came (seed 7, installation 1, frame 16: a blue ball touching a blue square)."""
+    alone; the parts' seeds taken in turn (:func:`_in_turn`: appended part after part, seed 7 installation 1
+    frame 16's blue ball, touching a navy square, in the brighter part, never came)."""
     if not boxes:
         return []
     darker = np.zeros_like(mask)
@@ -400,9 +394,21 @@ def _split_seeds(
         brighter[y0:y1, x0:x1] = inside & (DARKER_SHARE * values > median)
         side_a[y0:y1, x0:x1] = inside & greener[y0:y1, x0:x1]
         side_b[y0:y1, x0:x1] = inside & ~greener[y0:y1, x0:x1]
-    parts = [_seeds(part, sampled, grid, colour, smallest, largest)[0] for part in (darker, brighter, side_a, side_b)]
-    # Round robin: each part's best, then each part's second, ...
-    return [seeds[rank] for rank in range(max(map(len, parts), default=0)) for seeds in parts if rank < len(seeds)]
+    return _in_turn(
+        [_seeds(part, sampled, grid, colour, smallest, largest)[0] for part in (darker, brighter, side_a, side_b)]
+    )
+
+
+def _in_turn(lists: list[list[tuple[float, float, float, float]]]) -> list[tuple[float, float, float, float]]:
+    """Seeds of several tests, each list best first, taken in turn: every list's best, then every list's
+    second, and so on. Not appended list after list: the later tests' seeds (a ball split from a picture by the
+    stricter hue test) came after every speck of the first and were cut off by the cap (`bench robustness`
+    seed 7, installation 24, frame 28: a clear orange ball was seed 21 of 28, first of its test). Not ranked
+    together by score either: a seed that passed a stricter test scores as vivid by that alone, and a picture's
+    fragments then outranked a dull ball of the plain test; and `split_candidates`' parts each guess
+    differently how the ball differs from the picture (seed 2026, installation 2, frame 13: a red ball before
+    red text, the darker part's first seed, outranked by round fragments of the text)."""
+    return [seeds[rank] for rank in range(max(map(len, lists), default=0)) for seeds in lists if rank < len(seeds)]
 
 
 def _large_groups(mask: NDArray[np.bool_], spacing: float, min_radius_px: float) -> list[tuple[int, int, int, int]]:
