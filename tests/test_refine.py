@@ -179,8 +179,8 @@ def test_junk_of_a_nearby_hue_where_a_hidden_ball_should_be_is_not_an_end() -> N
     warm light, red text, the red ball hidden by the presenter's body in one camera. The joint choice's look
     found a round edge of the right size where the geometry put the red ball: the corner of a tan sleeve, its
     colour only 22 % redder than green (the search's hue test asks 30 %). With a red letter in the other
-    camera it made a red end: a hit 736 mm off at 17 sigma, once the search ranked every pass's seeds
-    together (before, other seeds happened to be fitted and nothing paired). A look's find must now pass the
+    camera it made a red end: a hit 736 mm off at 17 sigma, once the search took every pass's seeds in
+    turn (before, other seeds happened to be fitted and nothing paired). A look's find must now pass the
     search's hue test, so the frame is "not found", and no frame of the installation is a confident wrong
     hit."""
     frames = run_rig((7, 23, 39, None, 0))

@@ -105,10 +105,11 @@ def guided_fit(
     view: Array | None = None,
 ) -> BallFit | None:
     """The ball looked for where the geometry puts it (centre, image radius, and the direction where the rod
-    meets it), for the joint choice's ``look``: its outline if it is round within MAX_GUIDED_RESIDUAL_PX,
-    else None. Tried in its colour's excess, then as touching something of its colour (below), then in its
-    tint (:func:`ball_tint`). With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the circle and its
-    scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
+    meets it), for the joint choice's ``look``: its outline if it is round within
+    :func:`guided_scatter_limit_px` and of the pointer's colour (:func:`_of_its_colour`), else None. Tried in
+    its colour's excess, then as touching something of its colour (below), then in its tint
+    (:func:`ball_tint`). With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the circle and
+    its scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
 
     The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
     takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails the ball may
@@ -151,11 +152,13 @@ def guided_fit(
 
 
 def _of_its_colour(image: NDArray[np.uint8], grid: SampleGrid, colour: str, fit: BallFit, view: Array | None) -> bool:
-    """Whether what a guided fit found is of the pointer's colour by the search's own hue test (its inner
-    half's median colour): the look fits any round edge of the right size where the geometry points, and a
+    """Whether what a guided fit found is of the pointer's colour by the search's relative hue thresholds
+    (:data:`~trackerd.detect.search.RELATIVE_EXCESS`, :data:`~trackerd.detect.search.MIN_EXCESS`), applied to its
+    inner half's median colour: the look fits any round edge of the right size where the geometry points, and a
     corner of a tan sleeve in warm light, only 22 % redder than it is green, once made a red end out of
     junk in two cameras for a ball hidden in one (`bench robustness` seed 7, installation 23, frame 38: a
-    hit 736 mm off at 17 sigma). The balls the looks rightly find are 43-91 % (dim, dark, blurred, merged)."""
+    hit 736 mm off at 17 sigma). The balls the looks rightly found on the frames looked into were 43-91 % (dim,
+    dark, blurred, merged)."""
     from trackerd.detect.search import MIN_EXCESS, RELATIVE_EXCESS
 
     radius_px = fit.radius_px if view is None else fit.radius_px / math.sqrt(abs(float(np.linalg.det(view))))
@@ -164,15 +167,17 @@ def _of_its_colour(image: NDArray[np.uint8], grid: SampleGrid, colour: str, fit:
         return False
     own, green, other = colours[0]
     excess = own - max(green, other)
+    # The search's test per sample (search._hue_mask), here on the medians.
     return bool(excess >= MIN_EXCESS and excess >= RELATIVE_EXCESS * own)
 
 
 def _colour_medians(
     image: NDArray[np.uint8], grid: SampleGrid, colour: str, x_px: float, y_px: float, radius_px: float
-) -> tuple[Array, Array] | None:
+) -> tuple[Array, Array | None] | None:
     """The median colour (the colour's own channel, green, the other colour, at the colour's samples) over the
-    inner half of a ball's radius and over the ring from 1.5 to 2.2 radii around it; None at the frame's edge.
-    Medians: a rod or a hand across part of either does not move them."""
+    inner half of a ball's radius, and over the ring from 1.5 to 2.2 radii around it (None where the frame's
+    edge leaves fewer than 8 samples of it); None at the frame's edge. Medians: a rod or a hand across part of
+    either does not move them."""
     from trackerd.detect.colour import cells_around, channel_windows
 
     s = grid.cell_px
@@ -186,9 +191,10 @@ def _colour_medians(
     distance = np.hypot(rows, cols)
     inner = distance <= max(0.5 * radius_px, 0.75 * s)
     ring = (distance >= 1.5 * radius_px) & (distance <= 2.2 * radius_px)
-    if not inner.any() or np.count_nonzero(ring) < 8:
+    if not inner.any():
         return None
-    return np.median(channels[:, inner], axis=1), np.median(channels[:, ring], axis=1)
+    around = np.median(channels[:, ring], axis=1) if np.count_nonzero(ring) >= 8 else None
+    return np.median(channels[:, inner], axis=1), around
 
 
 def ball_tint(
@@ -204,7 +210,7 @@ def ball_tint(
     if colours is None:
         return None
     ball, around = colours
-    if ball[0] < max(ball[1], ball[2]) + TINT_PAINT_DN:
+    if around is None or ball[0] < max(ball[1], ball[2]) + TINT_PAINT_DN:
         return None
     direction = (ball - around).astype(np.float64)
     size = float(np.linalg.norm(direction))
