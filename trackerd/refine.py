@@ -193,8 +193,11 @@ def _colour_medians(
     ring = (distance >= 1.5 * radius_px) & (distance <= 2.2 * radius_px)
     if not inner.any():
         return None
-    around = np.median(channels[:, ring], axis=1) if np.count_nonzero(ring) >= 8 else None
-    return np.median(channels[:, inner], axis=1), around
+    ball: Array = np.median(channels[:, inner], axis=1).astype(np.float64)
+    around: Array | None = None
+    if np.count_nonzero(ring) >= 8:
+        around = np.median(channels[:, ring], axis=1).astype(np.float64)
+    return ball, around
 
 
 def ball_tint(
