@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -108,8 +109,9 @@ class _Sampled:
         return own[where] - np.maximum(self.green[where], other[where])
 
 
-def _hue_mask(own: NDArray[np.int16], excess: NDArray[np.int16]) -> NDArray[np.bool_]:
-    """The relative colour test (see the module) on every sample."""
+def hue_mask(own: NDArray[Any], excess: NDArray[Any]) -> NDArray[np.bool_]:
+    """The relative colour test (see the module) on every sample (or on any colour given as its own channel
+    and its excess over the larger other: `trackerd.refine` holds a guided look's find to it)."""
     return (excess >= MIN_EXCESS) & (10 * excess >= int(10 * RELATIVE_EXCESS) * own)
 
 
@@ -147,7 +149,7 @@ def search_candidates(
     for colour in colours:
         own, _ = sampled.planes(colour)
         excess = sampled.excess(colour)
-        mask = _hue_mask(own, excess)
+        mask = hue_mask(own, excess)
         plain, merged = _seeds(mask, sampled, grid, colour, smallest, largest)
         passes = [plain]
         # A ball in front of a picture of a nearby hue merges with it; a stricter hue test, inside the merged
@@ -212,7 +214,7 @@ def split_candidates(
     out: dict[str, list[Candidate]] = {}
     for colour in colours:
         own, other = sampled.planes(colour)
-        mask = _hue_mask(own, sampled.excess(colour))
+        mask = hue_mask(own, sampled.excess(colour))
         greener = sampled.green >= other
         boxes = _large_groups(mask, sampled.spacing_px, SPLIT_FROM * smallest)
         split = _split_seeds(mask, own, greener, boxes, sampled, grid, colour, smallest, largest)
