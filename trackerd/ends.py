@@ -49,6 +49,15 @@ outline pulls it by up to the radius (a ball a quarter visible, on randomized sc
 whole radius; at a quarter of the radius, the old share, that one measurement moved a hit by 10 mm
 while two other cameras measured the end well)."""
 
+ERROR_FLOOR_RADIUS_PX = 10.0
+"""Beyond this image radius (pixels) an outline's stated error floor shrinks as 1 / radius
+(:func:`error_floor_px`). A larger ball's outline has more rim and more independent rim points, and its
+centre's actual error falls with its size: measured end by end against the true centres on `trackerd bench
+robustness` (seeds 7 and 2026, 9,200 ends; clean frames, whole outlines, along each end's least certain
+direction), a robust 0.20-0.23 px at radius 6-8 px, 0.09-0.11 at 13-22, 0.05-0.07 beyond 22, where the
+plain floor (half the rim's scatter, which the fit never takes below 0.25 px) stated 0.18-0.25 px at every
+size. Below this radius the floor stays: small balls' errors are at or above what it states."""
+
 COMBINED_FLOOR_SHARE = 0.5
 """An outline joined by its centroid keeps this share of the outline's error floor (RESIDUAL_SHARE)."""
 
@@ -155,6 +164,7 @@ def measure_end(
         camera,
         measurement.normalised,
         measurement.covariance,
+        measurement.actual_covariance,
         np.asarray(centroid_px, dtype=np.float64),
         np.asarray(across_px, dtype=np.float64),
         centroid_sigma_px,
@@ -163,23 +173,19 @@ def measure_end(
     )
     if combined is None:
         return measurement
-    normalised, covariance = combined
+    normalised, covariance, error_covariance = combined
     # The centroid sharpens the measurement across the pointer; part of the model's own error stays.
     floor_px = COMBINED_FLOOR_SHARE * max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
     covariance = covariance + np.eye(2) * (floor_px / camera.focal_px) ** 2
-    # Across the pointer the centroid measures the end, with the floor above (it is what the centroid's
-    # errors on randomized scenes need); along it the outline alone does, so the outline's actual error
-    # there where it exceeds its weight.
-    outline_error = measurement.actual_covariance
-    along = np.array([-across_px[1], across_px[0]]) / max(float(np.linalg.norm(across_px)), 1e-12)
-    along_excess = max(float(along @ (outline_error - measurement.covariance) @ along), 0.0)
-    error_covariance = covariance + np.outer(along, along) * along_excess
+    error_covariance = (
+        error_covariance + np.eye(2) * (COMBINED_FLOOR_SHARE * error_floor_px(fit) / camera.focal_px) ** 2
+    )
     if fit.rim_fraction < WHOLE_RIM_FRACTION:
         # Something besides the rod hides part of the ball (a hand, the presenter, a picture of its colour):
         # that pulls its centroid across the pointer, and the outline of what is left along with it, by more
         # than either's error says. The centroid's pull on the outline's value is then an error of its size.
         shift = normalised - measurement.normalised
-        error_covariance = outline_error + np.outer(shift, shift)
+        error_covariance = measurement.actual_covariance + np.outer(shift, shift)
     return EndMeasurement(
         camera_index,
         colour,
@@ -213,8 +219,18 @@ def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) 
         "outline",
         fit.rim_fraction,
         fit,
-        honest_covariance(fit, cone.covariance, focal) + np.eye(2) * (floor_px / focal) ** 2,
+        honest_covariance(fit, cone.covariance, focal) + np.eye(2) * (error_floor_px(fit) / focal) ** 2,
     )
+
+
+def error_floor_px(fit: BallFit) -> float:
+    """The least error (pixels, 1 sigma per axis) an outline's centre is stated to have: RESIDUAL_SHARE of its
+    rim's scatter about the circle (MIN_SIGMA_PX at least), as its weight's floor, for balls up to
+    ERROR_FLOOR_RADIUS_PX; shrinking as 1 / radius beyond it.
+
+    The weight keeps the plain floor (so no hit moves); this one is for the hit's uncertainty."""
+    share = min(1.0, ERROR_FLOOR_RADIUS_PX / fit.radius_px) if fit.radius_px > 0 else 1.0
+    return max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px * share)
 
 
 def honest_covariance(fit: BallFit, cone_covariance: Array, focal_px: float) -> Array:
@@ -268,14 +284,20 @@ def _with_centroid(
     camera: CameraModel,
     normalised: Array,
     covariance: Array,
+    error_covariance: Array,
     centroid_px: Array,
     across_px: Array,
     centroid_sigma_px: float,
     radius_px: float,
     rim_scatter_px: float,
-) -> tuple[Array, Array] | None:
+) -> tuple[Array, Array, Array] | None:
     """The outline's measurement with the centroid's across-the-pointer information added, when they
-    agree across the pointer; None when they do not (the centroid is pulled by something).
+    agree across the pointer: (value, its covariance as a weight, the covariance of its actual error);
+    None when they do not agree (the centroid is pulled by something).
+
+    The actual error is the outline's (``error_covariance``: its error where that exceeds its weight
+    ``covariance``) and the centroid's (as weighed), carried through the same combination (the sandwich
+    W^-1 (I_o E_o I_o + I_c) W^-1, W = I_o + I_c the combined information).
 
     The centroid joins where it agrees as a clean ball's would (``centroid_sigma_px``), and is weighed by a
     larger error where its outline's rim scatters (DISTURBED_CENTROID_SHARE)."""
@@ -302,5 +324,10 @@ def _with_centroid(
     cov = np.linalg.inv(info)
     # The centroid's value across the pointer; along it, the outline's (info_c has nothing along).
     mean = cov @ (info_o @ normalised + info_c @ centroid_n)
+    actual = cov @ (info_o @ error_covariance @ info_o + info_c) @ cov
     # float64 already: typed, not copied (NumPy's stubs give inv and @ a looser dtype).
-    return np.asarray(mean, dtype=np.float64), np.asarray(cov, dtype=np.float64)
+    return (
+        np.asarray(mean, dtype=np.float64),
+        np.asarray(cov, dtype=np.float64),
+        np.asarray(actual, dtype=np.float64),
+    )
