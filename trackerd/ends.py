@@ -53,10 +53,11 @@ ERROR_FLOOR_RADIUS_PX = 10.0
 """Beyond this image radius (pixels) an outline's stated error floor shrinks as 1 / radius
 (:func:`error_floor_px`). A larger ball's outline has more rim and more independent rim points, and its
 centre's actual error falls with its size: measured end by end against the true centres on `trackerd bench
-robustness` (seeds 7 and 2026, 9,200 ends; clean frames, whole outlines, along each end's least certain
-direction), a robust 0.20-0.23 px at radius 6-8 px, 0.09-0.11 at 13-22, 0.05-0.07 beyond 22, where the
-plain floor (half the rim's scatter, which the fit never takes below 0.25 px) stated 0.18-0.25 px at every
-size. Below this radius the floor stays: small balls' errors are at or above what it states."""
+robustness` (seeds 7 and 2026: 1,916 whole outlines on clean frames; along each end's least certain
+direction), a robust 0.20-0.23 px at radius 6-8 px, 0.08-0.11 at 13-22, 0.05-0.07 beyond 22, where their
+stated error with the plain floor (half the rim's scatter, which the fit never takes below 0.25 px) was
+0.17-0.25 px at every size (docs/geometry.md, "A large ball's stated error follows its size"). Below this
+radius the floor stays: small balls' errors are at or above what it states."""
 
 COMBINED_FLOOR_SHARE = 0.5
 """An outline joined by its centroid keeps this share of the outline's error floor (RESIDUAL_SHARE)."""
