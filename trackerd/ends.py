@@ -296,9 +296,9 @@ def _with_centroid(
     agree across the pointer: (value, its covariance as a weight, the covariance of its actual error);
     None when they do not agree (the centroid is pulled by something).
 
-    The actual error is the outline's (``error_covariance``: its error where that exceeds its weight
-    ``covariance``) and the centroid's (as weighed), carried through the same combination (the sandwich
-    W^-1 (I_o E_o I_o + I_c) W^-1, W = I_o + I_c the combined information).
+    The actual error is the outline's (``error_covariance`` E_o, which may exceed what its weight
+    ``covariance`` says) and the centroid's (as weighed), carried through the same combination (the
+    sandwich W^-1 (I_o E_o I_o + I_c) W^-1, I_o and I_c the two weights' information, W their sum).
 
     The centroid joins where it agrees as a clean ball's would (``centroid_sigma_px``), and is weighed by a
     larger error where its outline's rim scatters (DISTURBED_CENTROID_SHARE)."""
