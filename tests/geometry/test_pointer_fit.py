@@ -140,6 +140,28 @@ def test_a_missing_measurement_weighs_nothing() -> None:
     assert np.linalg.norm(fit.back_m - BACK) < 1e-6
 
 
+def test_a_missing_end_is_no_degree_of_freedom_of_the_inflation() -> None:
+    """Monte Carlo: three cameras, one of which misses the back end; every measurement truly off by twice
+    the error it states. The inflation (reduced chi-square above 1) finds the factor of four in variance:
+    the missing end, whose residuals are zero, is not counted among the degrees of freedom (counted, it
+    made the inflation 5/7 of what the cameras' disagreement says)."""
+    cameras = [*_behind_pair(), _camera("c", [-1.0, 1.8, 3.0])]
+    rot, trans = _arrays(cameras)
+    truth = predict(rot, trans, FRONT, BACK)
+    sigma = 0.2 / 1600
+    covariances = np.tile(np.eye(2) * sigma**2, (3, 2, 1, 1))
+    covariances[2, 1] = np.eye(2) * DROPPED_VARIANCE
+    length = float(np.linalg.norm(FRONT - BACK))
+    rng = np.random.default_rng(6)
+    inflations = []
+    for _ in range(300):
+        noisy = truth + rng.normal(0.0, 2.0 * sigma, truth.shape)
+        fit = fit_pointer(EndViews.of(rot, trans, noisy, covariances, length, 1e-5), FRONT, BACK)
+        assert fit.dof == 5  # five measurements of two coordinates, six unknowns less the length's one
+        inflations.append(fit.inflation)
+    assert 3.5 < np.mean(inflations) < 4.6, np.mean(inflations)
+
+
 def test_the_hit_covariance_is_the_linearised_hit() -> None:
     """hit_covariance against finite differences of the line's intersection with z = 0."""
     normal, offset = np.array([0.0, 0.0, 1.0]), 0.0

@@ -218,7 +218,9 @@ def fit_pointer(views: EndViews, front0_m: Array, back0_m: Array, max_iterations
         covariance = np.asarray(np.linalg.inv(jtj), dtype=np.float64)  # float64 already: typed, not copied
     except np.linalg.LinAlgError as err:
         raise GeometryError("the cameras do not constrain the pointer (singular fit)") from err
-    dof = max(residuals.size - 6, 1)
+    # A camera's missing end (DROPPED_VARIANCE) has residuals of ~0 and is no degree of freedom.
+    present = np.trace(cov, axis1=2, axis2=3) < DROPPED_VARIANCE
+    dof = _dof(present)
     disagreement = chi2
     if views.error_covariances is not None:
         covariance, disagreement = _sandwich(covariance, jacobian, residuals, whiten, views.error_covariances)
