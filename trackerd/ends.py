@@ -176,7 +176,7 @@ def measure_end(
         return measurement
     normalised, covariance, error_covariance = combined
     # The centroid sharpens the measurement across the pointer; part of the model's own error stays.
-    floor_px = COMBINED_FLOOR_SHARE * max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
+    floor_px = COMBINED_FLOOR_SHARE * weight_floor_px(fit)
     covariance = covariance + np.eye(2) * (floor_px / camera.focal_px) ** 2
     error_covariance = (
         error_covariance + np.eye(2) * (COMBINED_FLOOR_SHARE * error_floor_px(fit) / camera.focal_px) ** 2
@@ -208,7 +208,7 @@ def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) 
     cone = fit_sphere_direction(rim, rim_sigma_normalised=fit.residual_px / focal)
     if cone is None:
         return None
-    floor_px = max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px)
+    floor_px = weight_floor_px(fit)
     covariance = cone.covariance + np.eye(2) * (floor_px / focal) ** 2
     return EndMeasurement(
         camera_index,
@@ -224,14 +224,18 @@ def from_fit(camera: CameraModel, camera_index: int, colour: str, fit: BallFit) 
     )
 
 
+def weight_floor_px(fit: BallFit, share: float = 1.0) -> float:
+    """The least error (pixels, 1 sigma per axis) an outline's centre is weighed by: RESIDUAL_SHARE of its rim's
+    scatter about the circle, times ``share``, MIN_SIGMA_PX at least."""
+    return max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px * share)
+
+
 def error_floor_px(fit: BallFit) -> float:
-    """The least error (pixels, 1 sigma per axis) an outline's centre is stated to have: RESIDUAL_SHARE of its
-    rim's scatter about the circle (MIN_SIGMA_PX at least), as its weight's floor, for balls up to
-    ERROR_FLOOR_RADIUS_PX; shrinking as 1 / radius beyond it.
+    """The least error an outline's centre is stated to have: its weight's floor for balls up to
+    ERROR_FLOOR_RADIUS_PX, shrinking as 1 / radius beyond it.
 
     The weight keeps the plain floor (so no hit moves); this one is for the hit's uncertainty."""
-    share = min(1.0, ERROR_FLOOR_RADIUS_PX / fit.radius_px) if fit.radius_px > 0 else 1.0
-    return max(MIN_SIGMA_PX, RESIDUAL_SHARE * fit.residual_px * share)
+    return weight_floor_px(fit, min(1.0, ERROR_FLOOR_RADIUS_PX / fit.radius_px) if fit.radius_px > 0 else 1.0)
 
 
 def honest_covariance(fit: BallFit, cone_covariance: Array, focal_px: float) -> Array:
