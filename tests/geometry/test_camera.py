@@ -5,6 +5,7 @@ Building one from the rig file's forms is the adapter's (tests/config/test_rig_g
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
@@ -30,6 +31,13 @@ LENSES = {
     "wide_angle_barrel": (
         [[1000.0, 0, 962.5], [0, 1000.0, 538.0], [0, 0, 1]],
         [-0.3, 0.15, 0.001, -0.001, -0.02],
+    ),
+    # A wide lens (100 degrees across) whose radial map flattens near the corners without
+    # folding (a draw of the randomized simulator): OpenCV's fixed-point inverse does not
+    # converge there in any number of iterations; CameraModel inverts it by Newton's method.
+    "wide_angle_flattening": (
+        [[799.68, 0, 931.23], [0, 798.50, 525.12], [0, 0, 1]],
+        [-0.33781, 0.057999, -0.00017266, 0.000020395, 0.0],
     ),
     "rational": (
         [[1660.0, 0, 962.5], [0, 1660.0, 538.0], [0, 0, 1]],
@@ -141,6 +149,23 @@ def test_wide_angle_lens_moves_its_corners_by_hundreds_of_pixels() -> None:
     pinhole = cam.with_intrinsics(cam.matrix, np.zeros(0))
     shift_px = np.linalg.norm(pinhole.project(origins + dirs) - corners, axis=1)
     assert np.all(shift_px > 200.0)
+
+
+def test_a_lens_opencvs_fixed_point_cannot_invert_is_inverted_by_newton() -> None:
+    # The round trip above is a test of the Newton path only if OpenCV's own inverse, iterated
+    # as far as CameraModel used to (200 times), misses somewhere on this lens's border.
+    cam = lens_camera("wide_angle_flattening")
+    border = image_grid(WIDTH_PX, HEIGHT_PX, 49)
+    fixed_point = cv2.undistortPoints(
+        border.reshape(-1, 1, 2),
+        cam.matrix,
+        cam.distortion,
+        criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14),
+    ).reshape(-1, 2)
+    rays = np.column_stack([fixed_point, np.ones(len(border))]) @ cam.rotation
+    assert np.max(np.linalg.norm(cam.project(cam.centre_m + rays) - border, axis=1)) > 0.1
+    origins, dirs = cam.pixel_to_ray(border)
+    assert np.max(np.linalg.norm(cam.project(origins + dirs) - border, axis=1)) < 1e-6
 
 
 @pytest.mark.parametrize("lens", sorted(LENSES))

@@ -28,7 +28,7 @@ from trackerd.config.models import (
     horizontal_focal_px,
 )
 from trackerd.errors import ConfigError, GeometryError
-from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.camera import CameraModel, border_pixels
 from trackerd.geometry.rotation import rotation_from_rvec, world_from_camera_ypr
 from trackerd.geometry.wall import WallFrame
 
@@ -107,16 +107,7 @@ def lens_fold_px(cam: CameraConfig) -> tuple[float, tuple[float, float]]:
     model = camera_model(cam)
     if not model.has_distortion:
         return 0.0, (0.0, 0.0)
-    w, h = cam.width_px - 0.5, cam.height_px - 0.5
-    steps = np.linspace(0.0, 1.0, 65)
-    border = np.vstack(
-        [
-            np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, -0.5)]),
-            np.column_stack([-0.5 + steps * (w + 0.5), np.full(65, h)]),
-            np.column_stack([np.full(65, -0.5), -0.5 + steps * (h + 0.5)]),
-            np.column_stack([np.full(65, w), -0.5 + steps * (h + 0.5)]),
-        ]
-    )
+    border = border_pixels(cam.width_px, cam.height_px)
     origins, directions = model.pixel_to_ray(border)
     miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
     miss = np.where(np.isfinite(miss), miss, np.inf)

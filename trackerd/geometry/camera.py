@@ -15,11 +15,34 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.geometry.lens_inverse import is_five_term, newton_undistort
+
 Array = NDArray[np.float64]
 
 # undistortPoints' default of 5 iterations leaves errors of a tenth of a pixel near the
 # corners of a strongly distorted lens; iterate to convergence instead.
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+
+
+FIXED_POINT_TOLERANCE_PX = 1e-4
+"""How far a border pixel taken through OpenCV's inverse and projected back may land from itself
+before the camera's inverse is Newton's method instead."""
+
+
+def border_pixels(width_px: int, height_px: int, per_side: int = 65) -> Array:
+    """Pixels along the image's border (the outer edges of the outer pixels), per_side per side."""
+    w, h = width_px - 0.5, height_px - 0.5
+    steps = np.linspace(0.0, 1.0, per_side)
+    xs, ys = -0.5 + steps * (w + 0.5), -0.5 + steps * (h + 0.5)
+    edge_x, edge_y = np.full(per_side, -0.5), np.full(per_side, -0.5)
+    return np.vstack(
+        [
+            np.column_stack([xs, edge_y]),
+            np.column_stack([xs, np.full(per_side, h)]),
+            np.column_stack([edge_x, ys]),
+            np.column_stack([np.full(per_side, w), ys]),
+        ]
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,8 +158,31 @@ class CameraModel:
             x = (pix[:, 0] - cx - skew * y) / fx
             plain: Array = np.column_stack([x, y])
             return plain
+        if self._fixed_point_fails:
+            solved = newton_undistort(self.matrix, self.distortion, pix)
+            if solved is not None:
+                return solved
+        return self._fixed_point(pix)
+
+    def _fixed_point(self, pix: Array) -> Array:
+        """OpenCV's inverse of the lens (a fixed-point iteration, iterated to convergence)."""
         out = cv2.undistortPoints(pix.reshape(-1, 1, 2), self.matrix, self.distortion, criteria=_UNDISTORT_CRITERIA)
         return np.asarray(out, dtype=np.float64).reshape(-1, 2)  # float64 already: typed, not copied
+
+    @cached_property
+    def _fixed_point_fails(self) -> bool:
+        """Whether OpenCV's fixed point leaves pixels of this camera's border (where it converges
+        slowest) more than FIXED_POINT_TOLERANCE_PX off, where Newton's method (for 5-term
+        lenses; trackerd.geometry.lens_inverse) brings them back: a wide lens whose radial map
+        flattens near the corners. Asked once per camera; other lenses keep OpenCV's (faster
+        on the few pixels of a frame)."""
+        if not self.has_distortion or not is_five_term(self.distortion):
+            return False
+        border = border_pixels(self.width_px, self.height_px)
+        in_cam = np.column_stack([self._fixed_point(border), np.ones(len(border))])
+        back, _ = cv2.projectPoints(in_cam.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.matrix, self.distortion)
+        miss = np.linalg.norm(back.reshape(-1, 2) - border, axis=1)
+        return not bool(np.all(miss <= FIXED_POINT_TOLERANCE_PX))
 
     def rays_camera(self, pixels_px: Array) -> Array:
         """Pixels (N, 2) -> unit ray directions in the camera frame (N, 3)."""
