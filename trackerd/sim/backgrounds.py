@@ -22,7 +22,7 @@ from trackerd.sim.room_shading import shade_room
 from trackerd.sim.scene import Room
 from trackerd.sim.sensor import raw_values
 
-RENDER_VERSION = 1
+RENDER_VERSION = 2
 """Bump when the background rendering changes, so cached backgrounds are not reused."""
 
 

@@ -166,10 +166,41 @@ def draw_aimed_camera(
     r2 = np.linspace(0.0, corner_r2, 200)
     if np.any(np.diff(np.sqrt(r2) * (1.0 + k1 * r2 + k2 * r2 * r2)) <= 0):
         k1, k2 = k1 / 3.0, 0.0
+    # The test above looks at the *undistorted* radius out to the corner's distorted one, which a
+    # barrel lens reaches well before its corner: it let lenses through that fold inside the image
+    # (no ray at all for the corners' pixels; trackerd's loader refuses such a rig). Weaken until
+    # the map reaches past the farthest corner (no random draw here: the rest of the scene stays).
+    reach = _farthest_corner_radius(width_px, height_px, matrix) * CORNER_MARGIN
+    while _folds_within(k1, k2, reach):
+        k1, k2 = k1 / 2.0, k2 / 2.0
     distortion = np.array([k1, k2, float(rng.uniform(-5e-4, 5e-4)), float(rng.uniform(-5e-4, 5e-4)), 0.0])
     fmt = str(rng.choice(["BayerRG8", "BayerRG8", "BayerBG8", "BayerGR8", "BayerGB8", "RGB8"]))
     model = CameraModel.from_pose(camera_id, width_px, height_px, matrix, distortion, position, world_from_cam)
     return model, fmt
+
+
+CORNER_MARGIN = 1.05
+"""A drawn lens's radial map must keep growing to this factor beyond its farthest image corner."""
+
+
+def _farthest_corner_radius(width_px: int, height_px: int, matrix: Array) -> float:
+    """Distorted normalised radius of the image corner farthest from the principal point."""
+    xs = (np.array([-0.5, width_px - 0.5]) - matrix[0, 2]) / matrix[0, 0]
+    ys = (np.array([-0.5, height_px - 0.5]) - matrix[1, 2]) / matrix[1, 1]
+    return float(math.hypot(np.abs(xs).max(), np.abs(ys).max()))
+
+
+def _folds_within(k1: float, k2: float, reach: float) -> bool:
+    """Whether the radial map r -> r (1 + k1 r^2 + k2 r^4) stops growing before it reaches ``reach``.
+
+    Such a lens images nothing beyond the fold's radius, and pixels out there have no ray;
+    inverting the map near the fold is also ill-conditioned (a ball there is squashed to a sliver).
+    """
+    r = np.linspace(0.0, 4.0 * reach, 4001)
+    distorted = r * (1.0 + k1 * r * r + k2 * r**4)
+    falls = np.nonzero(np.diff(distorted) <= 0.0)[0]
+    grows_to = distorted[: falls[0] + 1] if len(falls) else distorted
+    return bool(grows_to.max() < reach)
 
 
 def camera_config(model: CameraModel, pixel_format: str) -> dict[str, Any]:
