@@ -20,6 +20,7 @@ from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardView
 from trackerd.calibration.views import CoverageGrid
 from trackerd.config.models import OpenCVIntrinsics
+from trackerd.geometry.lens_inverse import invert_lens
 
 Array = NDArray[np.float64]
 
@@ -219,11 +220,10 @@ def lens_model_difference_px(
     xs, ys = np.meshgrid(
         np.arange(0, width, step_px, dtype=np.float64), np.arange(0, height, step_px, dtype=np.float64)
     )
-    pixels = np.column_stack([xs.ravel(), ys.ravel()]).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+    pixels = np.column_stack([xs.ravel(), ys.ravel()])
     rays = []
     for matrix, dist in ((matrix_a, dist_a), (matrix_b, dist_b)):
-        norm = cv2.undistortPoints(pixels, matrix, dist, criteria=criteria).reshape(-1, 2)
+        norm = invert_lens(matrix, dist, pixels)
         ray = np.column_stack([norm, np.ones(len(norm))])
         rays.append(ray / np.linalg.norm(ray, axis=1, keepdims=True))
     u, _, vt = np.linalg.svd(rays[1].T @ rays[0])

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardView
 from trackerd.calibration.intrinsics import outlier_views
+from trackerd.geometry.lens_inverse import invert_lens
 from trackerd.geometry.rotation import rotation_angle_deg, rotation_from_rvec, rvec_from_rotation
 
 Array = NDArray[np.float64]
@@ -50,7 +51,6 @@ sync and no majority can be trusted (pairs in sync agree within about a millimet
 degrees on the simulated DataWall)."""
 
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
 
 
 @dataclass(frozen=True)
@@ -351,5 +351,5 @@ def epipolar_distances_px(
 
 def _normalised_h(points_px: Array, lens: Lens) -> Array:
     pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
-    norm = cv2.undistortPoints(pts, lens.matrix, lens.distortion, criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
+    norm = invert_lens(lens.matrix, lens.distortion, pts)
     return np.column_stack([norm, np.ones(len(norm))])

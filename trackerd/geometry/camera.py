@@ -15,18 +15,15 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.geometry.lens_inverse import is_five_term, newton_undistort
+from trackerd.geometry.lens_inverse import (
+    FIXED_POINT_TOLERANCE_PX,
+    fixed_point_miss_px,
+    fixed_point_undistort,
+    is_five_term,
+    newton_undistort,
+)
 
 Array = NDArray[np.float64]
-
-# undistortPoints' default of 5 iterations leaves errors of a tenth of a pixel near the
-# corners of a strongly distorted lens; iterate to convergence instead.
-_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
-
-
-FIXED_POINT_TOLERANCE_PX = 1e-4
-"""How far a border pixel taken through OpenCV's inverse and projected back may land from itself
-before the camera's inverse is Newton's method instead."""
 
 
 def border_pixels(width_px: int, height_px: int, per_side: int = 65) -> Array:
@@ -162,12 +159,7 @@ class CameraModel:
             solved = newton_undistort(self.matrix, self.distortion, pix)
             if solved is not None:
                 return solved
-        return self._fixed_point(pix)
-
-    def _fixed_point(self, pix: Array) -> Array:
-        """OpenCV's inverse of the lens (a fixed-point iteration, iterated to convergence)."""
-        out = cv2.undistortPoints(pix.reshape(-1, 1, 2), self.matrix, self.distortion, criteria=_UNDISTORT_CRITERIA)
-        return np.asarray(out, dtype=np.float64).reshape(-1, 2)  # float64 already: typed, not copied
+        return fixed_point_undistort(self.matrix, self.distortion, pix)
 
     @cached_property
     def _fixed_point_fails(self) -> bool:
@@ -179,9 +171,7 @@ class CameraModel:
         if not self.has_distortion or not is_five_term(self.distortion):
             return False
         border = border_pixels(self.width_px, self.height_px)
-        in_cam = np.column_stack([self._fixed_point(border), np.ones(len(border))])
-        back, _ = cv2.projectPoints(in_cam.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.matrix, self.distortion)
-        miss = np.linalg.norm(back.reshape(-1, 2) - border, axis=1)
+        miss = fixed_point_miss_px(self.matrix, self.distortion, border)
         return not bool(np.all(miss <= FIXED_POINT_TOLERANCE_PX))
 
     def rays_camera(self, pixels_px: Array) -> Array:

@@ -1,21 +1,31 @@
-"""Pixels back to undistorted normalised coordinates through OpenCV's 5-term lens, by Newton's method.
+"""Pixels back to undistorted normalised coordinates: OpenCV's inverse of the lens, and Newton's method
+where that does not converge.
 
 OpenCV's ``undistortPoints`` iterates a fixed point, x <- (x_distorted - tangential) / radial
 factor, which converges only where the radial map is steep enough: near the corners of
 a strongly distorted wide lens (k1 = -0.34 with k2 = +0.06, whose radial map flattens
 without folding) it does not converge in any number of iterations, and with its default
-5 it leaves tens of pixels there. Newton's method on the same model converges in 4-8
-steps wherever the map does not fold. Used where the fixed point fails
-(:class:`trackerd.geometry.camera.CameraModel`) and for every pixel of the simulator's
-lens maps (:mod:`trackerd.sim.lens_rays`).
+5 it leaves tens of pixels there. Newton's method on OpenCV's 5-term model converges in
+4-8 steps wherever the map does not fold. :class:`trackerd.geometry.camera.CameraModel`
+chooses once per camera, calibration's checks per call (:func:`invert_lens`), and the
+simulator's lens maps use Newton's method for every pixel (:mod:`trackerd.sim.lens_rays`).
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
+
+FIXED_POINT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+"""OpenCV's fixed point iterated to convergence (its default 5 iterations leave a tenth of a pixel
+near the corners of a strongly distorted lens, and tens of pixels near a flattening one)."""
+
+FIXED_POINT_TOLERANCE_PX = 1e-4
+"""How far a pixel taken through OpenCV's inverse and projected back may land from itself before
+Newton's method takes over."""
 
 CHUNK = 32_768
 """Pixels inverted together: small enough that the arrays of one Newton step stay in cache."""
@@ -23,6 +33,42 @@ CHUNK = 32_768
 MAX_STEPS = 30
 TOLERANCE = 1e-13
 """Newton stops when no pixel of a chunk moves more than this (normalised units, ~1e-10 px)."""
+
+
+def fixed_point_undistort(matrix: Array, distortion: Array, pixels_px: Array) -> Array:
+    """OpenCV's inverse of the lens, iterated to convergence: normalised (x, y) (N, 2) of pixels (N, 2)."""
+    out = cv2.undistortPoints(pixels_px.reshape(-1, 1, 2), matrix, distortion, criteria=FIXED_POINT_CRITERIA)
+    return np.asarray(out, dtype=np.float64).reshape(-1, 2)  # float64 already: typed, not copied
+
+
+def fixed_point_miss_px(matrix: Array, distortion: Array, pixels_px: Array) -> Array:
+    """How far each pixel (N, 2), taken through :func:`fixed_point_undistort` and projected back,
+    lands from itself (N,)."""
+    return _projection_miss_px(matrix, distortion, fixed_point_undistort(matrix, distortion, pixels_px), pixels_px)
+
+
+def _projection_miss_px(matrix: Array, distortion: Array, normalised: Array, pixels_px: Array) -> Array:
+    """Distance (N,) from each pixel (N, 2) to where its normalised coordinates (N, 2) project."""
+    in_cam = np.column_stack([normalised, np.ones(len(normalised))])
+    back, _ = cv2.projectPoints(in_cam.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), matrix, distortion)
+    miss: Array = np.linalg.norm(back.reshape(-1, 2) - pixels_px, axis=1)
+    return miss
+
+
+def invert_lens(matrix: Array, distortion: Array, pixels_px: Array) -> Array:
+    """Normalised (x, y) (N, 2) of pixels (N, 2) through any OpenCV lens: OpenCV's fixed point,
+    and Newton's method for a 5-term lens where that has not converged (checked by projecting
+    back). For calibration's checks; :class:`CameraModel` decides once per camera instead."""
+    pixels_px = np.asarray(pixels_px, dtype=np.float64).reshape(-1, 2)
+    matrix = np.asarray(matrix, dtype=np.float64)
+    distortion = np.asarray(distortion, dtype=np.float64).ravel()
+    fixed = fixed_point_undistort(matrix, distortion, pixels_px)
+    if not is_five_term(distortion):
+        return fixed
+    if np.all(_projection_miss_px(matrix, distortion, fixed, pixels_px) <= FIXED_POINT_TOLERANCE_PX):
+        return fixed
+    solved = newton_undistort(matrix, distortion, pixels_px)
+    return fixed if solved is None else solved
 
 
 def is_five_term(distortion: Array) -> bool:
