@@ -36,6 +36,7 @@ import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -214,11 +215,15 @@ def drawn_frames(
 
 def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]:
     """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
-    from trackerd.config.rig_geometry import wall_frame
+    from trackerd.config.rig_geometry import check_rig_geometry, wall_frame
     from trackerd.locator import Locator
 
     seed, index, poses, refine, learn_pairs = task
     drawn, rng = draw_installation(seed, index)
+    # The locator is handed the drawn cameras, not a rig file: make the checks loading one would, so
+    # the bench never measures trackerd on an installation it would refuse (a lens folding inside the
+    # image was drawn, and rendered wrongly, until 2026-12-05).
+    check_rig_geometry(drawn.rig, Path(f"installation {index} of seed {seed}"))
     rig = drawn.rig
     if refine is not None:
         rig = rig.model_copy(update={"locator": rig.locator.model_copy(update={"refine": refine})})
