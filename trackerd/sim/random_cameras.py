@@ -19,6 +19,9 @@ Array = NDArray[np.float64]
 
 RESOLUTIONS = ((1280, 720), (1920, 1080), (1920, 1200), (2448, 2048), (3840, 2160))
 
+CORNER_MARGIN = 1.05
+"""A drawn lens's radial map must keep growing to this factor beyond its farthest image corner."""
+
 
 def build_rig(
     name: str,
@@ -177,10 +180,6 @@ def draw_aimed_camera(
     fmt = str(rng.choice(["BayerRG8", "BayerRG8", "BayerBG8", "BayerGR8", "BayerGB8", "RGB8"]))
     model = CameraModel.from_pose(camera_id, width_px, height_px, matrix, distortion, position, world_from_cam)
     return model, fmt
-
-
-CORNER_MARGIN = 1.05
-"""A drawn lens's radial map must keep growing to this factor beyond its farthest image corner."""
 
 
 def _farthest_corner_radius(width_px: int, height_px: int, matrix: Array) -> float:
