@@ -39,6 +39,11 @@ LENSES = {
         [[799.68, 0, 931.23], [0, 798.50, 525.12], [0, 0, 1]],
         [-0.33781, 0.057999, -0.00017266, 0.000020395, 0.0],
     ),
+    # The same with a rational term (k4): Newton's method through OpenCV's projection and its derivatives.
+    "wide_angle_flattening_rational": (
+        [[799.68, 0, 931.23], [0, 798.50, 525.12], [0, 0, 1]],
+        [-0.34, 0.057999, -0.00017266, 0.000020395, 0.0, 0.02, 0.0, 0.0],
+    ),
     "rational": (
         [[1660.0, 0, 962.5], [0, 1660.0, 538.0], [0, 0, 1]],
         [-0.1, 0.05, 0.001, 0.0005, -0.01, 0.02, 0.01, -0.005],
@@ -151,10 +156,11 @@ def test_wide_angle_lens_moves_its_corners_by_hundreds_of_pixels() -> None:
     assert np.all(shift_px > 200.0)
 
 
-def test_a_lens_opencvs_fixed_point_cannot_invert_is_inverted_by_newton() -> None:
+@pytest.mark.parametrize("lens", ["wide_angle_flattening", "wide_angle_flattening_rational"])
+def test_a_lens_opencvs_fixed_point_cannot_invert_is_inverted_by_newton(lens: str) -> None:
     # The round trip above is a test of the Newton path only if OpenCV's own inverse, iterated
     # as far as CameraModel used to (200 times), misses somewhere on this lens's border.
-    cam = lens_camera("wide_angle_flattening")
+    cam = lens_camera(lens)
     border = image_grid(WIDTH_PX, HEIGHT_PX, 49)
     fixed_point = cv2.undistortPoints(
         border.reshape(-1, 1, 2),

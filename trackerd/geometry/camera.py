@@ -19,7 +19,6 @@ from trackerd.geometry.lens_inverse import (
     FIXED_POINT_TOLERANCE_PX,
     fixed_point_miss_px,
     fixed_point_undistort,
-    is_five_term,
     newton_undistort,
 )
 
@@ -164,11 +163,11 @@ class CameraModel:
     @cached_property
     def _fixed_point_fails(self) -> bool:
         """Whether OpenCV's fixed point leaves pixels of this camera's border (where it converges
-        slowest) more than FIXED_POINT_TOLERANCE_PX off, where Newton's method (for 5-term
-        lenses; trackerd.geometry.lens_inverse) brings them back: a wide lens whose radial map
-        flattens near the corners. Asked once per camera; other lenses keep OpenCV's (faster
-        on the few pixels of a frame)."""
-        if not self.has_distortion or not is_five_term(self.distortion):
+        slowest) more than FIXED_POINT_TOLERANCE_PX off, where Newton's method
+        (trackerd.geometry.lens_inverse) brings them back: a wide lens whose radial map flattens
+        near the corners. Asked once per camera; other lenses keep OpenCV's (faster on the few
+        pixels of a frame)."""
+        if not self.has_distortion:
             return False
         border = border_pixels(self.width_px, self.height_px)
         miss = fixed_point_miss_px(self.matrix, self.distortion, border)

@@ -5,10 +5,12 @@ OpenCV's ``undistortPoints`` iterates a fixed point, x <- (x_distorted - tangent
 factor, which converges only where the radial map is steep enough: near the corners of
 a strongly distorted wide lens (k1 = -0.34 with k2 = +0.06, whose radial map flattens
 without folding) it does not converge in any number of iterations, and with its default
-5 it leaves tens of pixels there. Newton's method on OpenCV's 5-term model converges in
-4-8 steps wherever the map does not fold. :class:`trackerd.geometry.camera.CameraModel`
-chooses once per camera, calibration's checks per call (:func:`invert_lens`), and the
-simulator's lens maps use Newton's method for every pixel (:mod:`trackerd.sim.lens_rays`).
+5 it leaves tens of pixels there. Newton's method converges in 4-8 steps wherever the map
+does not fold: OpenCV's 5-term model is written out here (fast enough for every pixel of
+an image), any other model is projected by OpenCV with its derivatives.
+:class:`trackerd.geometry.camera.CameraModel` chooses once per camera, calibration's checks
+per call (:func:`invert_lens`), and the simulator's lens maps use Newton's method for every
+pixel (:mod:`trackerd.sim.lens_rays`).
 """
 
 from __future__ import annotations
@@ -57,14 +59,12 @@ def _projection_miss_px(matrix: Array, distortion: Array, normalised: Array, pix
 
 def invert_lens(matrix: Array, distortion: Array, pixels_px: Array) -> Array:
     """Normalised (x, y) (N, 2) of pixels (N, 2) through any OpenCV lens: OpenCV's fixed point,
-    and Newton's method for a 5-term lens where that has not converged (checked by projecting
-    back). For calibration's checks; :class:`CameraModel` decides once per camera instead."""
+    and Newton's method where that has not converged (checked by projecting back). For
+    calibration's checks; :class:`CameraModel` decides once per camera instead."""
     pixels_px = np.asarray(pixels_px, dtype=np.float64).reshape(-1, 2)
     matrix = np.asarray(matrix, dtype=np.float64)
     distortion = np.asarray(distortion, dtype=np.float64).ravel()
     fixed = fixed_point_undistort(matrix, distortion, pixels_px)
-    if not is_five_term(distortion):
-        return fixed
     if np.all(_projection_miss_px(matrix, distortion, fixed, pixels_px) <= FIXED_POINT_TOLERANCE_PX):
         return fixed
     solved = newton_undistort(matrix, distortion, pixels_px)
@@ -77,11 +77,14 @@ def is_five_term(distortion: Array) -> bool:
 
 
 def newton_undistort(matrix: Array, distortion: Array, pixels_px: Array) -> Array | None:
-    """Undistorted normalised (x, y) (N, 2) of pixels (N, 2) through a 5-term lens (``is_five_term``),
-    or None if some pixel has no converged inverse (the lens folds before reaching it)."""
+    """Undistorted normalised (x, y) (N, 2) of pixels (N, 2), or None if some pixel has no converged
+    inverse (the lens folds before reaching it). OpenCV's 5-term lens (``is_five_term``) is written
+    out here; any other is projected by OpenCV, with its derivatives (slower: for a frame's pixels, or
+    a camera's border, not a whole image)."""
+    solve = _newton_chunk if is_five_term(distortion) else _newton_chunk_any
     out = np.empty((len(pixels_px), 2))
     for start in range(0, len(pixels_px), CHUNK):
-        solved = _newton_chunk(matrix, distortion, pixels_px[start : start + CHUNK])
+        solved = solve(matrix, distortion, pixels_px[start : start + CHUNK])
         if solved is None:
             return None
         out[start : start + CHUNK] = solved
@@ -109,6 +112,33 @@ def _newton_chunk(matrix: Array, distortion: Array, pixels: Array) -> Array | No
         det = dxx * dyy - dxy * dxy
         step_x = (dyy * miss_x - dxy * miss_y) / det
         step_y = (dxx * miss_y - dxy * miss_x) / det
+        x -= step_x
+        y -= step_y
+        moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
+        if moved < TOLERANCE:
+            return np.column_stack([x, y])
+        if not np.isfinite(moved):
+            return None
+    return None
+
+
+def _newton_chunk_any(matrix: Array, distortion: Array, pixels: Array) -> Array | None:
+    """As :func:`_newton_chunk` for any OpenCV lens model: each step projects the estimate with
+    ``cv2.projectPoints``, whose derivatives with respect to the translation are, for a point at
+    depth 1 with no rotation, those with respect to its normalised x and y."""
+    yd = (pixels[:, 1] - matrix[1, 2]) / matrix[1, 1]
+    xd = (pixels[:, 0] - matrix[0, 2] - matrix[0, 1] * yd) / matrix[0, 0]
+    x, y = xd.copy(), yd.copy()
+    for _ in range(MAX_STEPS):
+        in_cam = np.column_stack([x, y, np.ones(len(x))])
+        projected, jacobian = cv2.projectPoints(in_cam.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), matrix, distortion)
+        miss = projected.reshape(-1, 2) - pixels
+        # Rows 2i and 2i+1 are point i's u and v; columns 3 and 4 the translation's x and y.
+        du_dx, du_dy = jacobian[0::2, 3], jacobian[0::2, 4]
+        dv_dx, dv_dy = jacobian[1::2, 3], jacobian[1::2, 4]
+        det = du_dx * dv_dy - du_dy * dv_dx
+        step_x = (dv_dy * miss[:, 0] - du_dy * miss[:, 1]) / det
+        step_y = (du_dx * miss[:, 1] - dv_dx * miss[:, 0]) / det
         x -= step_x
         y -= step_y
         moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
