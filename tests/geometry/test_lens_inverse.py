@@ -48,3 +48,15 @@ def test_no_inverse_beyond_a_fold() -> None:
     solved = newton_undistort(matrix, distortion, inside)
     assert solved is not None
     np.testing.assert_allclose(solved, fixed_point_undistort(matrix, distortion, inside), atol=1e-12)
+
+
+def test_a_pixel_given_as_nan_comes_back_nan_and_the_others_are_inverted() -> None:
+    # The locator passes NaN for an end a camera did not see, in the same call as the ends it saw.
+    matrix = np.array([[799.68, 0.0, 931.23], [0.0, 798.50, 525.12], [0.0, 0.0, 1.0]])
+    distortion = np.array([-0.33781, 0.057999, -0.00017266, 0.000020395, 0.0])
+    pixels = np.array([[np.nan, np.nan], [329.5, -0.5], [960.0, 540.0]])
+    solved = newton_undistort(matrix, distortion, pixels)
+    assert solved is not None
+    assert np.all(np.isnan(solved[0]))
+    np.testing.assert_allclose(solved[1:], newton_undistort(matrix, distortion, pixels[1:]), atol=0)
+    assert np.max(fixed_point_miss_px(matrix, distortion, pixels[1:2])) > 0.01  # a pixel only Newton inverts

@@ -80,14 +80,21 @@ def newton_undistort(matrix: Array, distortion: Array, pixels_px: Array) -> Arra
     """Undistorted normalised (x, y) (N, 2) of pixels (N, 2), or None if some pixel has no converged
     inverse (the lens folds before reaching it). OpenCV's 5-term lens (``is_five_term``) is written
     out here; any other is projected by OpenCV, with its derivatives (slower: for a frame's pixels, or
-    a camera's border, not a whole image)."""
+    a camera's border, not a whole image). A pixel given as NaN (an end a camera did not see) comes
+    back as NaN without holding up the others."""
     solve = _newton_chunk if is_five_term(distortion) else _newton_chunk_any
-    out = np.empty((len(pixels_px), 2))
-    for start in range(0, len(pixels_px), CHUNK):
-        solved = solve(matrix, distortion, pixels_px[start : start + CHUNK])
+    finite = np.all(np.isfinite(pixels_px), axis=1)
+    given = pixels_px if bool(np.all(finite)) else pixels_px[finite]
+    solved_all = np.empty((len(given), 2))
+    for start in range(0, len(given), CHUNK):
+        solved = solve(matrix, distortion, given[start : start + CHUNK])
         if solved is None:
             return None
-        out[start : start + CHUNK] = solved
+        solved_all[start : start + CHUNK] = solved
+    if len(given) == len(pixels_px):
+        return solved_all
+    out = np.full((len(pixels_px), 2), np.nan)
+    out[finite] = solved_all
     return out
 
 
