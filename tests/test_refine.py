@@ -25,7 +25,7 @@ def test_a_hand_over_half_a_ball_makes_the_hit_less_certain_not_wrong_and_confid
     combined as if to 0.1 px. The hit is 8.6 mm off; its sigma was 1.5 mm (5.8 sigma: a wrong answer that
     looks confident). The sigma now counts the centroid's pull on a partial outline as an error of its
     size, and what a partial arc does with a smooth departure from a circle."""
-    frames = run_rig((2026, 0, 2, None, 0))
+    frames = run_rig((2026, 0, 2, None, 0, 0))
     clear, hidden = frames
     assert clear["factors"]["occlusion"] == "none" and hidden["factors"]["occlusion"] == "hand"
     assert min(hidden["visible"][1]) < 0.5  # the camera the hand is in front of
@@ -118,7 +118,7 @@ def test_a_partial_outline_too_large_for_its_distance_is_not_a_confident_hit() -
     outline is 2.2 px off; the hit 81.7 mm off with a sigma of 16.3 mm (5.0 sigma). Between GUIDED_SIZE and
     MAX_RADIUS_RATIO the outline kept its weight with no error for its wrong size: it now has
     `partial_arc_error`, where a circle of the expected size would move its centre."""
-    (frame,) = run_rig((2026, 22, 1, None, 0))
+    (frame,) = run_rig((2026, 22, 1, None, 0, 0))
     assert frame["factors"]["occlusion"] == "hand" and frame["eligible"]
     assert frame["status"] == "hit" and frame["error_m"] is not None and frame["sigma_m"]
     assert frame["error_m"] < 3.0 * frame["sigma_m"], frame
@@ -148,7 +148,7 @@ def test_a_strongly_blurred_ball_is_not_a_confident_hit() -> None:
     pulled it there. The hit was 24.5 mm off with a sigma of 4.6 mm (5.3 sigma). A centroid now weighs as
     an error grown with its outline's scatter (DISTURBED_CENTROID_SHARE), so it pulls less: 9.6 mm, sigma
     4.0."""
-    frames = run_rig((7, 0, 8, None, 0))
+    frames = run_rig((7, 0, 8, None, 0, 0))
     blurred = frames[7]
     assert blurred["factors"]["blur"] == "strong" and blurred["eligible"]
     assert blurred["status"] == "hit" and blurred["error_m"] is not None and blurred["sigma_m"]
@@ -166,7 +166,7 @@ def test_a_large_ball_in_strong_blur_is_found_where_the_geometry_says() -> None:
     rim scatters 1.45 px about its circle, and a look had to be round within 1 px at any size: not found.
     A look may now scatter by a tenth of the ball's radius (`refine.guided_scatter_limit_px`), and the hit
     is as close as its sigma says."""
-    clear, blurred = run_rig((7, 2, 2, None, 0))
+    clear, blurred = run_rig((7, 2, 2, None, 0, 0))
     assert blurred["factors"]["blur"] == "strong" and blurred["eligible"]
     # On the display's edge: a located frame is "hit" or "off_wall" (the wall's plane beside the display).
     assert blurred["status"] in ("hit", "off_wall") and blurred["error_m"] is not None and blurred["sigma_m"]
@@ -183,7 +183,7 @@ def test_junk_of_a_nearby_hue_where_a_hidden_ball_should_be_is_not_an_end() -> N
     turn (before, other seeds happened to be fitted and nothing paired). A look's find must now pass the
     search's hue test, so the frame is "not found", and no frame of the installation is a confident wrong
     hit."""
-    frames = run_rig((7, 23, 39, None, 0))
+    frames = run_rig((7, 23, 39, None, 0, 0))
     hidden = frames[38]
     assert not hidden["eligible"] and min(hidden["visible"][1]) == 0.0
     assert hidden["error_m"] is None, hidden
@@ -200,6 +200,6 @@ def test_a_ball_merged_with_a_picture_is_split_from_it_whichever_way_it_differs(
     ball before red text) was not found with every part's seeds ranked together by score. Taken in turn,
     both are located, as close as their sigmas say."""
     for seed, rig, frame in ((7, 1, 16), (2026, 2, 13)):
-        located = run_rig((seed, rig, frame + 1, None, 0))[frame]
+        located = run_rig((seed, rig, frame + 1, None, 0, 0))[frame]
         assert located["eligible"] and located["error_m"] is not None, located
         assert located["error_m"] < 3.0 * located["sigma_m"], located

@@ -187,7 +187,7 @@ def test_a_blue_ball_before_a_violet_picture_with_as_much_blue_is_found() -> Non
     plain (trackerd/refine.py, ball_tint)."""
     from trackerd.bench.robustness import run_rig
 
-    frame = run_rig((2026, 26, 2, None, 0))[1]
+    frame = run_rig((2026, 26, 2, None, 0, 0))[1]
     assert frame["factors"]["occlusion"] == "none" and frame["eligible"]
     assert frame["status"] == "hit", frame["reason"]
     assert frame["error_m"] < 3.0 * frame["sigma_m"] and frame["error_m"] < 0.01, frame

@@ -42,7 +42,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from trackerd.bench.progress import BenchProgress
-from trackerd.errors import GeometryError
+from trackerd.bench.robustness_follow import follow_figures, follow_rig, format_follow
+from trackerd.errors import ConfigError, GeometryError
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -83,6 +84,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         " (default 0: the detector's default thresholds)",
     )
     parser.add_argument(
+        "--follow",
+        type=int,
+        default=0,
+        metavar="FRAMES",
+        help="also follow the pointer through this many consecutive frames per installation, tracking kept"
+        " between frames as the daemon does, against the same frames located from scratch (default 0: the"
+        " independent frames only)",
+    )
+    parser.add_argument(
         "--records",
         metavar="FILE",
         default=None,
@@ -106,7 +116,9 @@ def _positive_int(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     start = time.time()
-    tasks = [(args.seed, index, args.poses, args.refine, args.learn_colours) for index in range(args.rigs)]
+    if args.follow < 0:
+        raise ConfigError(f"--follow {args.follow}: must be 0 (off) or a number of frames")
+    tasks = [(args.seed, index, args.poses, args.refine, args.learn_colours, args.follow) for index in range(args.rigs)]
     records: list[dict[str, Any]] = []
     progress = BenchProgress("robustness", args.rigs, "installations")
     if args.workers > 1 and args.rigs > 1:
@@ -121,9 +133,12 @@ def run(args: argparse.Namespace) -> int:
     progress.done()
     if args.records:
         with open(args.records, "w", encoding="utf-8") as out:
-            for record in sorted(records, key=lambda r: (r["rig"], r["frame"])):
+            for record in sorted(records, key=lambda r: (r["rig"], bool(r.get("sequence")), r["frame"])):
                 out.write(json.dumps(record) + "\n")
-    summary = summarise(records)
+    followed = [r for r in records if r.get("sequence")]
+    summary = summarise([r for r in records if not r.get("sequence")])
+    if followed:
+        summary["followed"] = follow_figures(followed)
     summary["seconds"] = round(time.time() - start, 1)
     summary["arguments"] = {
         "rigs": args.rigs,
@@ -131,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "refine": args.refine,
         "learn_colours": args.learn_colours,
+        "follow": args.follow,
     }
     if args.learn_colours:
         learned = {r["rig"] for r in records if r.get("learned")}
@@ -213,12 +229,13 @@ def drawn_frames(
         yield DrawnFrame(number, {**drawn.factors, **shot.factors}, views, middle, truth)
 
 
-def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]:
-    """Draw installation ``index`` of a run and locate ``poses`` frames in it; one record per frame."""
+def run_rig(task: tuple[int, int, int, str | None, int, int]) -> list[dict[str, Any]]:
+    """Draw installation ``index`` of a run and locate ``poses`` frames in it, and ``follow`` consecutive
+    frames (trackerd/bench/robustness_follow.py); one record per frame."""
     from trackerd.config.rig_geometry import check_rig_geometry, wall_frame
     from trackerd.locator import Locator
 
-    seed, index, poses, refine, learn_pairs = task
+    seed, index, poses, refine, learn_pairs, follow = task
     drawn, rng = draw_installation(seed, index)
     # The locator is handed the drawn cameras, not a rig file: make the checks loading one would, so
     # the bench never measures trackerd on an installation it would refuse (a lens folding inside the
@@ -281,6 +298,9 @@ def run_rig(task: tuple[int, int, int, str | None, int]) -> list[dict[str, Any]]
         if naive is not None and truth is not None:
             record["naive_error_m"] = float(np.linalg.norm(naive - truth))
         records.append(record)
+    if follow:
+        # A generator of its own: the frames above are those of a run without --follow.
+        records += follow_rig(drawn, rig, renderer, wall, np.random.default_rng([seed, index, 3]), follow, index)
     return records
 
 
@@ -525,6 +545,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"trackerd locate per frame: median {summary['locate_ms']['median']} ms,"
         f" p95 {summary['locate_ms']['p95']} ms (a first sighting: full search)"
     )
+    if summary.get("followed"):
+        lines += format_follow(summary["followed"], summary["arguments"]["follow"])
     if summary.get("colours_learned_in"):
         lines.append(
             f"pointer colours learned (--learn-colours {summary['arguments']['learn_colours']}) in"
@@ -532,6 +554,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         )
     lines.append(
         f"({summary['seconds']} s; --rigs {summary['arguments']['rigs']} --poses"
-        f" {summary['arguments']['poses']} --seed {summary['arguments']['seed']})"
+        f" {summary['arguments']['poses']} --seed {summary['arguments']['seed']}"
+        + (f" --follow {summary['arguments']['follow']})" if summary["arguments"].get("follow") else ")")
     )
     return "\n".join(lines)
