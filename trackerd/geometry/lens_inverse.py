@@ -15,6 +15,8 @@ pixel (:mod:`trackerd.sim.lens_rays`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -102,10 +104,9 @@ def _newton_chunk(matrix: Array, distortion: Array, pixels: Array) -> Array | No
     """Undistorted normalised (x, y) (N, 2) whose OpenCV 5-term distortion (k1 k2 p1 p2 k3) lands on
     ``pixels``, by Newton's method from the distorted position; None if it has not converged."""
     k1, k2, p1, p2, k3 = np.concatenate([distortion, np.zeros(5)])[:5]
-    yd = (pixels[:, 1] - matrix[1, 2]) / matrix[1, 1]
-    xd = (pixels[:, 0] - matrix[0, 2] - matrix[0, 1] * yd) / matrix[0, 0]
-    x, y = xd.copy(), yd.copy()
-    for _ in range(MAX_STEPS):
+    xd, yd = _distorted_normalised(matrix, pixels)
+
+    def miss_and_jacobian(x: Array, y: Array) -> tuple[Array, Array, Array, Array, Array, Array]:
         xx, yy, xy = x * x, y * y, x * y
         r2 = xx + yy
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
@@ -116,36 +117,46 @@ def _newton_chunk(matrix: Array, distortion: Array, pixels: Array) -> Array | No
         dxx = radial + slope2 * xx + 2.0 * p1 * y + 6.0 * p2 * x
         dxy = slope2 * xy + 2.0 * p1 * x + 2.0 * p2 * y  # the Jacobian is symmetric
         dyy = radial + slope2 * yy + 6.0 * p1 * y + 2.0 * p2 * x
-        det = dxx * dyy - dxy * dxy
-        step_x = (dyy * miss_x - dxy * miss_y) / det
-        step_y = (dxx * miss_y - dxy * miss_x) / det
-        x -= step_x
-        y -= step_y
-        moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
-        if moved < TOLERANCE:
-            return np.column_stack([x, y])
-        if not np.isfinite(moved):
-            return None
-    return None
+        return miss_x, miss_y, dxx, dxy, dxy, dyy
+
+    return _newton(xd, yd, miss_and_jacobian)
 
 
 def _newton_chunk_any(matrix: Array, distortion: Array, pixels: Array) -> Array | None:
     """As :func:`_newton_chunk` for any OpenCV lens model: each step projects the estimate with
     ``cv2.projectPoints``, whose derivatives with respect to the translation are, for a point at
     depth 1 with no rotation, those with respect to its normalised x and y."""
-    yd = (pixels[:, 1] - matrix[1, 2]) / matrix[1, 1]
-    xd = (pixels[:, 0] - matrix[0, 2] - matrix[0, 1] * yd) / matrix[0, 0]
-    x, y = xd.copy(), yd.copy()
-    for _ in range(MAX_STEPS):
+
+    def miss_and_jacobian(x: Array, y: Array) -> tuple[Array, Array, Array, Array, Array, Array]:
         in_cam = np.column_stack([x, y, np.ones(len(x))])
         projected, jacobian = cv2.projectPoints(in_cam.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), matrix, distortion)
         miss = projected.reshape(-1, 2) - pixels
-        # Rows 2i and 2i+1 are point i's u and v; columns 3 and 4 the translation's x and y.
-        du_dx, du_dy = jacobian[0::2, 3], jacobian[0::2, 4]
-        dv_dx, dv_dy = jacobian[1::2, 3], jacobian[1::2, 4]
-        det = du_dx * dv_dy - du_dy * dv_dx
-        step_x = (dv_dy * miss[:, 0] - du_dy * miss[:, 1]) / det
-        step_y = (du_dx * miss[:, 1] - dv_dx * miss[:, 0]) / det
+        # Rows 2i and 2i+1 are point i's u and v; columns 3 and 4 the translation's x and y. (float64 already:
+        # typed, not copied.)
+        d: Array = np.asarray(jacobian, dtype=np.float64)
+        return miss[:, 0], miss[:, 1], d[0::2, 3], d[0::2, 4], d[1::2, 3], d[1::2, 4]
+
+    return _newton(*_distorted_normalised(matrix, pixels), miss_and_jacobian)
+
+
+def _distorted_normalised(matrix: Array, pixels: Array) -> tuple[Array, Array]:
+    """Pixels (N, 2) through the inverse intrinsic matrix alone: (x, y) before undistortion."""
+    yd = (pixels[:, 1] - matrix[1, 2]) / matrix[1, 1]
+    xd = (pixels[:, 0] - matrix[0, 2] - matrix[0, 1] * yd) / matrix[0, 0]
+    return xd, yd
+
+
+def _newton(
+    xd: Array, yd: Array, miss_and_jacobian: Callable[[Array, Array], tuple[Array, Array, Array, Array, Array, Array]]
+) -> Array | None:
+    """Newton's method from (xd, yd) on a residual (its x and y, and the 2x2 Jacobian a b / c d, per
+    point); (N, 2) once no point moves more than TOLERANCE, None if that does not happen."""
+    x, y = xd.copy(), yd.copy()
+    for _ in range(MAX_STEPS):
+        miss_x, miss_y, a, b, c, d = miss_and_jacobian(x, y)
+        det = a * d - b * c
+        step_x = (d * miss_x - b * miss_y) / det
+        step_y = (a * miss_y - c * miss_x) / det
         x -= step_x
         y -= step_y
         moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
