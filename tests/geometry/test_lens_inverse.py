@@ -9,6 +9,12 @@ import numpy as np
 from trackerd.geometry.camera import border_pixels
 from trackerd.geometry.lens_inverse import fixed_point_miss_px, fixed_point_undistort, invert_lens, newton_undistort
 
+# 100 degrees across (1920 x 1080); the radial map's slope falls to 0.12 near the corners but stays positive.
+FLATTENING = (
+    np.array([[799.68, 0.0, 931.23], [0.0, 798.50, 525.12], [0.0, 0.0, 1.0]]),
+    np.array([-0.33781, 0.057999, -0.00017266, 0.000020395, 0.0]),
+)
+
 
 def _grid(width_px: int, height_px: int, steps: int = 41) -> np.ndarray:
     xs, ys = np.meshgrid(np.linspace(-0.5, width_px - 0.5, steps), np.linspace(-0.5, height_px - 0.5, steps))
@@ -26,9 +32,7 @@ def test_newton_agrees_with_opencv_where_opencv_converges() -> None:
 
 
 def test_a_lens_that_flattens_is_inverted_where_opencv_is_not() -> None:
-    # 100 degrees across; the radial map's slope falls to 0.12 near the corners but stays positive.
-    matrix = np.array([[799.68, 0.0, 931.23], [0.0, 798.50, 525.12], [0.0, 0.0, 1.0]])
-    distortion = np.array([-0.33781, 0.057999, -0.00017266, 0.000020395, 0.0])
+    matrix, distortion = FLATTENING
     border = border_pixels(1920, 1080)
     assert np.max(fixed_point_miss_px(matrix, distortion, border)) > 0.1
     normalised = invert_lens(matrix, distortion, border)
@@ -52,8 +56,7 @@ def test_no_inverse_beyond_a_fold() -> None:
 
 def test_a_pixel_given_as_nan_comes_back_nan_and_the_others_are_inverted() -> None:
     # The locator passes NaN for an end a camera did not see, in the same call as the ends it saw.
-    matrix = np.array([[799.68, 0.0, 931.23], [0.0, 798.50, 525.12], [0.0, 0.0, 1.0]])
-    distortion = np.array([-0.33781, 0.057999, -0.00017266, 0.000020395, 0.0])
+    matrix, distortion = FLATTENING
     pixels = np.array([[np.nan, np.nan], [329.5, -0.5], [960.0, 540.0]])
     solved = newton_undistort(matrix, distortion, pixels)
     assert solved is not None
