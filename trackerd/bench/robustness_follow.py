@@ -122,28 +122,23 @@ def follow_rig(
 
 
 def follow_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Found rate, error and honesty of the tracking locator and of the scratch one on the same frames."""
+    """Found rate, error and honesty of the tracking locator and of the scratch one on the same frames
+    (the bench's own figures of each locator's records), and their locate times."""
+    from trackerd.bench.robustness import figures
+
     eligible = [r for r in records if r["eligible"]]
-    hidden = [r for r in records if not r["eligible"]]
     out: dict[str, Any] = {"frames": len(records), "eligible": len(eligible)}
     for name in ("tracking", "scratch"):
-        located = [r[name] for r in eligible if r[name]["error_m"] is not None]
-        errors = np.array([m["error_m"] for m in located]) * 1000.0
-        ratios = np.array([m["error_m"] / m["sigma_m"] for m in located if m["sigma_m"]])
+        own = figures(
+            [{**r[name], "eligible": r["eligible"], "naive_error_m": None, "floor_error_m": None} for r in records]
+        )
+        kept = ("found_percent", "median_mm", "p95_mm", "worst_mm", "over_3_sigma_percent", "over_5_sigma_percent")
         seconds = np.array([r[name]["seconds"] for r in records]) * 1000.0
-        hidden_hits = [r[name] for r in hidden if r[name]["error_m"] is not None]
         out[name] = {
-            "found_percent": round(100.0 * len(located) / len(eligible), 1) if eligible else None,
-            "median_mm": round(float(np.median(errors)), 2) if errors.size else None,
-            "p95_mm": round(float(np.percentile(errors, 95)), 2) if errors.size else None,
-            "worst_mm": round(float(np.max(errors)), 1) if errors.size else None,
-            "over_3_sigma_percent": round(100.0 * float(np.mean(ratios > 3.0)), 1) if ratios.size else None,
-            "over_5_sigma_percent": round(100.0 * float(np.mean(ratios > 5.0)), 1) if ratios.size else None,
+            **{key: own["trackerd"][key] for key in kept},
             "locate_ms_median": round(float(np.median(seconds)), 2) if seconds.size else None,
-            "hidden_hits": len(hidden_hits),
-            "hidden_confidently_wrong": sum(
-                1 for m in hidden_hits if m["sigma_m"] and m["error_m"] > 5.0 * m["sigma_m"]
-            ),
+            "hidden_hits": own["hidden"]["hits"],
+            "hidden_confidently_wrong": own["hidden"]["confidently_wrong"],
         }
     out["lost_by_tracking"] = sum(
         1 for r in eligible if r["scratch"]["error_m"] is not None and r["tracking"]["error_m"] is None

@@ -30,12 +30,12 @@ def border_pixels(width_px: int, height_px: int, per_side: int = 65) -> Array:
     w, h = width_px - 0.5, height_px - 0.5
     steps = np.linspace(0.0, 1.0, per_side)
     xs, ys = -0.5 + steps * (w + 0.5), -0.5 + steps * (h + 0.5)
-    edge_x, edge_y = np.full(per_side, -0.5), np.full(per_side, -0.5)
+    near = np.full(per_side, -0.5)
     return np.vstack(
         [
-            np.column_stack([xs, edge_y]),
+            np.column_stack([xs, near]),
             np.column_stack([xs, np.full(per_side, h)]),
-            np.column_stack([edge_x, ys]),
+            np.column_stack([near, ys]),
             np.column_stack([np.full(per_side, w), ys]),
         ]
     )
