@@ -15,7 +15,7 @@ import pytest
 
 from trackerd.errors import GeometryError
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.camera_set import CameraSet, estimate_line, hit_uncertainty_m, moved_across
+from trackerd.geometry.camera_set import CameraSet, across_sigma_px, estimate_line, hit_uncertainty_m, moved_across
 from trackerd.geometry.pointer_line import (
     MIN_PLANE_ANGLE_SIN,
     estimate_pointer_line,
@@ -232,6 +232,33 @@ def test_the_moved_sets_and_the_spread_are_the_reference_set_by_set(rig_cameras,
         hits = np.array([_reference_hit_xy(view, moved, datawall_wall) for moved in sets])
         expected = np.sqrt(np.sum((hits[1:] - hits[0]) ** 2))
         assert hit_uncertainty_m(estimate, datawall_wall) == pytest.approx(expected, rel=1e-9)
+
+
+def test_each_end_moves_by_its_own_error_across_the_pointer(rig_cameras) -> None:
+    """With one distance per end, set 1 + 2k + e moves camera k's end e by that end's distance; and an end's
+    error across the pointer is its covariance read in that direction, whatever its error along."""
+    view = CameraSet.build(rig_cameras)
+    rng = np.random.default_rng(5)
+    normalised = _normalised_of(rig_cameras, *_random_pointer(rng))
+    distances = rng.uniform(0.05, 0.5, size=(len(rig_cameras), 2))
+    sets = moved_across(normalised, view.focal_px, distances)
+    for index, moved in enumerate(sets[1:]):
+        k, e = index // 2, index % 2
+        shift = (moved[k, e] - normalised[k, e]) * view.focal_px[k]
+        assert np.linalg.norm(shift) == pytest.approx(distances[k, e], rel=1e-12)
+    # Covariances 0.3 px along each camera's image of the pointer and 0.1 px across it (or 0.2, the back end).
+    along = normalised[:, 0] - normalised[:, 1]
+    along /= np.linalg.norm(along, axis=-1, keepdims=True)
+    across = np.stack([-along[:, 1], along[:, 0]], axis=-1)
+    covariances = np.empty((len(rig_cameras), 2, 2, 2))
+    for k in range(len(rig_cameras)):
+        for e, across_px in enumerate((0.1, 0.2)):
+            covariances[k, e] = (
+                0.3**2 * np.outer(along[k], along[k]) + across_px**2 * np.outer(across[k], across[k])
+            ) / view.focal_px[k] ** 2
+    np.testing.assert_allclose(
+        across_sigma_px(normalised, covariances, view.focal_px), np.tile([0.1, 0.2], (len(rig_cameras), 1)), rtol=1e-9
+    )
 
 
 def test_the_sphere_correction_scales_each_end_by_its_own_depth(rig_cameras) -> None:

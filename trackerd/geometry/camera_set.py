@@ -50,6 +50,8 @@ class CameraSet:
     """(C,) each translation's z."""
     focal_px: Array
     """(C,) each camera's focal length in pixels (pixels to normalised coordinates)."""
+    translations_m: Array
+    """(C, 3) world-to-camera translations (the pointer fit's poses, with :attr:`rotations`)."""
 
     @staticmethod
     def build(cameras: Sequence[CameraModel]) -> CameraSet:
@@ -61,6 +63,7 @@ class CameraSet:
             rotations[:, 2, :].copy(),
             np.array([float(cam.translation_m[2]) for cam in cameras]),
             np.array([cam.focal_px for cam in cameras]),
+            np.stack([np.asarray(cam.translation_m, dtype=np.float64) for cam in cameras]),
         )
 
     def subset(self, used: Sequence[int] | None) -> CameraSet:
@@ -75,6 +78,7 @@ class CameraSet:
             self.depth_rows[index],
             self.depth_offsets_m[index],
             self.focal_px[index],
+            self.translations_m[index],
         )
 
 
@@ -92,9 +96,10 @@ class LineEstimate:
     """(B,) sine of the angle between each set's planes."""
 
 
-def moved_across(normalised: Array, focal_px: Array, across_px: float) -> Array:
+def moved_across(normalised: Array, focal_px: Array, across_px: float | Array) -> Array:
     """The measurement (C, 2 ends, 2) and 2C copies, each with one end of one camera moved ``across_px``
-    across that camera's image of the pointer -> (1 + 2C, C, 2, 2); set 1 + 2k + e moves camera k's end e.
+    (one distance for all, or (C, 2 ends) of them) across that camera's image of the pointer
+    -> (1 + 2C, C, 2, 2); set 1 + 2k + e moves camera k's end e.
 
     Only moves across the pointer's image move the line (along it they only slide the
     ends), so these sets are what the hit's uncertainty needs: :func:`hit_uncertainty_m`.
@@ -103,14 +108,25 @@ def moved_across(normalised: Array, focal_px: Array, across_px: float) -> Array:
     along = normalised[:, 0] - normalised[:, 1]
     # A pixel is 1 / focal in normalised coordinates (distortion's local scale change of a
     # few percent is ignored: this is an estimate).
-    scale = across_px / (focal_px * np.maximum(np.sqrt((along * along).sum(axis=-1)), 1e-12))
-    step = along[:, ::-1] * (scale[:, None] * _PERPENDICULAR)  # (-y, x): along turned a quarter
+    scale = 1.0 / (focal_px * np.maximum(np.sqrt((along * along).sum(axis=-1)), 1e-12))
+    pixel = along[:, ::-1] * (scale[:, None] * _PERPENDICULAR)  # (-y, x): along turned a quarter, a pixel long
+    distances = np.broadcast_to(np.asarray(across_px, dtype=np.float64), normalised.shape[:2])
     sets = np.repeat(normalised[None], len(sets_moved) + 1, axis=0)
-    sets[sets_moved, camera, end] += step[camera]
+    sets[sets_moved, camera, end] += pixel[camera] * distances[camera, end][:, None]
     return sets
 
 
 _PERPENDICULAR = np.array([-1.0, 1.0])
+
+
+def across_sigma_px(normalised: Array, covariances: Array, focal_px: Array) -> Array:
+    """Each end's standard error across its camera's image of the pointer, in pixels (C, 2 ends), from its
+    covariance (C, 2, 2, 2) in normalised units: what :func:`moved_across` moves it by."""
+    along = normalised[:, 0] - normalised[:, 1]
+    across = along[:, ::-1] * _PERPENDICULAR / np.maximum(np.linalg.norm(along, axis=-1), 1e-300)[:, None]
+    variance = np.einsum("ci,ceij,cj->ce", across, covariances, across)
+    sigma: Array = np.sqrt(np.maximum(variance, 0.0)) * focal_px[:, None]
+    return sigma
 
 
 @lru_cache(maxsize=8)
@@ -127,7 +143,7 @@ def estimate_line(
     view: CameraSet,
     min_plane_sin: float,
     ball_radius_m: float | None,
-    across_px: float | None = None,
+    across_px: float | Array | None = None,
 ) -> LineEstimate:
     """The pointer's line from normalised coordinates (C, 2 ends (front, back), 2) of the cameras in ``view``.
 
@@ -135,7 +151,7 @@ def estimate_line(
     triangulated ends where the planes are too close to parallel (below ``min_plane_sin``).
     With ``ball_radius_m``, each end's ray is first corrected to its ball's centre
     (:func:`~trackerd.geometry.pointer_line.sphere_centre_scale`) at the depth that end's
-    rays triangulate to in each camera. With ``across_px``, the moved sets of
+    rays triangulate to in each camera. With ``across_px`` (one distance, or one per end), the moved sets of
     :func:`moved_across` go through the same steps beside the measurement. Raises
     GeometryError for a coordinate that is not finite, when an end's two rays coincide in a camera, or
     when the line's ends are not found.
