@@ -45,7 +45,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # Images and the detector, which take the rig's camera and detector settings.
     ("detection", ("trackerd.detect", "trackerd.images", "trackerd.image_pairs")),
     # One image per camera in, one fix out.
-    ("locator", ("trackerd.locator", "trackerd.ends", "trackerd.joint", "trackerd.refine")),
+    ("locator", ("trackerd.locator", "trackerd.ends", "trackerd.tracked_ends", "trackerd.joint", "trackerd.refine")),
     # What the daemon is built from: sources, calibration and its health, the wire messages and the
     # publisher, and the pipeline's own parts (queues, figures, the extension interface, the tap).
     (

@@ -32,9 +32,27 @@ from trackerd.config.rig_geometry import camera_model, wall_frame
 from trackerd.detect.result import ImageDetections
 from trackerd.errors import ConfigError, GeometryError
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.camera_set import CameraSet, LineEstimate, estimate_line, hit_uncertainty_m
+from trackerd.geometry.camera_set import (
+    CameraSet,
+    LineEstimate,
+    across_sigma_px,
+    estimate_line,
+    hit_uncertainty_m,
+)
+from trackerd.geometry.pointer_fit import EndViews, fit_pointer, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
 from trackerd.geometry.wall import LineHit, WallFrame, intersect_line_plane
+from trackerd.tracked_ends import (
+    GUIDED_RADIUS_RATIO,
+    EndOffset,
+    area_change_log,
+    corrected_end,
+    drift_px,
+    end_depth_m,
+    end_offset,
+    is_stale,
+    moved_px,
+)
 
 if TYPE_CHECKING:
     from trackerd.detect.detector import ColourEndDetector
@@ -50,9 +68,13 @@ LineStatus = Literal["hit", "off_wall", "away", "parallel"]
 FixStatus = LineStatus | Literal["rejected", "not_found"]
 """A fix's outcome, as the wire's ``status`` strings (see the module's docstring)."""
 
+TRACKED_REDUCED_CHI2 = 4.0
+"""A tracked pair whose pointer fit leaves a chi-square above this times its degrees of freedom is refined:
+its corrected ends do not agree within their stated errors (one of them is on something else, or hidden)."""
+
 TIGHT_GAP_M = 0.004
 TIGHT_LENGTH_M = 0.012
-"""While tracking, a fix from the detector's centroids whose rays miss by more than TIGHT_GAP_M or whose
+"""While tracking, a fix from the corrected centroids whose rays miss by more than TIGHT_GAP_M or whose
 length is off by more than TIGHT_LENGTH_M is refined: a good one is within a millimetre or two of both."""
 
 
@@ -139,9 +161,12 @@ class Locator:
         self._grids: list | None = None
         self._refined: RefinedPath | None = None
         """The refined path (trackerd/refine.py), made on first use."""
-        self.centroids_trusted = True
-        """Whether the last refined pair found every detector centroid agreeing with its ball's outline
-        (else every pair is refined until they agree again)."""
+        self.offsets: list[dict[str, EndOffset]] | None = None
+        """Per camera, per colour: the offset of the end's outline from the detector's centroid, as last
+        measured (trackerd/tracked_ends.py); None until a refined pair has measured them. A tracked pair
+        takes the tracked path only when every end its detectors found has one."""
+        self._last_line: PointerLine | None = None
+        """The last found pointer's line: each end's depth in each camera, for the tracked ends' area check."""
 
     # ------------------------------------------------------------------ detection
 
@@ -162,7 +187,8 @@ class Locator:
         """Forget tracking state (the pointer left, a new recording starts)."""
         for detector in self._detectors or []:
             detector.reset()
-        self.centroids_trusted = True
+        self.offsets = None
+        self._last_line = None
         if self._refined is not None:
             self._refined.reset()
 
@@ -177,16 +203,16 @@ class Locator:
         detected = time.perf_counter_ns()
         mode = self.rig.locator.refine
         fix = None
-        if mode == "auto" and self.centroids_trusted and all(d.search == "window" for d in detections):
-            # Tracking, with the detector's centroids trusted at the last refined pair: the quick path, as
-            # long as its pointer holds together as tightly as a good one does (an end becoming partly
-            # hidden moves its centroid, which shows as rays that miss or a pointer of the wrong length).
-            fix = self._locate_detected(detections)
-            if not fix.found or not self._tight(fix):
+        if mode == "auto" and self.offsets is not None and all(d.search == "window" for d in detections):
+            # Tracking, with every end's outline measured at a refined pair: the tracked path, as long as its
+            # pointer holds together as tightly as a good one does.
+            fix = self._locate_tracked(images, detections)
+            if fix is not None and (not fix.found or not self._tight(fix)):
                 fix = None
         if fix is None:
             fix = self._locate_detected(detections) if mode == "never" else self._locate_refined(images, detections)
         fix.timings_ns["detect_ns"] = detected - start
+        self._last_line = fix.line if fix.found else None
         return fix
 
     def _tight(self, fix: PointerFix) -> bool:
@@ -194,6 +220,164 @@ class Locator:
         line = fix.line
         assert line is not None
         return line.gap_m <= TIGHT_GAP_M and abs(line.length_m - self.pointer.length_m) <= TIGHT_LENGTH_M
+
+    def _locate_tracked(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix | None:
+        """The tracked path (trackerd/tracked_ends.py): each tracked centroid corrected by its ball's outline
+        as last measured, with the error that leaves, and the pointer fit on them (eq. 1-2, 15-17). An end
+        that has drifted too far since its outline is measured again first. None when the refined path
+        must answer (an end without a measured outline, one whose outline is not found again, ends that
+        disagree beyond their errors)."""
+        offsets = self.offsets
+        assert offsets is not None
+        start = time.perf_counter_ns()
+        used = [i for i, d in enumerate(detections) if d.both_found]
+        if len(used) < 2 or any(
+            d.end(colour).found and colour not in offsets[i] for i, d in enumerate(detections) for colour in COLOURS
+        ):
+            return None
+        last = self._last_line
+        normalised = np.empty((len(used), 2, 2))
+        covariances = np.empty((len(used), 2, 2, 2))
+        for k, i in enumerate(used):
+            camera, detection = self.cameras[i], detections[i]
+            ends = (detection.end(self.front_colour), detection.end(self.back_colour))
+            centroids_n = camera.normalized_from_pixels(np.array([ends[0].centroid_px, ends[1].centroid_px]))
+            for e, (colour, end) in enumerate(zip((self.front_colour, self.back_colour), ends, strict=True)):
+                depth = 0.0 if last is None else end_depth_m(camera, last.front_m if e == 0 else last.back_m)
+                offset = offsets[i][colour]
+                area_change = area_change_log(offset, end.area_px, depth)
+                moved = moved_px(offset, end.centroid_px)
+                if is_stale(drift_px(offset, moved, area_change), area_change):
+                    again = self._measure_again(images[i], i, detection, colour, offset, depth)
+                    if again is None:
+                        return None
+                    offsets[i][colour] = offset = again
+                    moved = area_change = 0.0  # measured beside this very centroid
+                normalised[k, e], covariances[k, e] = corrected_end(
+                    offset, centroids_n[e], moved, area_change, camera.focal_px
+                )
+        centroids = tuple(
+            {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS}
+            for d in detections
+        )
+        view = self.camera_set.subset(used)
+        wall = self.wall
+        try:
+            # Each corrected end already points at its ball's centre (the outline's sphere direction): no
+            # sphere correction. Two estimates from the same ends, each with the uncertainty its own use of
+            # them gives: the interpretation planes (what each end says across the pointer) and the pointer
+            # fit (everything, with the length; started from the last pair's ends, millimetres away).
+            estimate = estimate_line(
+                normalised, view, self._min_plane_sin, None, across_sigma_px(normalised, covariances, view.focal_px)
+            )
+            planes = estimate.line
+            start_line = last or planes
+            fitted = fit_pointer(
+                EndViews.of(
+                    view.rotations,
+                    view.translations_m,
+                    normalised,
+                    covariances,
+                    self.pointer.length_m,
+                    self.rig.locator.length_sigma_m,
+                ),
+                start_line.front_m,
+                start_line.back_m,
+            )
+        except GeometryError:
+            return None
+        if fitted.chi2 > TRACKED_REDUCED_CHI2 * fitted.dof:
+            return None  # an end is not where the others put it: the refined path looks again
+        try:
+            covariance = hit_covariance(
+                fitted.front_m, fitted.back_m, fitted.covariance, wall.plane.normal, wall.plane.offset_m, wall.axes
+            )
+            uncertainty: float | None = float(np.sqrt(max(np.trace(covariance), 0.0)))
+        except GeometryError:
+            uncertainty = None
+        # The better conditioned of the two, judged by what each says of its hit: the planes where the cameras
+        # see the pointer side-on (they leave out each end's position along it, which a rod over a ball pulls
+        # and an outline measures less well), the fit where they look along it (the planes nearly coincide).
+        planes_uncertainty = hit_uncertainty_m(estimate, wall) if planes.method == "planes" else None
+        if planes_uncertainty is not None and (uncertainty is None or planes_uncertainty < uncertainty):
+            line, uncertainty = planes, planes_uncertainty
+        else:
+            line = PointerLine(
+                fitted.front_m, fitted.back_m, planes.front_gap_m, planes.back_gap_m, "fit", planes.plane_angle_sin
+            )
+        fix = self._judge(line, centroids, uncertainty_m=uncertainty)
+        return PointerFix(
+            fix.status,
+            fix.reason,
+            fix.centroids_px,
+            fix.line,
+            fix.hit,
+            fix.uncertainty_m,
+            {"triangulate_ns": time.perf_counter_ns() - start},
+            detections,
+        )
+
+    def _measure_again(
+        self,
+        image: NDArray[np.uint8],
+        index: int,
+        detection: ImageDetections,
+        colour: str,
+        offset: EndOffset,
+        depth_m: float,
+    ) -> EndOffset | None:
+        """One end's outline measured again beside its tracked centroid; None when it is not found, is not
+        the ball the detector follows, or is not the size the ball had (scaled by its distance)."""
+        from trackerd.ends import measure_end
+        from trackerd.refine import blob_radius_px
+
+        centroid, red, blue = detection.end(colour).centroid_px, detection.red.centroid_px, detection.blue.centroid_px
+        assert centroid is not None and red is not None and blue is not None  # a camera that sees both ends
+        area_px = detection.end(colour).area_px
+        along = red - blue
+        length = float(np.hypot(*along))
+        across = np.array([-along[1], along[0]]) / length if length > 1e-9 else None
+        camera = self.cameras[index]
+        measured = measure_end(
+            image,
+            self.grids[index],
+            camera,
+            index,
+            colour,
+            centroid,
+            blob_radius_px(detection.end(colour)),
+            centroid,
+            across,
+            self.rig.locator.centroid_sigma_px,
+        )
+        if measured is None or float(np.hypot(*(centroid - measured.centre_px))) > 0.5 * measured.radius_px:
+            return None
+        expected = offset.radius_px
+        if depth_m > 0.0 and offset.depth_m > 0.0:
+            expected *= offset.depth_m / depth_m
+        if not 1.0 / GUIDED_RADIUS_RATIO <= measured.radius_px / expected <= GUIDED_RADIUS_RATIO:
+            return None
+        return end_offset(camera, measured, centroid, area_px, depth_m)
+
+    def learn_offsets(self, fix: PointerFix) -> None:
+        """Each end's offset from a refined fix's outline measurements (the refined path calls this on every
+        found fix): an end whose detector follows another blob than the one measured gets none."""
+        line = fix.line
+        assert line is not None
+        offsets: list[dict[str, EndOffset]] = []
+        for camera, detection, measured in zip(self.cameras, fix.detections, fix.measurements, strict=True):
+            ends: dict[str, EndOffset] = {}
+            for colour in COLOURS:
+                m, end = measured.get(colour), detection.end(colour)
+                centroid = end.centroid_px if end.found else None
+                if m is None or centroid is None or float(np.hypot(*(centroid - m.centre_px))) > 0.5 * m.radius_px:
+                    continue
+                point = line.front_m if colour == self.front_colour else line.back_m
+                offset = end_offset(camera, m, centroid, end.area_px, end_depth_m(camera, point))
+                if offset is not None:
+                    ends[colour] = offset
+            offsets.append(ends)
+        self.offsets = offsets
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""

@@ -298,10 +298,9 @@ class RefinedPath:
         return replace(fix, reason=f"{fix.reason}; searched: {searched_why}" if searched_why else fix.reason)
 
     def _after_refined(self, fix: PointerFix) -> None:
-        """Remember whether the detector's centroids could be trusted, and let the detectors track the balls
+        """Remember each end's outline beside its detector's centroid, and let the detectors track the balls
         the fit used (a search may have found them where a detector took something else)."""
-        ends = [m for per_camera in fix.measurements for m in per_camera.values() if m is not None]
-        self.loc.centroids_trusted = all(m.source == "outline+centroid" for m in ends)
+        self.loc.learn_offsets(fix)
         self._searched_once = False
         self._since_search = 0
         if self.loc._detectors is None:
@@ -514,7 +513,7 @@ class RefinedPath:
         # Every used camera's two ends; an end a camera does not see is given a covariance so wide it weighs
         # nothing, at the position the start puts it.
         rotations = view.rotations
-        translations = np.stack([self.loc.cameras[i].translation_m for i in used])
+        translations = view.translations_m
         start_points = np.stack([np.asarray(init[0], dtype=np.float64), np.asarray(init[1], dtype=np.float64)])
         measured = np.zeros((len(used), 2, 2))
         covariances = np.zeros((len(used), 2, 2, 2))

@@ -159,9 +159,11 @@ class LocatorConfig(ConfigModel):
     """When each end's outline is fitted and the pointer fitted to every camera at once
     (docs/geometry.md, "The pointer fit"): ``auto`` on every first sighting, whenever the detector's ends
     do not make a pointer or make a loose one (rays that miss by millimetres, a length off by a
-    centimetre), and while the detector's centroids disagree with the balls' outlines (an end partly
-    hidden, dim, merged with a picture); ``always`` on every pair;
-    ``never`` only the interpretation planes on the detector's centroids (the code before the fit)."""
+    centimetre, ends that disagree beyond their errors), and when an end that has moved or changed its
+    visible area is not found again by its outline; between those, tracked pairs take each centroid
+    corrected by its ball's outline as last measured (docs/geometry.md, "Tracked ends"); ``always`` on
+    every pair; ``never`` only the interpretation planes on the detector's centroids (the code before the
+    fit)."""
     search_every_pairs: int = Field(default=6, ge=1, le=600)
     """While the pointer is not found, the search over every camera's candidates (tens of milliseconds,
     where a tracked pair takes one or two) runs on every this many-th pair, so a room without the pointer

@@ -256,4 +256,5 @@ def _outcome(fix: PointerFix, locator: Locator) -> tuple:
     # And the refined path's (when its slow search last ran), every attribute but its locator.
     refined = getattr(locator, "_refined", None)
     refined_state = None if refined is None else repr(sorted((k, v) for k, v in vars(refined).items() if k != "loc"))
-    return (fix.status, fix.reason, messages, detections, centroids, locator.centroids_trusted, state, refined_state)
+    offsets = repr(locator.offsets)
+    return (fix.status, fix.reason, messages, detections, centroids, offsets, state, refined_state)

@@ -1,0 +1,147 @@
+"""Tracked ends between refined pairs: each detector centroid corrected by its ball's outline as last
+measured, and the error that correction leaves.
+
+The detector's centroid of a ball is pulled off the ball's centre by whatever hides or shades part of it:
+the rod over the front ball when the cameras look along the pointer, light from one side, a dim paint the
+thresholds take only the core of. In randomized rooms (`trackerd bench robustness --follow`) tracked
+centroids were 0.7 px off at the median and 2.9 px at the ninth decile, and the quick path that trusted
+them as 0.05 px measurements put 2.9-7.8 % of hits beyond 5 sigma. The pull changes slowly as the pointer
+moves: the difference between a ball's outline and its centroid at a refined pair, added to the centroid
+one to eleven pairs later, leaves 0.20-0.26 px at the median (an outline itself: 0.17 px), and it grows
+with how far the ball has moved since and how much its visible area has changed beyond what its distance
+explains (docs/geometry.md, "Tracked ends").
+
+So the locator keeps, per camera and end, the offset its last outline measurement found
+(:class:`EndOffset`), adds it to every tracked centroid's normalised coordinates, states each corrected
+end's error from how far it has drifted since (:func:`drift_px`, :func:`corrected_end`), and measures an
+end's outline again once that drift passes :data:`STALE_DRIFT_PX` or its area has changed by more than
+:data:`STALE_AREA_LOG` (:func:`is_stale`): about a millisecond for that one end, where a refined pair of two
+cameras takes four or five.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.ends import EndMeasurement
+from trackerd.geometry.camera import CameraModel
+
+Array = NDArray[np.float64]
+
+DRIFT_PER_PX = 0.01
+"""A corrected centroid's error grows by this many pixels per pixel its ball has moved in the image since
+its outline was measured (in quadrature). Fitted on 32 followed installations (seeds 7 and 2026, 16 each;
+17,787 tracked ends 0 to 11 pairs after their outline, their area within STALE_AREA_LOG; throwaway analysis
+described in the closing note of issue 13): with DRIFT_PER_PX, AREA_DRIFT_SHARE and FLOOR_PX added to the
+outline's covariance, the ends' errors are within 1 of their covariance's standard distances for 68 %
+(a 2D normal: 39 %), within 2 for 92 % (86 %), beyond 3 for 2.0 % (1.1 %), beyond 5 for 0.14 %: cautious
+in the bulk, a heavier tail than a normal's, which the fit's chi-square gate (locator.TRACKED_REDUCED_CHI2)
+sends to the refined path."""
+
+AREA_DRIFT_SHARE = 0.2
+"""And by this share of the ball's radius per unit of |ln| of its visible area's change beyond what its
+distance explains: more or less of a ball hidden, more or less of it above the thresholds."""
+
+FLOOR_PX = 0.1
+"""And never below the outline's own error plus this (in quadrature): the two are measured on different
+frames, and each frame's noise moves the centroid anew."""
+
+STALE_DRIFT_PX = 0.5
+"""An end whose drift term (displacement and area together) passes this is measured by its outline again:
+beyond it the correction's error grows past twice the outline's."""
+
+STALE_AREA_LOG = 0.1
+"""And an end whose visible area has changed by more than this (|ln| of the ratio, distance explained) is
+measured again whatever its drift: past it the corrected centroid was 0.84 px off at the median."""
+
+GUIDED_RADIUS_RATIO = 1.15
+"""An end measured again must have an outline within this factor of the radius it had, scaled by its
+distance: another size is another thing of its colour beside the ball (a disc on the display)."""
+
+
+@dataclass(frozen=True, slots=True)
+class EndOffset:
+    """What the last outline measurement of one end in one camera found beside the detector's centroid."""
+
+    offset_n: Array
+    """(2,) normalised: the outline's ball-centre direction minus the centroid's (lens removed)."""
+    centroid_px: Array
+    """(2,) the detector's centroid then."""
+    area_px: float
+    """The detector's blob area then."""
+    depth_m: float
+    """The end's depth in this camera then (from the refined line; 0 when unknown)."""
+    radius_px: float
+    """The ball's image radius (its outline's)."""
+    covariance_n: Array
+    """(2, 2) the outline measurement's error covariance (normalised units)."""
+
+
+def end_offset(
+    camera: CameraModel, measurement: EndMeasurement, centroid_px: Array, area_px: float, depth_m: float
+) -> EndOffset | None:
+    """The offset of one end's outline measurement from its centroid; None when the measurement is the
+    centroid itself (no outline to correct by)."""
+    if measurement.source == "centroid" or area_px <= 0.0:
+        return None
+    centroid_n = camera.normalized_from_pixels(np.asarray(centroid_px, dtype=np.float64)[None])[0]
+    if not np.isfinite(centroid_n).all():
+        return None
+    return EndOffset(
+        measurement.normalised - centroid_n,
+        np.array(centroid_px, dtype=np.float64),
+        float(area_px),
+        float(depth_m),
+        float(measurement.radius_px),
+        np.array(measurement.actual_covariance, dtype=np.float64),
+    )
+
+
+def area_change_log(offset: EndOffset, area_px: float, depth_m: float) -> float:
+    """|ln| of the visible area's change since the outline, beyond what the change of distance explains
+    (an image's area goes as 1 / depth^2); the plain ratio when either depth is unknown."""
+    if area_px <= 0.0:
+        return math.inf
+    change = math.log(area_px / offset.area_px)
+    if depth_m > 0.0 and offset.depth_m > 0.0:
+        change += 2.0 * math.log(depth_m / offset.depth_m)
+    return abs(change)
+
+
+def moved_px(offset: EndOffset, centroid_px: Array) -> float:
+    """How far the ball's centroid has moved since its outline was measured (pixels)."""
+    return math.hypot(float(centroid_px[0] - offset.centroid_px[0]), float(centroid_px[1] - offset.centroid_px[1]))
+
+
+def drift_px(offset: EndOffset, moved: float, area_change: float) -> float:
+    """How much the correction's error has grown since the outline (pixels, 1 sigma): the ball's
+    displacement and its area's change (:func:`area_change_log`), in quadrature."""
+    return math.hypot(DRIFT_PER_PX * moved, AREA_DRIFT_SHARE * area_change * offset.radius_px)
+
+
+def is_stale(drift: float, area_change: float) -> bool:
+    """Whether an end should be measured by its outline again before its centroid is trusted."""
+    return area_change > STALE_AREA_LOG or drift > STALE_DRIFT_PX
+
+
+def corrected_end(
+    offset: EndOffset, centroid_n: Array, moved_px: float, area_change: float, focal_px: float
+) -> tuple[Array, Array]:
+    """A tracked centroid (normalised, lens removed) corrected by its offset, and the error covariance that
+    leaves (normalised units): the outline measurement's, and FLOOR_PX and the drift (:func:`drift_px`)
+    the same in every direction."""
+    drift = drift_px(offset, moved_px, area_change)
+    spread = (FLOOR_PX * FLOOR_PX + drift * drift) / (focal_px * focal_px)
+    covariance: Array = offset.covariance_n + spread * np.eye(2)
+    corrected: Array = centroid_n + offset.offset_n
+    return corrected, covariance
+
+
+def end_depth_m(camera: CameraModel, point_m: Array) -> float:
+    """A world point's depth in a camera (0 when behind it)."""
+    depth = float(camera.rotation[2] @ point_m + camera.translation_m[2])
+    return depth if depth > 0.0 else 0.0
