@@ -116,6 +116,9 @@ def follow_rig(
                 "sigma_m": fix.uncertainty_m,
                 "seconds": time.perf_counter() - began,
                 "window_searches": sum(1 for d in fix.detections if d.search == "window"),
+                # Whether this pair was refined (every end's outline fitted) rather than taken on the
+                # tracked path (corrected centroids; trackerd/tracked_ends.py).
+                "refined": bool(fix.measurements),
             }
         records.append(record)
     return records
@@ -132,13 +135,25 @@ def follow_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         own = figures(
             [{**r[name], "eligible": r["eligible"], "naive_error_m": None, "floor_error_m": None} for r in records]
         )
-        kept = ("found_percent", "median_mm", "p95_mm", "worst_mm", "over_3_sigma_percent", "over_5_sigma_percent")
+        kept = (
+            "found_percent",
+            "median_mm",
+            "p95_mm",
+            "worst_mm",
+            "over_3_sigma_percent",
+            "over_5_sigma_percent",
+            "within_1_sigma_percent",
+            "within_2_sigma_percent",
+        )
         seconds = np.array([r[name]["seconds"] for r in records]) * 1000.0
         out[name] = {
             **{key: own["trackerd"][key] for key in kept},
             "locate_ms_median": round(float(np.median(seconds)), 2) if seconds.size else None,
             "hidden_hits": own["hidden"]["hits"],
             "hidden_confidently_wrong": own["hidden"]["confidently_wrong"],
+            "refined_percent": round(100.0 * sum(1 for r in records if r[name].get("refined")) / len(records), 1)
+            if records
+            else None,
         }
     out["lost_by_tracking"] = sum(
         1 for r in eligible if r["scratch"]["error_m"] is not None and r["tracking"]["error_m"] is None
@@ -161,14 +176,17 @@ def format_follow(figures: dict[str, Any], count: int) -> list[str]:
     lines = [
         f"Followed (--follow {count}: consecutive frames at up to {1000 * MAX_STEP_M:.0f} mm per frame, tracking"
         f" kept), {figures['frames']} frames, {figures['eligible']} eligible:",
-        f"  {'':<10}{'found':>7}{'median':>8}{'p95':>8}{'worst':>8}{'>3s':>6}{'>5s':>6}{'ms':>7} | hidden: hits, wrong",
+        f"  {'':<10}{'found':>7}{'median':>8}{'p95':>8}{'worst':>8}{'>3s':>6}{'>5s':>6}{'<1s':>6}{'<2s':>6}"
+        f"{'ms':>7}{'refined':>9} | hidden: hits, wrong",
     ]
     for name in ("tracking", "scratch"):
         f = figures[name]
         lines.append(
             f"  {name:<10}{cell(f['found_percent'], 7)}{cell(f['median_mm'], 8, '.2f')}{cell(f['p95_mm'], 8, '.2f')}"
             f"{cell(f['worst_mm'], 8)}{cell(f['over_3_sigma_percent'], 6)}{cell(f['over_5_sigma_percent'], 6)}"
-            f"{cell(f['locate_ms_median'], 7, '.2f')} | {f['hidden_hits']:>4} {f['hidden_confidently_wrong']:>3}"
+            f"{cell(f['within_1_sigma_percent'], 6, '.0f')}{cell(f['within_2_sigma_percent'], 6, '.0f')}"
+            f"{cell(f['locate_ms_median'], 7, '.2f')}{cell(f['refined_percent'], 8, '.0f')} %"
+            f" | {f['hidden_hits']:>4} {f['hidden_confidently_wrong']:>3}"
         )
     lines.append(
         f"  eligible frames found from scratch but not while tracking: {figures['lost_by_tracking']};"
