@@ -39,8 +39,8 @@ from trackerd.geometry.camera_set import (
     estimate_line,
     hit_uncertainty_m,
 )
-from trackerd.geometry.pointer_fit import EndViews, fit_pointer, hit_covariance
-from trackerd.geometry.pointer_line import PointerLine
+from trackerd.geometry.pointer_fit import EndViews, fit_pointer_step, hit_covariance
+from trackerd.geometry.pointer_line import PointerLine, ray_gaps_m, world_rays
 from trackerd.geometry.wall import LineHit, WallFrame, intersect_line_plane
 from trackerd.tracked_ends import (
     GUIDED_RADIUS_RATIO,
@@ -165,6 +165,11 @@ class Locator:
         """Per camera, per colour: the offset of the end's outline from the detector's centroid, as last
         measured (trackerd/tracked_ends.py); None until a refined pair has measured them. A tracked pair
         takes the tracked path only when every end its detectors found has one."""
+        self._tracked_by_fit: bool | None = None
+        """Whether tracked pairs take the pointer fit (else the planes) until an end's outline is measured
+        again; None: decided on the next tracked pair (:meth:`_tracked_line`)."""
+        self._tracked_plane_sin = 0.0
+        """The interpretation planes' angle (sine) at the pair that last made that choice."""
         self._last_line: PointerLine | None = None
         """The last found pointer's line: each end's depth in each camera, for the tracked ends' area check."""
 
@@ -188,6 +193,7 @@ class Locator:
         for detector in self._detectors or []:
             detector.reset()
         self.offsets = None
+        self._tracked_by_fit = None
         self._last_line = None
         if self._refined is not None:
             self._refined.reset()
@@ -236,6 +242,7 @@ class Locator:
         ):
             return None
         last = self._last_line
+        remeasured = False
         normalised = np.empty((len(used), 2, 2))
         covariances = np.empty((len(used), 2, 2, 2))
         for k, i in enumerate(used):
@@ -253,6 +260,7 @@ class Locator:
                         return None
                     offsets[i][colour] = offset = again
                     moved = area_change = 0.0  # measured beside this very centroid
+                    remeasured = True
                 normalised[k, e], covariances[k, e] = corrected_end(
                     offset, centroids_n[e], moved, area_change, camera.focal_px
                 )
@@ -261,50 +269,15 @@ class Locator:
             for d in detections
         )
         view = self.camera_set.subset(used)
-        wall = self.wall
         try:
             # Each corrected end already points at its ball's centre (the outline's sphere direction): no
-            # sphere correction. Two estimates from the same ends, each with the uncertainty its own use of
-            # them gives: the interpretation planes (what each end says across the pointer) and the pointer
-            # fit (everything, with the length; started from the last pair's ends, millimetres away).
-            estimate = estimate_line(
-                normalised, view, self._min_plane_sin, None, across_sigma_px(normalised, covariances, view.focal_px)
-            )
-            planes = estimate.line
-            start_line = last or planes
-            fitted = fit_pointer(
-                EndViews.of(
-                    view.rotations,
-                    view.translations_m,
-                    normalised,
-                    covariances,
-                    self.pointer.length_m,
-                    self.rig.locator.length_sigma_m,
-                ),
-                start_line.front_m,
-                start_line.back_m,
-            )
+            # sphere correction.
+            line_and_uncertainty = self._tracked_line(normalised, covariances, view, remeasured)
         except GeometryError:
             return None
-        if fitted.chi2 > TRACKED_REDUCED_CHI2 * fitted.dof:
+        if line_and_uncertainty is None:
             return None  # an end is not where the others put it: the refined path looks again
-        try:
-            covariance = hit_covariance(
-                fitted.front_m, fitted.back_m, fitted.covariance, wall.plane.normal, wall.plane.offset_m, wall.axes
-            )
-            uncertainty: float | None = float(np.sqrt(max(np.trace(covariance), 0.0)))
-        except GeometryError:
-            uncertainty = None
-        # The better conditioned of the two, judged by what each says of its hit: the planes where the cameras
-        # see the pointer side-on (they leave out each end's position along it, which a rod over a ball pulls
-        # and an outline measures less well), the fit where they look along it (the planes nearly coincide).
-        planes_uncertainty = hit_uncertainty_m(estimate, wall) if planes.method == "planes" else None
-        if planes_uncertainty is not None and (uncertainty is None or planes_uncertainty < uncertainty):
-            line, uncertainty = planes, planes_uncertainty
-        else:
-            line = PointerLine(
-                fitted.front_m, fitted.back_m, planes.front_gap_m, planes.back_gap_m, "fit", planes.plane_angle_sin
-            )
+        line, uncertainty = line_and_uncertainty
         fix = self._judge(line, centroids, uncertainty_m=uncertainty)
         return PointerFix(
             fix.status,
@@ -316,6 +289,69 @@ class Locator:
             {"triangulate_ns": time.perf_counter_ns() - start},
             detections,
         )
+
+    def _tracked_line(
+        self, normalised: Array, covariances: Array, view: CameraSet, remeasured: bool
+    ) -> tuple[PointerLine, float | None] | None:
+        """The pointer's line and its hit's uncertainty from corrected ends (C, 2, 2) with their covariances
+        (C, 2, 2, 2); None when the pointer fit finds them inconsistent. Raises GeometryError.
+
+        Two estimates, each with the uncertainty its own use of the ends gives: the interpretation planes
+        (what each end says across the pointer) and the pointer fit (everything, with the length; started
+        from the last pair's ends, millimetres away). The one stating the smaller is taken: the planes where
+        the cameras see the pointer side-on (they leave out each end's position along it, which a rod over a
+        ball pulls and an outline measures less well), the fit where they look along it (the planes nearly
+        coincide). Which one wins changes only as slowly as the views do, so both are made on the first
+        tracked pair after any end's outline was measured, and that choice holds until the next."""
+        wall = self.wall
+        both = remeasured or self._tracked_by_fit is None
+        planes = None
+        if both or not self._tracked_by_fit:
+            estimate = estimate_line(
+                normalised, view, self._min_plane_sin, None, across_sigma_px(normalised, covariances, view.focal_px)
+            )
+            planes = estimate.line
+            planes_uncertainty = hit_uncertainty_m(estimate, wall) if planes.method == "planes" else None
+            if not both:
+                return planes, planes_uncertainty
+            gaps = (planes.front_gap_m, planes.back_gap_m)
+            self._tracked_plane_sin = planes.plane_angle_sin
+        else:
+            # The rays' gaps (published, and what the calibration's health reads) without the planes.
+            gaps = tuple(ray_gaps_m(view.centres_m, np.swapaxes(world_rays(normalised, view.rotations), 0, 1)))
+        start_line = self._last_line or planes or estimate_line(normalised, view, self._min_plane_sin, None).line
+        fitted = fit_pointer_step(
+            EndViews.of(
+                view.rotations,
+                view.translations_m,
+                normalised,
+                covariances,
+                self.pointer.length_m,
+                self.rig.locator.length_sigma_m,
+            ),
+            start_line.front_m,
+            start_line.back_m,
+        )
+        if fitted.chi2 > TRACKED_REDUCED_CHI2 * fitted.dof:
+            return None
+        try:
+            covariance = hit_covariance(
+                fitted.front_m, fitted.back_m, fitted.covariance, wall.plane.normal, wall.plane.offset_m, wall.axes
+            )
+            uncertainty: float | None = float(np.sqrt(max(np.trace(covariance), 0.0)))
+        except GeometryError:
+            uncertainty = None
+        if planes is not None:
+            self._tracked_by_fit = not (
+                planes_uncertainty is not None and (uncertainty is None or planes_uncertainty < uncertainty)
+            )
+            if not self._tracked_by_fit:
+                return planes, planes_uncertainty
+        # The planes' angle as at the pair that chose the fit (it changes as slowly as the choice does).
+        line = PointerLine(
+            fitted.front_m, fitted.back_m, float(gaps[0]), float(gaps[1]), "fit", self._tracked_plane_sin
+        )
+        return line, uncertainty
 
     def _measure_again(
         self,
@@ -378,6 +414,7 @@ class Locator:
                     ends[colour] = offset
             offsets.append(ends)
         self.offsets = offsets
+        self._tracked_by_fit = None
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""

@@ -12,6 +12,7 @@ from trackerd.geometry.pointer_fit import (
     EndViews,
     fit_pointer,
     fit_pointer_robust,
+    fit_pointer_step,
     hit_covariance,
     predict,
 )
@@ -55,6 +56,31 @@ def test_exact_measurements_give_the_ends_back_from_a_poor_start() -> None:
     fit = fit_pointer(views, FRONT + np.array([0.05, -0.03, 0.1]), BACK - 0.04)
     assert np.allclose(fit.front_m, FRONT, atol=1e-7) and np.allclose(fit.back_m, BACK, atol=1e-7)
     assert fit.chi2 < 1e-8 and fit.inflation == 1.0
+
+
+def test_one_step_from_the_last_pairs_ends_is_the_full_fit() -> None:
+    """A tracked pair's fit (one Gauss-Newton step from ends a hand's pace away, 12 mm) gives the full fit's
+    ends to tens of micrometres, and its chi-square and covariance, on noisy measurements from cameras behind
+    the presenter."""
+    cameras = _behind_pair()
+    rot, trans = _arrays(cameras)
+    rng = np.random.default_rng(11)
+    length = float(np.linalg.norm(FRONT - BACK))
+    covariances = np.tile(np.eye(2) * (0.3 / 1600) ** 2, (2, 2, 1, 1))
+    for _ in range(20):
+        noisy = predict(rot, trans, FRONT, BACK) + rng.normal(0.0, 0.3 / 1600, (2, 2, 2))
+        views = EndViews.of(rot, trans, noisy, covariances, length, 0.003)
+        full = fit_pointer(views, FRONT, BACK)
+        away = rng.normal(size=3)
+        away *= 0.012 / np.linalg.norm(away)
+        step = fit_pointer_step(views, FRONT + away, BACK + away)
+        # Tens of micrometres at the ends: a twentieth of a millimetre on the wall 2 m beyond.
+        np.testing.assert_allclose(step.front_m, full.front_m, atol=5e-5)
+        np.testing.assert_allclose(step.back_m, full.back_m, atol=5e-5)
+        assert step.chi2 == pytest.approx(full.chi2, rel=0.05, abs=0.05)  # against a gate at 4 per dof
+        # The covariance is the start's linearisation, 12 mm away: each element within 2 % of the largest.
+        scale = float(np.max(np.diag(full.covariance)))
+        np.testing.assert_allclose(step.covariance, full.covariance, rtol=0.0, atol=0.02 * scale)
 
 
 def test_the_covariance_describes_the_scatter_of_fits_to_noisy_measurements() -> None:

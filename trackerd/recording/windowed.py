@@ -256,5 +256,6 @@ def _outcome(fix: PointerFix, locator: Locator) -> tuple:
     # And the refined path's (when its slow search last ran), every attribute but its locator.
     refined = getattr(locator, "_refined", None)
     refined_state = None if refined is None else repr(sorted((k, v) for k, v in vars(refined).items() if k != "loc"))
-    offsets = repr(locator.offsets)
+    # And the tracked path's: each end's outline offset, and which estimate it holds to.
+    offsets = repr((locator.offsets, getattr(locator, "_tracked_by_fit", None)))
     return (fix.status, fix.reason, messages, detections, centroids, offsets, state, refined_state)
