@@ -159,23 +159,27 @@ def test_an_end_hidden_from_one_camera_of_three_by_the_presenters_arm() -> None:
     assert fix.measurements[0]["red"] is not None
 
 
-def test_tracked_pairs_take_the_quick_path_unless_the_centroids_are_pulled() -> None:
-    """A first sighting is refined; while tracking, a pair whose centroids the refined pair trusted takes the
-    interpretation planes (the daemon's latency), and in dim light, where the thresholds take only part of
-    each ball, every pair is refined."""
+def test_tracked_pairs_take_the_tracked_path_within_their_sigma() -> None:
+    """A first sighting is refined (every end's outline fitted); while tracking, pairs take the tracked path
+    (each centroid corrected by its ball's outline as last measured: trackerd/tracked_ends.py), their hits
+    within 3 of their sigmas. In dim light the detector's window search does not hold the ends (it searches
+    whole frames), and every pair is refined."""
     rng = np.random.default_rng(4)
     start = pose_aimed_at([1.7, 0.5, 1.6], [1.6, 0.6, 0.0], POINTER["length_m"])
     step = np.array([0.004, 0.002, 0.0])
-    for look, expected in ((Look(), ["fit", "planes", "planes"]), (Look(gain=0.4), ["fit", "fit", "fit"])):
+    for look, expected in ((Look(), [True, False, False, False]), (Look(gain=0.4), [True, True, True, True])):
         rig, renderer = _scene(_side_cameras(), look)
+        wall = wall_frame(rig.wall)
         locator = Locator(rig, cameras=renderer.cameras)
-        methods = []
-        for k in range(3):
+        refined = []
+        for k in range(len(expected)):
             pose = PointerPose(start.front_m + k * step, start.back_m + k * step)
             fix = locator.locate([renderer.render(i, pose, rng).image for i in range(2)])
-            assert fix.found, fix.reason
-            methods.append(fix.line.method)
-        assert methods == expected, (look, methods)
+            assert fix.found and fix.hit is not None and fix.uncertainty_m is not None, fix.reason
+            refined.append(bool(fix.measurements))
+            error = float(np.linalg.norm(fix.hit.wall_xy_m - true_wall_hit(pose, wall).wall_xy_m))
+            assert error < 3.0 * fix.uncertainty_m, (look, k, error, fix.uncertainty_m)
+        assert refined == expected, (look, refined)
 
 
 def test_a_blue_ball_before_a_violet_picture_with_as_much_blue_is_found() -> None:

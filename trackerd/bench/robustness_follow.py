@@ -2,7 +2,7 @@
 
 The bench's own frames are independent shots, each located with the tracking state reset: a
 first sighting, every time. The daemon spends almost all its frames tracking (the detector's
-window search, the locator's quick path), which those frames never reach. Here each installation
+window search, the locator's tracked path), which those frames never reach. Here each installation
 also renders ``N`` consecutive frames of the pointer sweeping between aimed poses at a hand's pace
 (MAX_STEP_M per frame at 60 fps, half a frame's motion blurred into each exposure), in front of one
 still picture, and locates them twice: with one locator that keeps its tracking state from frame to
