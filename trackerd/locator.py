@@ -229,10 +229,10 @@ class Locator:
 
     def _locate_tracked(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix | None:
         """The tracked path (trackerd/tracked_ends.py): each tracked centroid corrected by its ball's outline
-        as last measured, with the error that leaves, and the pointer fit on them (eq. 1-2, 15-17). An end
-        that has drifted too far since its outline is measured again first. None when the refined path
-        must answer (an end without a measured outline, one whose outline is not found again, ends that
-        disagree beyond their errors)."""
+        as last measured, with the error that leaves, and the planes or the pointer fit on them
+        (:meth:`_tracked_line`; eq. 1-2, 15-17). An end that has drifted too far since its outline is
+        measured again first. None when the refined path must answer (an end without a measured outline,
+        one whose outline is not found again, ends that disagree beyond their errors)."""
         offsets = self.offsets
         assert offsets is not None
         start = time.perf_counter_ns()
