@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -279,16 +279,7 @@ class Locator:
             return None  # an end is not where the others put it: the refined path looks again
         line, uncertainty = line_and_uncertainty
         fix = self._judge(line, centroids, uncertainty_m=uncertainty)
-        return PointerFix(
-            fix.status,
-            fix.reason,
-            fix.centroids_px,
-            fix.line,
-            fix.hit,
-            fix.uncertainty_m,
-            {"triangulate_ns": time.perf_counter_ns() - start},
-            detections,
-        )
+        return replace(fix, timings_ns={"triangulate_ns": time.perf_counter_ns() - start}, detections=detections)
 
     def _tracked_line(
         self, normalised: Array, covariances: Array, view: CameraSet, remeasured: bool
@@ -427,16 +418,7 @@ class Locator:
         if seeing < 2:
             return PointerFix("not_found", "; ".join(missing), centroids, detections=detections)
         fix = self.locate_centroids(centroids)
-        return PointerFix(
-            fix.status,
-            fix.reason,
-            fix.centroids_px,
-            fix.line,
-            fix.hit,
-            fix.uncertainty_m,
-            dict(fix.timings_ns),
-            detections,
-        )
+        return replace(fix, timings_ns=dict(fix.timings_ns), detections=detections)
 
     def _missing(self, detections: tuple) -> list[str]:
         return [

@@ -496,15 +496,8 @@ class RefinedPath:
                 first.gap_m > self.loc.rig.locator.max_ray_gap_m
             ):
                 fix = self.loc._judge(first, centroids, estimate)
-                return PointerFix(
-                    fix.status,
-                    fix.reason,
-                    fix.centroids_px,
-                    fix.line,
-                    fix.hit,
-                    fix.uncertainty_m,
-                    {"triangulate_ns": time.perf_counter_ns() - start},
-                    detections,
+                return replace(
+                    fix, timings_ns={"triangulate_ns": time.perf_counter_ns() - start}, detections=detections
                 )
             init = (first.front_m, first.back_m)
             gaps = (first.front_gap_m, first.back_gap_m, first.plane_angle_sin)

@@ -135,19 +135,9 @@ def follow_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         own = figures(
             [{**r[name], "eligible": r["eligible"], "naive_error_m": None, "floor_error_m": None} for r in records]
         )
-        kept = (
-            "found_percent",
-            "median_mm",
-            "p95_mm",
-            "worst_mm",
-            "over_3_sigma_percent",
-            "over_5_sigma_percent",
-            "within_1_sigma_percent",
-            "within_2_sigma_percent",
-        )
         seconds = np.array([r[name]["seconds"] for r in records]) * 1000.0
         out[name] = {
-            **{key: own["trackerd"][key] for key in kept},
+            **own["trackerd"],
             "locate_ms_median": round(float(np.median(seconds)), 2) if seconds.size else None,
             "hidden_hits": own["hidden"]["hits"],
             "hidden_confidently_wrong": own["hidden"]["confidently_wrong"],
