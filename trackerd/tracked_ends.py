@@ -35,12 +35,12 @@ Array = NDArray[np.float64]
 DRIFT_PER_PX = 0.01
 """A corrected centroid's error grows by this many pixels per pixel its ball has moved in the image since
 its outline was measured (in quadrature). Fitted on 32 followed installations (seeds 7 and 2026, 16 each;
-17,787 tracked ends 0 to 11 pairs after their outline, their area within STALE_AREA_LOG; throwaway analysis
-described in the closing note of issue 13): with DRIFT_PER_PX, AREA_DRIFT_SHARE and FLOOR_PX added to the
-outline's covariance, the ends' errors are within 1 of their covariance's standard distances for 68 %
-(a 2D normal: 39 %), within 2 for 92 % (86 %), beyond 3 for 2.0 % (1.1 %), beyond 5 for 0.14 %: cautious
-in the bulk, a heavier tail than a normal's, which the fit's chi-square gate (locator.TRACKED_REDUCED_CHI2)
-sends to the refined path."""
+17,787 tracked ends 0 to 11 pairs after their outline, their area within STALE_AREA_LOG, moved less than
+four radii; throwaway analysis described in the closing note of issue 13): with DRIFT_PER_PX,
+AREA_DRIFT_SHARE and FLOOR_PX added to the outline's covariance, the ends' errors are within 1 of their
+covariance's standard distances for 68 % (a 2D normal: 39 %), within 2 for 92 % (86 %), beyond 3 for 2.0 %
+(1.1 %), beyond 5 for 0.14 %: cautious in the bulk, with a heavier tail than a normal's, which the fit's
+chi-square gate (locator.TRACKED_REDUCED_CHI2) sends to the refined path where it shows."""
 
 AREA_DRIFT_SHARE = 0.2
 """And by this share of the ball's radius per unit of |ln| of its visible area's change beyond what its
