@@ -167,7 +167,7 @@ def format_follow(figures: dict[str, Any], count: int) -> list[str]:
         f"Followed (--follow {count}: consecutive frames at up to {1000 * MAX_STEP_M:.0f} mm per frame, tracking"
         f" kept), {figures['frames']} frames, {figures['eligible']} eligible:",
         f"  {'':<10}{'found':>7}{'median':>8}{'p95':>8}{'worst':>8}{'>3s':>6}{'>5s':>6}{'<1s':>6}{'<2s':>6}"
-        f"{'ms':>7}{'refined':>9} | hidden: hits, wrong",
+        f"{'ms':>7}{'refined':>10} | hidden: hits, wrong",
     ]
     for name in ("tracking", "scratch"):
         f = figures[name]
