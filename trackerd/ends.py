@@ -119,6 +119,19 @@ class EndMeasurement:
         return self.covariance if self.error_covariance is None else self.error_covariance
 
 
+def across_pointer(red_px: Array, blue_px: Array) -> Array | None:
+    """The unit vector across the pointer's image in one camera, from its two ends' centroids (pixels);
+    None when they coincide."""
+    along = np.asarray(red_px, dtype=np.float64) - np.asarray(blue_px, dtype=np.float64)
+    length = float(np.hypot(*along))
+    return np.array([-along[1], along[0]]) / length if length > 1e-9 else None
+
+
+def same_ball(centroid_px: Array, measurement: EndMeasurement) -> bool:
+    """Whether a detector's centroid is of the ball a measurement is of (within half its radius)."""
+    return float(np.hypot(*(centroid_px - measurement.centre_px))) <= 0.5 * measurement.radius_px
+
+
 def measure_end(
     frame: NDArray[np.uint8],
     grid: SampleGrid,

@@ -128,6 +128,13 @@ def _finite_point(point_px: Array | None) -> bool:
     return point_px is not None and all(math.isfinite(v) for v in point_px)
 
 
+def _detected_centroids(detections: tuple) -> tuple[dict[str, Array | None], ...]:
+    """Per camera, per colour: the detector's centroid (None where the end was not found)."""
+    return tuple(
+        {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS} for d in detections
+    )
+
+
 class Locator:
     """Detectors for each camera plus the rig's geometry; one instance per stream of image sets.
 
@@ -264,10 +271,7 @@ class Locator:
                 normalised[k, e], covariances[k, e] = corrected_end(
                     offset, centroids_n[e], moved, area_change, camera.focal_px
                 )
-        centroids = tuple(
-            {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS}
-            for d in detections
-        )
+        centroids = _detected_centroids(detections)
         view = self.camera_set.subset(used)
         try:
             # Each corrected end already points at its ball's centre (the outline's sphere direction): no
@@ -355,15 +359,13 @@ class Locator:
     ) -> EndOffset | None:
         """One end's outline measured again beside its tracked centroid; None when it is not found, is not
         the ball the detector follows, or is not the size the ball had (scaled by its distance)."""
-        from trackerd.ends import measure_end
+        from trackerd.ends import across_pointer, measure_end, same_ball
         from trackerd.refine import blob_radius_px
 
         centroid, red, blue = detection.end(colour).centroid_px, detection.red.centroid_px, detection.blue.centroid_px
         assert centroid is not None and red is not None and blue is not None  # a camera that sees both ends
         area_px = detection.end(colour).area_px
-        along = red - blue
-        length = float(np.hypot(*along))
-        across = np.array([-along[1], along[0]]) / length if length > 1e-9 else None
+        across = across_pointer(red, blue)
         camera = self.cameras[index]
         measured = measure_end(
             image,
@@ -377,7 +379,7 @@ class Locator:
             across,
             self.rig.locator.centroid_sigma_px,
         )
-        if measured is None or float(np.hypot(*(centroid - measured.centre_px))) > 0.5 * measured.radius_px:
+        if measured is None or not same_ball(centroid, measured):
             return None
         expected = offset.radius_px
         if depth_m > 0.0 and offset.depth_m > 0.0:
@@ -389,6 +391,8 @@ class Locator:
     def learn_offsets(self, fix: PointerFix) -> None:
         """Each end's offset from a refined fix's outline measurements (the refined path calls this on every
         found fix): an end whose detector follows another blob than the one measured gets none."""
+        from trackerd.ends import same_ball
+
         line = fix.line
         assert line is not None
         offsets: list[dict[str, EndOffset]] = []
@@ -397,7 +401,7 @@ class Locator:
             for colour in COLOURS:
                 m, end = measured.get(colour), detection.end(colour)
                 centroid = end.centroid_px if end.found else None
-                if m is None or centroid is None or float(np.hypot(*(centroid - m.centre_px))) > 0.5 * m.radius_px:
+                if m is None or centroid is None or not same_ball(centroid, m):
                     continue
                 point = line.front_m if colour == self.front_colour else line.back_m
                 offset = end_offset(camera, m, centroid, end.area_px, end_depth_m(camera, point))
@@ -409,10 +413,7 @@ class Locator:
 
     def _locate_detected(self, detections: tuple) -> PointerFix:
         """The pointer from the detector's centroids (the interpretation planes), as they are."""
-        centroids = tuple(
-            {colour: (d.end(colour).centroid_px if d.end(colour).found else None) for colour in COLOURS}
-            for d in detections
-        )
+        centroids = _detected_centroids(detections)
         missing = self._missing(detections)
         seeing = sum(1 for d in detections if all(d.end(colour).found for colour in COLOURS))
         if seeing < 2:

@@ -223,8 +223,10 @@ def ball_tint(
 
 def _tracks(detection: Any, red: Any, blue: Any) -> bool:
     """Whether a detector's ends are the balls these measurements are of (within half a radius)."""
+    from trackerd.ends import same_ball
+
     for end, m in ((detection.red, red), (detection.blue, blue)):
-        if not end.found or float(np.hypot(*(end.centroid_px - m.centre_px))) > 0.5 * m.radius_px:
+        if not end.found or not same_ball(end.centroid_px, m):
             return False
     return True
 
@@ -246,7 +248,7 @@ class RefinedPath:
         """Each end's outline fitted, then the pointer fitted to every camera's ends at once with the
         pointer's length (trackerd/ends.py, trackerd/geometry/pointer_fit.py). When the detector's ends do
         not make a pointer, every camera's candidates are searched and chosen jointly (trackerd/joint.py)."""
-        from trackerd.ends import measure_end
+        from trackerd.ends import across_pointer, measure_end
 
         start = time.perf_counter_ns()
         sigma_px = self.loc.rig.locator.centroid_sigma_px
@@ -255,11 +257,7 @@ class RefinedPath:
             ends: dict[str, Any] = {c: None for c in COLOURS}
             per_camera.append(ends)
             red, blue = detection.red, detection.blue
-            across = None
-            if detection.both_found:
-                along = red.centroid_px - blue.centroid_px
-                length = float(np.hypot(*along))
-                across = np.array([-along[1], along[0]]) / length if length > 1e-9 else None
+            across = across_pointer(red.centroid_px, blue.centroid_px) if detection.both_found else None
             # A camera that sees one end only (the other hidden) still measures that one, by its outline.
             for colour, end in (("red", red), ("blue", blue)):
                 if end.found:

@@ -350,6 +350,5 @@ def epipolar_distances_px(
 
 
 def _normalised_h(points_px: Array, lens: Lens) -> Array:
-    pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
-    norm = invert_lens(lens.matrix, lens.distortion, pts)
+    norm = invert_lens(lens.matrix, lens.distortion, points_px)
     return np.column_stack([norm, np.ones(len(norm))])
