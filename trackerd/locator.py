@@ -47,11 +47,11 @@ from trackerd.tracked_ends import (
     EndOffset,
     area_change_log,
     corrected_end,
-    drift_px,
     end_depth_m,
     end_offset,
     is_stale,
     moved_px,
+    staleness,
 )
 
 if TYPE_CHECKING:
@@ -261,7 +261,7 @@ class Locator:
                 offset = offsets[i][colour]
                 area_change = area_change_log(offset, end.area_px, depth)
                 moved = moved_px(offset, end.centroid_px)
-                if is_stale(drift_px(offset, moved, area_change), area_change):
+                if is_stale(staleness(offset, moved, area_change), area_change):
                     again = self._measure_again(images[i], i, detection, colour, offset, depth)
                     if again is None:
                         return None

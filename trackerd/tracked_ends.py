@@ -8,15 +8,15 @@ centroids were 0.7 px off at the median and 2.9 px at the ninth decile, and the 
 them as 0.05 px measurements put 2.9-7.8 % of hits beyond 5 sigma. The pull changes slowly as the pointer
 moves: the difference between a ball's outline and its centroid at a refined pair, added to the centroid
 one to eleven pairs later, leaves 0.20-0.26 px at the median (an outline itself: 0.17 px), and it grows
-with how far the ball has moved since and how much its visible area has changed beyond what its distance
-explains (docs/geometry.md, "Tracked ends").
+with the ball's image size, with how much its visible area has changed beyond what its distance explains,
+and a little with how far the ball has moved since (docs/geometry.md, "Tracked ends").
 
 So the locator keeps, per camera and end, the offset its last outline measurement found
 (:class:`EndOffset`), adds it to every tracked centroid's normalised coordinates, states each corrected
-end's error from how far it has drifted since (:func:`drift_px`, :func:`corrected_end`), and measures an
-end's outline again once that drift passes :data:`STALE_DRIFT_PX` or its area has changed by more than
-:data:`STALE_AREA_LOG` (:func:`is_stale`): about a millisecond for that one end, where a refined pair of two
-cameras takes four or five.
+end's error from its size and how far it has drifted since (:func:`drift_px`, :func:`corrected_end`), and
+measures an end's outline again once it has moved about :data:`STALE_MOVED_PX` or its area has changed by
+more than :data:`STALE_AREA_LOG` (:func:`staleness`, :func:`is_stale`): about a millisecond for that one
+end, where a refined pair of two cameras takes four or five.
 """
 
 from __future__ import annotations
@@ -32,31 +32,38 @@ from trackerd.geometry.camera import CameraModel
 
 Array = NDArray[np.float64]
 
-DRIFT_PER_PX = 0.01
-"""A corrected centroid's error grows by this many pixels per pixel its ball has moved in the image since
-its outline was measured (in quadrature). Fitted on 32 followed installations (seeds 7 and 2026, 16 each;
-17,787 tracked ends 0 to 11 pairs after their outline, their area within STALE_AREA_LOG, moved less than
-four radii; throwaway analysis described in the closing note of issue 13): with DRIFT_PER_PX,
-AREA_DRIFT_SHARE and FLOOR_PX added to the outline's covariance, the ends' errors are within 1 of their
-covariance's standard distances for 68 % (a 2D normal: 39 %), within 2 for 92 % (86 %), beyond 3 for 2.0 %
-(1.1 %), beyond 5 for 0.14 %: cautious in the bulk, with a heavier tail than a normal's, which the fit's
-chi-square gate (locator.TRACKED_REDUCED_CHI2) sends to the refined path where it shows."""
+FLOOR_SHARE = 0.008
+"""A corrected end's error beyond its outline's, in every direction, is at least this share of the ball's image
+radius (pixels per pixel of radius, in quadrature): the two are measured on different frames, and each frame's
+noise and light move a ball's centroid anew, more for a larger ball. Fitted with the two constants below on
+60 followed installations (`bench robustness --follow 20`, seeds 7 and 2026, 30 each; 7,106 tracked ends 0 to
+11 pairs after their outline, each error split along and across the pointer's image; throwaway analysis
+described in the closing note of issue 13): across the pointer, which is what turns the line, 80 % within 1
+standard error, 96 % within 2, 0.9 % beyond 3, 0.03 % beyond 5 (a normal: 68, 95, 0.3, 0); along it 72, 95,
+0.9 and 0.06 %. Cautious in the bulk, for a heavier tail than a normal's, which the fit's chi-square gate
+(locator.TRACKED_REDUCED_CHI2) sends to the refined path where it shows. The errors across the pointer grow
+with the ball's radius (0.06 px at the median below 9 px, 0.22 px above 25 px) and not measurably with how far
+it has moved within the staleness limits below."""
 
-AREA_DRIFT_SHARE = 0.2
+AREA_DRIFT_SHARE = 0.5
 """And by this share of the ball's radius per unit of |ln| of its visible area's change beyond what its
 distance explains: more or less of a ball hidden, more or less of it above the thresholds."""
 
-FLOOR_PX = 0.1
-"""And never below the outline's own error plus this (in quadrature): the two are measured on different
-frames, and each frame's noise moves the centroid anew."""
+DRIFT_PER_PX = 0.0025
+"""And by this many pixels per pixel its ball has moved in the image since its outline was measured."""
 
-STALE_DRIFT_PX = 0.5
-"""An end whose drift term (displacement and area together) passes this is measured by its outline again:
-beyond it the correction's error grows past twice the outline's."""
+STALE_MOVED_PX = 50.0
+"""An end whose ball has moved this far in the image since its outline (or, with its area change, as far as
+:func:`staleness` adds up to) is measured by its outline again: how far the correction can be carried was
+measured only within it, and beyond it the errors the quick path once made grew fastest."""
+
+STALE_AREA_RADIUS_PX = 2.5
+"""What a change of visible area counts for in :func:`staleness`: |ln| of the change times the ball's radius,
+over this. Only a large ball (beyond 25 px) is made stale by it before STALE_AREA_LOG does."""
 
 STALE_AREA_LOG = 0.1
 """And an end whose visible area has changed by more than this (|ln| of the ratio, distance explained) is
-measured again whatever its drift: past it the corrected centroid was 0.84 px off at the median."""
+measured again whatever its travel: past it the corrected centroid was 0.84 px off at the median."""
 
 GUIDED_RADIUS_RATIO = 1.15
 """An end measured again must have an outline within this factor of the radius it had, scaled by its
@@ -117,26 +124,36 @@ def moved_px(offset: EndOffset, centroid_px: Array) -> float:
     return math.hypot(float(centroid_px[0] - offset.centroid_px[0]), float(centroid_px[1] - offset.centroid_px[1]))
 
 
-def drift_px(offset: EndOffset, moved: float, area_change: float) -> float:
-    """How much the correction's error has grown since the outline (pixels, 1 sigma): the ball's
-    displacement and its area's change (:func:`area_change_log`), in quadrature."""
-    return math.hypot(DRIFT_PER_PX * moved, AREA_DRIFT_SHARE * area_change * offset.radius_px)
+def staleness(offset: EndOffset, moved: float, area_change: float) -> float:
+    """How far the correction has been carried since the outline, as a share of how far it may be: the ball's
+    displacement (over STALE_MOVED_PX) and its area's change (:func:`area_change_log`, times its radius over
+    STALE_AREA_RADIUS_PX), in quadrature. Above 1 the end is stale (:func:`is_stale`)."""
+    return math.hypot(moved / STALE_MOVED_PX, area_change * offset.radius_px / STALE_AREA_RADIUS_PX)
 
 
-def is_stale(drift: float, area_change: float) -> bool:
+def is_stale(staleness_share: float, area_change: float) -> bool:
     """Whether an end should be measured by its outline again before its centroid is trusted."""
-    return area_change > STALE_AREA_LOG or drift > STALE_DRIFT_PX
+    return area_change > STALE_AREA_LOG or staleness_share > 1.0
+
+
+def drift_px(offset: EndOffset, moved: float, area_change: float) -> float:
+    """A corrected end's error beyond its outline's (pixels, 1 sigma, each direction): FLOOR_SHARE of the
+    ball's radius, its displacement since the outline and its area's change (:func:`area_change_log`), in
+    quadrature."""
+    radius = offset.radius_px
+    return math.sqrt(
+        (FLOOR_SHARE * radius) ** 2 + (AREA_DRIFT_SHARE * area_change * radius) ** 2 + (DRIFT_PER_PX * moved) ** 2
+    )
 
 
 def corrected_end(
     offset: EndOffset, centroid_n: Array, moved_px: float, area_change: float, focal_px: float
 ) -> tuple[Array, Array]:
     """A tracked centroid (normalised, lens removed) corrected by its offset, and the error covariance that
-    leaves (normalised units): the outline measurement's, and FLOOR_PX and the drift (:func:`drift_px`)
-    the same in every direction."""
-    drift = drift_px(offset, moved_px, area_change)
-    spread = (FLOOR_PX * FLOOR_PX + drift * drift) / (focal_px * focal_px)
-    covariance: Array = offset.covariance_n + spread * np.eye(2)
+    leaves (normalised units): the outline measurement's, and the drift (:func:`drift_px`) the same in every
+    direction."""
+    drift = drift_px(offset, moved_px, area_change) / focal_px
+    covariance: Array = offset.covariance_n + drift * drift * np.eye(2)
     corrected: Array = centroid_n + offset.offset_n
     return corrected, covariance
 
