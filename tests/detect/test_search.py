@@ -154,3 +154,22 @@ def test_a_dull_ball_is_not_crowded_out_by_a_pictures_fragments_from_a_stricter_
         frame, _ = scene.render("BayerRG8", detect_rng)
         cands = search_candidates(frame, grid, (5.0, 25.0), colours=("red",))
         assert _nearest(cands["red"], x, y) < 1.0, (x, y)
+
+
+def test_the_last_resorts_colour_test_takes_a_cyan_paint_and_not_skin_or_tan() -> None:
+    from trackerd.detect.search import hue_mask, vivid_mask
+
+    # (own channel, green, the other colour's channel) as grey levels.
+    cases = {
+        "cyan ball in warm light (seed 11, installation 18)": ((139, 111, 15), True),
+        "teal, as green as blue nearly": ((120, 106, 20), True),
+        "tan sleeve in warm light, 22 % redder than green": ((200, 164, 120), False),
+        "skin": ((190, 140, 120), False),
+        "grey wall under cold light": ((130, 120, 118), False),
+        "white": ((250, 245, 240), False),
+    }
+    for name, ((own, green, other), vivid) in cases.items():
+        own_a, excess = np.array([own], dtype=np.int16), np.array([own - max(green, other)], dtype=np.int16)
+        weakest = np.array([min(green, other)], dtype=np.int16)
+        assert not hue_mask(own_a, excess)[0], name  # none of these passes the plain test
+        assert bool(vivid_mask(own_a, excess, weakest)[0]) == vivid, name
