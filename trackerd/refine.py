@@ -342,15 +342,19 @@ class RefinedPath:
         from trackerd.ends import from_fit
         from trackerd.joint import choose_jointly
 
-        candidates = [
-            search_candidates(
-                image,
-                self.loc.grids[index],
-                self._radius_range_px(index),
-                view=self._view_at(index, SEARCH_VIEW_TOLERANCE),
-            )
-            for index, image in enumerate(images)
-        ]
+        def searched(**options: Any) -> list[dict[str, list[Candidate]]]:
+            return [
+                search_candidates(
+                    image,
+                    self.loc.grids[index],
+                    self._radius_range_px(index),
+                    view=self._view_at(index, SEARCH_VIEW_TOLERANCE),
+                    **options,
+                )
+                for index, image in enumerate(images)
+            ]
+
+        candidates = searched()
         pointer = self.loc.pointer
         room = self._room_side()
         vivid = False  # the last resort below looks for vivid colours too
@@ -400,17 +404,7 @@ class RefinedPath:
             # green by a fifth only): the vivid colours whose strongest channel is the end's join, and the
             # looks may find them too (vivid_mask).
             vivid = True
-            loose = [
-                search_candidates(
-                    image,
-                    self.loc.grids[index],
-                    self._radius_range_px(index),
-                    view=self._view_at(index, SEARCH_VIEW_TOLERANCE),
-                    vivid=True,
-                    max_seeds=VIVID_SEEDS,
-                )
-                for index, image in enumerate(images)
-            ]
+            loose = searched(vivid=True, max_seeds=VIVID_SEEDS)
             added = [
                 {c: _new_candidates(more[c], plain[c]) for c in COLOURS}
                 for plain, more in zip(candidates, loose, strict=True)
