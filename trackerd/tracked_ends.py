@@ -54,8 +54,10 @@ DRIFT_PER_PX = 0.0025
 
 STALE_MOVED_PX = 50.0
 """An end whose ball has moved this far in the image since its outline (or, with its area change, as far as
-:func:`staleness` adds up to) is measured by its outline again: how far the correction can be carried was
-measured only within it, and beyond it the errors the quick path once made grew fastest."""
+:func:`staleness` adds up to) is measured by its outline again: the error model above was fitted on ends
+that had moved less, so how far a correction can be carried beyond it is not known. (The first error model
+set this limit where its stated error passed twice the outline's; it is kept as it was, and with it what
+re-measuring costs.)"""
 
 STALE_AREA_RADIUS_PX = 2.5
 """What a change of visible area counts for in :func:`staleness`: |ln| of the change times the ball's radius,
