@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from trackerd.detect.colour import SampleGrid
     from trackerd.detect.result import EndDetection
     from trackerd.detect.search import Candidate
+    from trackerd.geometry.camera import CameraModel
     from trackerd.locator import Locator
 
 Array = NDArray[np.float64]
@@ -174,17 +175,30 @@ def _of_its_colour(
     hit 736 mm off at 17 sigma). The balls the looks rightly found on the frames looked into were 43-91 % (dim,
     dark, blurred, merged). With ``vivid``, the search's looser test (:func:`~trackerd.detect.search.vivid_mask`)
     passes it too."""
-    from trackerd.detect.search import hue_mask, vivid_mask
+    from trackerd.detect.search import vivid_mask
 
     radius_px = fit.radius_px if view is None else fit.radius_px / math.sqrt(abs(float(np.linalg.det(view))))
     colours = _colour_medians(image, grid, colour, float(fit.centre_px[0]), float(fit.centre_px[1]), radius_px)
     if colours is None:
         return False
     own, green, other = colours[0]
-    excess = np.array(own - max(green, other))
-    if bool(hue_mask(np.array(own), excess)):
+    if _plain_colour(own, green, other):
         return True
-    return vivid and bool(vivid_mask(np.array(own), excess, np.array(min(green, other))))
+    return vivid and bool(vivid_mask(np.array(own), np.array(own - max(green, other)), np.array(min(green, other))))
+
+
+def _plain_colour(own: float, green: float, other: float) -> bool:
+    """Whether a colour (its own channel, green, the other colour) passes the search's plain hue test."""
+    from trackerd.detect.search import hue_mask
+
+    return bool(hue_mask(np.array(own), np.array(own - max(green, other))))
+
+
+def _ball_radius_px(camera: CameraModel, point_m: Array, ball_radius_m: float) -> float:
+    """The image radius of a ball of ``ball_radius_m`` centred at ``point_m`` (its silhouette's half-angle,
+    times the focal length)."""
+    distance = float(np.linalg.norm(point_m - camera.centre_m))
+    return float(camera.focal_px * ball_radius_m / math.sqrt(max(distance**2 - ball_radius_m**2, 1e-6)))
 
 
 def _colour_medians(
@@ -449,8 +463,6 @@ class RefinedPath:
         robustness --seed 7`, installation 21, frame 17: a hit 1.86 m off at 109 mm sigma; installation 9,
         frame 1: 784 mm off at 71 mm sigma, its junk 0.64 of a ball's size). And a candidate whose outline is
         not within MAX_RADIUS_RATIO of a ball's size where the choice puts it is left out first."""
-        from trackerd.detect.search import hue_mask
-
         kept = [dict(picks) for picks in choice.chosen]
         ball_radius = self.loc.pointer.end_diameter_m / 2.0
         vivid_end = False
@@ -462,9 +474,7 @@ class RefinedPath:
                 cand = picks.get(colour)
                 if cand is None:
                     continue
-                camera = self.loc.cameras[index]
-                distance = float(np.linalg.norm(point - camera.centre_m))
-                expected = camera.focal_px * ball_radius / math.sqrt(max(distance**2 - ball_radius**2, 1e-6))
+                expected = _ball_radius_px(self.loc.cameras[index], point, ball_radius)
                 if not 1.0 / MAX_RADIUS_RATIO <= cand.fit.radius_px / expected <= MAX_RADIUS_RATIO:
                     picks[colour] = None
                     continue
@@ -474,7 +484,7 @@ class RefinedPath:
                     return None
                 own, green, other = medians[0]
                 shares[index] = np.array([green, other]) / max(float(own), 1.0)
-                plain[index] = bool(hue_mask(np.array(own), np.array(own - max(green, other))))
+                plain[index] = _plain_colour(own, green, other)
             if sum(1 for picks in kept if picks.get(colour) is not None) < 2:
                 return None
             while shares:
@@ -487,13 +497,11 @@ class RefinedPath:
                 if len(kinds) > 1:
                     count = sum(plain[i] for i in shares)
                     minority = count * 2 < len(shares)
-                    candidates = (
-                        [i for i in shares if plain[i] == minority] if count * 2 != len(shares) else list(shares)
-                    )
+                    suspects = [i for i in shares if plain[i] == minority] if count * 2 != len(shares) else list(shares)
                 else:
-                    candidates = list(shares)
+                    suspects = list(shares)
                 middle = np.median(np.array(list(shares.values())), axis=0)
-                farthest = max(candidates, key=lambda i: float(np.max(np.abs(shares[i] - middle))))
+                farthest = max(suspects, key=lambda i: float(np.max(np.abs(shares[i] - middle))))
                 del shares[farthest]
                 kept[farthest][colour] = None
             vivid_end = vivid_end or not any(plain[i] for i in shares)
@@ -653,8 +661,7 @@ class RefinedPath:
                 if m is None or m.source == "centroid":
                     continue
                 camera = self.loc.cameras[i]
-                distance = float(np.linalg.norm(start_points[e] - camera.centre_m))
-                expected = camera.focal_px * ball_radius / math.sqrt(max(distance**2 - ball_radius**2, 1e-6))
+                expected = _ball_radius_px(camera, start_points[e], ball_radius)
                 ratio = m.radius_px / expected
                 if 1.0 / GUIDED_SIZE <= ratio <= GUIDED_SIZE:
                     continue

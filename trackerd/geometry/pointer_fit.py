@@ -190,12 +190,7 @@ def fit_pointer(views: EndViews, front0_m: Array, back0_m: Array, max_iterations
     rot, trans, obs, cov = views.rotations, views.translations_m, views.measured, views.covariances
     length_m, length_sigma_m, ball_radius_m = views.length_m, views.length_sigma_m, views.ball_radius_m
     cameras = rot.shape[0]
-    # Whitening: L^T with L L^T = cov^-1, per camera and end.
-    try:
-        info = np.linalg.inv(cov)
-        whiten = np.linalg.cholesky(info).transpose(0, 1, 3, 2)
-    except np.linalg.LinAlgError as err:
-        raise GeometryError("a measurement's covariance is not positive definite") from err
+    whiten = _whitening(cov)
     params = np.concatenate([np.asarray(front0_m, dtype=np.float64), np.asarray(back0_m, dtype=np.float64)])
     k2 = ball_radius_m * ball_radius_m
     iterations = 0
@@ -237,10 +232,7 @@ def fit_pointer_step(views: EndViews, front0_m: Array, back0_m: Array) -> Pointe
     its covariance to 2 % and its chi-square to 5 % (tests/geometry/test_pointer_fit.py), at a third of its
     cost. ``views.error_covariances`` is not used."""
     rot, trans, obs, cov = views.rotations, views.translations_m, views.measured, views.covariances
-    try:
-        whiten = np.linalg.cholesky(np.linalg.inv(cov)).transpose(0, 1, 3, 2)
-    except np.linalg.LinAlgError as err:
-        raise GeometryError("a measurement's covariance is not positive definite") from err
+    whiten = _whitening(cov)
     params = np.concatenate([np.asarray(front0_m, dtype=np.float64), np.asarray(back0_m, dtype=np.float64)])
     residuals, jacobian = _linearise(
         params,
@@ -265,6 +257,15 @@ def fit_pointer_step(views: EndViews, front0_m: Array, back0_m: Array) -> Pointe
     inflation = max(1.0, chi2 / dof)
     params = params + step
     return PointerFit(params[:3].copy(), params[3:].copy(), covariance * inflation, chi2, dof, inflation, 1)
+
+
+def _whitening(cov: Array) -> Array:
+    """L^T with L L^T = cov^-1, per camera and end (C, 2, 2, 2). Raises GeometryError."""
+    try:
+        whiten: Array = np.linalg.cholesky(np.linalg.inv(cov)).transpose(0, 1, 3, 2)
+    except np.linalg.LinAlgError as err:
+        raise GeometryError("a measurement's covariance is not positive definite") from err
+    return whiten
 
 
 def _sandwich(
