@@ -43,6 +43,7 @@ from trackerd.geometry.pointer_fit import EndViews, fit_pointer_step, hit_covari
 from trackerd.geometry.pointer_line import PointerLine, ray_gaps_m, world_rays
 from trackerd.geometry.wall import LineHit, WallFrame, intersect_line_plane
 from trackerd.tracked_ends import (
+    END_CORRELATION,
     GUIDED_RADIUS_RATIO,
     EndOffset,
     area_change_log,
@@ -306,7 +307,9 @@ class Locator:
                 normalised, view, self._min_plane_sin, None, across_sigma_px(normalised, covariances, view.focal_px)
             )
             planes = estimate.line
-            planes_uncertainty = hit_uncertainty_m(estimate, wall) if planes.method == "planes" else None
+            planes_uncertainty = (
+                hit_uncertainty_m(estimate, wall, END_CORRELATION) if planes.method == "planes" else None
+            )
             if not both:
                 return planes, planes_uncertainty
             gaps = (planes.front_gap_m, planes.back_gap_m)
@@ -326,6 +329,7 @@ class Locator:
             ),
             start_line.front_m,
             start_line.back_m,
+            END_CORRELATION,
         )
         if fitted.chi2 > TRACKED_REDUCED_CHI2 * fitted.dof:
             return None

@@ -310,3 +310,43 @@ def test_near_parallel_interpretation_planes_a_good_line_and_an_honest_uncertain
         whitened.append(float(error @ np.linalg.inv(cov) @ error))
     assert np.median(fit_errors) <= np.median(old_errors)
     assert 1.6 < np.mean(whitened) < 2.5
+
+
+def test_the_step_with_correlated_ends_states_the_scatter_of_the_wall_hit() -> None:
+    """Monte Carlo: each camera's two ends err together (correlation 0.6 across the pointer's image and
+    along it, as tracked ends do, trackerd/tracked_ends.py END_CORRELATION). The step's covariance given
+    that correlation describes the hits' scatter on the wall; stated as if independent it overstates it
+    (the common part shifts the line, and only the turn is magnified on the wall)."""
+    from trackerd.geometry.pointer_fit import end_cross_covariances
+
+    cameras = _behind_pair()
+    rot, trans = _arrays(cameras)
+    truth = predict(rot, trans, FRONT, BACK)
+    sigma = 0.3 / 1600
+    covariances = np.tile(np.eye(2) * sigma**2, (2, 2, 1, 1))
+    length = float(np.linalg.norm(FRONT - BACK))
+    # Each camera's four coordinates (front x, y, back x, y) with the cross blocks the fit is told of.
+    cross = end_cross_covariances(truth, covariances, 0.6)
+    joint = np.zeros((2, 4, 4))
+    joint[:, :2, :2] = covariances[:, 0]
+    joint[:, 2:, 2:] = covariances[:, 1]
+    joint[:, :2, 2:] = cross
+    joint[:, 2:, :2] = np.swapaxes(cross, 1, 2)
+    chol = np.linalg.cholesky(joint)
+    normal, offset = np.array([0.0, 0.0, 1.0]), 0.0
+    axes = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    rng = np.random.default_rng(8)
+    hits, stated, independent = [], [], []
+    for _ in range(400):
+        noise = np.einsum("cij,cj->ci", chol, rng.normal(size=(2, 4))).reshape(2, 2, 2)
+        views = EndViews.of(rot, trans, truth + noise, covariances, length, 1e-4)
+        fit = fit_pointer_step(views, FRONT, BACK, end_correlation=0.6)
+        alone = fit_pointer_step(views, FRONT, BACK)
+        direction = fit.front_m - fit.back_m
+        hits.append(fit.back_m - (fit.back_m @ normal + offset) / (direction @ normal) * direction)
+        for out, one in ((stated, fit), (independent, alone)):
+            covariance = hit_covariance(one.front_m, one.back_m, one.covariance / one.inflation, normal, offset, axes)
+            out.append(float(np.trace(covariance)))
+    spread = float(np.mean(np.sum((np.array(hits)[:, :2] - np.mean(np.array(hits)[:, :2], axis=0)) ** 2, axis=1)))
+    assert np.mean(stated) == pytest.approx(spread, rel=0.15)
+    assert np.mean(independent) > 1.3 * spread

@@ -232,6 +232,14 @@ def test_the_moved_sets_and_the_spread_are_the_reference_set_by_set(rig_cameras,
         hits = np.array([_reference_hit_xy(view, moved, datawall_wall) for moved in sets])
         expected = np.sqrt(np.sum((hits[1:] - hits[0]) ** 2))
         assert hit_uncertainty_m(estimate, datawall_wall) == pytest.approx(expected, rel=1e-9)
+        # A camera's two ends erring together (correlation rho across the pointer): each camera's two moves
+        # add as vectors with weight rho, v_f^2 + v_b^2 + 2 rho v_f . v_b.
+        moves = (hits[1:] - hits[0]).reshape(cameras, 2, 2)
+        for rho in (0.3, 1.0):
+            correlated = np.sum(moves**2) + 2.0 * rho * np.sum(moves[:, 0] * moves[:, 1])
+            assert hit_uncertainty_m(estimate, datawall_wall, rho) == pytest.approx(np.sqrt(correlated), rel=1e-9)
+        together = np.sum(np.sum(moves, axis=1) ** 2)  # rho 1: both ends of a camera moved at once
+        assert hit_uncertainty_m(estimate, datawall_wall, 1.0) == pytest.approx(np.sqrt(together), rel=1e-9)
 
 
 def test_each_end_moves_by_its_own_error_across_the_pointer(rig_cameras) -> None:

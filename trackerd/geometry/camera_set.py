@@ -186,10 +186,14 @@ def _end_depths_m(normalised: Array, view: CameraSet) -> Array | None:
     return depths
 
 
-def hit_uncertainty_m(estimate: LineEstimate, wall: WallFrame) -> float | None:
+def hit_uncertainty_m(estimate: LineEstimate, wall: WallFrame, end_correlation: float = 0.0) -> float | None:
     """RMS radius of the hit's error when every centroid moves across the pointer by the
     ``across_px`` the estimate was made with: the spread, in the wall's frame, of where the
     moved sets' lines meet the wall (eq. 26-28) around the measured set's.
+
+    ``end_correlation``: the correlation of one camera's two ends' errors across the pointer. Errors that
+    move both ends one way shift the line more than they turn it, and it is the turn that the wall's
+    distance magnifies: the moves' spreads add as v_f^2 + v_b^2 + 2 rho v_f . v_b per camera.
 
     None without moved sets, or when a set's planes or line are parallel (to each other, to the wall).
     """
@@ -201,5 +205,9 @@ def hit_uncertainty_m(estimate: LineEstimate, wall: WallFrame) -> float | None:
     if np.any(~(np.abs(denominator) >= MIN_LINE_PLANE_SIN)):
         return None
     hits = points - ((points @ plane.normal + plane.offset_m) / denominator)[:, None] * directions
-    moved = (hits[1:] - hits[0]) @ wall.axes.T  # along the wall's x and y
-    return float(np.sqrt(np.sum(moved * moved)))
+    moved = (hits[1:] - hits[0]) @ wall.axes.T  # along the wall's x and y; set 1 + 2k + e moved camera k's end e
+    variance = float(np.sum(moved * moved))
+    if end_correlation:
+        pairs = moved.reshape(-1, 2, 2)
+        variance += 2.0 * end_correlation * float(np.sum(pairs[:, 0] * pairs[:, 1]))
+    return float(np.sqrt(max(variance, 0.0)))

@@ -223,14 +223,16 @@ def fit_pointer(views: EndViews, front0_m: Array, back0_m: Array, max_iterations
     return PointerFit(params[:3].copy(), params[3:].copy(), covariance * inflation, chi2, dof, inflation, iterations)
 
 
-def fit_pointer_step(views: EndViews, front0_m: Array, back0_m: Array) -> PointerFit:
+def fit_pointer_step(views: EndViews, front0_m: Array, back0_m: Array, end_correlation: float = 0.0) -> PointerFit:
     """One Gauss-Newton step of :func:`fit_pointer` from F = ``front0_m``, B = ``back0_m``, its chi-square
     and covariance taken from the same linearisation (the residuals after the step predicted linearly).
 
     For a start within millimetres of the answer (a tracked pair, from the last pair's ends): from 12 mm
     away, the full fit's ends to tens of micrometres (a twentieth of a millimetre on a wall 2 m beyond),
     its covariance to 2 % and its chi-square to 5 % (tests/geometry/test_pointer_fit.py), at a third of its
-    cost. ``views.error_covariances`` is not used."""
+    cost. ``views.error_covariances`` is not used. ``end_correlation``: the correlation of one camera's two
+    ends' errors, across the pointer's image and along it alike (:func:`end_cross_covariances`); the
+    covariance is then that of the step under those errors (the weights stay per end)."""
     rot, trans, obs, cov = views.rotations, views.translations_m, views.measured, views.covariances
     whiten = _whitening(cov)
     params = np.concatenate([np.asarray(front0_m, dtype=np.float64), np.asarray(back0_m, dtype=np.float64)])
@@ -256,7 +258,38 @@ def fit_pointer_step(views: EndViews, front0_m: Array, back0_m: Array) -> Pointe
     dof = _dof(np.trace(cov, axis1=2, axis2=3) < DROPPED_VARIANCE)
     inflation = max(1.0, chi2 / dof)
     params = params + step
+    if end_correlation:
+        covariance = _correlated(covariance, jacobian, whiten, end_cross_covariances(obs, cov, end_correlation))
     return PointerFit(params[:3].copy(), params[3:].copy(), covariance * inflation, chi2, dof, inflation, 1)
+
+
+def end_cross_covariances(measured: Array, covariances: Array, correlation: float) -> Array:
+    """(C, 2, 2): the covariance of each camera's front end's error with its back end's, when they correlate
+    by ``correlation`` across the pointer's image and along it: rho (s_f s_b a a^T + t_f t_b u u^T), with u
+    the unit vector along the camera's image of the pointer, a across it, s and t each end's standard errors
+    across and along (from ``covariances`` (C, 2, 2, 2))."""
+    along = measured[:, 0] - measured[:, 1]
+    along = along / np.maximum(np.linalg.norm(along, axis=-1, keepdims=True), 1e-300)
+    across = along[:, ::-1] * np.array([-1.0, 1.0])
+    cross = np.zeros((len(measured), 2, 2))
+    for unit in (across, along):
+        sigma = np.sqrt(np.maximum(np.einsum("ci,ceij,cj->ce", unit, covariances, unit), 0.0))
+        cross += (correlation * sigma[:, 0] * sigma[:, 1])[:, None, None] * np.einsum("ci,cj->cij", unit, unit)
+    return cross
+
+
+def _correlated(covariance: Array, jacobian: Array, whiten: Array, cross: Array) -> Array:
+    """The covariance of a fit weighted per end when each camera's two ends' errors have the cross-covariance
+    ``cross`` (C, 2, 2) besides the variances the weights ``whiten`` were made from: the sandwich (see
+    :func:`_sandwich`) with the whitened residuals' covariance I + the blocks W_f X W_b^T between a camera's
+    two ends."""
+    cameras = whiten.shape[0]
+    blocks = np.einsum("ckl,clm,cqm->ckq", whiten[:, 0], cross, whiten[:, 1])  # (C, 2, 2)
+    spread = np.eye(4 * cameras + 1)
+    for c in range(cameras):
+        spread[4 * c : 4 * c + 2, 4 * c + 2 : 4 * c + 4] = blocks[c]
+        spread[4 * c + 2 : 4 * c + 4, 4 * c : 4 * c + 2] = blocks[c].T
+    return np.asarray(covariance @ (jacobian.T @ spread @ jacobian) @ covariance, dtype=np.float64)
 
 
 def _whitening(cov: Array) -> Array:
