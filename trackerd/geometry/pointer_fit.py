@@ -270,11 +270,11 @@ def end_cross_covariances(measured: Array, covariances: Array, correlation: floa
     across and along (from ``covariances`` (C, 2, 2, 2))."""
     along = measured[:, 0] - measured[:, 1]
     along = along / np.maximum(np.linalg.norm(along, axis=-1, keepdims=True), 1e-300)
-    across = along[:, ::-1] * np.array([-1.0, 1.0])
-    cross = np.zeros((len(measured), 2, 2))
-    for unit in (across, along):
-        sigma = np.sqrt(np.maximum(np.einsum("ci,ceij,cj->ce", unit, covariances, unit), 0.0))
-        cross += (correlation * sigma[:, 0] * sigma[:, 1])[:, None, None] * np.einsum("ci,cj->cij", unit, unit)
+    # Columns: across the pointer's image (along turned a quarter), along it.
+    basis = np.stack([along[:, ::-1] * np.array([-1.0, 1.0]), along], axis=-1)  # (C, 2, 2)
+    rotated = np.swapaxes(basis, 1, 2)[:, None] @ covariances @ basis[:, None]  # (C, 2 ends, 2, 2)
+    sigmas = np.sqrt(np.maximum(np.diagonal(rotated, axis1=2, axis2=3), 0.0))  # (C, 2 ends, across / along)
+    cross: Array = (basis * (correlation * sigmas[:, 0] * sigmas[:, 1])[:, None, :]) @ np.swapaxes(basis, 1, 2)
     return cross
 
 
@@ -282,14 +282,13 @@ def _correlated(covariance: Array, jacobian: Array, whiten: Array, cross: Array)
     """The covariance of a fit weighted per end when each camera's two ends' errors have the cross-covariance
     ``cross`` (C, 2, 2) besides the variances the weights ``whiten`` were made from: the sandwich (see
     :func:`_sandwich`) with the whitened residuals' covariance I + the blocks W_f X W_b^T between a camera's
-    two ends."""
+    two ends, that is H^-1 (J^T J + K + K^T) H^-1 with K the sum over cameras of J_f^T W_f X W_b^T J_b."""
     cameras = whiten.shape[0]
-    blocks = np.einsum("ckl,clm,cqm->ckq", whiten[:, 0], cross, whiten[:, 1])  # (C, 2, 2)
-    spread = np.eye(4 * cameras + 1)
-    for c in range(cameras):
-        spread[4 * c : 4 * c + 2, 4 * c + 2 : 4 * c + 4] = blocks[c]
-        spread[4 * c + 2 : 4 * c + 4, 4 * c : 4 * c + 2] = blocks[c].T
-    return np.asarray(covariance @ (jacobian.T @ spread @ jacobian) @ covariance, dtype=np.float64)
+    blocks = whiten[:, 0] @ cross @ np.swapaxes(whiten[:, 1], 1, 2)  # (C, 2, 2)
+    rows = jacobian[: 4 * cameras].reshape(cameras, 2, 2, 6)  # camera, end, coordinate, parameter
+    coupling = (np.swapaxes(rows[:, 0], 1, 2) @ blocks @ rows[:, 1]).sum(axis=0)
+    middle = jacobian.T @ jacobian + coupling + coupling.T
+    return np.asarray(covariance @ middle @ covariance, dtype=np.float64)
 
 
 def _whitening(cov: Array) -> Array:
