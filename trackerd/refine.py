@@ -284,11 +284,15 @@ class RefinedPath:
         self.loc = locator
         self._since_search = 0
         self._searched_once = False
+        self._weak_fixes = 0
+        """Refined fixes in a row with an end on one sound outline (the search runs on every
+        search_every_pairs-th of them, the first included)."""
 
     def reset(self) -> None:
         """The next pair is a first sighting: searched at once if the detector's ends do not do."""
         self._searched_once = False
         self._since_search = 0
+        self._weak_fixes = 0
 
     def locate(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix:
         """Each end's outline fitted, then the pointer fitted to every camera's ends at once with the
@@ -320,14 +324,17 @@ class RefinedPath:
                         sigma_px,
                     )
         fix = self._fix_from_measurements(per_camera, None, detections, start, images)
-        if fix.found and min(self._sound_ends(fix).values()) < 2:
+        weak = fix.found and min(self._sound_ends(fix).values()) < 2
+        self._weak_fixes = self._weak_fixes + 1 if weak else 0
+        if weak and (self._weak_fixes - 1) % self.loc.rig.locator.search_every_pairs == 0:
             # An end rests on one sound outline and a doubtful one (a centroid, an outline of the wrong size:
             # part of the ball, or something else of its colour where a camera does not see it). The search
             # over every camera's candidates may find what the detectors missed (`bench robustness --seed
             # 11`, installation 20: a dim ball no detector took in two cameras of four, and one cut by the
             # frame's edge taken by its centroid, 66-104 mm off at 5 sigma; the search's three outlines put
             # it within 4 mm). Its answer is kept when its weaker end rests on more sound outlines (on as many:
-            # when both ends together do).
+            # when both ends together do). At the search's cadence while such fixes follow each other (the
+            # search takes tens of milliseconds, a refined pair a few).
             searched = self._locate_searched(images, detections, start)
             if searched.found and _support(self._sound_ends(searched)) > _support(self._sound_ends(fix)):
                 fix = searched

@@ -167,7 +167,9 @@ class LocatorConfig(ConfigModel):
     search_every_pairs: int = Field(default=6, ge=1, le=600)
     """While the pointer is not found, the search over every camera's candidates (tens of milliseconds,
     where a tracked pair takes one or two) runs on every this many-th pair, so a room without the pointer
-    does not keep a core busy; a first sighting after a reset is searched at once."""
+    does not keep a core busy; a first sighting after a reset is searched at once. So it does, the first
+    included, while refined fixes follow each other with an end resting on one outline of a ball's size
+    (trackerd/refine.py, RefinedPath.locate)."""
     length_sigma_m: float = Field(default=0.003, gt=0.0)
     """How exactly the pointer's length (pointer.length_m) is known: the pointer fit holds the two
     ends this far apart, within this standard deviation."""
