@@ -277,8 +277,8 @@ def test_the_last_resort_does_not_pair_junk_with_a_ball_hidden_from_all_cameras_
 def test_an_end_on_one_sound_outline_is_searched_for_in_every_camera() -> None:
     """`trackerd bench robustness --seed 11`, installation 20, frame 1: four cameras, dim light, the blue
     ball hidden from camera 1, too dim for the detector in camera 3, and cut in half by camera 2's frame
-    edge, where its outline was not fitted and its centroid (16 px from its centre, its blob a tenth of the
-    ball's size) was taken: a hit 66 mm off at 13 mm sigma resting on one sound outline of blue. The search
+    edge, where its outline was not fitted and its centroid (20 px from its centre, its blob's radius a fifth
+    of the ball's) was taken: a hit 66 mm off at 13 mm sigma resting on one sound outline of blue. The search
     over every camera's candidates finds the ball in cameras 0, 2 and 3 (trackerd/refine.py,
     RefinedPath.locate)."""
     from trackerd.bench.robustness import draw_installation, drawn_frames, renderer_for
