@@ -187,6 +187,11 @@ def _of_its_colour(
     return vivid and bool(vivid_mask(np.array(own), np.array(own - max(green, other)), np.array(min(green, other))))
 
 
+def _ball_sized(radius_px: float, expected_px: float) -> bool:
+    """Whether an outline's radius is within MAX_RADIUS_RATIO of a ball's expected one, either way."""
+    return 1.0 / MAX_RADIUS_RATIO <= radius_px / expected_px <= MAX_RADIUS_RATIO
+
+
 def _support(sound: dict[str, int]) -> tuple[int, int]:
     """What a fix rests on, for comparing two: its weaker end's sound outlines, then both ends' together."""
     return min(sound.values()), sum(sound.values())
@@ -324,7 +329,8 @@ class RefinedPath:
                         sigma_px,
                     )
         fix = self._fix_from_measurements(per_camera, None, detections, start, images)
-        weak = fix.found and min(self._sound_ends(fix).values()) < 2
+        support = _support(self._sound_ends(fix)) if fix.found else None
+        weak = support is not None and support[0] < 2
         self._weak_fixes = self._weak_fixes + 1 if weak else 0
         if weak and (self._weak_fixes - 1) % self.loc.rig.locator.search_every_pairs == 0:
             # An end rests on one sound outline and a doubtful one (a centroid, an outline of the wrong size:
@@ -336,7 +342,7 @@ class RefinedPath:
             # when both ends together do). At the search's cadence while such fixes follow each other (the
             # search takes tens of milliseconds, a refined pair a few).
             searched = self._locate_searched(images, detections, start)
-            if searched.found and _support(self._sound_ends(searched)) > _support(self._sound_ends(fix)):
+            if searched.found and support is not None and _support(self._sound_ends(searched)) > support:
                 fix = searched
         if fix.found:
             self._after_refined(fix)
@@ -371,8 +377,7 @@ class RefinedPath:
                 m = ends.get(colour)
                 if m is None or m.source == "centroid":
                     continue
-                ratio = m.radius_px / _ball_radius_px(camera, points[colour], ball_radius)
-                sound[colour] += int(1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO)
+                sound[colour] += int(_ball_sized(m.radius_px, _ball_radius_px(camera, points[colour], ball_radius)))
         return sound
 
     def _after_refined(self, fix: PointerFix) -> None:
@@ -440,6 +445,7 @@ class RefinedPath:
         # fewer than two sound outlines (something of its colour taken where a camera's ball merged with a
         # picture), the merged groups split, and last the vivid colours. The best-supported fix is kept.
         best: PointerFix | None = None
+        best_support = (-1, -1)  # of best, while it is found
         reason = ""
         for stage in ("plain", "split", "vivid"):
             if stage == "plain":
@@ -484,9 +490,10 @@ class RefinedPath:
                 reason = reason or (fix.reason or "")
                 best = best or fix
                 continue
-            if best is None or not best.found or _support(self._sound_ends(fix)) > _support(self._sound_ends(best)):
-                best = fix
-            if min(self._sound_ends(best).values()) >= 2:
+            support = _support(self._sound_ends(fix))
+            if support > best_support:
+                best, best_support = fix, support
+            if best_support[0] >= 2:
                 break
         if best is not None:
             return best
@@ -541,7 +548,7 @@ class RefinedPath:
                 if cand is None:
                     continue
                 expected = _ball_radius_px(self.loc.cameras[index], point, ball_radius)
-                if not 1.0 / MAX_RADIUS_RATIO <= cand.fit.radius_px / expected <= MAX_RADIUS_RATIO:
+                if not _ball_sized(cand.fit.radius_px, expected):
                     picks[colour] = None
                     continue
                 x_px, y_px = (float(v) for v in cand.fit.centre_px)
@@ -738,7 +745,7 @@ class RefinedPath:
                     covariances[k, e] = again.covariance
                     errors[k, e] = again.actual_covariance
                     continue
-                if 1.0 / MAX_RADIUS_RATIO <= ratio <= MAX_RADIUS_RATIO:
+                if _ball_sized(m.radius_px, expected):
                     if m.fit is not None:
                         errors[k, e] = errors[k, e] + partial_arc_error(m.fit, expected, camera.focal_px)
                     continue
