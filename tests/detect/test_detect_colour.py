@@ -12,6 +12,7 @@ from trackerd.detect.colour import (
     EXCESS_SCALE,
     Threshold,
     _exceeds,
+    brightest_at,
     channel_windows,
     coarse_masks,
     excess_window,
@@ -121,6 +122,21 @@ def test_green_at_reads_green_pixels() -> None:
         grid = sample_grid(fmt, 12, 10)
         points = np.array([[0.2, 0.1], [5.4, 3.6], [10.9, 8.7], [-3.0, 40.0]])
         assert np.all(green_at(frame, grid, points) == 77)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_brightest_at_reads_the_brightest_colour_of_each_cell(fmt: str) -> None:
+    """The largest of a pixel's colours, in every layout: on a mosaic, of the 2 x 2 cell holding it (a red
+    surface is bright there though its green is dark; the rod is dark in all)."""
+    rng = np.random.default_rng(3)
+    rgb = np.repeat(np.repeat(rng.integers(0, 256, (5, 6, 3), dtype=np.uint8), 2, axis=0), 2, axis=1)
+    frame = from_rgb(rgb, fmt)
+    grid = sample_grid(fmt, 12, 10)
+    points = np.array([[0.2, 0.1], [5.4, 3.6], [10.9, 8.7], [7.0, 2.0], [-3.0, 40.0]])
+    edge = 2 if fmt.startswith("Bayer") else 1
+    x = np.rint(points[:, 0]).astype(int).clip(0, 12 - edge)
+    y = np.rint(points[:, 1]).astype(int).clip(0, 10 - edge)
+    assert np.array_equal(brightest_at(frame, grid, points), rgb[y, x].max(axis=-1))
 
 
 def test_mono_and_unknown_formats_are_refused() -> None:

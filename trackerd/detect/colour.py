@@ -283,3 +283,27 @@ def green_at(frame: NDArray[np.uint8], grid: SampleGrid, points_px: NDArray[np.f
         return greens
     rgb_greens: NDArray[np.float64] = frame[y, x, grid.channels[1]].astype(np.float64)
     return rgb_greens
+
+
+def brightest_at(frame: NDArray[np.uint8], grid: SampleGrid, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The brightest of a pixel's three colours near points (N, 2) given as (x, y) pixels -> (N,).
+
+    On a Bayer mosaic, the largest of the red, blue and two green samples of the cell holding the nearest
+    pixel; on RGB8/BGR8 the nearest pixel's largest channel. Points are clamped into the frame. Unlike
+    :func:`green_at`, a dark line shows against a saturated surface of any colour: against a red picture
+    the green is as dark as the rod, the red is not.
+    """
+    height, width = grid.frame_shape[:2]
+    # On a mosaic, the clamp keeps the whole 2 x 2 cell inside the frame.
+    edge = 2 if grid.is_bayer else 1
+    x = np.rint(points_px[:, 0]).astype(np.intp).clip(0, width - edge)
+    y = np.rint(points_px[:, 1]).astype(np.intp).clip(0, height - edge)
+    if grid.is_bayer:
+        flat = frame.reshape(-1)
+        corner = (y // 2) * 2 * width + (x // 2) * 2
+        brightest: NDArray[np.float64] = np.maximum(
+            np.maximum(flat[corner], flat[corner + 1]), np.maximum(flat[corner + width], flat[corner + width + 1])
+        ).astype(np.float64)
+        return brightest
+    rgb: NDArray[np.float64] = frame[y, x].max(axis=-1).astype(np.float64)
+    return rgb

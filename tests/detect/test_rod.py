@@ -1,0 +1,85 @@
+"""Which way the rod leaves a ball (trackerd/detect/rod.py), on rendered frames of the pointer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tests.rooms import POINTER, room, waved
+from trackerd.detect.colour import sample_grid
+from trackerd.detect.rod import FAN_STEP_DEG, rod_bearing
+from trackerd.refine import ROD_ABSENT, ROD_CLEAR
+from trackerd.sim.appearance import Look
+
+ROD_SHARE = POINTER["rod_diameter_m"] / POINTER["end_diameter_m"]
+
+
+def _turned(centre_px, point_px, degrees: float):
+    """``point_px`` turned about ``centre_px`` by ``degrees`` (towards +y from +x)."""
+    a = math.radians(degrees)
+    d = np.asarray(point_px) - centre_px
+    return centre_px + np.array([d[0] * math.cos(a) - d[1] * math.sin(a), d[0] * math.sin(a) + d[1] * math.cos(a)])
+
+
+def _views(look: Look | None = None):
+    rig, renderer = room(look)
+    rng = np.random.default_rng(5)
+    for pose in waved(3):
+        for index, camera in enumerate(rig.cameras):
+            view = renderer.render(index, pose, rng)
+            grid = sample_grid(camera.pixel_format, camera.width_px, camera.height_px)
+            truth = view.truth
+            ends = {
+                c: (np.asarray(truth.centroid_px[c]), math.sqrt(truth.area_px[c] / math.pi)) for c in ("red", "blue")
+            }
+            yield view.image, grid, ends
+
+
+@pytest.mark.parametrize("turn_deg", [0.0, 12.0, -25.0])
+def test_the_rod_is_found_leaving_each_ball_towards_the_other(turn_deg: float) -> None:
+    """Asked about the direction to the other ball, the rod lies along it; asked about a direction turned
+    away from it, the rod is found turned back by as much, and none lies along the direction asked about."""
+    checked = 0
+    for image, grid, ends in _views():
+        for colour, other in (("red", "blue"), ("blue", "red")):
+            (centre, radius), (far, far_radius) = ends[colour], ends[other]
+            bearing = rod_bearing(
+                image, grid, centre, radius, _turned(centre, far, turn_deg), far_radius, ROD_SHARE * radius
+            )
+            assert bearing is not None
+            assert bearing.evidence >= ROD_CLEAR
+            assert abs(bearing.offset_deg + turn_deg) <= 2 * FAN_STEP_DEG, (bearing, turn_deg)
+            if turn_deg == 0.0:
+                assert bearing.evidence_toward >= ROD_CLEAR
+            else:
+                assert bearing.evidence_toward <= ROD_ABSENT
+            checked += 1
+    assert checked == 12
+
+
+def test_in_a_room_too_dark_for_the_rod_to_show_no_direction_is_clear() -> None:
+    """Only the rod's darkness against what is behind it counts: where the room is too dark for that
+    (within ROD_CONTRAST grey levels of the rod), no direction is clear, so none can contradict anything."""
+    for image, grid, ends in _views(Look(gain=0.06)):
+        (centre, radius), (far, far_radius) = ends["red"], ends["blue"]
+        bearing = rod_bearing(image, grid, centre, radius, far, far_radius, ROD_SHARE * radius)
+        assert bearing is not None
+        assert bearing.evidence < ROD_CLEAR, bearing
+
+
+def test_beside_a_candidate_touching_the_ball_the_rod_is_found_where_it_leaves() -> None:
+    """A candidate touching the ball leaves no room for a rod between them: the fan is examined over the
+    longest reach, and the rod is found leaving the ball where it does, not towards the candidate."""
+    checked = 0
+    for image, grid, ends in _views():
+        (centre, radius), (far, _) = ends["red"], ends["blue"]
+        along = (far - centre) / np.linalg.norm(far - centre)
+        touching = _turned(centre, centre + (2.0 * radius + 2.0) * along, 20.0)
+        bearing = rod_bearing(image, grid, centre, radius, touching, radius, ROD_SHARE * radius)
+        assert bearing is not None
+        assert bearing.evidence >= ROD_CLEAR and bearing.evidence_toward <= ROD_ABSENT, bearing
+        assert abs(bearing.offset_deg + 20.0) <= 2 * FAN_STEP_DEG, bearing
+        checked += 1
+    assert checked == 6

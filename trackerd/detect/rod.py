@@ -1,0 +1,110 @@
+"""Which way the pointer's rod leaves a ball, in one image.
+
+The rod is the one thing joining the two balls. Where it crosses anything lighter than it (the wall, a
+picture, a shirt) it shows as a dark line a few pixels wide, and that line leaves each ball towards the
+other. When a camera's measurement of one end is doubtful (an outline of the wrong size for a ball there:
+part of a ball, or something else of its colour), the rod at the other end in that camera says whether it
+is the ball: a rod that clearly leaves the other ball some degrees away from it, and no rod towards it,
+says it is not (`bench robustness --seed 11`, installation 12, frame 14: the edge of a navy sleeve 66 px
+from a red ball, taken for the blue ball the sleeve hid, while the rod left the red ball 14 degrees away).
+
+Only the rod's own darkness is used, never its absence alone: over a dark background, a hand or the
+presenter's body, no line shows either way, and the answer is "not seen".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackerd.detect.colour import SampleGrid, brightest_at
+
+ROD_CONTRAST = 12.0
+"""Grey levels by which a point on the rod must be darker than both sides of it to count, in the brightest
+of its colours (:func:`~trackerd.detect.colour.brightest_at`: the rod is dark in all three, a red picture
+only in green and blue)."""
+
+FAN_DEG = 40.0
+"""Directions examined, either side of the one asked about."""
+
+FAN_STEP_DEG = 2.0
+
+SAMPLES = 12
+"""Points along each direction."""
+
+MIN_REACH_PX = 8.0
+"""Less free rod than this between the two balls' rims is not enough to tell a direction by."""
+
+MAX_REACH_DIAMETERS = 3.0
+"""Along at most this many of the ball's diameters: near its ball, the rod is nearly straight in any lens,
+and less of it is hidden by what lies in front of it further along."""
+
+SIDE_MARGIN_PX = 3.0
+"""A side sample lies this far beyond the rod's edge."""
+
+_OFFSETS_RAD = np.radians(np.arange(-FAN_DEG, FAN_DEG + 0.5 * FAN_STEP_DEG, FAN_STEP_DEG))
+_ALONG = np.linspace(0.0, 1.0, SAMPLES)
+_ACROSS = np.array([0.0, 1.0, -1.0])
+
+
+@dataclass(frozen=True, slots=True)
+class RodBearing:
+    """The rod's darkness along a fan of directions from a ball's centre."""
+
+    offset_deg: float
+    """Direction of the clearest rod, from the direction asked about (positive: towards the image's +y from
+    +x)."""
+    evidence: float
+    """Share of that direction's points darker than both sides, in [0, 1]."""
+    evidence_toward: float
+    """The same share along the direction asked about."""
+
+
+def rod_bearing(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    centre_px: NDArray[np.float64],
+    radius_px: float,
+    toward_px: NDArray[np.float64],
+    toward_radius_px: float,
+    rod_half_width_px: float,
+) -> RodBearing | None:
+    """The rod's darkness leaving a ball (``centre_px``, ``radius_px``) towards a point (the other ball's
+    measured centre and radius), and within FAN_DEG of that direction; None when the two centres coincide.
+
+    Along the free stretch between the two balls' rims, at most MAX_REACH_DIAMETERS long. Where the other
+    ball would touch or hide this one (less than MIN_REACH_PX between them), no rod could show between them,
+    and the fan is examined over the longest reach: whatever rod shows there leaves the ball elsewhere.
+    """
+    offset = np.asarray(toward_px, dtype=np.float64) - np.asarray(centre_px, dtype=np.float64)
+    distance = float(math.hypot(offset[0], offset[1]))
+    if distance < 1e-6:
+        return None
+    start = radius_px + 2.0
+    longest = MAX_REACH_DIAMETERS * 2.0 * radius_px
+    reach = min(distance - toward_radius_px - 2.0 - start, longest)
+    if reach < MIN_REACH_PX:
+        reach = max(longest, MIN_REACH_PX)
+    angles = math.atan2(offset[1], offset[0]) + _OFFSETS_RAD
+    along = np.stack([np.cos(angles), np.sin(angles)], axis=-1)  # (D, 2)
+    across = np.stack([-along[:, 1], along[:, 0]], axis=-1)
+    side = rod_half_width_px + SIDE_MARGIN_PX
+    t = start + reach * _ALONG  # (S,)
+    # (D, 3, S, 2): every direction's points on the line and beside it, either side.
+    points = (
+        np.asarray(centre_px, dtype=np.float64)
+        + t[None, None, :, None] * along[:, None, None, :]
+        + (side * _ACROSS)[None, :, None, None] * across[:, None, None, :]
+    )
+    lum = brightest_at(frame, grid, points.reshape(-1, 2)).reshape(len(angles), 3, SAMPLES)
+    darker = np.minimum(lum[:, 1], lum[:, 2]) - lum[:, 0]
+    evidence = np.count_nonzero(darker > ROD_CONTRAST, axis=1) / SAMPLES
+    # Of equally clear directions (a rod several pixels wide is dark along a few), the one nearest the
+    # direction asked about.
+    clearest = np.flatnonzero(evidence == evidence.max())
+    best = int(clearest[np.argmin(np.abs(_OFFSETS_RAD[clearest]))])
+    middle = len(angles) // 2
+    return RodBearing(float(np.degrees(_OFFSETS_RAD[best])), float(evidence[best]), float(evidence[middle]))
