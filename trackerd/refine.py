@@ -78,6 +78,16 @@ PAINT_SPREAD = 0.15
 camera have their green and their other colour within this share of their own channel of each other (a
 ball's own, across four cameras: within 0.11; junk that paired with a navy ball: 0.20 off it)."""
 
+ROD_OFF_DEG = 8.0
+"""A doubtful measurement of a weak end is left out when, in its camera, the rod clearly leaves the other end's
+ball at least this far from the direction to it (:meth:`RefinedPath._off_the_rod`)..."""
+
+ROD_CLEAR = 0.75
+"""...along a direction where at least this share of the rod's points are darker than both its sides..."""
+
+ROD_ABSENT = 0.25
+"""...and at most this share along the direction to the measurement."""
+
 VIEW_TOLERANCE = 0.05
 """Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
 this share away from 1, a ball's outline is not a circle of the expected radius in pixels: a guided look
@@ -369,16 +379,21 @@ class RefinedPath:
         """How many cameras measured each end of a found fix by an outline of a ball's size where the fit puts
         it (within MAX_RADIUS_RATIO)."""
         assert fix.line is not None
-        ball_radius = self.loc.pointer.end_diameter_m / 2.0
         points = {self.loc.front_colour: fix.line.front_m, self.loc.back_colour: fix.line.back_m}
         sound = {colour: 0 for colour in COLOURS}
         for camera, ends in zip(self.loc.cameras, fix.measurements, strict=True):
             for colour in COLOURS:
                 m = ends.get(colour)
-                if m is None or m.source == "centroid":
-                    continue
-                sound[colour] += int(_ball_sized(m.radius_px, _ball_radius_px(camera, points[colour], ball_radius)))
+                sound[colour] += int(m is not None and self._sound(camera, m, points[colour]))
         return sound
+
+    def _sound(self, camera: CameraModel, measurement: Any, point_m: Array) -> bool:
+        """Whether an end's measurement is an outline of a ball's size at ``point_m`` (not a centroid)."""
+        if measurement.source == "centroid":
+            return False
+        return _ball_sized(
+            measurement.radius_px, _ball_radius_px(camera, point_m, self.loc.pointer.end_diameter_m / 2.0)
+        )
 
     def _after_refined(self, fix: PointerFix) -> None:
         """Remember each end's outline beside its detector's centroid, and let the detectors track the balls
@@ -647,6 +662,77 @@ class RefinedPath:
         return sign * plane.normal, sign * plane.offset_m
 
     def _fix_from_measurements(
+        self,
+        per_camera: list[dict[str, Any]],
+        init: tuple[Array, Array] | None,
+        detections: tuple,
+        start: int,
+        images: Sequence[NDArray[np.uint8]],
+    ) -> PointerFix:
+        """The pointer fit on each camera's end measurements (None where a camera does not see an end), fitted
+        again without a doubtful measurement that the rod says is not its ball (:meth:`_off_the_rod`)."""
+        fix = self._fit_measurements(per_camera, init, detections, start, images)
+        if not fix.found:
+            return fix
+        off = self._off_the_rod(images, fix)
+        if not off:
+            return fix
+        assert fix.line is not None
+        kept = [dict(ends) for ends in fix.measurements]
+        for camera, colour, _ in off:
+            kept[camera][colour] = None
+        refit = self._fit_measurements(kept, (fix.line.front_m, fix.line.back_m), detections, start, images)
+        if refit.found:
+            return refit
+        camera, colour, degrees = off[0]
+        other = "blue" if colour == "red" else "red"
+        why = f"the rod leaves camera {camera}'s {other} ball {degrees:.0f} degrees away from its {colour} candidate"
+        if refit.status != "not_found":
+            return replace(refit, reason=f"{refit.reason} (without camera {camera}'s {colour} candidate: {why})")
+        reason = f"{why}, and fewer than two cameras measured the {colour} end otherwise"
+        return replace(refit, reason=reason)
+
+    def _off_the_rod(self, images: Sequence[NDArray[np.uint8]], fix: PointerFix) -> list[tuple[int, str, float]]:
+        """Doubtful measurements of an end resting on fewer than two sound outlines (a centroid, or an outline
+        of the wrong size for a ball where the fit puts it) that the rod contradicts: in their camera, the rod
+        clearly leaves the other end's sound ball ROD_OFF_DEG or more away from them, and no rod leads to them
+        (trackerd/detect/rod.py). Returns (camera, colour, degrees off) for each."""
+        from trackerd.detect.rod import rod_bearing
+
+        assert fix.line is not None
+        sound = self._sound_ends(fix)
+        if min(sound.values()) >= 2:
+            return []
+        pointer = self.loc.pointer
+        rod_share = pointer.rod_diameter_m / pointer.end_diameter_m
+        points = {self.loc.front_colour: fix.line.front_m, self.loc.back_colour: fix.line.back_m}
+        off = []
+        for index, (camera, ends) in enumerate(zip(self.loc.cameras, fix.measurements, strict=True)):
+            for colour, other in (("red", "blue"), ("blue", "red")):
+                doubtful, anchor = ends.get(colour), ends.get(other)
+                if sound[colour] >= 2 or doubtful is None or anchor is None:
+                    continue
+                if self._sound(camera, doubtful, points[colour]) or not self._sound(camera, anchor, points[other]):
+                    continue
+                bearing = rod_bearing(
+                    images[index],
+                    self.loc.grids[index],
+                    anchor.centre_px,
+                    anchor.radius_px,
+                    doubtful.centre_px,
+                    doubtful.radius_px,
+                    rod_share * anchor.radius_px,
+                )
+                if (
+                    bearing is not None
+                    and bearing.evidence >= ROD_CLEAR
+                    and bearing.evidence_toward <= ROD_ABSENT
+                    and abs(bearing.offset_deg) >= ROD_OFF_DEG
+                ):
+                    off.append((index, colour, abs(bearing.offset_deg)))
+        return off
+
+    def _fit_measurements(
         self,
         per_camera: list[dict[str, Any]],
         init: tuple[Array, Array] | None,
