@@ -295,17 +295,28 @@ def test_an_end_on_one_sound_outline_is_searched_for_in_every_camera() -> None:
     assert blue_cameras == [0, 2, 3]
 
 
-def test_a_candidate_the_rod_does_not_lead_to_is_not_taken_for_a_hidden_end() -> None:
-    """`trackerd bench robustness --seed 11`, installation 12, frame 14: the blue ball hidden from camera 0 by
-    the presenter's navy sleeve, whose edge beside the rod (0.64 of a ball's size) was taken for it and paired
-    with the blue ball in camera 1: a hit 1.66 m off at 89 mm sigma. In camera 0 the rod leaves the red ball 14
-    degrees away from that edge (trackerd/detect/rod.py): not found, and the reason says so."""
+@pytest.mark.parametrize(
+    ("installation", "number", "hidden", "reason"),
+    [(12, 14, "blue", "the rod leaves camera 0's red ball"), (27, 19, "red", "the rod leaves camera 0's blue ball")],
+)
+def test_a_candidate_the_rod_does_not_lead_to_is_not_taken_for_a_hidden_end(
+    installation: int, number: int, hidden: str, reason: str
+) -> None:
+    """`trackerd bench robustness --seed 11`, two frames where one end is hidden (or mostly) from camera 0 and
+    something of its colour there was paired with the ball in camera 1. Installation 12 frame 14: the
+    presenter's navy sleeve hides the blue ball, and its edge beside the rod (0.64 of a ball's size) made a
+    hit 1.66 m off at 89 mm sigma; the rod leaves the red ball 14 degrees away from that edge. Installation
+    27 frame 19: the red ball 41 % visible, and a red thing of a ball's size but another shade (green 0.80
+    of its red, the ball's 0.28) made a hit 170 mm off at 22 mm sigma; the rod leaves the blue ball 24
+    degrees away from it (trackerd/detect/rod.py, RefinedPath._off_the_rod). No hit, and the reason says
+    why."""
     from trackerd.bench.robustness import draw_installation, drawn_frames, renderer_for
 
-    drawn, rng = draw_installation(11, 12)
+    drawn, rng = draw_installation(11, installation)
     assert drawn.rig.wall is not None
-    frame = list(drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, 15))[14]
-    assert [round(v.truth.visible_fraction("blue"), 1) for v in frame.views] == [0.0, 1.0]
+    frame = list(drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, number + 1))[number]
+    seeing = [v.truth.visible_fraction(hidden) for v in frame.views]
+    assert len(seeing) == 2 and seeing[0] < 0.6 <= seeing[1], seeing
     fix = Locator(drawn.rig, cameras=drawn.cameras).locate([v.image for v in frame.views])
-    assert fix.hit is None and fix.status == "not_found", (fix.status, fix.uncertainty_m)
-    assert fix.reason is not None and "the rod leaves camera 0's red ball" in fix.reason, fix.reason
+    assert fix.hit is None and fix.status in ("not_found", "rejected"), (fix.status, fix.uncertainty_m)
+    assert fix.reason is not None and reason in fix.reason, fix.reason
