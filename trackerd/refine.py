@@ -661,19 +661,11 @@ class RefinedPath:
         sign = 1.0 if float(np.mean(plane.signed_distance_m(self.loc._centres))) >= 0 else -1.0
         return sign * plane.normal, sign * plane.offset_m
 
-    def _fix_from_measurements(
-        self,
-        per_camera: list[dict[str, Any]],
-        init: tuple[Array, Array] | None,
-        detections: tuple,
-        start: int,
-        images: Sequence[NDArray[np.uint8]],
+    def _checked_by_rod(
+        self, fix: PointerFix, detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
     ) -> PointerFix:
-        """The pointer fit on each camera's end measurements (None where a camera does not see an end), fitted
-        again without the measurements that the rod says are not their ball (:meth:`_off_the_rod`)."""
-        fix = self._fit_measurements(per_camera, init, detections, start, images)
-        if not fix.found:
-            return fix
+        """A found fix fitted again without the measurements that the rod says are not their ball
+        (:meth:`_off_the_rod`); not found when an end is left with fewer than two cameras."""
         off = self._off_the_rod(images, fix)
         if not off:
             return fix
@@ -681,7 +673,9 @@ class RefinedPath:
         kept = [dict(ends) for ends in fix.measurements]
         for camera, colour, _ in off:
             kept[camera][colour] = None
-        refit = self._fit_measurements(kept, (fix.line.front_m, fix.line.back_m), detections, start, images)
+        refit = self._fix_from_measurements(
+            kept, (fix.line.front_m, fix.line.back_m), detections, start, images, check_rod=False
+        )
         if refit.found:
             return refit
         camera, colour, degrees = off[0]
@@ -729,15 +723,17 @@ class RefinedPath:
                     off.append((index, colour, abs(bearing.offset_deg)))
         return off
 
-    def _fit_measurements(
+    def _fix_from_measurements(
         self,
         per_camera: list[dict[str, Any]],
         init: tuple[Array, Array] | None,
         detections: tuple,
         start: int,
         images: Sequence[NDArray[np.uint8]],
+        check_rod: bool = True,
     ) -> PointerFix:
-        """The pointer fit on each camera's end measurements (None where a camera does not see an end)."""
+        """The pointer fit on each camera's end measurements (None where a camera does not see an end); a found
+        fix then checked against the rod (:meth:`_checked_by_rod`) unless ``check_rod`` is false."""
         front, back = self.loc.front_colour, self.loc.back_colour
         centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS} for ends in per_camera)
         used = [i for i, ends in enumerate(per_camera) if ends[front] is not None or ends[back] is not None]
@@ -863,15 +859,16 @@ class RefinedPath:
             uncertainty = float(np.sqrt(max(np.trace(covariance), 0.0)))
         except GeometryError:
             pass
-        fix = self.loc._judge(line, centroids, uncertainty_m=uncertainty)
-        return PointerFix(
-            fix.status,
-            fix.reason,
-            fix.centroids_px,
-            fix.line,
-            fix.hit,
-            fix.uncertainty_m,
+        judged = self.loc._judge(line, centroids, uncertainty_m=uncertainty)
+        fix = PointerFix(
+            judged.status,
+            judged.reason,
+            judged.centroids_px,
+            judged.line,
+            judged.hit,
+            judged.uncertainty_m,
             {"triangulate_ns": time.perf_counter_ns() - start},
             detections,
             tuple(dict(ends) for ends in per_camera),
         )
+        return self._checked_by_rod(fix, detections, start, images) if check_rod and fix.found else fix
