@@ -297,7 +297,7 @@ def test_an_end_on_one_sound_outline_is_searched_for_in_every_camera() -> None:
 
 @pytest.mark.parametrize(
     ("installation", "number", "hidden", "reason"),
-    [(12, 14, "blue", "the rod leaves camera 0's red ball"), (27, 19, "red", "the rod leaves camera 0's blue ball")],
+    [(12, 14, "blue", "the rod leaves cam0's red ball"), (27, 19, "red", "the rod leaves cam0's blue ball")],
 )
 def test_a_candidate_the_rod_does_not_lead_to_is_not_taken_for_a_hidden_end(
     installation: int, number: int, hidden: str, reason: str

@@ -665,26 +665,34 @@ class RefinedPath:
         self, fix: PointerFix, detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
     ) -> PointerFix:
         """A found fix fitted again without the measurements that the rod says are not their ball
-        (:meth:`_off_the_rod`); not found when an end is left with fewer than two cameras."""
+        (:meth:`_off_the_rod`): not found when an end is left with fewer than two cameras, rejected when what
+        is left makes no pointer."""
         off = self._off_the_rod(images, fix)
         if not off:
             return fix
         assert fix.line is not None
         kept = [dict(ends) for ends in fix.measurements]
-        for camera, colour, _ in off:
-            kept[camera][colour] = None
-        refit = self._fix_from_measurements(
-            kept, (fix.line.front_m, fix.line.back_m), detections, start, images, check_rod=False
-        )
+        for index, colour, _ in off:
+            kept[index][colour] = None
+        # Started afresh where two cameras still see both ends (the first estimate's length and ray-gap checks
+        # judge what is left), otherwise from the fix: its line is wrong only where the left-out ends put it.
+        both = sum(1 for ends in kept if all(ends.get(c) is not None for c in COLOURS))
+        init = None if both >= 2 else (fix.line.front_m, fix.line.back_m)
+        refit = self._fix_from_measurements(kept, init, detections, start, images, check_rod=False)
         if refit.found:
             return refit
-        camera, colour, degrees = off[0]
+        timings = {"triangulate_ns": time.perf_counter_ns() - start}
+        seeing = {c: sum(1 for ends in kept if ends.get(c) is not None) for c in COLOURS}
+        # Name a left-out measurement of an end now seen by fewer than two cameras, when there is one.
+        index, colour, degrees = min(off, key=lambda o: seeing[o[1]])
         other = "blue" if colour == "red" else "red"
-        why = f"the rod leaves camera {camera}'s {other} ball {degrees:.0f} degrees away from its {colour} candidate"
-        if refit.status != "not_found":
-            return replace(refit, reason=f"{refit.reason} (without camera {camera}'s {colour} candidate: {why})")
-        reason = f"{why}, and fewer than two cameras measured the {colour} end otherwise"
-        return replace(refit, reason=reason)
+        camera_id = self.loc.cameras[index].camera_id
+        why = f"the rod leaves {camera_id}'s {other} ball {degrees:.0f} degrees away from its {colour} candidate"
+        if seeing[colour] >= 2:
+            reason = f"{refit.reason} (without {camera_id}'s {colour} candidate: {why})"
+        else:
+            reason = f"{why}, and fewer than two cameras measured the {colour} end otherwise"
+        return replace(refit, reason=reason, timings_ns=timings)
 
     def _off_the_rod(self, images: Sequence[NDArray[np.uint8]], fix: PointerFix) -> list[tuple[int, str, float]]:
         """End measurements that the rod contradicts: in their camera, the rod clearly leaves the other end's
@@ -699,7 +707,7 @@ class RefinedPath:
         pointer = self.loc.pointer
         rod_share = pointer.rod_diameter_m / pointer.end_diameter_m
         points = {self.loc.front_colour: fix.line.front_m, self.loc.back_colour: fix.line.back_m}
-        off = []
+        off: list[tuple[int, str, float]] = []
         for index, (camera, ends) in enumerate(zip(self.loc.cameras, fix.measurements, strict=True)):
             for colour, other in (("red", "blue"), ("blue", "red")):
                 measured, anchor = ends.get(colour), ends.get(other)
@@ -730,6 +738,7 @@ class RefinedPath:
         detections: tuple,
         start: int,
         images: Sequence[NDArray[np.uint8]],
+        *,
         check_rod: bool = True,
     ) -> PointerFix:
         """The pointer fit on each camera's end measurements (None where a camera does not see an end); a found

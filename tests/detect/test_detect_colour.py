@@ -124,19 +124,24 @@ def test_green_at_reads_green_pixels() -> None:
         assert np.all(green_at(frame, grid, points) == 77)
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
-def test_brightest_at_reads_the_brightest_colour_of_each_cell(fmt: str) -> None:
-    """The largest of a pixel's colours, in every layout: on a mosaic, of the 2 x 2 cell holding it (a red
-    surface is bright there though its green is dark; the rod is dark in all)."""
-    rng = np.random.default_rng(3)
-    rgb = np.repeat(np.repeat(rng.integers(0, 256, (5, 6, 3), dtype=np.uint8), 2, axis=0), 2, axis=1)
-    frame = from_rgb(rgb, fmt)
-    grid = sample_grid(fmt, 12, 10)
-    points = np.array([[0.2, 0.1], [5.4, 3.6], [10.9, 8.7], [7.0, 2.0], [-3.0, 40.0]])
-    edge = 2 if fmt.startswith("Bayer") else 1
-    x = np.rint(points[:, 0]).astype(int).clip(0, 12 - edge)
-    y = np.rint(points[:, 1]).astype(int).clip(0, 10 - edge)
-    assert np.array_equal(brightest_at(frame, grid, points), rgb[y, x].max(axis=-1))
+def test_brightest_at_reads_the_brightest_sample_of_a_pixels_cell() -> None:
+    """On a mosaic, the largest of the four samples of the 2 x 2 cell holding the nearest pixel (a red
+    surface is bright there though its green is dark; the rod is dark in all), the cell kept inside the
+    frame; on RGB8 / BGR8, the nearest pixel's largest channel."""
+    mosaic = np.arange(8 * 8, dtype=np.uint8).reshape(8, 8)  # every sample different, larger down and right
+    mosaic[2, 5] = 250  # one bright sample: its cell is rows 2-3, columns 4-5
+    grid = sample_grid("BayerRG8", 8, 8)
+    points = np.array([[0.2, 0.1], [4.4, 3.4], [5.0, 2.0], [6.6, 0.4], [7.9, 7.9], [-3.0, 40.0]])
+    # cells (rows, cols): (0-1, 0-1), (2-3, 4-5), (2-3, 4-5), (0-1, 6-7), clamped (6-7, 6-7), clamped (6-7, 0-1)
+    expected = [mosaic[1, 1], 250, 250, mosaic[1, 7], mosaic[7, 7], mosaic[7, 1]]
+    assert brightest_at(mosaic, grid, points).tolist() == [float(v) for v in expected]
+    rgb = np.zeros((8, 8, 3), dtype=np.uint8)
+    rgb[2, 5] = (200, 10, 30)
+    rgb[7, 7] = (5, 90, 7)
+    for fmt, frame in (("RGB8", rgb), ("BGR8", rgb[..., ::-1].copy())):
+        grid = sample_grid(fmt, 8, 8)
+        got = brightest_at(frame, grid, np.array([[5.2, 1.6], [4.4, 2.0], [9.0, 7.0]]))
+        assert got.tolist() == [200.0, 0.0, 90.0], fmt
 
 
 def test_mono_and_unknown_formats_are_refused() -> None:
