@@ -86,7 +86,8 @@ ROD_CLEAR = 0.75
 """...along a direction where at least this share of the rod's points are darker than both its sides..."""
 
 ROD_ABSENT = 0.25
-"""...and at most this share along the direction to the measurement."""
+"""...and at most this share along any direction within :data:`trackerd.detect.rod.NEAR_DEG` of the one to the
+measurement."""
 
 VIEW_TOLERANCE = 0.05
 """Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
