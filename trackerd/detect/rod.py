@@ -26,9 +26,9 @@ from numpy.typing import NDArray
 from trackerd.detect.colour import SampleGrid, brightest_at
 
 ROD_CONTRAST = 12.0
-"""Grey levels by which a point on the rod must be darker than both sides of it to count, in the brightest
+"""Grey levels by which a point on the rod must be darker than both sides of it to count: here in the brightest
 of its colours (:func:`~trackerd.detect.colour.brightest_at`: the rod is dark in all three, a red picture
-only in green and blue)."""
+only in green and blue), in :func:`trackerd.detect.select.rod_evidence` in green."""
 
 FAN_DEG = 40
 """Directions examined, either side of the one asked about (whole degrees)."""

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from trackerd.detect.candidates import Candidate, Rejects
 from trackerd.detect.colour import SampleGrid, green_at
+from trackerd.detect.rod import ROD_CONTRAST
 
 AREA_RATIO_SIGMA = 0.7
 """Spread of log(area ratio) of a true pair: a ratio of 2 scores 0.61, of 4 scores 0.14."""
@@ -43,8 +44,6 @@ PREVIOUS_AREA_SIGMA = 0.7
 """Spread of log(area / previous area) between consecutive frames while tracking."""
 
 ROD_SAMPLES = 12
-ROD_CONTRAST = 12.0
-"""Grey levels (green) by which the rod must be darker than both its sides at a point to count."""
 
 MAX_ROD_CHECKS = 4
 """Pairs whose rod is looked for, at most, per image."""
