@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from tests.rooms import POINTER, room, waved
-from trackerd.detect.colour import sample_grid
-from trackerd.detect.rod import FAN_STEP_DEG, rod_bearing
+from trackerd.detect.colour import brightest_at, green_at, sample_grid
+from trackerd.detect.rod import FAN_STEP_DEG, darker_share, rod_bearing
 from trackerd.refine import ROD_ABSENT, ROD_CLEAR
 
 ROD_SHARE = POINTER["rod_diameter_m"] / POINTER["end_diameter_m"]
@@ -72,3 +72,31 @@ def test_beside_a_candidate_touching_the_ball_the_rod_is_found_where_it_leaves()
         assert abs(bearing.offset_deg + 20.0) <= 2 * FAN_STEP_DEG, bearing
         checked += 1
     assert checked == 6
+
+
+def test_a_dark_line_over_a_red_picture_shows_in_the_brightest_colour_not_in_green() -> None:
+    """The shared measurement under both uses: a grey line drawn 30 degrees from +x on a saturated red
+    surface. Read in each pixel's brightest colour (the rod's check) it is there and nowhere else; read in
+    green (the selection's rod evidence) it cannot show, since green is as dark off the line as on it."""
+    grid = sample_grid("RGB8", 200, 160)
+    frame = np.zeros(grid.frame_shape, np.uint8)
+    frame[..., 0] = 220  # red picture
+    frame[..., 1] = 30
+    frame[..., 2] = 40
+    origin = np.array([40.0, 40.0])
+    yy, xx = np.mgrid[0:160, 0:200]
+    line = np.array([math.cos(math.radians(30)), math.sin(math.radians(30))])
+    distance_off = np.abs((xx - origin[0]) * line[1] - (yy - origin[1]) * line[0])
+    frame[distance_off <= 1.5] = (25, 25, 25)  # the rod: dark in every colour
+    angles = np.radians(np.arange(0, 61, 2))
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+
+    bright = darker_share(frame, grid, origin, directions, 10.0, 80.0, 4.5, brightest_at)
+    green = darker_share(frame, grid, origin, directions, 10.0, 80.0, 4.5, green_at)
+
+    off_deg = np.abs(np.degrees(angles) - 30)
+    assert bright[15] == 1.0  # 30 degrees
+    # A direction a few degrees off still crosses the line near the origin, at its first point or so.
+    assert bright[off_deg > 6].max() <= 1 / 12
+    assert bright[off_deg > 14].max() == 0.0
+    assert green.max() == 0.0

@@ -18,6 +18,7 @@ to (docs/detection.md, "The rod between the ends").
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +64,37 @@ _NEAR = np.abs(_OFFSETS_DEG) <= NEAR_DEG
 _ALONG = np.linspace(0.0, 1.0, SAMPLES)
 _ACROSS = np.array([0.0, 1.0, -1.0])
 
+Brightness = Callable[[NDArray[np.uint8], SampleGrid, NDArray[np.float64]], NDArray[np.float64]]
+"""How bright a frame is at points (N, 2) given as (x, y) pixels: :func:`~trackerd.detect.colour.green_at` or
+:func:`~trackerd.detect.colour.brightest_at`."""
+
+
+def darker_share(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    origin_px: NDArray[np.float64],
+    directions: NDArray[np.float64],
+    start_px: float,
+    reach_px: float,
+    side_px: float,
+    brightness: Brightness = brightest_at,
+) -> NDArray[np.float64]:
+    """For each unit direction (D, 2) from ``origin_px``, the share of SAMPLES points spread from ``start_px``
+    to ``start_px + reach_px`` along it that are ROD_CONTRAST darker than both points ``side_px`` either side
+    of it -> (D,) in [0, 1]: how clearly a dark line (the rod) runs that way."""
+    across = np.stack([-directions[:, 1], directions[:, 0]], axis=-1)
+    t = start_px + reach_px * _ALONG  # (S,)
+    # (D, 3, S, 2): every direction's points on the line and beside it, either side.
+    points = (
+        np.asarray(origin_px, dtype=np.float64)
+        + t[None, None, :, None] * directions[:, None, None, :]
+        + (side_px * _ACROSS)[None, :, None, None] * across[:, None, None, :]
+    )
+    lum = brightness(frame, grid, points.reshape(-1, 2)).reshape(len(directions), 3, SAMPLES)
+    darker = np.minimum(lum[:, 1], lum[:, 2]) - lum[:, 0]
+    shares: NDArray[np.float64] = np.count_nonzero(darker > ROD_CONTRAST, axis=1) / SAMPLES
+    return shares
+
 
 @dataclass(frozen=True, slots=True)
 class RodBearing:
@@ -104,18 +136,7 @@ def rod_bearing(
         reach = max(longest, MIN_REACH_PX)
     angles = math.atan2(offset[1], offset[0]) + _OFFSETS_RAD
     along = np.stack([np.cos(angles), np.sin(angles)], axis=-1)  # (D, 2)
-    across = np.stack([-along[:, 1], along[:, 0]], axis=-1)
-    side = rod_half_width_px + SIDE_MARGIN_PX
-    t = start + reach * _ALONG  # (S,)
-    # (D, 3, S, 2): every direction's points on the line and beside it, either side.
-    points = (
-        np.asarray(centre_px, dtype=np.float64)
-        + t[None, None, :, None] * along[:, None, None, :]
-        + (side * _ACROSS)[None, :, None, None] * across[:, None, None, :]
-    )
-    lum = brightest_at(frame, grid, points.reshape(-1, 2)).reshape(len(angles), 3, SAMPLES)
-    darker = np.minimum(lum[:, 1], lum[:, 2]) - lum[:, 0]
-    evidence = np.count_nonzero(darker > ROD_CONTRAST, axis=1) / SAMPLES
+    evidence = darker_share(frame, grid, centre_px, along, start, reach, rod_half_width_px + SIDE_MARGIN_PX)
     # Of equally clear directions (a rod several pixels wide is dark along a few), the one nearest the
     # direction asked about.
     clearest = np.flatnonzero(evidence == evidence.max())
