@@ -84,7 +84,7 @@ def test_a_ball_merged_in_one_of_two_cameras_is_looked_for_where_the_length_puts
         asked.append((camera, colour))
         truth = _ball(cameras[camera], RED, "red")
         near = np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0
-        return truth if colour == "red" and near else None
+        return [truth] if colour == "red" and near else []
 
     assert isinstance(_choose(candidates, cameras), str)  # without looking: no red point
     choice = _choose(candidates, cameras, look)
@@ -109,12 +109,43 @@ def test_a_ball_is_looked_for_even_where_a_side_on_cameras_ray_misses_the_length
 
     def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
         truth = _ball(cameras[camera], RED, "red")
-        return truth if colour == "red" and np.hypot(*(truth.fit.centre_px - [x, y])) < 20.0 else None
+        return [truth] if colour == "red" and np.hypot(*(truth.fit.centre_px - [x, y])) < 20.0 else []
 
     choice = _choose(candidates, cameras, look)
     assert isinstance(choice, JointChoice), choice
     assert choice.chosen[1]["red"] is not None
     assert np.linalg.norm(choice.red_m - RED) < 0.01
+
+
+def test_a_look_s_next_outline_is_asked_for_when_the_first_is_not_where_the_ball_must_be() -> None:
+    """A look may first fit a round outline a radius away from the ball (a dark ball before a brighter
+    picture of its hue, in its colour's excess) and the ball itself only in a later pass (in its tint):
+    the first is not where the pointer's length puts the ball, so the next is asked for, and taken; none
+    after it is made."""
+    cameras = CAMERAS[:2]
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, BLUE, "blue")]} for cam in cameras]
+    candidates[1]["red"] = []
+    made: list[list] = []  # per look, the outlines it made
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
+        if colour != "red":
+            return
+        made.append([])
+        truth = _ball(cameras[camera], RED, "red")
+        beside = _ball(cameras[camera], RED, "red")
+        beside.fit.centre_px[:] += [0.0, -truth.fit.radius_px]  # a radius above the ball
+        for outline in (beside, truth, truth):
+            made[-1].append(outline)
+            yield outline
+
+    choice = _choose(candidates, cameras, look)
+    assert isinstance(choice, JointChoice), choice
+    assert np.linalg.norm(choice.red_m - RED) < 1e-6
+    assert choice.chosen[1]["red"] is not None
+    assert np.allclose(choice.chosen[1]["red"].fit.centre_px, _ball(cameras[1], RED, "red").fit.centre_px)
+    # Where the ball was taken, its outline was the second made and no third was; elsewhere (the length's
+    # sphere crossed twice) nothing was where the ball must be, and all three were made.
+    assert sorted(len(outlines) for outlines in made)[0] == 2
 
 
 def test_no_pointer_is_a_reason() -> None:
@@ -140,7 +171,7 @@ def test_what_a_look_finds_is_not_looked_from_again() -> None:
     def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
         asked.append((camera, colour))
         truth = _ball(CAMERAS[camera], RED if colour == "red" else BLUE, colour)
-        return truth if np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0 else None
+        return [truth] if np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0 else []
 
     choice = _choose(candidates, look=look)
     assert isinstance(choice, JointChoice), choice

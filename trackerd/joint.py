@@ -20,7 +20,7 @@ colour, which candidate (or none), so the pointer fit
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,10 +67,12 @@ class JointChoice:
     """How many other consistent combinations there were."""
 
 
-Look = Callable[[int, str, float, float, float, "tuple[float, float] | None"], "Candidate | None"]
-"""``look(camera, colour, x_px, y_px, radius_px, axis)``: fit a ball of that colour where the geometry says
-one should be, in a camera whose search did not offer it (it merged with something of its colour); ``axis``
-is the image direction towards the pointer's other ball (where the rod meets this one), when known."""
+Look = Callable[[int, str, float, float, float, "tuple[float, float] | None"], "Iterable[Candidate]"]
+"""``look(camera, colour, x_px, y_px, radius_px, axis)``: balls of that colour fitted where the geometry says
+one should be, in a camera whose search did not offer it (it merged with something of its colour), in order
+of preference, each made only when the one before was not taken (not where the geometry allows the ball, or
+not of its size); ``axis`` is the image direction towards the pointer's other ball (where the rod meets this
+one), when known."""
 
 GUIDED_POINTS = 4
 """Best points of one colour from which the other colour's ball is looked for, when nothing pairs."""
@@ -247,33 +249,32 @@ def _guided(
                         expected = other.focal_px * ball_radius_m / float(np.linalg.norm(point - other.centre_m))
                         partner_px = other.project(partner.point_m[None])[0]
                         axis = (float(partner_px[0] - px[0]), float(partner_px[1] - px[1]))
-                        seen = look(
+                        for seen in look(
                             c,
                             colour,
                             float(px[0]),
                             float(px[1]),
                             expected,
                             axis if np.all(np.isfinite(partner_px)) else None,
-                        )
-                        if seen is None:
-                            continue
-                        miss = (
-                            _miss_px(
-                                seen.fit.centre_px,
-                                px,
-                                other,
-                                cam.centre_m + (s - reach) * d,
-                                cam.centre_m + (s + reach) * d,
+                        ):
+                            miss = (
+                                _miss_px(
+                                    seen.fit.centre_px,
+                                    px,
+                                    other,
+                                    cam.centre_m + (s - reach) * d,
+                                    cam.centre_m + (s + reach) * d,
+                                )
+                                if reach > 0
+                                else float(np.hypot(*(seen.fit.centre_px - px)))
                             )
-                            if reach > 0
-                            else float(np.hypot(*(seen.fit.centre_px - px)))
-                        )
-                        size = seen.fit.radius_px / expected
-                        if miss < max(3.0, 0.5 * expected) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
-                            candidates[c][colour].append(seen)
-                            members[c] = len(candidates[c][colour]) - 1
-                            # Where it was found against where the geometry put it (a ray gap, in effect).
-                            score += (miss / max(1.0, 0.1 * expected)) ** 2 + (math.log(size) / SIZE_SCALE) ** 2
+                            size = seen.fit.radius_px / expected
+                            if miss < max(3.0, 0.5 * expected) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                                candidates[c][colour].append(seen)
+                                members[c] = len(candidates[c][colour]) - 1
+                                # Where it was found against where the geometry put it (a ray gap, in effect).
+                                score += (miss / max(1.0, 0.1 * expected)) ** 2 + (math.log(size) / SIZE_SCALE) ** 2
+                                break
                     if len(members) >= 2:
                         found.append(_Point(point, members, score - EXTRA_CAMERA_BONUS * (len(members) - 2)))
     found.sort(key=lambda p: p.score)

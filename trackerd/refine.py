@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -127,12 +127,28 @@ def guided_fit(
     view: Array | None = None,
     vivid: bool = False,
 ) -> BallFit | None:
+    """The first of :func:`guided_fits`, or None."""
+    return next(guided_fits(image, grid, colour, x_px, y_px, radius_px, axis, view, vivid), None)
+
+
+def guided_fits(
+    image: NDArray[np.uint8],
+    grid: SampleGrid,
+    colour: str,
+    x_px: float,
+    y_px: float,
+    radius_px: float,
+    axis: tuple[float, float] | None,
+    view: Array | None = None,
+    vivid: bool = False,
+) -> Iterator[BallFit]:
     """The ball looked for where the geometry puts it (centre, image radius, and the direction where the rod
-    meets it), for the joint choice's ``look``: its outline if it is round within
-    :func:`guided_scatter_limit_px` and of the pointer's colour (:func:`_of_its_colour`), else None. Tried in
-    its colour's excess, then as touching something of its colour (below), then in its tint
-    (:func:`ball_tint`). With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the circle and
-    its scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
+    meets it), for the joint choice's ``look``: its outlines that are round within
+    :func:`guided_scatter_limit_px`, in order of preference, each made only when the one before was not
+    taken; none after one not of the pointer's colour (:func:`_of_its_colour`: then something else is
+    there). Fitted in its colour's excess, then as touching something of its colour (below), then in its
+    tint (:func:`ball_tint`). With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the
+    circle and its scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
 
     The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
     takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails the ball may
@@ -140,7 +156,12 @@ def guided_fit(
     thing's far edge, and a larger circle through the ball's arc and that edge fits best. So it is fitted
     again with the radius at most TOUCHING_LARGEST of the geometry's and the rims no such circle centred
     within TOUCHING_SLACK_PX of the start can pass through left out. ``vivid``: its colour may pass the
-    search's looser test instead (:func:`trackerd.detect.search.vivid_mask`; the search's last resort)."""
+    search's looser test instead (:func:`trackerd.detect.search.vivid_mask`; the search's last resort).
+
+    The caller judges each outline against where the geometry allows the ball and asks for the next when it
+    is not there: a dark ball before a brighter picture of its hue can give, in the excess, a round outline
+    a radius away from it, while its tint gives the ball (`bench robustness --seed 11`, installation 29,
+    frame 16: 8 px from where the look started, on a ball of 8 px)."""
     from trackerd.detect.ballfit import fit_ball
 
     # Plain first; then as a ball touching something of its colour; last in its tint.
@@ -155,7 +176,7 @@ def guided_fit(
             # in the direction (in colour) from the picture to the ball.
             tint = ball_tint(image, grid, colour, x_px, y_px, radius_px)
             if tint is None:
-                return None
+                return
         fit = fit_ball(
             image,
             grid,
@@ -171,8 +192,9 @@ def guided_fit(
             tint=tint,
         )
         if fit.found and fit.residual_px <= guided_scatter_limit_px(radius_px):
-            return fit if _of_its_colour(image, grid, colour, fit, view, vivid) else None
-    return None
+            if not _of_its_colour(image, grid, colour, fit, view, vivid):
+                return
+            yield fit
 
 
 def _of_its_colour(
@@ -434,16 +456,20 @@ class RefinedPath:
 
         def look(
             camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
-        ) -> Candidate | None:
+        ) -> Iterator[Candidate]:
             # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
             # size, which is its size in pixels only near the lens's axis (VIEW_TOLERANCE).
             grid = self.loc.grids[camera]
-            fit = guided_fit(images[camera], grid, colour, x_px, y_px, radius_px, axis, vivid=vivid)
-            if fit is None:
-                local = self._view_at(camera, VIEW_TOLERANCE)(x_px, y_px)
-                if local is not None:
-                    fit = guided_fit(images[camera], grid, colour, x_px, y_px, radius_px, axis, view=local, vivid=vivid)
-            return None if fit is None else Candidate(colour, fit, (x_px, y_px), radius_px)
+            found = False
+            for fit in guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, vivid=vivid):
+                found = True
+                yield Candidate(colour, fit, (x_px, y_px), radius_px)
+            if found:
+                return
+            local = self._view_at(camera, VIEW_TOLERANCE)(x_px, y_px)
+            if local is not None:
+                for fit in guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, local, vivid):
+                    yield Candidate(colour, fit, (x_px, y_px), radius_px)
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(
