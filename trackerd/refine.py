@@ -62,7 +62,7 @@ is no outline to fit."""
 TOUCHING_LARGEST = 1.05
 """Where that fails, the ball may touch something of its colour; it is fitted again with its radius at most
 this factor of the geometry's (an outline's rim lies on or just inside the ball's silhouette; a circle through
-the ball's arc and the far edge of a letter it touches is larger; :func:`guided_fit`)..."""
+the ball's arc and the far edge of a letter it touches is larger; :func:`guided_fits`)..."""
 
 TOUCHING_SLACK_PX = 3.0
 """...and the rim points that no such circle centred within this of where the geometry puts the ball can
@@ -116,21 +116,6 @@ def guided_scatter_limit_px(radius_px: float) -> float:
     return max(MAX_GUIDED_RESIDUAL_PX, MAX_GUIDED_RESIDUAL_SHARE * radius_px)
 
 
-def guided_fit(
-    image: NDArray[np.uint8],
-    grid: SampleGrid,
-    colour: str,
-    x_px: float,
-    y_px: float,
-    radius_px: float,
-    axis: tuple[float, float] | None,
-    view: Array | None = None,
-    vivid: bool = False,
-) -> BallFit | None:
-    """The first of :func:`guided_fits`, or None."""
-    return next(guided_fits(image, grid, colour, x_px, y_px, radius_px, axis, view, vivid), None)
-
-
 def guided_fits(
     image: NDArray[np.uint8],
     grid: SampleGrid,
@@ -157,6 +142,7 @@ def guided_fits(
     again with the radius at most TOUCHING_LARGEST of the geometry's and the rims no such circle centred
     within TOUCHING_SLACK_PX of the start can pass through left out. ``vivid``: its colour may pass the
     search's looser test instead (:func:`trackerd.detect.search.vivid_mask`; the search's last resort).
+    ``next(guided_fits(...), None)`` is the preferred outline, or None.
 
     The caller judges each outline against where the geometry allows the ball and asks for the next when it
     is not there: a dark ball before a brighter picture of its hue can give, in the excess, a round outline

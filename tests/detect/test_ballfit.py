@@ -170,7 +170,7 @@ def test_a_ball_in_the_corner_of_a_letter_of_its_colour_is_found_where_the_geome
     the guided fit's best circle ran through the ball's arc and that edge, larger than any ball there, so
     the joint choice's look found nothing (`bench robustness`, red text). The look leaves out the rims no
     circle of the ball's size near where the geometry puts it can pass through (trackerd/refine.py)."""
-    from trackerd.refine import GUIDED_SIZE, guided_fit
+    from trackerd.refine import GUIDED_SIZE, guided_fits
 
     grid = sample_grid("BayerRG8", 240, 150)
     failed_before = 0
@@ -194,7 +194,7 @@ def test_a_ball_in_the_corner_of_a_letter_of_its_colour_is_found_where_the_geome
                 rising_rims=True,
             )
             failed_before += not before.found
-            fit = guided_fit(frame, grid, "red", *start, radius, None)
+            fit = next(guided_fits(frame, grid, "red", *start, radius, None), None)
             assert fit is not None, (letter, radius, beyond)
             assert np.hypot(*(fit.centre_px - [x, y])) < 1.0, (letter, radius, beyond, fit.centre_px)
     assert failed_before >= 3
@@ -206,7 +206,7 @@ def test_a_guided_look_takes_a_ball_of_the_pointers_colour_not_any_round_thing_t
     has an outline in the red excess as clean as a ball's. The look took it (`bench robustness` seed 7,
     installation 23, frame 38: a hit 736 mm off at 17 sigma); it now must be of the pointer's colour. Dark
     and dull red balls, which the search's hue test passes, are still found."""
-    from trackerd.refine import guided_fit
+    from trackerd.refine import guided_fits
 
     grid = sample_grid("BayerRG8", 240, 150)
     wall = tuple(0.8 * c for c in WALL)
@@ -221,7 +221,7 @@ def test_a_guided_look_takes_a_ball_of_the_pointers_colour_not_any_round_thing_t
             frame, _ = Scene(width=240, background=wall, shapes=[Shape(x, y, rgb, radius=10.0)]).render(
                 "BayerRG8", detect_rng
             )
-            fit = guided_fit(frame, grid, "red", x + 0.8, y - 0.6, 10.0, None)
+            fit = next(guided_fits(frame, grid, "red", x + 0.8, y - 0.6, 10.0, None), None)
             if is_ball:
                 assert fit is not None and np.hypot(*(fit.centre_px - [x, y])) < 1.0, (rgb, x, y)
             else:
