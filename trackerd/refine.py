@@ -136,7 +136,8 @@ def guided_fits(
     circle and its scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
 
     The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
-    takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails the ball may
+    takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails (or the caller
+    refuses the outline) the ball may
     touch something of its colour (a letter, a picture): on those rays the colour falls only at that
     thing's far edge, and a larger circle through the ball's arc and that edge fits best. So it is fitted
     again with the radius at most TOUCHING_LARGEST of the geometry's and the rims no such circle centred
@@ -454,7 +455,9 @@ class RefinedPath:
                 return
             local = self._view_at(camera, VIEW_TOLERANCE)(x_px, y_px)
             if local is not None:
-                for fit in guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, local, vivid):
+                for fit in guided_fits(
+                    images[camera], grid, colour, x_px, y_px, radius_px, axis, view=local, vivid=vivid
+                ):
                     yield Candidate(colour, fit, (x_px, y_px), radius_px)
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:

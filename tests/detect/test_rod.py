@@ -85,9 +85,9 @@ def test_a_dark_line_over_a_red_picture_shows_in_the_brightest_colour_not_in_gre
     frame[..., 2] = 40
     origin = np.array([40.0, 40.0])
     yy, xx = np.mgrid[0:160, 0:200]
-    line = np.array([math.cos(math.radians(30)), math.sin(math.radians(30))])
-    distance_off = np.abs((xx - origin[0]) * line[1] - (yy - origin[1]) * line[0])
-    frame[distance_off <= 1.5] = (25, 25, 25)  # the rod: dark in every colour
+    line_direction = np.array([math.cos(math.radians(30)), math.sin(math.radians(30))])
+    distance_off_px = np.abs((xx - origin[0]) * line_direction[1] - (yy - origin[1]) * line_direction[0])
+    frame[distance_off_px <= 1.5] = (25, 25, 25)  # the rod: dark in every colour
     angles = np.radians(np.arange(0, 61, 2))
     directions = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
 

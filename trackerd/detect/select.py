@@ -101,8 +101,8 @@ def rod_evidence(
     # In green, as this choice was built and measured; the rod's check on a fix (trackerd.refine) reads the
     # brightest colour, since it must see the rod over a saturated picture as well.
     direction = np.array([[dx / distance, dy / distance]])
-    origin = np.array([red.x_px, red.y_px])
-    return float(darker_share(frame, grid, origin, direction, start, stop - start, side, green_at)[0])
+    origin_px = np.array([red.x_px, red.y_px])
+    return float(darker_share(frame, grid, origin_px, direction, start, stop - start, side, green_at)[0])
 
 
 def _own_score(c: Candidate, previous_area_px: float | None) -> float:
