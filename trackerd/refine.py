@@ -10,6 +10,7 @@ last ran.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -447,18 +448,18 @@ class RefinedPath:
             # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
             # size, which is its size in pixels only near the lens's axis (VIEW_TOLERANCE).
             grid = self.loc.grids[camera]
-            found = False
-            for fit in guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, vivid=vivid):
-                found = True
+            fits = guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, vivid=vivid)
+            first = next(fits, None)
+            if first is not None:
+                fits = itertools.chain([first], fits)
+            else:
+                # In the view's units only when pixels offered no outline at all.
+                local = self._view_at(camera, VIEW_TOLERANCE)(x_px, y_px)
+                if local is None:
+                    return
+                fits = guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, view=local, vivid=vivid)
+            for fit in fits:
                 yield Candidate(colour, fit, (x_px, y_px), radius_px)
-            if found:
-                return
-            local = self._view_at(camera, VIEW_TOLERANCE)(x_px, y_px)
-            if local is not None:
-                for fit in guided_fits(
-                    images[camera], grid, colour, x_px, y_px, radius_px, axis, view=local, vivid=vivid
-                ):
-                    yield Candidate(colour, fit, (x_px, y_px), radius_px)
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(
