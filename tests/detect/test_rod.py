@@ -9,7 +9,7 @@ import pytest
 
 from tests.rooms import POINTER, room, waved
 from trackerd.detect.colour import brightest_at, green_at, sample_grid
-from trackerd.detect.rod import FAN_STEP_DEG, darker_share, rod_bearing
+from trackerd.detect.rod import FAN_STEP_DEG, darker_share, rod_bearing, rod_leaving
 from trackerd.refine import ROD_ABSENT, ROD_CLEAR
 
 ROD_SHARE = POINTER["rod_diameter_m"] / POINTER["end_diameter_m"]
@@ -100,3 +100,28 @@ def test_a_dark_line_over_a_red_picture_shows_in_the_brightest_colour_not_in_gre
     assert bright[off_deg > 6].max() <= 1 / 12
     assert bright[off_deg > 14].max() == 0.0
     assert green.max() == 0.0
+
+
+def test_the_rod_is_found_all_round_a_ball_without_being_told_where_the_other_is() -> None:
+    """Asked about no direction (the other ball is not found), the clearest dark line leaving either ball is
+    the rod, towards the other ball, and no line elsewhere is as clear."""
+    checked = 0
+    for image, grid, ends in _views():
+        for colour, other in (("red", "blue"), ("blue", "red")):
+            (centre, radius), (far, _) = ends[colour], ends[other]
+            leaving = rod_leaving(image, grid, centre, radius, ROD_SHARE * radius)
+            towards = (far - centre) / np.linalg.norm(far - centre)
+            off_deg = math.degrees(math.acos(min(float(leaving.direction @ towards), 1.0)))
+            assert leaving.evidence >= ROD_CLEAR and leaving.rival < leaving.evidence, leaving
+            assert off_deg <= 2 * FAN_STEP_DEG, (off_deg, leaving)
+            checked += 1
+    assert checked == 12
+
+
+def test_no_rod_leaves_a_ball_on_a_plain_surface() -> None:
+    grid = sample_grid("RGB8", 200, 160)
+    frame = np.full(grid.frame_shape, 180, np.uint8)
+    yy, xx = np.mgrid[0:160, 0:200]
+    frame[np.hypot(xx - 100, yy - 80) <= 10] = (200, 20, 20)
+    leaving = rod_leaving(frame, grid, np.array([100.0, 80.0]), 10.0, 2.0)
+    assert leaving.evidence == 0.0

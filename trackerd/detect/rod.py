@@ -149,3 +149,57 @@ def rod_bearing(
     clearest = np.flatnonzero(evidence == evidence.max())
     best = int(clearest[np.argmin(np.abs(_OFFSETS_DEG[clearest]))])
     return RodBearing(float(_OFFSETS_DEG[best]), float(evidence[best]), float(evidence[_NEAR].max()))
+
+
+ROUND_STEP_DEG = 2
+"""Between directions looked along all round a ball, as FAN_STEP_DEG."""
+
+RIVAL_APART_DEG = 20
+"""Directions further than this from the clearest are another line (an edge, the rod's far side of a ball
+seen end-on), not the rod's own width."""
+
+_ROUND_RAD = np.radians(np.arange(0, 360, ROUND_STEP_DEG))
+_ROUND = np.stack([np.cos(_ROUND_RAD), np.sin(_ROUND_RAD)], axis=-1)
+
+
+@dataclass(frozen=True, slots=True)
+class RodLeaving:
+    """The clearest dark line leaving a ball, looked for all round it."""
+
+    direction: NDArray[np.float64]
+    """(2,) unit image direction (the mean of the equally clearest directions next to each other)."""
+    evidence: float
+    """Share of its points darker than both sides, in [0, 1]."""
+    rival: float
+    """The clearest share more than RIVAL_APART_DEG away from it."""
+
+
+def rod_leaving(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    centre_px: NDArray[np.float64],
+    radius_px: float,
+    rod_half_width_px: float,
+) -> RodLeaving:
+    """Which way the rod leaves a ball (``centre_px``, ``radius_px``) when where the other ball is is not
+    known: :func:`darker_share` all round it, over MAX_REACH_DIAMETERS of the ball's diameter beyond its rim.
+    The caller judges ``evidence`` and ``rival`` (a clear line, and no other as clear)."""
+    reach = max(MAX_REACH_DIAMETERS * 2.0 * radius_px, MIN_REACH_PX)
+    evidence = darker_share(
+        frame,
+        grid,
+        np.asarray(centre_px, dtype=np.float64),
+        _ROUND,
+        radius_px + RIM_MARGIN_PX,
+        reach,
+        rod_half_width_px + SIDE_MARGIN_PX,
+    )
+    best = int(np.argmax(evidence))
+    apart_deg = np.abs((np.arange(len(_ROUND)) - best + len(_ROUND) // 2) % len(_ROUND) - len(_ROUND) // 2)
+    apart_deg = apart_deg * ROUND_STEP_DEG
+    # The rod's width spans neighbouring directions: their mean, among those as clear as the best.
+    tied = (evidence == evidence[best]) & (apart_deg <= 2 * NEAR_DEG)
+    summed = _ROUND[tied].sum(axis=0)
+    direction = summed / float(np.hypot(summed[0], summed[1]))
+    rivals = evidence[apart_deg > RIVAL_APART_DEG]
+    return RodLeaving(direction, float(evidence[best]), float(rivals.max()) if rivals.size else 0.0)
