@@ -37,9 +37,9 @@ def _ball(cam: CameraModel, point, colour: str, radius_m: float = BALL_R) -> Can
     return Candidate(colour, fit, (float(centre[0]), float(centre[1])), radius)
 
 
-def _choose(candidates, cameras=CAMERAS, look=None):
+def _choose(candidates, cameras=CAMERAS, look=None, rod=None):
     room = (np.array([0.0, 0.0, 1.0]), 0.0)  # the wall is z = 0, the room at z > 0
-    return choose_jointly(cameras, candidates, BALL_R, LENGTH, 0.05, 0.03, room, look)
+    return choose_jointly(cameras, candidates, BALL_R, LENGTH, 0.05, 0.03, room, look, rod)
 
 
 def test_decoys_on_the_wall_and_in_one_camera_do_not_win() -> None:
@@ -146,6 +146,41 @@ def test_a_look_s_next_outline_is_asked_for_when_the_first_is_not_where_the_ball
     # Where the ball was taken, its outline was the second made and no third was; elsewhere (the length's
     # sphere crossed twice) nothing was where the ball must be, and all three were made.
     assert sorted(len(outlines) for outlines in made)[0] == 2
+
+
+def test_a_ball_no_camera_offered_is_looked_for_where_the_rod_leads() -> None:
+    """The blue ball merged with a picture of its colour in both cameras: no blue candidate anywhere, so no
+    ray to look along. The rod leaves the red ball towards it in both images; the looks along the rod's
+    image line find it (here only within 3 px of its centre, as a real look needs to start inside the
+    ball), and they triangulate. Where the rod shows in one camera only, or leads elsewhere, nothing is."""
+    cameras = CAMERAS[:2]
+    candidates = [{"red": [_ball(cam, RED, "red")], "blue": []} for cam in cameras]
+    looks: list[tuple[int, str]] = []
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
+        looks.append((camera, colour))
+        truth = _ball(cameras[camera], BLUE, "blue")
+        return [truth] if colour == "blue" and np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0 else []
+
+    def rod_towards(towards_m, cameras_showing=(0, 1)):
+        def rod(camera: int, x: float, y: float, radius: float):
+            if camera not in cameras_showing:
+                return None
+            far = cameras[camera].project(towards_m[None])[0] - [x, y]
+            return tuple(far / np.linalg.norm(far))
+
+        return rod
+
+    assert isinstance(_choose(candidates, cameras, look), str)  # without the rod
+    choice = _choose(candidates, cameras, look, rod_towards(BLUE))
+    assert isinstance(choice, JointChoice), choice
+    assert np.linalg.norm(choice.blue_m - BLUE) < 1e-6
+    assert all(picks["blue"] is not None for picks in choice.chosen)
+    looks.clear()
+    assert isinstance(_choose(candidates, cameras, look, rod_towards(BLUE, cameras_showing=(0,))), str)
+    assert looks == []  # one camera's rod is no axis
+    elsewhere = RED + (RED - BLUE)  # the rod as if it left the red ball the other way
+    assert isinstance(_choose(candidates, cameras, look, rod_towards(elsewhere)), str)
 
 
 def test_no_pointer_is_a_reason() -> None:

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from trackerd.detect.search import Candidate
 from trackerd.geometry.camera import CameraModel
+from trackerd.geometry.rod_axis import other_ball_along_rod
 
 Array = NDArray[np.float64]
 
@@ -77,6 +78,21 @@ one), when known."""
 GUIDED_POINTS = 4
 """Best points of one colour from which the other colour's ball is looked for, when nothing pairs."""
 
+RodFrom = Callable[[int, float, float, float], "tuple[float, float] | None"]
+"""``rod(camera, x_px, y_px, radius_px)``: the unit image direction in which the rod clearly leaves the ball
+measured there (and no other dark line as clearly), or None."""
+
+ROD_POINTS = 2
+"""Best points of one colour from which the rod is followed to the other colour's ball, when no camera offered
+that ball at all."""
+ROD_DIRECTION_ERROR_DEG = 3.0
+"""How far a rod's measured image direction may be off: its fan's step, and the rod's bend in a lens."""
+ROD_LOOK_STEP = 0.6
+"""Looks along the rod's image line are this many of the ball's image radii apart: a look finds a ball when it
+starts within about half a radius of its centre."""
+ROD_LOOKS = 5
+"""Looks along the rod's image line in one camera, nearest the prediction first."""
+
 
 def choose_jointly(
     cameras: list[CameraModel],
@@ -87,6 +103,7 @@ def choose_jointly(
     max_gap_m: float,
     room_side: tuple[Array, float] | None = None,
     look: Look | None = None,
+    rod: RodFrom | None = None,
 ) -> JointChoice | str:
     """The most consistent choice (see the module), or the reason there is none.
 
@@ -94,7 +111,9 @@ def choose_jointly(
     are) has positive signed distance; points behind the wall are ruled out. ``look``: when nothing
     pairs, each colour's ball is looked for with it where the pointer's length puts it from the other
     colour's best points, in the cameras whose search did not offer it; what it finds joins the
-    candidates (a copy: the caller's lists are not changed).
+    candidates (a copy: the caller's lists are not changed). ``rod``: when still no camera has a ball of
+    one colour where the geometry allows it, that ball is looked for where the rod leads from the other
+    colour's best points (:func:`_along_rod`).
     """
     candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
     rays = [_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
@@ -117,7 +136,84 @@ def choose_jointly(
                 room_side,
                 look,
             )
+    choice = _pair(points, candidates, length_m, length_tolerance_m)
+    if not isinstance(choice, str) or rod is None:
+        return choice
+    # A ball no camera offered (or whose every offer the looks refused): the rod still leads to it.
+    for colour, other in (("red", "blue"), ("blue", "red")):
+        if points[colour] or not points[other]:
+            continue
+        before = [len(per_camera[colour]) for per_camera in candidates]
+        for partner in points[other][:ROD_POINTS]:
+            _along_rod(cameras, candidates, colour, partner, ball_radius_m, length_m, look, rod)
+        if all(len(per_camera[colour]) == n for per_camera, n in zip(candidates, before, strict=True)):
+            continue
+        rays = [_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
+        points[colour] = _points(cameras, rays, colour, ball_radius_m, max_gap_m, room_side) + _guided(
+            cameras,
+            candidates,
+            colour,
+            points[other][:GUIDED_POINTS],
+            ball_radius_m,
+            length_m,
+            length_tolerance_m,
+            room_side,
+            look,
+            first=before,
+        )
+        points[colour].sort(key=lambda p: p.score)
     return _pair(points, candidates, length_m, length_tolerance_m)
+
+
+def _along_rod(
+    cameras: list[CameraModel],
+    candidates: list[dict[str, list[Candidate]]],
+    colour: str,
+    partner: _Point,
+    ball_radius_m: float,
+    length_m: float,
+    look: Look,
+    rod: RodFrom,
+) -> None:
+    """Look for the ``colour`` ball where the rod leads from ``partner`` (the other ball's point): in each
+    camera that measured the partner and shows the rod leaving it, along the rod's image line about where
+    the pointer's axis (:func:`trackerd.geometry.rod_axis.other_ball_along_rod`) puts the ball. The first
+    outline of the ball's size on that line in each camera joins ``candidates``; the caller triangulates
+    them, or looks from them into the other cameras."""
+    other = "blue" if colour == "red" else "red"
+    leaving: dict[int, tuple[Array, Array]] = {}
+    for c, k in partner.members.items():
+        fit = candidates[c][other][k].fit
+        direction = rod(c, float(fit.centre_px[0]), float(fit.centre_px[1]), float(fit.radius_px))
+        if direction is not None:
+            leaving[c] = (np.asarray(fit.centre_px, dtype=np.float64), np.asarray(direction, dtype=np.float64))
+    sightings = other_ball_along_rod(
+        cameras, partner.point_m, leaving, length_m, ball_radius_m, ROD_DIRECTION_ERROR_DEG
+    )
+    for sighting in sightings:
+        camera = cameras[sighting.camera]
+        step = ROD_LOOK_STEP * sighting.radius_px
+        steps = int((sighting.spread_px + 0.5 * sighting.radius_px) // step)
+        offsets = sorted((k * step for k in range(-steps, steps + 1)), key=abs)[:ROD_LOOKS]
+        origin = leaving[sighting.camera][0]
+        towards = (-float(sighting.along[0]), -float(sighting.along[1]))
+        for offset in offsets:
+            start = sighting.expected_px + offset * sighting.along
+            if not bool(camera.contains(start[None])[0]):
+                continue
+            taken = None
+            for seen in look(sighting.camera, colour, float(start[0]), float(start[1]), sighting.radius_px, towards):
+                # On the rod's image line (its own direction puts the ball there to a few pixels), and of the
+                # ball's size at about that distance.
+                offset_px = seen.fit.centre_px - origin
+                across = abs(float(offset_px[0] * sighting.along[1] - offset_px[1] * sighting.along[0]))
+                size = seen.fit.radius_px / sighting.radius_px
+                if across < max(3.0, 0.5 * sighting.radius_px) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                    taken = seen
+                    break
+            if taken is not None:
+                candidates[sighting.camera][colour].append(taken)
+                break
 
 
 def _pair(
@@ -195,10 +291,11 @@ def _guided(
     length_tolerance_m: float,
     room_side: tuple[Array, float] | None,
     look: Look,
+    first: list[int] | None = None,
 ) -> list[_Point]:
     """Points of ``colour`` found by looking where the pointer's length puts them: for each candidate ray
-    of ``colour`` in one camera, where it meets the sphere of the pointer's length around a partner
-    point, the other cameras are looked into (``look``).
+    of ``colour`` in one camera (from index ``first[camera]`` on, when given), where it meets the sphere of
+    the pointer's length around a partner point, the other cameras are looked into (``look``).
 
     A camera that sees the pointer side-on has its ray through one ball nearly tangent to that sphere,
     and the partner's small error can make it miss the sphere altogether: a ray passing outside it by
@@ -208,9 +305,12 @@ def _guided(
     # the pairing) but is not looked from again, or each find would seed more looks in every other camera
     # and their number would grow with every partner (a 4-camera installation made 240,000 looks).
     offered = [len(per_camera[colour]) for per_camera in candidates]
+    starts = first or [0] * len(cameras)
     for partner in partners:
         for a, cam in enumerate(cameras):
             for i, cand in enumerate(candidates[a][colour][: offered[a]]):
+                if i < starts[a]:
+                    continue
                 _, d = cam.pixel_to_ray(cand.fit.centre_px[None])
                 d = d[0] / np.linalg.norm(d[0])
                 # |c + s d - P| = L: s^2 + 2 s d.(c - P) + |c - P|^2 - L^2 = 0.

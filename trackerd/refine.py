@@ -461,6 +461,20 @@ class RefinedPath:
             for fit in fits:
                 yield Candidate(colour, fit, (x_px, y_px), radius_px)
 
+        rod_share = pointer.rod_diameter_m / pointer.end_diameter_m
+
+        def rod(camera: int, x_px: float, y_px: float, radius_px: float) -> tuple[float, float] | None:
+            # A clear dark line leaving the ball, and no other as clear (an edge of a picture, the presenter's
+            # arm): the rod, followed to a ball no camera offered.
+            from trackerd.detect.rod import rod_leaving
+
+            leaving = rod_leaving(
+                images[camera], self.loc.grids[camera], np.array([x_px, y_px]), radius_px, rod_share * radius_px
+            )
+            if leaving.evidence < ROD_CLEAR or leaving.rival >= leaving.evidence:
+                return None
+            return float(leaving.direction[0]), float(leaving.direction[1])
+
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(
                 self.loc.cameras,
@@ -471,6 +485,7 @@ class RefinedPath:
                 self.loc.rig.locator.max_ray_gap_m,
                 room,
                 look,
+                rod,
             )
 
         # The plain candidates first; then, while their choice makes no pointer or one whose weaker end rests on
