@@ -183,6 +183,36 @@ def test_a_ball_no_camera_offered_is_looked_for_where_the_rod_leads() -> None:
     assert isinstance(_choose(candidates, cameras, look, rod_towards(elsewhere)), str)
 
 
+def test_balls_each_offered_by_a_different_camera_are_looked_for_along_their_epipolar_lines() -> None:
+    """The red ball offered by the left camera only, the blue by the right only: nothing triangulates, so
+    there is no point to look from. Each candidate the rod leaves is looked for along its epipolar line in
+    the other camera, between the distances its image size allows; both finds triangulate and pair. Where
+    no rod leaves them (blobs of a picture), they are not looked from."""
+    cameras = CAMERAS[:2]
+    candidates = [
+        {"red": [_ball(cameras[0], RED, "red")], "blue": []},
+        {"red": [], "blue": [_ball(cameras[1], BLUE, "blue")]},
+    ]
+    looks: list[tuple[int, str]] = []
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
+        looks.append((camera, colour))
+        truth = _ball(cameras[camera], RED if colour == "red" else BLUE, colour)
+        return [truth] if np.hypot(*(truth.fit.centre_px - [x, y])) < 0.5 * truth.fit.radius_px else []
+
+    def rod(camera: int, x: float, y: float, radius: float):
+        return (1.0, 0.0)
+
+    assert isinstance(_choose(candidates, cameras, look), str)  # without the rod, no look along the line
+    choice = _choose(candidates, cameras, look, rod)
+    assert isinstance(choice, JointChoice), choice
+    assert np.linalg.norm(choice.red_m - RED) < 1e-6 and np.linalg.norm(choice.blue_m - BLUE) < 1e-6
+    assert (1, "red") in looks and (0, "blue") in looks
+    looks.clear()
+    assert isinstance(_choose(candidates, cameras, look, lambda camera, x, y, radius: None), str)
+    assert looks == []
+
+
 def test_no_pointer_is_a_reason() -> None:
     candidates = [
         {"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + np.array([1.0, 0.0, 0.0]), "blue")]}

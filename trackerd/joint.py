@@ -93,6 +93,15 @@ starts within about half a radius of its centre."""
 ROD_LOOKS = 5
 """Looks along the rod's image line in one camera, nearest the prediction first."""
 
+EPIPOLAR_CANDIDATES = 3
+"""Candidates of each colour in each camera whose epipolar lines are looked along, when no ball triangulates."""
+EPIPOLAR_SIZE = 1.3
+"""A candidate's ball lies between the distances at which a ball would image this much larger and smaller."""
+EPIPOLAR_LOOKS = 12
+"""Looks along one candidate's epipolar line in one camera, nearest the distance its size gives first."""
+EPIPOLAR_SAMPLES = 400
+"""Points along a candidate's ray between those distances, projected into the other camera."""
+
 
 def choose_jointly(
     cameras: list[CameraModel],
@@ -162,7 +171,100 @@ def choose_jointly(
             first=before,
         )
         points[colour].sort(key=lambda p: p.score)
+    choice = _pair(points, candidates, length_m, length_tolerance_m)
+    if not isinstance(choice, str) or points["red"] or points["blue"]:
+        return choice
+    # No ball triangulates: each may be offered by one camera only, and not the same one. Look along the
+    # epipolar lines of the candidates the rod leaves, then pair what triangulates.
+    counts = [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates]
+    for colour in ("red", "blue"):
+        _along_epipolar(cameras, candidates, colour, ball_radius_m, room_side, look, rod)
+    if [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates] == counts:
+        return choice
+    rays = [_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
+    points = {c: _points(cameras, rays, c, ball_radius_m, max_gap_m, room_side) for c in ("red", "blue")}
+    for colour, other in (("red", "blue"), ("blue", "red")):
+        if points[other] and not points[colour]:
+            points[colour] = _guided(
+                cameras,
+                candidates,
+                colour,
+                points[other][:GUIDED_POINTS],
+                ball_radius_m,
+                length_m,
+                length_tolerance_m,
+                room_side,
+                look,
+            )
     return _pair(points, candidates, length_m, length_tolerance_m)
+
+
+def _along_epipolar(
+    cameras: list[CameraModel],
+    candidates: list[dict[str, list[Candidate]]],
+    colour: str,
+    ball_radius_m: float,
+    room_side: tuple[Array, float] | None,
+    look: Look,
+    rod: RodFrom,
+) -> None:
+    """Look for the ``colour`` ball along the epipolar line of each of the first EPIPOLAR_CANDIDATES
+    candidates of that colour in each camera that the rod leaves (a ball of the pointer's, not a blob of a
+    picture), in every other camera: between the distances its image size allows (EPIPOLAR_SIZE either way),
+    in front of the wall, nearest the distance its size gives first. The first outline on the line and of
+    the ball's size there joins ``candidates`` of that camera; the caller triangulates."""
+    offered = [len(per_camera[colour]) for per_camera in candidates]
+    for a, cam in enumerate(cameras):
+        for cand in candidates[a][colour][: min(offered[a], EPIPOLAR_CANDIDATES)]:
+            centre = cand.fit.centre_px
+            if rod(a, float(centre[0]), float(centre[1]), float(cand.fit.radius_px)) is None:
+                continue
+            _, d = cam.pixel_to_ray(centre[None])
+            d = d[0] / np.linalg.norm(d[0])
+            sized_m = cam.focal_px * ball_radius_m / cand.fit.radius_px
+            near_m, far_m = sized_m / EPIPOLAR_SIZE, sized_m * EPIPOLAR_SIZE
+            if room_side is not None:
+                # The wall's plane along this ray: the ball is in front of it.
+                rate = float(d @ room_side[0])
+                if rate < 0:
+                    far_m = min(far_m, -float(cam.centre_m @ room_side[0] + room_side[1]) / rate)
+            if far_m <= max(near_m, 0.2):
+                continue
+            # Finely enough that the starts below, picked from these, are ROD_LOOK_STEP of a ball apart.
+            distances_m = np.geomspace(max(near_m, 0.2), far_m, EPIPOLAR_SAMPLES)
+            along_m = cam.centre_m + distances_m[:, None] * d
+            for b, other in enumerate(cameras):
+                if b == a:
+                    continue
+                depth = other.to_camera_frame(along_m)[:, 2]
+                projected = other.project(along_m)
+                inside = (depth > 0.2) & np.all(np.isfinite(projected), axis=1)
+                inside &= other.contains(np.where(np.isfinite(projected), projected, -1e9), 2.0)
+                if not np.any(inside):
+                    continue
+                radii = other.focal_px * ball_radius_m / np.linalg.norm(along_m - other.centre_m, axis=1)
+                # Starts ROD_LOOK_STEP of a ball's image apart along the line (by its length in the image),
+                # nearest the size's distance first.
+                steps_px = np.hypot(*np.diff(np.where(np.isfinite(projected), projected, 0.0), axis=0).T)
+                arc_px = np.concatenate([[0.0], np.cumsum(np.where(inside[1:] & inside[:-1], steps_px, 0.0))])
+                middle = int(np.argmin(np.abs(np.log(distances_m / sized_m))))
+                step_px = ROD_LOOK_STEP * float(radii[middle])
+                offsets = sorted(range(-EPIPOLAR_LOOKS, EPIPOLAR_LOOKS + 1), key=abs)
+                indices = np.searchsorted(arc_px, arc_px[middle] + step_px * np.array(offsets, dtype=float))
+                starts = [int(i) for i in dict.fromkeys(np.clip(indices, 0, EPIPOLAR_SAMPLES - 1)) if inside[i]]
+                starts = starts[:EPIPOLAR_LOOKS]
+                taken = None
+                for i in starts:
+                    for seen in look(b, colour, float(projected[i][0]), float(projected[i][1]), float(radii[i]), None):
+                        miss = _miss_px(seen.fit.centre_px, projected[i], other, along_m[0], along_m[-1])
+                        size = seen.fit.radius_px / radii[i]
+                        if miss < max(3.0, 0.5 * radii[i]) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                            taken = seen
+                            break
+                    if taken is not None:
+                        break
+                if taken is not None:
+                    candidates[b][colour].append(taken)
 
 
 def _along_rod(

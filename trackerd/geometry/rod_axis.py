@@ -3,12 +3,12 @@
 When one ball is triangulated and no camera offered the other (it merged with a picture of its colour, or
 is too dark for the colour test), the rod still shows: in each image it leaves the found ball towards the
 missing one. That image direction and the camera's centre span a plane containing the pointer (the
-interpretation plane of section 5, from a ball and a direction instead of two balls), so two or more
-cameras' planes give the pointer's axis through the found point, and the pointer's length puts the other
-ball on it. Projected back, that is where each camera should look for it, together with how far along the
-rod's image line the prediction can be off: where the planes are nearly parallel (cameras looking along
-the pointer), a degree in one camera's direction moves the point several ball diameters along the rod in
-the other's image, but hardly at all across it.
+interpretation plane of :mod:`trackerd.geometry.pointer_line`, from a ball and a direction instead of two
+balls), so two or more cameras' planes give the pointer's axis through the found point, and the pointer's
+length puts the other ball on it. Projected back, that is where each camera should look for it, together
+with how far along the rod's image line the prediction can be off: where the planes are nearly parallel
+(cameras looking along the pointer), a degree in one camera's direction moves the point several ball
+diameters along the rod in the other's image, but hardly at all across it.
 """
 
 from __future__ import annotations
