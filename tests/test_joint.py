@@ -1,4 +1,4 @@
-"""Choosing each ball's candidate in every camera at once (trackerd/joint.py)."""
+"""Choosing each ball's candidate in every camera at once (trackerd/joint/)."""
 
 from __future__ import annotations
 

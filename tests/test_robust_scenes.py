@@ -141,8 +141,8 @@ def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads() -> 
     ball either, so no camera offers the ball and the looks from the other ball's candidates have none of
     its rays to start from (`bench robustness`: seed 7 installation 21 frame 29, a blue ball on a blue block;
     seed 11 installation 13 frame 20). The blue ball triangulates, the rod leaves it in both images, and
-    the red ball is looked for along the rod where the pointer's axis puts it (trackerd/joint.py,
-    _along_rod). Before: 5 of 16 such poses found."""
+    the red ball is looked for along the rod where the pointer's axis puts it (trackerd/joint/looks.py,
+    look_along_rod). Before: 5 of 16 such poses found."""
     rig, renderer = _scene(_behind_cameras())
     display_top_m = renderer.room.display[3]
     display_height_m = display_top_m - renderer.room.display[1]

@@ -323,7 +323,7 @@ class RefinedPath:
     def locate(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix:
         """Each end's outline fitted, then the pointer fitted to every camera's ends at once with the
         pointer's length (trackerd/ends.py, trackerd/geometry/pointer_fit.py). When the detector's ends do
-        not make a pointer, every camera's candidates are searched and chosen jointly (trackerd/joint.py)."""
+        not make a pointer, every camera's candidates are searched and chosen jointly (trackerd/joint/)."""
         from trackerd.ends import across_pointer, measure_end
 
         start = time.perf_counter_ns()

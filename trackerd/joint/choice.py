@@ -1,0 +1,118 @@
+"""The joint choice's stages: the searches' candidates first, then looks where they leave a ball out
+(:mod:`trackerd.joint`)."""
+
+from __future__ import annotations
+
+from trackerd.detect.search import Candidate
+from trackerd.geometry.camera import CameraModel
+from trackerd.joint.looks import (
+    GUIDED_POINTS,
+    ROD_POINTS,
+    Look,
+    RodFrom,
+    guided_points,
+    look_along_epipolar,
+    look_along_rod,
+)
+from trackerd.joint.points import Array, JointChoice, candidate_rays, pair_points, triangulated_points
+
+
+def choose_jointly(
+    cameras: list[CameraModel],
+    candidates: list[dict[str, list[Candidate]]],
+    ball_radius_m: float,
+    length_m: float,
+    length_tolerance_m: float,
+    max_gap_m: float,
+    room_side: tuple[Array, float] | None = None,
+    look: Look | None = None,
+    rod: RodFrom | None = None,
+) -> JointChoice | str:
+    """The most consistent choice (see :mod:`trackerd.joint`), or the reason there is none.
+
+    ``room_side``: (normal, offset) of the wall's plane, oriented so that the room (where the cameras
+    are) has positive signed distance; points behind the wall are ruled out. ``look``: when nothing
+    pairs, each colour's ball is looked for with it where the pointer's length puts it from the other
+    colour's best points, in the cameras whose search did not offer it; what it finds joins the
+    candidates (a copy: the caller's lists are not changed). ``rod``: when still no camera has a ball of
+    one colour where the geometry allows it, that ball is looked for where the rod leads from the other
+    colour's best points (:func:`~trackerd.joint.looks.look_along_rod`).
+    """
+    candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
+    rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
+    points = {
+        colour: triangulated_points(cameras, rays, colour, ball_radius_m, max_gap_m, room_side)
+        for colour in ("red", "blue")
+    }
+    choice = pair_points(points, candidates, length_m, length_tolerance_m)
+    if not isinstance(choice, str) or look is None:
+        return choice
+    # Nothing pairs: one ball may have merged, in some camera, with something of its colour. Look for each
+    # colour where the pointer's length puts it from the other colour's best points.
+    for colour, other in (("red", "blue"), ("blue", "red")):
+        if points[other]:
+            points[colour] = points[colour] + guided_points(
+                cameras,
+                candidates,
+                colour,
+                points[other][:GUIDED_POINTS],
+                ball_radius_m,
+                length_m,
+                length_tolerance_m,
+                room_side,
+                look,
+            )
+    choice = pair_points(points, candidates, length_m, length_tolerance_m)
+    if not isinstance(choice, str) or rod is None:
+        return choice
+    # A ball no camera offered (or whose every offer the looks refused): the rod still leads to it.
+    for colour, other in (("red", "blue"), ("blue", "red")):
+        if points[colour] or not points[other]:
+            continue
+        before = [len(per_camera[colour]) for per_camera in candidates]
+        for partner in points[other][:ROD_POINTS]:
+            look_along_rod(cameras, candidates, colour, partner, ball_radius_m, length_m, look, rod)
+        if all(len(per_camera[colour]) == n for per_camera, n in zip(candidates, before, strict=True)):
+            continue
+        rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
+        points[colour] = triangulated_points(
+            cameras, rays, colour, ball_radius_m, max_gap_m, room_side
+        ) + guided_points(
+            cameras,
+            candidates,
+            colour,
+            points[other][:GUIDED_POINTS],
+            ball_radius_m,
+            length_m,
+            length_tolerance_m,
+            room_side,
+            look,
+            first=before,
+        )
+        points[colour].sort(key=lambda p: p.score)
+    choice = pair_points(points, candidates, length_m, length_tolerance_m)
+    if not isinstance(choice, str) or points["red"] or points["blue"]:
+        return choice
+    # No ball triangulates: each may be offered by one camera only, and not the same one. Look along the
+    # epipolar lines of the candidates the rod leaves, then pair what triangulates.
+    counts = [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates]
+    for colour in ("red", "blue"):
+        look_along_epipolar(cameras, candidates, colour, ball_radius_m, room_side, look, rod)
+    if [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates] == counts:
+        return choice
+    rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
+    points = {c: triangulated_points(cameras, rays, c, ball_radius_m, max_gap_m, room_side) for c in ("red", "blue")}
+    for colour, other in (("red", "blue"), ("blue", "red")):
+        if points[other] and not points[colour]:
+            points[colour] = guided_points(
+                cameras,
+                candidates,
+                colour,
+                points[other][:GUIDED_POINTS],
+                ball_radius_m,
+                length_m,
+                length_tolerance_m,
+                room_side,
+                look,
+            )
+    return pair_points(points, candidates, length_m, length_tolerance_m)
