@@ -8,6 +8,7 @@ from trackerd.detect.ballfit import BallFit
 from trackerd.detect.search import Candidate
 from trackerd.geometry.camera import CameraModel
 from trackerd.joint import JointChoice, choose_jointly
+from trackerd.joint.looks import ROD_LOOK_STEP
 
 K = np.array([[1600.0, 0.0, 960.0], [0.0, 1600.0, 540.0], [0.0, 0.0, 1.0]])
 BALL_R = 0.02
@@ -156,9 +157,11 @@ def test_a_ball_no_camera_offered_is_looked_for_where_the_rod_leads() -> None:
     cameras = CAMERAS[:2]
     candidates = [{"red": [_ball(cam, RED, "red")], "blue": []} for cam in cameras]
     looks: list[tuple[int, str]] = []
+    looked_at: list[tuple[int, float, float, float]] = []
 
     def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
         looks.append((camera, colour))
+        looked_at.append((camera, x, y, radius))
         truth = _ball(cameras[camera], BLUE, "blue")
         return [truth] if colour == "blue" and np.hypot(*(truth.fit.centre_px - [x, y])) < 3.0 else []
 
@@ -179,8 +182,14 @@ def test_a_ball_no_camera_offered_is_looked_for_where_the_rod_leads() -> None:
     looks.clear()
     assert isinstance(_choose(candidates, cameras, look, rod_towards(BLUE, cameras_showing=(0,))), str)
     assert looks == []  # one camera's rod is no axis
-    elsewhere = RED + (RED - BLUE)  # the rod as if it left the red ball the other way
+    # The rod as if it left the red ball the other way: looked for there (and only there), nothing found.
+    elsewhere = RED + (RED - BLUE)
     assert isinstance(_choose(candidates, cameras, look, rod_towards(elsewhere)), str)
+    assert looks and all(colour == "blue" for _, colour in looks)
+    looked_at.clear()
+    _choose(candidates, cameras, look, rod_towards(elsewhere))
+    for camera, x, y, radius in looked_at:  # along the rod's line, at most two steps from the prediction
+        assert np.hypot(*(cameras[camera].project(elsewhere[None])[0] - [x, y])) < 2 * ROD_LOOK_STEP * radius + 0.5
 
 
 def test_balls_each_offered_by_a_different_camera_are_looked_for_along_their_epipolar_lines() -> None:

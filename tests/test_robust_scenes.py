@@ -135,7 +135,7 @@ def test_a_dark_red_ball_before_a_bright_red_picture_is_found() -> None:
     assert max(errors) < 0.02, errors
 
 
-def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads() -> None:
+def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads(monkeypatch: pytest.MonkeyPatch) -> None:
     """From behind the presenter, both cameras see the front (red) ball on the top edge of a red band across
     the display, of the ball's own paint: one region in both cameras, too large for a ball, its split no
     ball either, so no camera offers the ball and the looks from the other ball's candidates have none of
@@ -143,6 +143,17 @@ def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads() -> 
     seed 11 installation 13 frame 20). The blue ball triangulates, the rod leaves it in both images, and
     the red ball is looked for along the rod where the pointer's axis puts it (trackerd/joint/looks.py,
     look_along_rod). Before: 5 of 16 such poses found."""
+    import trackerd.joint.choice as choice
+
+    found_along_rod: list[int] = []  # red outlines each look along the rod added, this pose
+    look_along_rod = choice.look_along_rod
+
+    def counted(cameras, candidates, colour, *rest) -> None:
+        before = sum(len(per_camera[colour]) for per_camera in candidates)
+        look_along_rod(cameras, candidates, colour, *rest)
+        found_along_rod.append(sum(len(per_camera[colour]) for per_camera in candidates) - before)
+
+    monkeypatch.setattr(choice, "look_along_rod", counted)
     rig, renderer = _scene(_behind_cameras())
     display_top_m = renderer.room.display[3]
     display_height_m = display_top_m - renderer.room.display[1]
@@ -161,10 +172,12 @@ def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads() -> 
         edge_row = round((display_top_m - (float(np.mean(seen_y_m)) - 0.02)) / display_height_m * 256)
         content = np.full((256, 768, 3), (0.9, 0.9, 0.85), dtype=np.float32)
         content[edge_row:] = Look().red_rgb
+        found_along_rod.clear()
         fix, error, views = _locate(rig, renderer, pose, rng, content=content)
         if min(v.truth.visible_fraction(c) for v in views for c in ("red", "blue")) < 0.6:
             continue  # the hand hides the back ball from a camera: not this test's case
         assert error is not None, fix.reason
+        assert sum(found_along_rod) >= 1  # found there, not by another stage
         errors.append(error)
     assert max(errors) < 0.008, errors
 

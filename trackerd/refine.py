@@ -422,6 +422,7 @@ class RefinedPath:
 
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
+        from trackerd.detect.rod import rod_leaving
         from trackerd.detect.search import Candidate, search_candidates, split_candidates
         from trackerd.joint import choose_jointly
 
@@ -462,18 +463,19 @@ class RefinedPath:
                 yield Candidate(colour, fit, (x_px, y_px), radius_px)
 
         rod_share = pointer.rod_diameter_m / pointer.end_diameter_m
+        rods: dict[tuple[int, float, float, float], tuple[float, float] | None] = {}
 
         def rod(camera: int, x_px: float, y_px: float, radius_px: float) -> tuple[float, float] | None:
             # A clear dark line leaving the ball, and no other as clear (an edge of a picture, the presenter's
-            # arm): the rod, followed to a ball no camera offered.
-            from trackerd.detect.rod import rod_leaving
-
-            leaving = rod_leaving(
-                images[camera], self.loc.grids[camera], np.array([x_px, y_px]), radius_px, rod_share * radius_px
-            )
-            if leaving.evidence < ROD_CLEAR or leaving.rival >= leaving.evidence:
-                return None
-            return float(leaving.direction[0]), float(leaving.direction[1])
+            # arm): the rod, followed to a ball no camera offered. Once per ball: each stage's choice asks again.
+            key = (camera, x_px, y_px, radius_px)
+            if key not in rods:
+                leaving = rod_leaving(
+                    images[camera], self.loc.grids[camera], np.array([x_px, y_px]), radius_px, rod_share * radius_px
+                )
+                clear = leaving.evidence >= ROD_CLEAR and leaving.rival < leaving.evidence
+                rods[key] = (float(leaving.direction[0]), float(leaving.direction[1])) if clear else None
+            return rods[key]
 
         def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
             return choose_jointly(

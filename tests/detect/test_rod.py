@@ -10,6 +10,7 @@ import pytest
 from tests.rooms import POINTER, room, waved
 from trackerd.detect.colour import brightest_at, green_at, sample_grid
 from trackerd.detect.rod import FAN_STEP_DEG, darker_share, rod_bearing, rod_leaving
+from trackerd.joint.looks import ROD_DIRECTION_ERROR_DEG
 from trackerd.refine import ROD_ABSENT, ROD_CLEAR
 
 ROD_SHARE = POINTER["rod_diameter_m"] / POINTER["end_diameter_m"]
@@ -113,7 +114,7 @@ def test_the_rod_is_found_all_round_a_ball_without_being_told_where_the_other_is
             towards = (far - centre) / np.linalg.norm(far - centre)
             off_deg = math.degrees(math.acos(min(float(leaving.direction @ towards), 1.0)))
             assert leaving.evidence >= ROD_CLEAR and leaving.rival < leaving.evidence, leaving
-            assert off_deg <= 2 * FAN_STEP_DEG, (off_deg, leaving)
+            assert off_deg <= ROD_DIRECTION_ERROR_DEG, (off_deg, leaving)
             checked += 1
     assert checked == 12
 

@@ -167,7 +167,7 @@ class RodLeaving:
     """The clearest dark line leaving a ball, looked for all round it."""
 
     direction: NDArray[np.float64]
-    """(2,) unit image direction (the mean of the equally clearest directions next to each other)."""
+    """(2,) unit image direction: the middle of the run of equally clearest directions next to each other."""
     evidence: float
     """Share of its points darker than both sides, in [0, 1]."""
     rival: float
@@ -195,11 +195,17 @@ def rod_leaving(
         rod_half_width_px + SIDE_MARGIN_PX,
     )
     best = int(np.argmax(evidence))
-    apart_deg = np.abs((np.arange(len(_ROUND)) - best + len(_ROUND) // 2) % len(_ROUND) - len(_ROUND) // 2)
-    apart_deg = apart_deg * ROUND_STEP_DEG
-    # The rod's width spans neighbouring directions: their mean, among those as clear as the best.
-    tied = (evidence == evidence[best]) & (apart_deg <= 2 * NEAR_DEG)
-    summed = _ROUND[tied].sum(axis=0)
-    direction = summed / float(np.hypot(summed[0], summed[1]))
+    count = len(_ROUND)
+    # The rod's width spans neighbouring directions: the middle of the run of directions as clear as the best
+    # that holds it (wrapping round), at most RIVAL_APART_DEG either way.
+    lower = upper = 0
+    most = RIVAL_APART_DEG // ROUND_STEP_DEG
+    while upper < most and evidence[(best + upper + 1) % count] == evidence[best]:
+        upper += 1
+    while lower < most and evidence[(best - lower - 1) % count] == evidence[best]:
+        lower += 1
+    middle = (best + (upper - lower) / 2.0) * ROUND_STEP_DEG
+    direction = np.array([math.cos(math.radians(middle)), math.sin(math.radians(middle))])
+    apart_deg = np.abs((np.arange(count) - best + count // 2) % count - count // 2) * ROUND_STEP_DEG
     rivals = evidence[apart_deg > RIVAL_APART_DEG]
     return RodLeaving(direction, float(evidence[best]), float(rivals.max()) if rivals.size else 0.0)

@@ -28,6 +28,10 @@ Array = NDArray[np.float64]
 _PLANE_SPAN_PX = 20.0
 """The second pixel of a direction's plane is this far along it (its first is the found ball's centre)."""
 
+MIN_PLANES_DEG = 3.0
+"""Planes closer than this give no axis: a direction as far off as the error asked for (3 degrees in the joint
+choice) can turn one past the other, and the axis then lies anywhere in them."""
+
 
 @dataclass(frozen=True)
 class RodSighting:
@@ -53,8 +57,9 @@ def other_ball_along_rod(
     ball_radius_m: float,
     direction_error_deg: float,
 ) -> list[RodSighting]:
-    """The pointer's other ball as each camera in ``leaving`` should see it, or [] when fewer than two
-    cameras give a rod direction or their rods do not agree on a side.
+    """The pointer's other ball as each camera in ``leaving`` should see it (those where it projects), or []
+    when fewer than two cameras give a rod direction, their planes are less than MIN_PLANES_DEG apart, or
+    their rods do not agree on a side.
 
     ``point_m`` (3,): the found ball's triangulated centre. ``leaving``: camera index -> (the found ball's
     centre in that image (2,), the unit image direction (2,) in which the rod leaves it). Each direction is
@@ -80,7 +85,9 @@ def other_ball_along_rod(
         _, rays = camera.pixel_to_ray(pixels)
         normals[:, k] = interpretation_plane_normals(np.broadcast_to(rays[0], rays[1:].shape), rays[1:])
     origins = np.stack([cameras[c].centre_m for c in indices])
-    _, axes, _ = lines_from_planes(origins, normals)  # (1 + 2 C, 3) unit, either sign
+    _, axes, conditioning = lines_from_planes(origins, normals)  # (1 + 2 C, 3) unit, either sign
+    if float(conditioning[0]) < math.sin(math.radians(MIN_PLANES_DEG)):
+        return []
     # The nominal axis's sign: the one whose far end every camera sees along its rod.
     candidates = point_m + length_m * np.stack([axes[0], -axes[0]])
     sides = []

@@ -36,7 +36,9 @@ def choose_jointly(
     colour's best points, in the cameras whose search did not offer it; what it finds joins the
     candidates (a copy: the caller's lists are not changed). ``rod``: when still no camera has a ball of
     one colour where the geometry allows it, that ball is looked for where the rod leads from the other
-    colour's best points (:func:`~trackerd.joint.looks.look_along_rod`).
+    colour's best points (:func:`~trackerd.joint.looks.look_along_rod`); and when no ball of either colour
+    triangulates, the candidates the rod leaves are looked for along their epipolar lines
+    (:func:`~trackerd.joint.looks.look_along_epipolar`).
     """
     candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
     rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]

@@ -137,8 +137,8 @@ def guided_points(
                                 if reach > 0
                                 else float(np.hypot(*(seen.fit.centre_px - px)))
                             )
-                            size = seen.fit.radius_px / expected
-                            if miss < max(3.0, 0.5 * expected) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                            if _is_the_ball(miss, seen.fit.radius_px, expected):
+                                size = seen.fit.radius_px / expected
                                 candidates[c][colour].append(seen)
                                 members[c] = len(candidates[c][colour]) - 1
                                 # Where it was found against where the geometry put it (a ray gap, in effect).
@@ -177,23 +177,25 @@ def look_along_rod(
     )
     for sighting in sightings:
         camera = cameras[sighting.camera]
-        step = ROD_LOOK_STEP * sighting.radius_px
-        steps = int((sighting.spread_px + 0.5 * sighting.radius_px) // step)
-        offsets = sorted((k * step for k in range(-steps, steps + 1)), key=abs)[:ROD_LOOKS]
+        step_px = ROD_LOOK_STEP * sighting.radius_px
+        # Within the spread, at most ROD_LOOKS: where the planes are a few degrees apart the spread is several
+        # balls long, and the looks then cover its middle (the camera whose prediction is good finds the ball,
+        # and the length's sphere from there the others).
+        most = min(int((sighting.spread_px + 0.5 * sighting.radius_px) // step_px), ROD_LOOKS // 2)
+        offsets_px = [k * step_px for k in sorted(range(-most, most + 1), key=abs)]
         origin = leaving[sighting.camera][0]
         towards = (-float(sighting.along[0]), -float(sighting.along[1]))
-        for offset in offsets:
-            start = sighting.expected_px + offset * sighting.along
-            if not bool(camera.contains(start[None])[0]):
+        for offset_px in offsets_px:
+            start = sighting.expected_px + offset_px * sighting.along
+            if not bool(camera.contains(start[None], 2.0)[0]):
                 continue
             taken = None
             for seen in look(sighting.camera, colour, float(start[0]), float(start[1]), sighting.radius_px, towards):
                 # On the rod's image line (its own direction puts the ball there to a few pixels), and of the
                 # ball's size at about that distance.
-                offset_px = seen.fit.centre_px - origin
-                across = abs(float(offset_px[0] * sighting.along[1] - offset_px[1] * sighting.along[0]))
-                size = seen.fit.radius_px / sighting.radius_px
-                if across < max(3.0, 0.5 * sighting.radius_px) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                from_origin = seen.fit.centre_px - origin
+                across_px = abs(float(from_origin[0] * sighting.along[1] - from_origin[1] * sighting.along[0]))
+                if _is_the_ball(across_px, seen.fit.radius_px, sighting.radius_px):
                     taken = seen
                     break
             if taken is not None:
@@ -259,14 +261,20 @@ def look_along_epipolar(
                 for i in starts:
                     for seen in look(b, colour, float(projected[i][0]), float(projected[i][1]), float(radii[i]), None):
                         miss = _miss_px(seen.fit.centre_px, projected[i], other, along_m[0], along_m[-1])
-                        size = seen.fit.radius_px / radii[i]
-                        if miss < max(3.0, 0.5 * radii[i]) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO:
+                        if _is_the_ball(miss, seen.fit.radius_px, float(radii[i])):
                             taken = seen
                             break
                     if taken is not None:
                         break
                 if taken is not None:
                     candidates[b][colour].append(taken)
+
+
+def _is_the_ball(miss_px: float, radius_px: float, expected_px: float) -> bool:
+    """Whether a look's outline is the ball: less than half the ball's image radius (or 3 px) from where the
+    geometry allows it, and of its size there (within MAX_SIZE_RATIO)."""
+    size = radius_px / expected_px
+    return miss_px < max(3.0, 0.5 * expected_px) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO
 
 
 def _miss_px(found_px: Array, looked_px: Array, camera: CameraModel, first_m: Array, last_m: Array) -> float:
