@@ -50,6 +50,15 @@ def _locate(rig, renderer, pose: PointerPose, rng, *, content=None, occluders=()
     return fix, error, views
 
 
+def _pose_from_the_middle(
+    rng: np.random.Generator, tip_heights_m: tuple[float, float], target_heights_m: tuple[float, float]
+) -> PointerPose:
+    """The pointer held 1.6 m from the wall before the display's middle, aimed at a random place on it."""
+    target_x = float(rng.uniform(1.4, 2.2))
+    tip = [target_x + float(rng.uniform(-0.1, 0.1)), float(rng.uniform(*tip_heights_m)), 1.6]
+    return pose_aimed_at(tip, [target_x, float(rng.uniform(*target_heights_m)), 0.0], POINTER["length_m"])
+
+
 def _side_cameras():
     return [
         aimed_camera("left", [-0.8, 1.3, 3.2], PRESENTER, 1920, 1080, 60.0),
@@ -124,9 +133,7 @@ def test_a_dark_red_ball_before_a_bright_red_picture_is_found() -> None:
     rng = np.random.default_rng(21)
     errors = []
     while len(errors) < 3:
-        target_x = float(rng.uniform(1.4, 2.2))
-        tip = [target_x + float(rng.uniform(-0.1, 0.1)), float(rng.uniform(0.5, 0.7)), 1.6]
-        pose = pose_aimed_at(tip, [target_x, float(rng.uniform(0.4, 0.7)), 0.0], POINTER["length_m"])
+        pose = _pose_from_the_middle(rng, (0.5, 0.7), (0.4, 0.7))
         fix, error, views = _locate(rig, renderer, pose, rng, content=bright_red)
         if min(v.truth.visible_fraction(c) for v in views for c in ("red", "blue")) < 0.6:
             continue  # the hand hides the back ball from a camera: not this test's case
@@ -160,9 +167,7 @@ def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads(monke
     rng = np.random.default_rng(5)
     errors = []
     while len(errors) < 3:
-        target_x = float(rng.uniform(1.4, 2.2))
-        tip = [target_x + float(rng.uniform(-0.1, 0.1)), float(rng.uniform(0.75, 0.95)), 1.6]
-        pose = pose_aimed_at(tip, [target_x, float(rng.uniform(0.6, 0.9)), 0.0], POINTER["length_m"])
+        pose = _pose_from_the_middle(rng, (0.75, 0.95), (0.6, 0.9))
         # The band's top edge 2 cm under where the cameras see the ball's centre on the display.
         red_m = pose.front_m if rig.pointer.front_colour == "red" else pose.back_m
         seen_y_m = [

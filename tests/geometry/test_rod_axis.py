@@ -9,23 +9,17 @@ import numpy as np
 
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rod_axis import other_ball_along_rod
+from trackerd.sim.random_cameras import aimed_camera
 
-K = np.array([[1600.0, 0.0, 960.0], [0.0, 1600.0, 540.0], [0.0, 0.0, 1.0]])
 BALL_R = 0.018
 LENGTH = 0.42
 FOUND = np.array([1.7, 0.6, 1.5])
 OTHER = FOUND + np.array([0.15, 0.05, 0.6]) / np.linalg.norm([0.15, 0.05, 0.6]) * LENGTH
+TARGET = np.array([1.8, 0.6, 1.2])
 
 
-def _camera(name: str, position, target=(1.8, 0.6, 1.2)) -> CameraModel:
-    position = np.asarray(position, float)
-    forward = np.asarray(target, float) - position
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 1.0, 0.0])
-    right /= np.linalg.norm(right)
-    return CameraModel.from_pose(
-        name, 1920, 1080, K, np.zeros(0), position, np.column_stack([right, np.cross(forward, right), forward])
-    )
+def _camera(name: str, position) -> CameraModel:
+    return aimed_camera(name, np.asarray(position, float), TARGET, 1920, 1080, 60.0)
 
 
 SIDE = [_camera("left", [-1.0, 1.4, 2.0]), _camera("right", [4.6, 1.4, 2.0])]
@@ -86,3 +80,11 @@ def test_one_camera_or_rods_that_disagree_give_no_prediction() -> None:
     # The right camera's rod leaving the other way: no side of the found ball is along both.
     reversed_right = {0: leaving[0], 1: (leaving[1][0], -leaving[1][1])}
     assert other_ball_along_rod(SIDE, FOUND, reversed_right, LENGTH, BALL_R, 3.0) == []
+
+
+def test_cameras_in_one_plane_with_the_pointer_give_no_prediction() -> None:
+    """The second camera moved from the first along the pointer: both planes are the same plane, and the
+    axis could lie anywhere in it."""
+    first = np.array([-1.0, 1.4, 2.0])
+    cameras = [_camera("left", first), _camera("left-along", first + 0.8 * (OTHER - FOUND) / LENGTH)]
+    assert other_ball_along_rod(cameras, FOUND, _leaving(cameras), LENGTH, BALL_R, 3.0) == []

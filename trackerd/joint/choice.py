@@ -14,7 +14,7 @@ from trackerd.joint.looks import (
     look_along_epipolar,
     look_along_rod,
 )
-from trackerd.joint.points import Array, JointChoice, candidate_rays, pair_points, triangulated_points
+from trackerd.joint.points import Array, JointChoice, Point, candidate_rays, pair_points, triangulated_points
 
 
 def choose_jointly(
@@ -41,29 +41,38 @@ def choose_jointly(
     (:func:`~trackerd.joint.looks.look_along_epipolar`).
     """
     candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
-    rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
-    points = {
-        colour: triangulated_points(cameras, rays, colour, ball_radius_m, max_gap_m, room_side)
-        for colour in ("red", "blue")
-    }
+
+    def triangulated(colour: str) -> list[Point]:
+        rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
+        return triangulated_points(cameras, rays, colour, ball_radius_m, max_gap_m, room_side)
+
+    points = {colour: triangulated(colour) for colour in ("red", "blue")}
     choice = pair_points(points, candidates, length_m, length_tolerance_m)
     if not isinstance(choice, str) or look is None:
         return choice
+    looking: Look = look
+
+    def guided(colour: str, other: str, first: list[int] | None = None) -> list[Point]:
+        """Looks from ``colour``'s candidate rays (from index ``first`` in each camera) where the pointer's
+        length puts its ball from ``other``'s best points."""
+        return guided_points(
+            cameras,
+            candidates,
+            colour,
+            points[other][:GUIDED_POINTS],
+            ball_radius_m,
+            length_m,
+            length_tolerance_m,
+            room_side,
+            looking,
+            first=first,
+        )
+
     # Nothing pairs: one ball may have merged, in some camera, with something of its colour. Look for each
     # colour where the pointer's length puts it from the other colour's best points.
     for colour, other in (("red", "blue"), ("blue", "red")):
         if points[other]:
-            points[colour] = points[colour] + guided_points(
-                cameras,
-                candidates,
-                colour,
-                points[other][:GUIDED_POINTS],
-                ball_radius_m,
-                length_m,
-                length_tolerance_m,
-                room_side,
-                look,
-            )
+            points[colour] = points[colour] + guided(colour, other)
     choice = pair_points(points, candidates, length_m, length_tolerance_m)
     if not isinstance(choice, str) or rod is None:
         return choice
@@ -73,24 +82,10 @@ def choose_jointly(
             continue
         before = [len(per_camera[colour]) for per_camera in candidates]
         for partner in points[other][:ROD_POINTS]:
-            look_along_rod(cameras, candidates, colour, partner, ball_radius_m, length_m, look, rod)
+            look_along_rod(cameras, candidates, colour, partner, ball_radius_m, length_m, looking, rod)
         if all(len(per_camera[colour]) == n for per_camera, n in zip(candidates, before, strict=True)):
             continue
-        rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
-        points[colour] = triangulated_points(
-            cameras, rays, colour, ball_radius_m, max_gap_m, room_side
-        ) + guided_points(
-            cameras,
-            candidates,
-            colour,
-            points[other][:GUIDED_POINTS],
-            ball_radius_m,
-            length_m,
-            length_tolerance_m,
-            room_side,
-            look,
-            first=before,
-        )
+        points[colour] = triangulated(colour) + guided(colour, other, first=before)
         points[colour].sort(key=lambda p: p.score)
     choice = pair_points(points, candidates, length_m, length_tolerance_m)
     if not isinstance(choice, str) or points["red"] or points["blue"]:
@@ -99,22 +94,11 @@ def choose_jointly(
     # epipolar lines of the candidates the rod leaves, then pair what triangulates.
     counts = [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates]
     for colour in ("red", "blue"):
-        look_along_epipolar(cameras, candidates, colour, ball_radius_m, room_side, look, rod)
+        look_along_epipolar(cameras, candidates, colour, ball_radius_m, room_side, looking, rod)
     if [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates] == counts:
         return choice
-    rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
-    points = {c: triangulated_points(cameras, rays, c, ball_radius_m, max_gap_m, room_side) for c in ("red", "blue")}
+    points = {colour: triangulated(colour) for colour in ("red", "blue")}
     for colour, other in (("red", "blue"), ("blue", "red")):
         if points[other] and not points[colour]:
-            points[colour] = guided_points(
-                cameras,
-                candidates,
-                colour,
-                points[other][:GUIDED_POINTS],
-                ball_radius_m,
-                length_m,
-                length_tolerance_m,
-                room_side,
-                look,
-            )
+            points[colour] = guided(colour, other)
     return pair_points(points, candidates, length_m, length_tolerance_m)
