@@ -149,7 +149,8 @@ def test_a_red_ball_on_the_edge_of_a_red_band_is_found_where_the_rod_leads(monke
     its rays to start from (`bench robustness`: seed 7 installation 21 frame 29, a blue ball on a blue block;
     seed 11 installation 13 frame 20). The blue ball triangulates, the rod leaves it in both images, and
     the red ball is looked for along the rod where the pointer's axis puts it (trackerd/joint/looks.py,
-    look_along_rod). Before: 5 of 16 such poses found."""
+    look_along_rod). Without that look a pose here is not found; with a darker red, (0.75, 0.08, 0.06)
+    for ball and band, 5 of 16 such poses were found without it and 16 of 16 with it."""
     import trackerd.joint.choice as choice
 
     found_along_rod: list[int] = []  # red outlines each look along the rod added, this pose
