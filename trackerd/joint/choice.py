@@ -42,11 +42,12 @@ def choose_jointly(
     """
     candidates = [{c: list(per_camera.get(c, [])) for c in ("red", "blue")} for per_camera in candidates]
 
-    def triangulated(colour: str) -> list[Point]:
+    def triangulated(*colours: str) -> dict[str, list[Point]]:
+        # The rays of the candidates as they are now (looks append to them), once for the colours asked.
         rays = [candidate_rays(cam, per_camera) for cam, per_camera in zip(cameras, candidates, strict=True)]
-        return triangulated_points(cameras, rays, colour, ball_radius_m, max_gap_m, room_side)
+        return {c: triangulated_points(cameras, rays, c, ball_radius_m, max_gap_m, room_side) for c in colours}
 
-    points = {colour: triangulated(colour) for colour in ("red", "blue")}
+    points = triangulated("red", "blue")
     choice = pair_points(points, candidates, length_m, length_tolerance_m)
     if not isinstance(choice, str) or look is None:
         return choice
@@ -85,7 +86,7 @@ def choose_jointly(
             look_along_rod(cameras, candidates, colour, partner, ball_radius_m, length_m, looking, rod)
         if all(len(per_camera[colour]) == n for per_camera, n in zip(candidates, before, strict=True)):
             continue
-        points[colour] = triangulated(colour) + guided(colour, other, first=before)
+        points[colour] = triangulated(colour)[colour] + guided(colour, other, first=before)
         points[colour].sort(key=lambda p: p.score)
     choice = pair_points(points, candidates, length_m, length_tolerance_m)
     if not isinstance(choice, str) or points["red"] or points["blue"]:
@@ -97,7 +98,7 @@ def choose_jointly(
         look_along_epipolar(cameras, candidates, colour, ball_radius_m, room_side, looking, rod)
     if [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates] == counts:
         return choice
-    points = {colour: triangulated(colour) for colour in ("red", "blue")}
+    points = triangulated("red", "blue")
     for colour, other in (("red", "blue"), ("blue", "red")):
         if points[other] and not points[colour]:
             points[colour] = guided(colour, other)
