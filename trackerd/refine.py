@@ -572,7 +572,9 @@ class RefinedPath:
             per_camera.append(ends)
         points = {"red": choice.red_m, "blue": choice.blue_m}
         init = (points[self.loc.front_colour], points[self.loc.back_colour])
-        return self._fix_from_measurements(per_camera, init, detections, start, images)
+        return self._fix_from_measurements(
+            per_camera, init, detections, start, images, one_camera_end=choice.one_camera is not None
+        )
 
     def _one_paint(self, images: Sequence[NDArray[np.uint8]], choice: Any) -> list[dict[str, Any]] | None:
         """Each end's chosen candidates, kept where they are of one paint in every camera: all of them pass the
@@ -774,15 +776,20 @@ class RefinedPath:
         images: Sequence[NDArray[np.uint8]],
         *,
         check_rod: bool = True,
+        one_camera_end: bool = False,
     ) -> PointerFix:
         """The pointer fit on each camera's end measurements (None where a camera does not see an end); a found
-        fix then checked against the rod (:meth:`_checked_by_rod`) unless ``check_rod`` is false."""
+        fix then checked against the rod (:meth:`_checked_by_rod`) unless ``check_rod`` is false.
+        ``one_camera_end``: one end may be measured by one camera only (a joint choice placed it by its ray and
+        the pointer's length, :mod:`trackerd.joint.lone`), the other by two or more; the fit starts from
+        ``init``."""
         front, back = self.loc.front_colour, self.loc.back_colour
         centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS} for ends in per_camera)
         used = [i for i, ends in enumerate(per_camera) if ends[front] is not None or ends[back] is not None]
         seeing = {end: sum(1 for ends in per_camera if ends[end] is not None) for end in (front, back)}
         timings = {"triangulate_ns": 0}
-        if seeing[front] < 2 or seeing[back] < 2:
+        fewest = 1 if one_camera_end and init is not None else 2
+        if min(seeing.values()) < fewest or max(seeing.values()) < 2:
             missing = self.loc._missing(detections)
             reason = "; ".join(missing) if missing else "fewer than two cameras measured each end"
             return PointerFix("not_found", reason, centroids, timings_ns=timings, detections=detections)

@@ -47,6 +47,8 @@ class RodSighting:
     for: the look must cover this much either side of ``expected_px``."""
     radius_px: float
     """The other ball's image radius at the predicted point."""
+    ball_m: Array
+    """(3,) the predicted point itself (the same for every camera's sighting)."""
 
 
 def other_ball_along_rod(
@@ -109,5 +111,5 @@ def other_ball_along_rod(
         distance_along = (projected - centres_px[k]) @ along[k]
         spread = float(np.max(np.abs(distance_along[1:] - distance_along[0])))
         radius = camera.focal_px * ball_radius_m / float(np.linalg.norm(others[0] - camera.centre_m))
-        sightings.append(RodSighting(index, projected[0], along[k], spread, radius))
+        sightings.append(RodSighting(index, projected[0], along[k], spread, radius, others[0]))
     return sightings

@@ -3,8 +3,11 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from trackerd.detect.search import Candidate
 from trackerd.geometry.camera import CameraModel
+from trackerd.joint.lone import lone_points
 from trackerd.joint.looks import (
     GUIDED_POINTS,
     ROD_POINTS,
@@ -69,6 +72,33 @@ def choose_jointly(
             first=first,
         )
 
+    def one_camera(reason: str) -> JointChoice | str:
+        """The pointer with one end that one camera alone offers (:mod:`trackerd.joint.lone`), paired with
+        the other colour's points; ``reason`` (with why not) when there is none, or when both colours give
+        one (they contradict each other)."""
+        assert rod is not None
+        paired: list[JointChoice] = []
+        why: list[str] = []
+        for colour, other in (("red", "blue"), ("blue", "red")):
+            if not points[other]:
+                continue
+            lone = lone_points(
+                cameras, candidates, colour, points[other], ball_radius_m, length_m, length_tolerance_m, room_side, rod
+            )
+            if isinstance(lone, str):
+                why.append(lone)
+                continue
+            found = pair_points({colour: lone, other: points[other]}, candidates, length_m, length_tolerance_m)
+            if isinstance(found, str):
+                why.append(f"one camera's {colour} ball: {found}")
+            else:
+                paired.append(replace(found, one_camera=colour))
+        if len(paired) == 1:
+            return paired[0]
+        if paired:
+            why.append("each colour's ball is offered by one camera only where the rod leads, and they disagree")
+        return "; ".join([reason, *why])
+
     # Nothing pairs: one ball may have merged, in some camera, with something of its colour. Look for each
     # colour where the pointer's length puts it from the other colour's best points.
     for colour, other in (("red", "blue"), ("blue", "red")):
@@ -89,8 +119,10 @@ def choose_jointly(
         points[colour] = triangulated(colour)[colour] + guided(colour, other, first=before)
         points[colour].sort(key=lambda p: p.score)
     choice = pair_points(points, candidates, length_m, length_tolerance_m)
-    if not isinstance(choice, str) or points["red"] or points["blue"]:
+    if not isinstance(choice, str):
         return choice
+    if points["red"] or points["blue"]:
+        return one_camera(choice)
     # No ball triangulates: each may be offered by one camera only, and not the same one. Look along the
     # epipolar lines of the candidates the rod leaves, then pair what triangulates.
     counts = [len(per_camera["red"]) + len(per_camera["blue"]) for per_camera in candidates]
@@ -102,4 +134,5 @@ def choose_jointly(
     for colour, other in (("red", "blue"), ("blue", "red")):
         if points[other] and not points[colour]:
             points[colour] = guided(colour, other)
-    return pair_points(points, candidates, length_m, length_tolerance_m)
+    choice = pair_points(points, candidates, length_m, length_tolerance_m)
+    return choice if not isinstance(choice, str) else one_camera(choice)

@@ -82,21 +82,7 @@ def guided_points(
                     continue
                 _, d = cam.pixel_to_ray(cand.fit.centre_px[None])
                 d = d[0] / np.linalg.norm(d[0])
-                # |c + s d - P| = L: s^2 + 2 s d.(c - P) + |c - P|^2 - L^2 = 0.
-                offset = cam.centre_m - partner.point_m
-                b = float(d @ offset)
-                disc = b * b - (float(offset @ offset) - length_m**2)
-                # Each root with how far along the ray the length's tolerance lets the ball be either way
-                # (none for a clean crossing of the sphere: the cameras' agreement is checked below).
-                if disc < 0:
-                    closest = math.sqrt(max(float(offset @ offset) - b * b, 0.0))
-                    if closest > length_m + length_tolerance_m:
-                        continue
-                    reach = math.sqrt(max(b * b - (float(offset @ offset) - (length_m + length_tolerance_m) ** 2), 0.0))
-                    roots: tuple[tuple[float, float], ...] = ((-b, reach),)
-                else:
-                    roots = ((-b - math.sqrt(disc), 0.0), (-b + math.sqrt(disc), 0.0))
-                for s, reach in roots:
+                for s, reach in length_roots(cam.centre_m, d, partner.point_m, length_m, length_tolerance_m):
                     point = cam.centre_m + s * d
                     if s <= 0.2 or (room_side is not None and float(point @ room_side[0] + room_side[1]) <= 0):
                         continue
@@ -148,6 +134,26 @@ def guided_points(
                         found.append(Point(point, members, score - EXTRA_CAMERA_BONUS * (len(members) - 2)))
     found.sort(key=lambda p: p.score)
     return found[:MAX_HYPOTHESES]
+
+
+def length_roots(
+    origin_m: Array, direction: Array, partner_m: Array, length_m: float, length_tolerance_m: float
+) -> tuple[tuple[float, float], ...]:
+    """Where the ray ``origin_m + s direction`` (a unit direction) meets the sphere of radius ``length_m``
+    around ``partner_m``: each distance s with how far along the ray the length's tolerance lets the ball
+    be either way (0 for a clean crossing: the cameras' agreement judges it). A ray passing outside the
+    sphere by no more than the tolerance gives its closest point to the partner, with the reach the
+    tolerance's larger sphere allows; a ray farther out gives none."""
+    # |o + s d - P| = L: s^2 + 2 s d.(o - P) + |o - P|^2 - L^2 = 0.
+    offset = origin_m - partner_m
+    b = float(direction @ offset)
+    square = float(offset @ offset)
+    disc = b * b - (square - length_m**2)
+    if disc >= 0:
+        return ((-b - math.sqrt(disc), 0.0), (-b + math.sqrt(disc), 0.0))
+    if math.sqrt(max(square - b * b, 0.0)) > length_m + length_tolerance_m:
+        return ()
+    return ((-b, math.sqrt(max(b * b - (square - (length_m + length_tolerance_m) ** 2), 0.0))),)
 
 
 def look_along_rod(

@@ -48,6 +48,8 @@ class JointChoice:
     score: float
     alternatives: int = 0
     """How many other consistent combinations there were."""
+    one_camera: str | None = None
+    """The colour of an end that one camera alone measures (:mod:`trackerd.joint.lone`), or None."""
 
 
 def pair_points(
