@@ -222,6 +222,69 @@ def test_balls_each_offered_by_a_different_camera_are_looked_for_along_their_epi
     assert looks == []
 
 
+def _rod_towards(cameras, towards_m):
+    """Each camera's rod leaving the ball it is asked about towards ``towards_m`` (the image direction)."""
+
+    def rod(camera: int, x: float, y: float, radius: float):
+        far = cameras[camera].project(np.asarray(towards_m, float)[None])[0] - [x, y]
+        return tuple(far / np.linalg.norm(far))
+
+    return rod
+
+
+def test_a_ball_one_camera_alone_offers_is_placed_by_its_ray_and_the_length_where_the_rod_leads() -> None:
+    """The blue ball is offered by the right camera only; no look finds it in the left one (it lies on a
+    surface of its hue there). The red ball triangulates and the rod leaves it towards the blue one in both
+    images: the right camera's ray through the blue candidate meets the sphere of the pointer's length around
+    the red point twice, and the root the rod's axis points at is the ball. A blue blob off the rod's line
+    in the same camera is not taken; without the rod, or with the rod leading elsewhere, nothing is."""
+    cameras = CAMERAS[:2]
+    junk = _ball(cameras[1], RED + np.array([0.2, -0.3, 0.1]), "blue")
+    candidates = [
+        {"red": [_ball(cameras[0], RED, "red")], "blue": []},
+        {"red": [_ball(cameras[1], RED, "red")], "blue": [junk, _ball(cameras[1], BLUE, "blue")]},
+    ]
+
+    def look(camera: int, colour: str, x: float, y: float, radius: float, axis):
+        return []
+
+    assert isinstance(_choose(candidates, cameras, look), str)  # without the rod
+    choice = _choose(candidates, cameras, look, _rod_towards(cameras, BLUE))
+    assert isinstance(choice, JointChoice), choice
+    assert choice.one_camera == "blue"
+    assert np.linalg.norm(choice.blue_m - BLUE) < 1e-6 and np.linalg.norm(choice.red_m - RED) < 1e-6
+    assert choice.chosen[1]["blue"] is candidates[1]["blue"][1] and choice.chosen[0]["blue"] is None
+    # The other root lies on the same ray, the pointer's length from the red ball, on the far side of
+    # where the ray passes it: the left camera's rod tells them apart, and where it leads there, that is the
+    # ball (the right camera sees both roots at the blue candidate's pixel).
+    ray = BLUE - cameras[1].centre_m
+    ray /= np.linalg.norm(ray)
+    closest = cameras[1].centre_m + float((RED - cameras[1].centre_m) @ ray) * ray
+    mirror = 2.0 * closest - BLUE
+    assert abs(np.linalg.norm(mirror - RED) - LENGTH) < 1e-9
+    other_root = _choose(candidates, cameras, look, _rod_towards(cameras, mirror))
+    assert isinstance(other_root, JointChoice) and np.linalg.norm(other_root.blue_m - mirror) < 1e-6
+    reason = _choose(candidates, cameras, look, _rod_towards(cameras, RED + (RED - BLUE)))
+    assert isinstance(reason, str) and "where the rod leads" in reason, reason
+
+
+def test_a_ball_one_camera_sees_at_a_glancing_angle_to_the_pointer_is_not_placed() -> None:
+    """The pointer held across the left camera's line of sight: its ray through the blue ball meets the
+    length's sphere around the red one at a glancing angle, where an error of the length's size moves the
+    ball along the ray several times as far, and the two roots nearly meet. Not found, with the reason."""
+    cameras = CAMERAS[:2]
+    across = np.cross(RED - cameras[0].centre_m, [0.0, 1.0, 0.0])
+    blue = RED + LENGTH * across / np.linalg.norm(across)
+    sight = (blue - cameras[0].centre_m) / np.linalg.norm(blue - cameras[0].centre_m)
+    assert abs(float(sight @ (blue - RED))) / LENGTH < 0.25
+    candidates = [
+        {"red": [_ball(cameras[0], RED, "red")], "blue": [_ball(cameras[0], blue, "blue")]},
+        {"red": [_ball(cameras[1], RED, "red")], "blue": []},
+    ]
+    reason = _choose(candidates, cameras, lambda *args: [], _rod_towards(cameras, blue))
+    assert isinstance(reason, str) and "glancing" in reason, reason
+
+
 def test_no_pointer_is_a_reason() -> None:
     candidates = [
         {"red": [_ball(cam, RED, "red")], "blue": [_ball(cam, RED + np.array([1.0, 0.0, 0.0]), "blue")]}

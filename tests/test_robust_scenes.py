@@ -388,3 +388,37 @@ def test_a_candidate_the_rod_does_not_lead_to_is_not_taken_for_a_hidden_end(
     fix = Locator(drawn.rig, cameras=drawn.cameras).locate([v.image for v in frame.views])
     assert fix.hit is None and fix.status in ("not_found", "rejected"), (fix.status, fix.uncertainty_m)
     assert fix.reason is not None and reason in fix.reason, fix.reason
+
+
+def test_a_red_ball_hidden_from_one_camera_is_placed_by_the_other_and_the_length() -> None:
+    """From behind the presenter, a hand hides the front (red) ball from camera 0 altogether; camera 1 sees
+    it (all but where the rod crosses it). Its end rests on camera 1 alone (`bench robustness`: seed 7
+    installation 23 frame 38, the red ball hidden by the body in one camera of two; and, eligible frames, a
+    ball on a surface of its hue where even a look at the truth finds no outline in one camera of two: seed
+    2026 installation 15 frame 15, seed 7 installation 18 frame 22, seed 11 installation 0 frame 28). The
+    blue ball triangulates, the rod leaves it in both images, and camera 1's ray through the red ball meets
+    the sphere of the pointer's length about where the rod's axis puts it (trackerd/joint/lone.py); the fit
+    places the red end from that one measurement and the length, and says how well. Before, no pose here
+    was found ("no red ball seen consistently by two cameras"). The presenter's hand on the back ball hides
+    half of it in some poses: those are left out (4 of these 8 are this test's case)."""
+    rig, renderer = _scene(_behind_cameras())
+    rng = np.random.default_rng(8)
+    results = []
+    for _ in range(8):
+        pose = _pose_from_the_middle(rng, (0.7, 0.95), (0.5, 0.9))
+        red_m = pose.front_m if rig.pointer.front_colour == "red" else pose.back_m
+        # A hand 12 cm in front of the ball on camera 0's line of sight to it: 24 degrees off camera 1's,
+        # clear of the rod.
+        towards = renderer.cameras[0].centre_m - red_m
+        hand_m = red_m + 0.12 * towards / np.linalg.norm(towards)
+        hand = Occluder("sphere", tuple(float(v) for v in hand_m), 0.03, (0.80, 0.62, 0.52), label="hand")
+        fix, error, views = _locate(rig, renderer, pose, rng, occluders=(hand,))
+        seen = [[v.truth.visible_fraction(c) for c in ("red", "blue")] for v in views]
+        assert seen[0][0] == 0.0
+        if seen[1][0] < 0.6 or min(seen[0][1], seen[1][1]) < 0.5:
+            continue  # the presenter's hand on the back ball hides half of it: not this test's case
+        assert error is not None and fix.uncertainty_m is not None, fix.reason
+        assert fix.centroids_px[0]["red"] is None and fix.centroids_px[1]["red"] is not None
+        assert error < 3.0 * fix.uncertainty_m, (error, fix.uncertainty_m)
+        results.append((error, fix.uncertainty_m))
+    assert len(results) >= 3 and max(error for error, _ in results) < 0.01, results
