@@ -422,3 +422,59 @@ def test_a_red_ball_hidden_from_one_camera_is_placed_by_the_other_and_the_length
         assert error < 3.0 * fix.uncertainty_m, (error, fix.uncertainty_m)
         results.append((error, fix.uncertainty_m))
     assert len(results) >= 3 and max(error for error, _ in results) < 0.01, results
+
+
+def test_a_tracked_pointer_is_followed_while_a_hand_hides_one_ball_from_one_camera(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Tracking from behind the presenter, then a hand hides the red ball from camera 0 for three pairs while
+    the pointer moves a few millimetres each: each pair is a hit resting on camera 1's red ball alone,
+    fitted from the last pair's ends (RefinedPath._followed_from_one_camera), and the search over every
+    camera's candidates runs once for the three (at its cadence for fixes on one sound outline), not once
+    per pair (every such pair searched before: each found the end again, which made the next one search)."""
+    from trackerd.refine import RefinedPath
+
+    searches: list[int] = []
+    searched = RefinedPath._locate_searched
+
+    def counted(self, *args):
+        searches.append(1)
+        return searched(self, *args)
+
+    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
+    rig, renderer = _scene(_behind_cameras())
+    rng = np.random.default_rng(8)
+    rng.random(3)
+    wall = wall_frame(rig.wall)
+    for _ in range(6):
+        tip = np.array([float(rng.uniform(1.5, 2.1)), float(rng.uniform(0.75, 0.9)), 1.6])
+        target = np.array([tip[0] + float(rng.uniform(-0.1, 0.1)), float(rng.uniform(0.55, 0.85)), 0.0])
+        poses = [pose_aimed_at(tip + np.array([0.004 * k, -0.002 * k, 0.0]), target, POINTER["length_m"]) for k in range(4)]
+        red_m = [p.front_m if rig.pointer.front_colour == "red" else p.back_m for p in poses]
+        towards = renderer.cameras[0].centre_m - red_m[1]
+        hand_m = red_m[1] + 0.12 * towards / np.linalg.norm(towards)
+        hand = Occluder("sphere", tuple(float(v) for v in hand_m), 0.03, (0.80, 0.62, 0.52), label="hand")
+        frames = [
+            [renderer.render(i, pose, rng, occluders=(hand,) if k else ()) for i in range(2)]
+            for k, pose in enumerate(poses)
+        ]
+        seen = [[[v.truth.visible_fraction(c) for c in ("red", "blue")] for v in views] for views in frames]
+        if any(views[0][0] > 0.0 for views in seen[1:]):
+            continue  # the hand is not over the red ball in camera 0 in every pair
+        if min(seen[0][0][0], *(views[1][0] for views in seen)) < 0.6:
+            continue  # the hand is over the red ball in camera 1 too
+        if min(f for views in seen for f in (views[0][1], views[1][1])) < 0.5:
+            continue  # the presenter's hand on the back ball hides most of it: not this test's case
+        locator = Locator(rig, cameras=renderer.cameras)
+        first = locator.locate([v.image for v in frames[0]])
+        assert first.status == "hit", first.reason
+        searches.clear()
+        for pose, views in zip(poses[1:], frames[1:], strict=True):
+            fix = locator.locate([v.image for v in views])
+            assert fix.hit is not None and fix.uncertainty_m is not None, fix.reason
+            assert fix.centroids_px[0]["red"] is None and fix.centroids_px[1]["red"] is not None
+            error = float(np.linalg.norm(fix.hit.wall_xy_m - true_wall_hit(pose, wall).wall_xy_m))
+            assert error < 3.0 * fix.uncertainty_m and error < 0.01, (error, fix.uncertainty_m)
+        assert len(searches) <= 1, searches
+        return
+    pytest.fail("no pose of six had the hand over the red ball in camera 0 only")

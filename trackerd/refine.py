@@ -350,6 +350,8 @@ class RefinedPath:
                         sigma_px,
                     )
         fix = self._fix_from_measurements(per_camera, None, detections, start, images)
+        if not fix.found:
+            fix = self._followed_from_one_camera(per_camera, detections, start, images) or fix
         support = _support(self._sound_ends(fix)) if fix.found else None
         weak = support is not None and support[0] < 2
         self._weak_fixes = self._weak_fixes + 1 if weak else 0
@@ -385,6 +387,44 @@ class RefinedPath:
         # search's first clause; the rest repeats the detector's reasons).
         searched_why = (searched.reason or "").split(";")[0]
         return replace(fix, reason=f"{fix.reason}; searched: {searched_why}" if searched_why else fix.reason)
+
+    def _followed_from_one_camera(
+        self, per_camera: list[dict[str, Any]], detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
+    ) -> PointerFix | None:
+        """The last pair's pointer followed while one end is measured by one camera alone (the presenter has
+        stepped in front of it in the others), the other by two or more: the pointer fit from the last pair's
+        ends (:mod:`trackerd.joint.lone`, the same end a first sighting's search would place). Kept where the
+        length still fixes that end's depth along its camera's ray (:func:`trackerd.joint.length_fixes_depth`)
+        and the end stayed within LONE_MIN_COS lengths of where it was (the ray's other point at the length
+        is twice that away at least); None otherwise, or when the fit or the rod's check refuses it. Without
+        this, each such pair found by the search would make the next one search again."""
+        from trackerd.joint import LONE_MIN_COS, length_fixes_depth
+
+        last = self.loc._last_line
+        seeing = {c: [i for i, ends in enumerate(per_camera) if ends[c] is not None] for c in COLOURS}
+        lone = [c for c in COLOURS if len(seeing[c]) == 1]
+        if last is None or len(lone) != 1 or max(len(v) for v in seeing.values()) < 2:
+            return None
+        fix = self._fix_from_measurements(
+            [dict(ends) for ends in per_camera],
+            (last.front_m, last.back_m),
+            detections,
+            start,
+            images,
+            one_camera_end=True,
+        )
+        if not fix.found:
+            return None
+        assert fix.line is not None
+        front = lone[0] == self.loc.front_colour
+        end_m, other_m = (fix.line.front_m, fix.line.back_m) if front else (fix.line.back_m, fix.line.front_m)
+        was_m = last.front_m if front else last.back_m
+        camera = self.loc.cameras[seeing[lone[0]][0]]
+        if not length_fixes_depth(camera.centre_m, end_m, other_m):
+            return None
+        if float(np.linalg.norm(end_m - was_m)) > LONE_MIN_COS * self.loc.pointer.length_m:
+            return None
+        return fix
 
     def _sound_ends(self, fix: PointerFix) -> dict[str, int]:
         """How many cameras measured each end of a found fix by an outline of a ball's size where the fit puts

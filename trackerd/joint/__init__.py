@@ -17,12 +17,13 @@ colour, which candidate (or none), so the pointer fit
 (:mod:`trackerd.geometry.pointer_fit`) can use cameras that see only one end.
 
 Layout: :mod:`trackerd.joint.points` triangulates each colour's candidates and pairs the points,
-:mod:`trackerd.joint.looks` looks for a ball where no camera offered it, :mod:`trackerd.joint.choice` runs
-the stages.
+:mod:`trackerd.joint.looks` looks for a ball where no camera offered it, :mod:`trackerd.joint.lone` places a
+ball that one camera alone offers, :mod:`trackerd.joint.choice` runs the stages.
 """
 
 from trackerd.joint.choice import choose_jointly
+from trackerd.joint.lone import LONE_MIN_COS, length_fixes_depth
 from trackerd.joint.looks import GUIDED_POINTS, Look, RodFrom
 from trackerd.joint.points import JointChoice
 
-__all__ = ["GUIDED_POINTS", "JointChoice", "Look", "RodFrom", "choose_jointly"]
+__all__ = ["GUIDED_POINTS", "LONE_MIN_COS", "JointChoice", "Look", "RodFrom", "choose_jointly", "length_fixes_depth"]

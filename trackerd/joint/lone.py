@@ -96,9 +96,7 @@ def lone_points(
                 point = camera.centre_m + distance_m * ray
                 if distance_m <= 0.2 or (room_side is not None and float(point @ room_side[0] + room_side[1]) <= 0):
                     continue
-                # The length fixes the depth along the ray to its own error over this cosine (and the two roots
-                # are 2 L cos apart): at a glancing angle, neither holds.
-                if abs(float(ray @ (point - partner.point_m))) < LONE_MIN_COS * length_m:
+                if not length_fixes_depth(camera.centre_m, point, partner.point_m):
                     glancing += 1
                     continue
                 size = cand.fit.radius_px / (camera.focal_px * ball_radius_m / distance_m)
@@ -120,6 +118,17 @@ def lone_points(
     if any(float(np.linalg.norm(p.point_m - best)) > LONE_APART * 2.0 * ball_radius_m for p in found[1:]):
         return f"{len(found)} {colour} candidates lie where the rod leads, and they are not one ball"
     return found
+
+
+def length_fixes_depth(camera_m: Array, end_m: Array, other_end_m: Array) -> bool:
+    """Whether the pointer's length fixes the depth of ``end_m`` along the ray to it from ``camera_m``: the
+    ray meets the pointer's axis at a cosine of at least LONE_MIN_COS. The depth the length gives is good to
+    the length's error over that cosine, and the ray's two points at the length from the other end are twice
+    the length times it apart: at a glancing angle, neither holds."""
+    ray = np.asarray(end_m, dtype=np.float64) - camera_m
+    axis = np.asarray(end_m, dtype=np.float64) - other_end_m
+    cosine = abs(float(ray @ axis)) / max(float(np.linalg.norm(ray) * np.linalg.norm(axis)), 1e-12)
+    return cosine >= LONE_MIN_COS
 
 
 def _off_m(camera: CameraModel, ray: Array, distance_m: float, predicted_m: Array) -> float:
