@@ -449,7 +449,8 @@ def test_a_tracked_pointer_is_followed_while_a_hand_hides_one_ball_from_one_came
     for _ in range(6):
         tip = np.array([float(rng.uniform(1.5, 2.1)), float(rng.uniform(0.75, 0.9)), 1.6])
         target = np.array([tip[0] + float(rng.uniform(-0.1, 0.1)), float(rng.uniform(0.55, 0.85)), 0.0])
-        poses = [pose_aimed_at(tip + np.array([0.004 * k, -0.002 * k, 0.0]), target, POINTER["length_m"]) for k in range(4)]
+        steps = [np.array([0.004, -0.002, 0.0]) * k for k in range(4)]
+        poses = [pose_aimed_at(tip + step, target, POINTER["length_m"]) for step in steps]
         red_m = [p.front_m if rig.pointer.front_colour == "red" else p.back_m for p in poses]
         towards = renderer.cameras[0].centre_m - red_m[1]
         hand_m = red_m[1] + 0.12 * towards / np.linalg.norm(towards)
