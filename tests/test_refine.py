@@ -132,7 +132,9 @@ def test_a_partial_outline_with_another_edge_in_its_rim_is_not_a_confident_hit()
     error of its centre."""
     drawn, rng = draw_installation(2026, 5)
     assert drawn.rig.wall is not None
-    *_, last = drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, 16)
+    (last,) = drawn_frames(
+        drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, 16, lambda number, _: number == 15
+    )
     assert last.factors["occlusion"] == "hand"
     fix = Locator(drawn.rig, cameras=drawn.cameras).locate([v.image for v in last.views])
     assert fix.hit is not None and fix.uncertainty_m is not None, fix.reason
