@@ -10,6 +10,11 @@ from trackerd.config.rig_geometry import wall_frame
 from trackerd.locator import Locator
 
 
+def _clean(number: int, factors: dict[str, str]) -> bool:
+    """A frame with neither blur nor anything in front of the pointer."""
+    return factors["blur"] == "none" and factors["occlusion"] == "none"
+
+
 def _whole_large_outlines(seed: int, installation: int, frames: int) -> tuple[list[float], list[float]]:
     """Errors (px) of clean frames' whole outlines of balls at least 16 px in radius, along each one's least
     certain direction, and the sigmas (px) their actual-error covariances state there."""
@@ -17,9 +22,9 @@ def _whole_large_outlines(seed: int, installation: int, frames: int) -> tuple[li
     assert drawn.rig.wall is not None
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     errors, sigmas = [], []
-    for frame in drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, frames):
-        if frame.factors["blur"] != "none" or frame.factors["occlusion"] != "none":
-            continue
+    # Only the clean frames are rendered (about a third); the others are drawn without their images, so
+    # these are the very frames of a run rendering all of them (tests/sim/test_render.py).
+    for frame in drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, frames, _clean):
         locator.reset()
         fix = locator.locate([view.image for view in frame.views])
         for camera, view, ends in zip(drawn.cameras, frame.views, fix.measurements or (), strict=False):

@@ -266,7 +266,7 @@ def test_a_ball_touching_a_hand_of_nearly_its_hue_is_a_candidate_and_the_pointer
     drawn, rng = draw_installation(7, 10)
     assert drawn.rig.wall is not None
     wall = wall_frame(drawn.rig.wall)
-    frame = list(drawn_frames(drawn, renderer_for(drawn), wall, rng, 16))[15]
+    (frame,) = drawn_frames(drawn, renderer_for(drawn), wall, rng, 16, lambda number, _: number == 15)
     assert frame.factors["occlusion"] == "hand" and frame.factors["content"] == "red text"
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     view = frame.views[1]
@@ -322,7 +322,8 @@ def test_the_last_resort_does_not_pair_junk_with_a_ball_hidden_from_all_cameras_
 
     drawn, rng = draw_installation(seed, installation)
     assert drawn.rig.wall is not None
-    frame = list(drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, number + 1))[number]
+    wall = wall_frame(drawn.rig.wall)
+    (frame,) = drawn_frames(drawn, renderer_for(drawn), wall, rng, number + 1, lambda n, _: n == number)
     seeing = [v.truth.visible_fraction(hidden) for v in frame.views]
     assert sum(1 for f in seeing if f >= 0.6) == 1 and sum(1 for f in seeing if f > 0.0) == 1, seeing
     fix = Locator(drawn.rig, cameras=drawn.cameras).locate([v.image for v in frame.views])
@@ -353,7 +354,9 @@ def test_an_end_on_one_sound_outline_is_searched_for_in_every_camera() -> None:
 
     drawn, rng = draw_installation(11, 20)
     assert drawn.rig.wall is not None
-    frame = list(drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, 2))[1]
+    (frame,) = drawn_frames(
+        drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, 2, lambda number, _: number == 1
+    )
     assert [round(v.truth.visible_fraction("blue"), 1) for v in frame.views] == [1.0, 0.0, 0.5, 1.0]
     fix = Locator(drawn.rig, cameras=drawn.cameras).locate([v.image for v in frame.views])
     assert fix.status == "hit" and fix.hit is not None and fix.uncertainty_m is not None, fix.reason
@@ -382,7 +385,8 @@ def test_a_candidate_the_rod_does_not_lead_to_is_not_taken_for_a_hidden_end(
 
     drawn, rng = draw_installation(11, installation)
     assert drawn.rig.wall is not None
-    frame = list(drawn_frames(drawn, renderer_for(drawn), wall_frame(drawn.rig.wall), rng, number + 1))[number]
+    wall = wall_frame(drawn.rig.wall)
+    (frame,) = drawn_frames(drawn, renderer_for(drawn), wall, rng, number + 1, lambda n, _: n == number)
     seeing = [v.truth.visible_fraction(hidden) for v in frame.views]
     assert len(seeing) == 2 and seeing[0] < 0.6 <= seeing[1], seeing
     fix = Locator(drawn.rig, cameras=drawn.cameras).locate([v.image for v in frame.views])

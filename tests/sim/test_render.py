@@ -134,6 +134,23 @@ def test_a_pointer_held_still_renders_as_if_cast_afresh_with_new_noise(renderer:
     assert redone.truth.area_px == second.truth.area_px
 
 
+def test_a_skipped_frame_draws_what_rendering_it_draws(simulated_rig) -> None:
+    """`SceneRenderer.skip` (`drawn_frames` skipping the frames a test does not look at) leaves the generator
+    as rendering the frame does, with fresh noise per frame or a noise field per camera (drawn by the first
+    frame, skipped or not): the frames rendered after it are those of a run that rendered it, bit for bit."""
+    pose = random_pose(simulated_rig, np.random.default_rng(5))
+    for noise_field in (False, True):
+        rendering, skipping = (SceneRenderer(simulated_rig, noise_field=noise_field) for _ in range(2))
+        rendered, skipped = np.random.default_rng(3), np.random.default_rng(3)
+        for camera in (0, 1, 0):
+            rendering.render(camera, pose, rendered)
+            skipping.skip(camera, skipped)
+        assert rendered.bit_generator.state == skipped.bit_generator.state, noise_field
+        np.testing.assert_array_equal(
+            rendering.render(1, pose, rendered).image, skipping.render(1, pose, skipped).image
+        )
+
+
 def test_empty_room_has_no_pointer_truth(renderer: SceneRenderer) -> None:
     view = renderer.render(0, None, np.random.default_rng(0))
     assert np.all(np.isnan(view.truth.centroid_px["red"]))

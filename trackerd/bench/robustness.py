@@ -34,7 +34,7 @@ import json
 import multiprocessing
 import time
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -200,10 +200,19 @@ def draw_installation(seed: int, index: int) -> tuple[RandomRig, np.random.Gener
 
 
 def drawn_frames(
-    drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame, rng: np.random.Generator, poses: int
+    drawn: RandomRig,
+    renderer: SceneRenderer,
+    wall: WallFrame,
+    rng: np.random.Generator,
+    poses: int,
+    wanted: Callable[[int, dict[str, str]], bool] | None = None,
 ) -> Iterator[DrawnFrame]:
     """The installation's first ``poses`` frames, in order (every frame draws from ``rng`` in turn, so
-    frame k is the same only after frames 0..k-1 were drawn: scripts/robustness_frame.py relies on it)."""
+    frame k is the same only after frames 0..k-1 were drawn: scripts/robustness_frame.py relies on it).
+
+    ``wanted(number, factors)``: only the frames it accepts are rendered and given; the others are drawn
+    without rendering their images (:meth:`SceneRenderer.skip`), so the frames given are those of a run
+    that rendered every frame, bit for bit, in a fraction of the time."""
     from trackerd.sim.appearance import wall_content
     from trackerd.sim.randomized import random_shot
     from trackerd.sim.scene import true_wall_hit
@@ -211,6 +220,11 @@ def drawn_frames(
     for number in range(poses):
         shot = random_shot(drawn, rng, wall)
         content = wall_content(shot.content_kind, rng)
+        factors = {**drawn.factors, **shot.factors}
+        if wanted is not None and not wanted(number, factors):
+            for i in range(len(drawn.cameras)):
+                renderer.skip(i, rng)
+            continue
         views = [
             renderer.render(
                 i,
@@ -226,7 +240,7 @@ def drawn_frames(
         # The truth of a blurred frame is the middle of the exposure.
         middle = shot.pose if shot.motion_to is None else shot.pose.interpolate(shot.motion_to, 0.5)
         truth = true_wall_hit(middle, wall).wall_xy_m
-        yield DrawnFrame(number, {**drawn.factors, **shot.factors}, views, middle, truth)
+        yield DrawnFrame(number, factors, views, middle, truth)
 
 
 def run_rig(task: tuple[int, int, int, str | None, int, int]) -> list[dict[str, Any]]:

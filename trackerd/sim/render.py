@@ -201,12 +201,38 @@ class SceneRenderer:
                 centre = mid.centre_of(colour, self.front_colour)
                 truth_centre[colour] = camera.project(centre[None])[0]
                 full_area[colour] = silhouette_area_px(camera, centre, radius)
-        draws = self._noise.window(camera_index, mosaic.shape, rng) if (noise and self.noise_field) else None
+        draws = self._noise_draws(camera_index, mosaic.shape, rng, noise)
         sim = self.rig.simulation
         image = sensor_output(
             mosaic, rng, sim.noise_sigma, sim.shot_noise, noise, draws, scratch=self._buffer("noise", mosaic)
         )
         return RenderedView(image, fmt, ViewTruth(truth_centre, truth_centroid, truth_area, full_area))
+
+    def skip(
+        self, camera_index: int, rng: np.random.Generator, *, pixel_format: str | None = None, noise: bool = True
+    ) -> None:
+        """Draw from ``rng`` what :meth:`render` draws for one frame of camera ``camera_index``, without
+        rendering it: the frames rendered after it are those of a run that rendered it, bit for bit (for
+        the frames of a sequence that are not looked at; a camera's room is rendered, as its first frame
+        would render it, since its shape is that of the frame)."""
+        fmt = pixel_format or self.pixel_formats[camera_index]
+        lit = self.backgrounds.lit_in_format(camera_index, fmt, self._illumination_map(camera_index))
+        self._noise_draws(camera_index, lit.shape, rng, noise)
+
+    def _noise_draws(
+        self, camera_index: int, shape: tuple[int, ...], rng: np.random.Generator, noise: bool
+    ) -> NDArray[np.float32] | None:
+        """A frame's standard normal sensor noise: a window of the camera's noise field, or fresh draws
+        (as :func:`~trackerd.sim.sensor.sensor_output` would draw them), or None for a noiseless frame.
+        Everything a frame draws from its generator is drawn here (:meth:`skip` draws the same)."""
+        if not noise:
+            return None
+        if self.noise_field:
+            return self._noise.window(camera_index, shape, rng)
+        sim = self.rig.simulation
+        if sim.noise_sigma > 0 or sim.shot_noise > 0:
+            return rng.standard_normal(shape, dtype=np.float32)
+        return None
 
     def background_rgb(self, camera_index: int) -> FloatImage:
         """The empty room as camera ``camera_index`` sees it, (H, W, 3) floats in [0, 1]."""
