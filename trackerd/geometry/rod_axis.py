@@ -49,6 +49,8 @@ class RodSighting:
     """The other ball's image radius at the predicted point."""
     ball_m: Array
     """(3,) the predicted point itself (the same for every camera's sighting)."""
+    from_px: Array
+    """(2,) the found ball's centre in this image, where the rod's line starts."""
 
 
 def other_ball_along_rod(
@@ -111,5 +113,5 @@ def other_ball_along_rod(
         distance_along = (projected - centres_px[k]) @ along[k]
         spread = float(np.max(np.abs(distance_along[1:] - distance_along[0])))
         radius = camera.focal_px * ball_radius_m / float(np.linalg.norm(others[0] - camera.centre_m))
-        sightings.append(RodSighting(index, projected[0], along[k], spread, radius, others[0]))
+        sightings.append(RodSighting(index, projected[0], along[k], spread, radius, others[0], centres_px[k]))
     return sightings

@@ -25,8 +25,7 @@ import numpy as np
 
 from trackerd.detect.search import Candidate
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.rod_axis import other_ball_along_rod
-from trackerd.joint.looks import ROD_DIRECTION_ERROR_DEG, ROD_POINTS, RodFrom, length_roots
+from trackerd.joint.looks import ROD_POINTS, RodFrom, length_roots, rod_sightings
 from trackerd.joint.points import SIZE_SCALE, Array, Point
 
 LONE_SIZE_RATIO = 1.3
@@ -63,19 +62,11 @@ def lone_points(
     found: list[Point] = []
     axes = glancing = 0
     for partner in partners[:ROD_POINTS]:
-        leaving: dict[int, tuple[Array, Array]] = {}
-        for c, k in partner.members.items():
-            fit = candidates[c][other][k].fit
-            direction = rod(c, float(fit.centre_px[0]), float(fit.centre_px[1]), float(fit.radius_px))
-            if direction is not None:
-                leaving[c] = (np.asarray(fit.centre_px, dtype=np.float64), np.asarray(direction, dtype=np.float64))
-        sightings = other_ball_along_rod(
-            cameras, partner.point_m, leaving, length_m, ball_radius_m, ROD_DIRECTION_ERROR_DEG
-        )
+        sightings = rod_sightings(cameras, candidates, colour, partner, ball_radius_m, length_m, rod)
         axes += bool(sightings)
         for sighting in sightings:
             camera = cameras[sighting.camera]
-            origin_px = leaving[sighting.camera][0]
+            origin_px = sighting.from_px
             for index, cand in enumerate(candidates[sighting.camera][colour]):
                 centre_px = np.asarray(cand.fit.centre_px, dtype=np.float64)
                 # On the rod's image line, about where the axis puts the ball (within the spread its

@@ -12,7 +12,7 @@ import numpy as np
 
 from trackerd.detect.search import Candidate
 from trackerd.geometry.camera import CameraModel
-from trackerd.geometry.rod_axis import other_ball_along_rod
+from trackerd.geometry.rod_axis import RodSighting, other_ball_along_rod
 from trackerd.joint.points import EXTRA_CAMERA_BONUS, MAX_HYPOTHESES, MAX_SIZE_RATIO, SIZE_SCALE, Array, Point
 
 Look = Callable[[int, str, float, float, float, "tuple[float, float] | None"], "Iterable[Candidate]"]
@@ -156,6 +156,28 @@ def length_roots(
     return ((-b, math.sqrt(max(b * b - (square - (length_m + length_tolerance_m) ** 2), 0.0))),)
 
 
+def rod_sightings(
+    cameras: list[CameraModel],
+    candidates: list[dict[str, list[Candidate]]],
+    colour: str,
+    partner: Point,
+    ball_radius_m: float,
+    length_m: float,
+    rod: RodFrom,
+) -> list[RodSighting]:
+    """Where each camera should see the ``colour`` ball, from ``partner`` (the other ball's point) and the rod
+    leaving its candidate in every camera that measured it and shows the rod clearly
+    (:func:`trackerd.geometry.rod_axis.other_ball_along_rod`, directions ROD_DIRECTION_ERROR_DEG off at most)."""
+    other = "blue" if colour == "red" else "red"
+    leaving: dict[int, tuple[Array, Array]] = {}
+    for c, k in partner.members.items():
+        fit = candidates[c][other][k].fit
+        direction = rod(c, float(fit.centre_px[0]), float(fit.centre_px[1]), float(fit.radius_px))
+        if direction is not None:
+            leaving[c] = (np.asarray(fit.centre_px, dtype=np.float64), np.asarray(direction, dtype=np.float64))
+    return other_ball_along_rod(cameras, partner.point_m, leaving, length_m, ball_radius_m, ROD_DIRECTION_ERROR_DEG)
+
+
 def look_along_rod(
     cameras: list[CameraModel],
     candidates: list[dict[str, list[Candidate]]],
@@ -171,17 +193,7 @@ def look_along_rod(
     the pointer's axis (:func:`trackerd.geometry.rod_axis.other_ball_along_rod`) puts the ball. The first
     outline of the ball's size on that line in each camera joins ``candidates``; the caller triangulates
     them, or looks from them into the other cameras."""
-    other = "blue" if colour == "red" else "red"
-    leaving: dict[int, tuple[Array, Array]] = {}
-    for c, k in partner.members.items():
-        fit = candidates[c][other][k].fit
-        direction = rod(c, float(fit.centre_px[0]), float(fit.centre_px[1]), float(fit.radius_px))
-        if direction is not None:
-            leaving[c] = (np.asarray(fit.centre_px, dtype=np.float64), np.asarray(direction, dtype=np.float64))
-    sightings = other_ball_along_rod(
-        cameras, partner.point_m, leaving, length_m, ball_radius_m, ROD_DIRECTION_ERROR_DEG
-    )
-    for sighting in sightings:
+    for sighting in rod_sightings(cameras, candidates, colour, partner, ball_radius_m, length_m, rod):
         camera = cameras[sighting.camera]
         step_px = ROD_LOOK_STEP * sighting.radius_px
         # Within the spread, at most ROD_LOOKS: where the planes are a few degrees apart the spread is several
@@ -189,7 +201,7 @@ def look_along_rod(
         # and the length's sphere from there the others).
         most = min(int((sighting.spread_px + 0.5 * sighting.radius_px) // step_px), ROD_LOOKS // 2)
         offsets_px = [k * step_px for k in sorted(range(-most, most + 1), key=abs)]
-        origin = leaving[sighting.camera][0]
+        origin = sighting.from_px
         towards = (-float(sighting.along[0]), -float(sighting.along[1]))
         for offset_px in offsets_px:
             start = sighting.expected_px + offset_px * sighting.along
