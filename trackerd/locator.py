@@ -226,8 +226,22 @@ class Locator:
         if fix is None:
             fix = self._locate_detected(detections) if mode == "never" else self._locate_refined(images, detections)
         fix.timings_ns["detect_ns"] = detected - start
+        if not fix.found:
+            self._lost()
         self._last_line = fix.line if fix.found else None
         return fix
+
+    def _lost(self) -> None:
+        """The pointer was not found at this pair: the detectors' tracking windows and the tracked path's
+        offsets are stale, and the next pair is detected in full. The refined path's search keeps its cadence
+        (every search_every_pairs-th pair while nothing is found): a reset here would make a room without the
+        pointer search on every pair (52 ms a pair on a plain 4K-class frame, hundreds before a busy
+        display). Every user of a locator (the processing stage, replay ahead, export, windowed recording)
+        gets this from locate itself."""
+        for detector in self._detectors or []:
+            detector.reset()
+        self.offsets = None
+        self._tracked_by_fit = None
 
     def _tight(self, fix: PointerFix) -> bool:
         """Whether a fix from the detector's centroids holds together as a good one does."""

@@ -133,9 +133,6 @@ class ProcessingStage:
             for extension in self.extensions:
                 events = events.then(extension.on_located(located))
             figures.count_fix(fix.status)
-            if fix.status == "not_found":
-                # Tracking windows are stale once the pointer is gone.
-                self.locator.reset()
             stage = {
                 "detect": fix.timings_ns.get("detect_ns", 0),
                 "triangulate": fix.timings_ns.get("triangulate_ns", 0),

@@ -107,8 +107,6 @@ def _locate_all(
                     located_pass = loop_pass
                     locator.reset()
                 fix = locator.locate(images)
-                if fix.status == "not_found":
-                    locator.reset()  # as the processing stage does: tracking windows are stale
                 batch.append(WorkerResult(index, loop_pass, fix, None))
             if len(batch) >= SEND_PAIRS or index == stop_at - 1:
                 connection.send(batch)

@@ -1,8 +1,8 @@
 """`trackerd recording export`: the frames as viewable PNGs with the detections drawn, and the hits as CSV.
 
 The modern version of the report's text dump (section 6.2). Pairs go through
-the locator in recorded order with the pipeline's rule for tracking (start
-afresh, reset when an end is lost) and through the rig's extensions, so the
+the locator in recorded order as the pipeline does (started afresh; a pair
+without the pointer ends tracking, in the locator itself) and through the rig's extensions, so the
 messages are the ones `trackerd replay` publishes for the same recording and
 configuration: the CSV's hit columns are the published hit fields, exactly.
 """
@@ -137,8 +137,6 @@ def export_recording(
                 messages: list[Message] = pair_messages(
                     fix, locator.front_colour, sequence=pair.sequence, capture_ns=capture, events=events
                 )
-                if fix.status == "not_found":
-                    locator.reset()  # the pipeline's rule: tracking windows are stale once the pointer is gone
                 statuses[fix.status] = statuses.get(fix.status, 0) + 1
                 hit = next((m for m in messages if isinstance(m, HitMessage)), None)
                 writer.writerow(

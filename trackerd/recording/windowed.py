@@ -128,10 +128,6 @@ class WindowPlanner:
         else:
             self.replayed.locate(images)
         self._follow(live_fix)
-        if live_fix.status == "not_found":
-            # As the pipeline does: tracking windows are stale once the pointer is gone.
-            self.live.reset()
-            self.replayed.reset()
         if reason:
             self._key = [image.copy() for image in images]
             self.keyframes[reason] = self.keyframes.get(reason, 0) + 1
