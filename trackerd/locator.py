@@ -180,6 +180,8 @@ class Locator:
         """The interpretation planes' angle (sine) at the pair that last made that choice."""
         self._last_line: PointerLine | None = None
         """The last found pointer's line: each end's depth in each camera, for the tracked ends' area check."""
+        self._last_step_m: tuple[Array, Array] | None = None
+        """How far the front and back ends moved from the pair before the last to the last, when both found."""
 
     # ------------------------------------------------------------------ detection
 
@@ -203,6 +205,7 @@ class Locator:
         self.offsets = None
         self._tracked_by_fit = None
         self._last_line = None
+        self._last_step_m = None
         if self._refined is not None:
             self._refined.reset()
 
@@ -228,7 +231,12 @@ class Locator:
         fix.timings_ns["detect_ns"] = detected - start
         if not fix.found:
             self._lost()
-        self._last_line = fix.line if fix.found else None
+        line = fix.line if fix.found else None
+        last = self._last_line
+        self._last_step_m = (
+            None if line is None or last is None else (line.front_m - last.front_m, line.back_m - last.back_m)
+        )
+        self._last_line = line
         return fix
 
     def _lost(self) -> None:
@@ -242,6 +250,18 @@ class Locator:
             detector.reset()
         self.offsets = None
         self._tracked_by_fit = None
+
+    def predicted_ends_m(self) -> Array | None:
+        """Where the pointer's ends (front, back; (2, 3)) should be at this pair: the last pair's, moved on by the
+        step they made from the pair before when that was found too; None when the last pair's pointer was
+        not found."""
+        last = self._last_line
+        if last is None:
+            return None
+        ends = np.stack([last.front_m, last.back_m])
+        if self._last_step_m is not None:
+            ends = ends + np.stack(self._last_step_m)
+        return ends
 
     def _tight(self, fix: PointerFix) -> bool:
         """Whether a fix from the detector's centroids holds together as a good one does."""
