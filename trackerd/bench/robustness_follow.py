@@ -18,16 +18,21 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 if TYPE_CHECKING:
     from trackerd.config.models import RigConfig
     from trackerd.geometry.wall import WallFrame
     from trackerd.sim.randomized import RandomRig
-    from trackerd.sim.render import SceneRenderer
+    from trackerd.sim.render import RenderedView, SceneRenderer
     from trackerd.sim.scene import PointerPose
+
+Array = NDArray[np.float64]
 
 MAX_STEP_M = 0.012
 """How far the ball that moves most travels between frames (0.72 m/s at 60 fps)."""
@@ -63,6 +68,40 @@ def followed_poses(drawn: RandomRig, wall: WallFrame, rng: np.random.Generator, 
     return poses
 
 
+@dataclass(frozen=True)
+class FollowedFrame:
+    """One frame of a followed sequence: every camera's view, and the true wall hit at the exposure's middle."""
+
+    number: int
+    views: list[RenderedView]
+    truth_xy_m: Array | None
+
+
+def followed_frames(
+    drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame, rng: np.random.Generator, count: int
+) -> tuple[str, Iterator[FollowedFrame]]:
+    """The wall's content kind and ``count`` consecutive frames of installation ``drawn`` (:func:`followed_poses`,
+    half of each frame's motion blurred into its exposure), rendered from ``rng`` in order as iterated."""
+    from trackerd.sim.appearance import wall_content
+    from trackerd.sim.randomized import random_shot
+    from trackerd.sim.scene import true_wall_hit
+
+    kind = random_shot(drawn, rng, wall).content_kind
+    content = wall_content(kind, rng)
+    poses = followed_poses(drawn, wall, rng, count + 1)
+
+    def frames() -> Iterator[FollowedFrame]:
+        for number, (pose, following) in enumerate(itertools.pairwise(poses)):
+            motion_to = pose.interpolate(following, EXPOSURE_SHARE)
+            views = [
+                renderer.render(i, pose, rng, motion_to=motion_to, motion_steps=3, occluders=(), content=content)
+                for i in range(len(drawn.cameras))
+            ]
+            yield FollowedFrame(number, views, true_wall_hit(pose.interpolate(motion_to, 0.5), wall).wall_xy_m)
+
+    return kind, frames()
+
+
 def follow_rig(
     drawn: RandomRig,
     rig: RigConfig,
@@ -75,23 +114,13 @@ def follow_rig(
     """One record per frame of a followed sequence: trackerd tracking, and from scratch, on the same images."""
     from trackerd.bench.robustness import MIN_VISIBLE
     from trackerd.locator import Locator
-    from trackerd.sim.appearance import wall_content
-    from trackerd.sim.randomized import random_shot
-    from trackerd.sim.scene import true_wall_hit
 
-    kind = random_shot(drawn, rng, wall).content_kind
-    content = wall_content(kind, rng)
-    poses = followed_poses(drawn, wall, rng, count + 1)
+    kind, frames = followed_frames(drawn, renderer, wall, rng, count)
     tracking = Locator(rig, cameras=drawn.cameras)
     scratch = Locator(rig, cameras=drawn.cameras)
     records = []
-    for number, (pose, following) in enumerate(itertools.pairwise(poses)):
-        motion_to = pose.interpolate(following, EXPOSURE_SHARE)
-        views = [
-            renderer.render(i, pose, rng, motion_to=motion_to, motion_steps=3, occluders=(), content=content)
-            for i in range(len(drawn.cameras))
-        ]
-        truth = true_wall_hit(pose.interpolate(motion_to, 0.5), wall).wall_xy_m
+    for frame in frames:
+        number, views, truth = frame.number, frame.views, frame.truth_xy_m
         visible = [[v.truth.visible_fraction(c) for c in ("red", "blue")] for v in views]
         images = [v.image for v in views]
         record: dict[str, Any] = {
