@@ -203,3 +203,20 @@ def test_a_third_camera_that_sees_nothing_does_not_stop_the_fix(simulated_rig, r
     assert fix3.status == fix2.status
     np.testing.assert_allclose(fix3.hit.wall_xy_m, fix2.hit.wall_xy_m, atol=1e-12)
     assert not fix3.detections[2].red.found and not fix3.detections[2].blue.found
+
+
+def test_a_pair_without_the_pointer_ends_tracking(simulated_rig, renderer) -> None:
+    """After a pair whose ends make no pointer (each camera sees one, in different places: a camera bumped,
+    or each detector on something else), every camera's detector searches its next frame in full instead of
+    looking only where its windows were (Locator._lost), and the pointer is found again at once."""
+    rng = np.random.default_rng(5)
+    poses = [random_pose(simulated_rig, rng) for _ in range(2)]
+    locator = Locator(simulated_rig)
+    seen = [renderer.render(i, poses[0], rng).image for i in range(2)]
+    assert locator.locate(seen).found
+    assert [d.search for d in locator.locate(seen).detections] == ["window", "window"]
+    torn = [renderer.render(0, poses[0], rng).image, renderer.render(1, poses[1], rng).image]
+    fix = locator.locate(torn)
+    assert not fix.found and [d.both_found for d in fix.detections] == [True, True], fix.reason
+    again = locator.locate(seen)
+    assert [d.search for d in again.detections] == ["full", "full"] and again.found, again.reason

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from trackerd.bench.robustness import MIN_VISIBLE, draw_installation, drawn_frames, renderer_for, run_rig
 from trackerd.config.rig_geometry import wall_frame
@@ -219,3 +220,41 @@ def _located_as_close_as_its_sigma_says(seed: int, installation: int, number: in
     assert seeing >= 2 and fix.hit is not None and frame.truth_xy_m is not None, (seed, installation, seeing, fix)
     error_m = float(np.linalg.norm(fix.hit.wall_xy_m - frame.truth_xy_m))
     assert fix.uncertainty_m is not None and error_m < 3.0 * fix.uncertainty_m, (seed, installation, error_m, fix)
+
+
+def test_a_followed_pointer_whose_detectors_take_something_else_is_looked_for_where_it_moved(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """`bench robustness --seed 2026 --follow 20`, installation 27: three cameras far back, warm light, a crimson
+    and navy pointer before a photo. Followed, the detectors' ends make no pointer on any pair (one camera's
+    detector takes part of the photo: "ends are 123-3178 mm apart"), and the search over every camera's
+    candidates, 0.2-0.3 s a pair, ran on every one of them. Each pair after the first sighting is now found by
+    looking for the last pair's pointer where it has moved to (RefinedPath._looked_where_it_was), within
+    its sigma, and the search runs once, for the first sighting."""
+    from trackerd.bench.robustness_follow import followed_frames
+    from trackerd.refine import RefinedPath
+
+    searches: list[int] = []
+    searched = RefinedPath._locate_searched
+
+    def counted(self, *args):
+        searches.append(1)
+        return searched(self, *args)
+
+    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
+    drawn, _ = draw_installation(2026, 27)
+    assert drawn.rig.wall is not None
+    wall = wall_frame(drawn.rig.wall)
+    # The bench's own generator for this installation's followed frames (trackerd.bench.robustness.run_rig).
+    _, frames = followed_frames(drawn, renderer_for(drawn), wall, np.random.default_rng([2026, 27, 3]), 7)
+    locator = Locator(drawn.rig, cameras=drawn.cameras)
+    looked = 0
+    for frame in frames:
+        seeing = [min(v.truth.visible_fraction(c) for c in ("red", "blue")) for v in frame.views]
+        assert sum(1 for s in seeing if s >= MIN_VISIBLE) >= 2, (frame.number, seeing)
+        fix = locator.locate([v.image for v in frame.views])
+        assert fix.hit is not None and fix.uncertainty_m is not None and frame.truth_xy_m is not None, fix.reason
+        error_m = float(np.linalg.norm(fix.hit.wall_xy_m - frame.truth_xy_m))
+        assert error_m < 3.0 * fix.uncertainty_m, (frame.number, error_m, fix.uncertainty_m)
+        looked += int(frame.number > 0 and bool(fix.measurements))
+    assert len(searches) == 1 and looked == 6, (searches, looked)

@@ -175,6 +175,47 @@ def test_a_bumped_camera_shows_in_the_status_calibration_health(simulated_rig, r
     assert status.calibration.suspect
 
 
+def test_a_room_without_the_pointer_is_searched_at_the_cadence_not_on_every_pair(
+    simulated_rig, rendered_sweep, tmp_path, monkeypatch
+):
+    """The pointer found, then thirteen pairs without it: the search over every camera's candidates (tens of
+    milliseconds to a second a pair) runs on the first of them and then on every search_every_pairs-th
+    (config/pointer.py's promise: a room without the pointer does not keep a core busy). The processing stage
+    used to reset the whole locator on each such pair, which made every one of them a first sighting,
+    searched."""
+    from trackerd.refine import RefinedPath
+
+    searches: list[int] = []
+    searched = RefinedPath._locate_searched
+
+    def counted(self, *args):
+        searches.append(1)
+        return searched(self, *args)
+
+    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
+    image_sets, truths = rendered_sweep
+    with_pointer = next(images for images, truth in zip(image_sets, truths, strict=True) if truth is not None)
+    empty = [np.zeros_like(image) for image in with_pointer]
+    pairs = [with_pointer] + [empty] * 13
+    rig = _rig_on(simulated_rig, f"ipc://{tmp_path}/pub.sock")
+    every = rig.locator.search_every_pairs
+    pipeline = Pipeline(
+        rig,
+        lambda r: MemoryPairSource(r, pairs, rate_hz=None, count=len(pairs), drop_late=False),
+        lambda r: Publisher(r.outputs.zmq),
+    )
+    try:
+        pipeline.start()
+        _wait_published(pipeline, len(pairs))
+    finally:
+        pipeline.stop()
+    assert pipeline.failure is None and pipeline.pairs_published == len(pairs)
+    status = pipeline.build_status(None)
+    assert status.fixes.get("not_found", 0) == 13, status.fixes
+    # The first pair's pointer is found by its detectors (no search); then pairs 1, 1 + every, 1 + 2 every...
+    assert len(searches) == len(range(0, 13, every)), (len(searches), every)
+
+
 def test_a_subscriber_that_never_reads_does_not_slow_the_pipeline(simulated_rig, rendered_sweep, tmp_path):
     image_sets, _ = rendered_sweep
     endpoint = f"ipc://{tmp_path}/pub.sock"
