@@ -459,7 +459,8 @@ class RefinedPath:
         every camera: each end's outline where the pointer now projects, within FOLLOW_SLACK_SHARE of a ball's
         radius and of a ball's size there (the detector's own measurement where it is that, else fitted there
         by :func:`guided_fits`), and the pointer fitted to them from the predicted ends. None without a last
-        pair or when the fit makes no pointer.
+        pair or when the fit makes no pointer (nor :meth:`_followed_from_one_camera` on the same outlines,
+        where the last pair's end rested on one camera).
 
         While the detectors follow the balls this is never asked for. Where one takes something else of the
         ball's colour or loses the ball (a dark ball on a picture of its hue, a hand over it), the search over
@@ -502,8 +503,13 @@ class RefinedPath:
                     if float(np.hypot(*(fit.centre_px - at))) <= slack:
                         found[colour] = from_fit(camera, index, colour, fit)
                         break
-        fix = self._fix_from_measurements(looked, (predicted[0], predicted[1]), detections, start, images)
-        return fix if fix.found else None
+        fix = self._fix_from_measurements(
+            [dict(ends) for ends in looked], (predicted[0], predicted[1]), detections, start, images
+        )
+        if fix.found:
+            return fix
+        # An end that one camera alone measured at the last pair, and again now.
+        return self._followed_from_one_camera(looked, detections, start, images)
 
     def _sound_ends(self, fix: PointerFix) -> dict[str, int]:
         """How many cameras measured each end of a found fix by an outline of a ball's size where the fit puts
