@@ -102,6 +102,11 @@ FOLLOW_SLACK_MIN_PX = 3.0
 FOLLOW_SLACK_MIN_PX where that is more: a presenter's hand changes speed by less than that in a frame, and a
 ball of its colour farther off is something else."""
 
+PATIENT_SEARCHES = 8
+"""While nothing is found, this many searches in a row run every search_every_pairs-th pair (about 0.8 s at
+60 pairs a second with the default 6) before the wait between them doubles (:meth:`RefinedPath._search_wait`):
+a presenter who lowers the pointer for a moment is found again as soon as before."""
+
 SEARCH_VIEW_TOLERANCE = 0.15
 """The same for the search's seeds, which are many and mostly not balls: only where the outline departs
 from a circle by more than this (30 degrees off the axis) is a failed seed fitted again in the view's
@@ -320,6 +325,8 @@ class RefinedPath:
         self._weak_fixes = 0
         """Refined fixes in a row with an end on one sound outline (the search runs on every
         search_every_pairs-th of them, the first included)."""
+        self._fruitless = 0
+        """Searches in a row that found nothing (the wait before the next doubles: :meth:`_search_wait`)."""
         self._lone_line: PointerLine | None = None
         """The line of the last refined fix when one of its ends was measured by one camera alone (the pairs
         after it follow that end without searching: :meth:`_followed_from_one_camera`), else None."""
@@ -329,6 +336,7 @@ class RefinedPath:
         self._searched_once = False
         self._since_search = 0
         self._weak_fixes = 0
+        self._fruitless = 0
         self._lone_line = None
 
     def locate(self, images: Sequence[NDArray[np.uint8]], detections: tuple) -> PointerFix:
@@ -392,11 +400,12 @@ class RefinedPath:
         # The search over every camera's candidates is slow: at once on a first sighting, then on every
         # search_every_pairs-th pair while nothing is found.
         self._since_search += 1
-        if self._searched_once and self._since_search < self.loc.rig.locator.search_every_pairs:
+        if self._searched_once and self._since_search < self._search_wait():
             return fix
         self._since_search = 0
         self._searched_once = True
         searched = self._locate_searched(images, detections, start)
+        self._fruitless += 1
         if searched.found:
             self._after_refined(searched)
             # On one sound outline, this pair's search counts as the first of the cadence's above.
@@ -408,6 +417,16 @@ class RefinedPath:
         # search's first clause; the rest repeats the detector's reasons).
         searched_why = (searched.reason or "").split(";")[0]
         return replace(fix, reason=f"{fix.reason}; searched: {searched_why}" if searched_why else fix.reason)
+
+    def _search_wait(self) -> int:
+        """Pairs between searches while nothing is found: search_every_pairs after each of the first
+        PATIENT_SEARCHES that found nothing, then twice as many after each, up to search_longest_pairs (at least
+        search_every_pairs). A fixed cadence kept a core searching in a room without the pointer before a
+        busy display (0.2-0.9 s a search, every sixth pair)."""
+        config = self.loc.rig.locator
+        every = config.search_every_pairs
+        doubled = every << min(max(self._fruitless - PATIENT_SEARCHES + 1, 0), 16)
+        return max(every, min(doubled, config.search_longest_pairs))
 
     def _followed_from_one_camera(
         self, per_camera: list[dict[str, Any]], detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
@@ -537,6 +556,7 @@ class RefinedPath:
         self.loc.learn_offsets(fix)
         self._searched_once = False
         self._since_search = 0
+        self._fruitless = 0
         seen_by = [sum(1 for ends in fix.measurements if ends.get(c) is not None) for c in COLOURS]
         self._lone_line = fix.line if min(seen_by) == 1 else None
         if self.loc._detectors is None:

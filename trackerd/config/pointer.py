@@ -170,6 +170,12 @@ class LocatorConfig(ConfigModel):
     does not keep a core busy; a first sighting after a reset is searched at once. So it does, the first
     included, while refined fixes follow each other with an end resting on one outline of a ball's size
     (trackerd/refine.py, RefinedPath.locate)."""
+    search_longest_pairs: int = Field(default=192, ge=1, le=6000)
+    """While nothing is found for long (eight searches in a row), the wait between searches doubles after each
+    (search_every_pairs, twice that, four times...), up to this many pairs (about 3 s at 60 pairs a
+    second): before a photo on the display a search takes 0.2-0.9 s for two 1080p cameras, and at a fixed
+    cadence a room without the pointer would keep a core searching. The detectors look at every pair in full
+    meanwhile, and a pointer they find is found at once. At most search_every_pairs: no doubling."""
     length_sigma_m: float = Field(default=0.003, gt=0.0)
     """How exactly the pointer's length (pointer.length_m) is known: the pointer fit holds the two
     ends this far apart, within this standard deviation."""
