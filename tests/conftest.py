@@ -84,6 +84,23 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
 
 
+@pytest.fixture
+def searches(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """One entry per run of the refined path's search over every camera's candidates during the test
+    (RefinedPath._locate_searched, the real one, called through): its length is how many ran."""
+    from trackerd.refine import RefinedPath
+
+    runs: list[int] = []
+    search = RefinedPath._locate_searched
+
+    def counted(self: RefinedPath, *args: object) -> object:
+        runs.append(1)
+        return search(self, *args)
+
+    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
+    return runs
+
+
 def pytest_configure(config: pytest.Config) -> None:
     # Benchmarks and the CLI share the cache with tests when run from the repo.
     os.environ.setdefault("TRACKERD_RENDER_CACHE", str(RENDER_CACHE))

@@ -222,31 +222,22 @@ def test_a_pair_without_the_pointer_ends_tracking(simulated_rig, renderer) -> No
     assert [d.search for d in again.detections] == ["full", "full"] and again.found, again.reason
 
 
-def test_the_search_waits_longer_the_longer_nothing_is_found(simulated_rig, renderer, monkeypatch) -> None:
+def test_the_search_waits_longer_the_longer_nothing_is_found(simulated_rig, renderer, searches) -> None:
     """The pointer found, then 600 pairs without it (ten seconds at 60 pairs a second): the search over every
     camera's candidates runs every search_every_pairs-th pair for its first eight tries, then twice as long
     after each, up to search_longest_pairs (RefinedPath._search_wait): 13 searches, where the fixed cadence
     made 100 (each 0.2-0.9 s before a photo on the display). The pointer back, it is found at once."""
-    from trackerd.refine import RefinedPath
-
-    searched_at: list[int] = []
-    searched = RefinedPath._locate_searched
-    pairs = [0]  # pairs located without the pointer so far
-
-    def counted(self, *args):
-        searched_at.append(pairs[0])
-        return searched(self, *args)
-
-    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
     rng = np.random.default_rng(5)
     pose = random_pose(simulated_rig, rng)
     seen = [renderer.render(i, pose, rng).image for i in range(2)]
     locator = Locator(simulated_rig)
-    assert locator.locate(seen).found and not searched_at
+    assert locator.locate(seen).found and not searches
     empty = [np.zeros_like(image) for image in seen]
+    searched_at = []
     for pair in range(600):
-        pairs[0] = pair
+        ran = len(searches)
         assert not locator.locate(empty).found
+        searched_at += [pair] * (len(searches) - ran)
     every, longest = simulated_rig.locator.search_every_pairs, simulated_rig.locator.search_longest_pairs
     waits = np.diff(searched_at).tolist()
     assert searched_at[0] == 0 and waits[:7] == [every] * 7, searched_at

@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
 from trackerd.bench.robustness import MIN_VISIBLE, draw_installation, drawn_frames, renderer_for, run_rig
 from trackerd.config.rig_geometry import wall_frame
@@ -223,7 +222,7 @@ def _located_as_close_as_its_sigma_says(seed: int, installation: int, number: in
 
 
 def test_a_followed_pointer_whose_detectors_take_something_else_is_looked_for_where_it_moved(
-    monkeypatch: pytest.MonkeyPatch,
+    searches: list[int],
 ) -> None:
     """`bench robustness --seed 2026 --follow 20`, installation 27: three cameras far back, warm light, a crimson
     and navy pointer before a photo. Followed, the detectors' ends make no pointer on any pair (one camera's
@@ -232,16 +231,7 @@ def test_a_followed_pointer_whose_detectors_take_something_else_is_looked_for_wh
     looking for the last pair's pointer where it has moved to (RefinedPath._looked_where_it_was), within
     its sigma, and the search runs once, for the first sighting."""
     from trackerd.bench.robustness_follow import followed_frames
-    from trackerd.refine import RefinedPath
 
-    searches: list[int] = []
-    searched = RefinedPath._locate_searched
-
-    def counted(self, *args):
-        searches.append(1)
-        return searched(self, *args)
-
-    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
     drawn, _ = draw_installation(2026, 27)
     assert drawn.rig.wall is not None
     wall = wall_frame(drawn.rig.wall)

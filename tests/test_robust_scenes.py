@@ -429,23 +429,13 @@ def test_a_red_ball_hidden_from_one_camera_is_placed_by_the_other_and_the_length
 
 
 def test_a_tracked_pointer_is_followed_while_a_hand_hides_one_ball_from_one_camera(
-    monkeypatch: pytest.MonkeyPatch,
+    searches: list[int],
 ) -> None:
     """Tracking from behind the presenter, then a hand hides the red ball from camera 0 for three pairs while
     the pointer moves a few millimetres each: each pair is a hit resting on camera 1's red ball alone,
     fitted from the last pair's ends (RefinedPath._followed_from_one_camera), and the search over every
     camera's candidates runs once for the three (at its cadence for fixes on one sound outline), not once
     per pair (every such pair searched before: each found the end again, which made the next one search)."""
-    from trackerd.refine import RefinedPath
-
-    searches: list[int] = []
-    searched = RefinedPath._locate_searched
-
-    def counted(self, *args):
-        searches.append(1)
-        return searched(self, *args)
-
-    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
     rig, renderer = _scene(_behind_cameras())
     rng = np.random.default_rng(8)
     rng.random(3)

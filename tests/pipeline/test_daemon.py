@@ -176,23 +176,13 @@ def test_a_bumped_camera_shows_in_the_status_calibration_health(simulated_rig, r
 
 
 def test_a_room_without_the_pointer_is_searched_at_the_cadence_not_on_every_pair(
-    simulated_rig, rendered_sweep, tmp_path, monkeypatch
+    simulated_rig, rendered_sweep, tmp_path, searches
 ):
     """The pointer found, then thirteen pairs without it: the search over every camera's candidates (tens of
     milliseconds to a second a pair) runs on the first of them and then on every search_every_pairs-th
     (config/pointer.py's promise: a room without the pointer does not keep a core busy). The processing stage
     used to reset the whole locator on each such pair, which made every one of them a first sighting,
     searched."""
-    from trackerd.refine import RefinedPath
-
-    searches: list[int] = []
-    searched = RefinedPath._locate_searched
-
-    def counted(self, *args):
-        searches.append(1)
-        return searched(self, *args)
-
-    monkeypatch.setattr(RefinedPath, "_locate_searched", counted)
     image_sets, truths = rendered_sweep
     with_pointer = next(images for images, truth in zip(image_sets, truths, strict=True) if truth is not None)
     empty = [np.zeros_like(image) for image in with_pointer]
