@@ -242,8 +242,8 @@ class Locator:
     def _lost(self) -> None:
         """The pointer was not found at this pair: the detectors' tracking windows and the tracked path's
         offsets are stale, and the next pair is detected in full. The refined path's search keeps its cadence
-        (every search_every_pairs-th pair while nothing is found): a reset here would make a room without the
-        pointer search on every pair (52 ms a pair on a plain 4K-class frame, hundreds before a busy
+        (trackerd.refine.RefinedPath._search_wait): a reset here would make a room without the pointer search
+        on every pair (52 ms a pair on a plain 4K-class frame, hundreds before a busy
         display). Every user of a locator (the processing stage, replay ahead, export, windowed recording)
         gets this from locate itself."""
         for detector in self._detectors or []:

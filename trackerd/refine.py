@@ -398,7 +398,7 @@ class RefinedPath:
             self._after_refined(fix)
             return fix
         # The search over every camera's candidates is slow: at once on a first sighting, then on every
-        # search_every_pairs-th pair while nothing is found.
+        # search_every_pairs-th pair while nothing is found, less often when nothing is found for long.
         self._since_search += 1
         if self._searched_once and self._since_search < self._search_wait():
             return fix
@@ -516,6 +516,10 @@ class RefinedPath:
                     continue
                 axis = (float(toward[0] - at[0]), float(toward[1] - at[1]))
                 grid = self.loc.grids[index]
+                # The search's looser colour test too (vivid): a paint the plain test does not take (cyan in
+                # warm light) is found by the search's last resort on every pair otherwise (`bench robustness
+                # --seed 11 --follow 20`, installation 18: 1.1-1.8 s a pair). Here it is of the ball's size where
+                # the pointer was, and the fit and the rod's check follow.
                 for fit in guided_fits(
                     images[index], grid, colour, float(at[0]), float(at[1]), expected, axis, vivid=True
                 ):

@@ -166,8 +166,9 @@ class LocatorConfig(ConfigModel):
     fit)."""
     search_every_pairs: int = Field(default=6, ge=1, le=600)
     """While the pointer is not found, the search over every camera's candidates (tens of milliseconds,
-    where a tracked pair takes one or two) runs on every this many-th pair, so a room without the pointer
-    does not keep a core busy; a first sighting after a reset is searched at once. So it does, the first
+    where a tracked pair takes one or two) runs on every this many-th pair, and less often the longer
+    nothing is found (search_longest_pairs), so a room without the pointer does not keep a core busy; a first
+    sighting after a reset is searched at once. So it does, the first
     included, while refined fixes follow each other with an end resting on one outline of a ball's size
     (trackerd/refine.py, RefinedPath.locate)."""
     search_longest_pairs: int = Field(default=192, ge=1, le=6000)
