@@ -180,8 +180,8 @@ class Locator:
         """The interpretation planes' angle (sine) at the pair that last made that choice."""
         self._last_line: PointerLine | None = None
         """The last found pointer's line: each end's depth in each camera, for the tracked ends' area check."""
-        self._last_step_m: tuple[Array, Array] | None = None
-        """How far the front and back ends moved from the pair before the last to the last, when both found."""
+        self._line_before: PointerLine | None = None
+        """The found pointer's line of the pair before the last, when the last one's was found too."""
 
     # ------------------------------------------------------------------ detection
 
@@ -205,7 +205,7 @@ class Locator:
         self.offsets = None
         self._tracked_by_fit = None
         self._last_line = None
-        self._last_step_m = None
+        self._line_before = None
         if self._refined is not None:
             self._refined.reset()
 
@@ -232,10 +232,7 @@ class Locator:
         if not fix.found:
             self._lost()
         line = fix.line if fix.found else None
-        last = self._last_line
-        self._last_step_m = (
-            None if line is None or last is None else (line.front_m - last.front_m, line.back_m - last.back_m)
-        )
+        self._line_before = self._last_line if line is not None else None
         self._last_line = line
         return fix
 
@@ -259,8 +256,9 @@ class Locator:
         if last is None:
             return None
         ends = np.stack([last.front_m, last.back_m])
-        if self._last_step_m is not None:
-            ends = ends + np.stack(self._last_step_m)
+        before = self._line_before
+        if before is not None:
+            ends = 2.0 * ends - np.stack([before.front_m, before.back_m])
         return ends
 
     def _tight(self, fix: PointerFix) -> bool:

@@ -24,6 +24,7 @@ from trackerd.errors import GeometryError
 from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, EndViews, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
 from trackerd.geometry.sphere import view_map
+from trackerd.joint.looks import look_slack_px
 from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
@@ -94,13 +95,6 @@ VIEW_TOLERANCE = 0.05
 """Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
 this share away from 1, a ball's outline is not a circle of the expected radius in pixels: a guided look
 that fails in pixels there is tried again in the view's units."""
-
-FOLLOW_SLACK_SHARE = 0.5
-FOLLOW_SLACK_MIN_PX = 3.0
-"""A ball looked for where the last pair's pointer, moved on by its last step, now projects
-(:meth:`RefinedPath._looked_where_it_was`) is taken within this share of its expected radius of there, or
-FOLLOW_SLACK_MIN_PX where that is more: a presenter's hand changes speed by less than that in a frame, and a
-ball of its colour farther off is something else."""
 
 PATIENT_SEARCHES = 8
 """While nothing is found, this many searches in a row run every search_every_pairs-th pair (about 0.8 s at
@@ -475,8 +469,9 @@ class RefinedPath:
         self, per_camera: list[dict[str, Any]], detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
     ) -> PointerFix | None:
         """The last pair's pointer, moved on by its last step (:meth:`Locator.predicted_ends_m`), looked for in
-        every camera: each end's outline where the pointer now projects, within FOLLOW_SLACK_SHARE of a ball's
-        radius and of a ball's size there (the detector's own measurement where it is that, else fitted there
+        every camera: each end's outline where the pointer now projects, within half a ball's radius
+        (:func:`trackerd.joint.looks.look_slack_px`: a presenter's hand changes speed by less than that in a
+        frame) and of a ball's size there (the detector's own measurement where it is that, else fitted there
         by :func:`guided_fits`), and the pointer fitted to them from the predicted ends. None without a last
         pair or when the fit makes no pointer (nor :meth:`_followed_from_one_camera` on the same outlines,
         where the last pair's end rested on one camera).
@@ -504,7 +499,7 @@ class RefinedPath:
                 if not (0.0 <= at[0] < size.width_px and 0.0 <= at[1] < size.height_px):
                     continue
                 expected = _ball_radius_px(camera, predicted[e], ball_radius_m)
-                slack = max(FOLLOW_SLACK_MIN_PX, FOLLOW_SLACK_SHARE * expected)
+                slack = look_slack_px(expected)
                 own = ends[colour]
                 if (
                     own is not None
@@ -816,7 +811,7 @@ class RefinedPath:
         )
         if not fit.found or fit.residual_px > MAX_GUIDED_RESIDUAL_PX:
             return None
-        if float(np.hypot(*(fit.centre_px - at))) > max(3.0, 0.5 * expected_px):
+        if float(np.hypot(*(fit.centre_px - at))) > look_slack_px(expected_px):
             return None
         return from_fit(camera, camera_index, colour, fit)
 

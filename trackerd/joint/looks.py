@@ -49,6 +49,17 @@ EPIPOLAR_LOOKS = 12
 EPIPOLAR_SAMPLES = 400
 """Points along a candidate's ray between those distances, projected into the other camera."""
 
+LOOK_SLACK_SHARE = 0.5
+LOOK_SLACK_MIN_PX = 3.0
+"""A look's outline is the ball only within this share of the ball's expected image radius of where the geometry
+puts it, or LOOK_SLACK_MIN_PX where that is more (:func:`look_slack_px`): a ball of its colour farther off is
+something else."""
+
+
+def look_slack_px(expected_px: float) -> float:
+    """How far from where the geometry puts a ball (of image radius ``expected_px``) a look may find it."""
+    return max(LOOK_SLACK_MIN_PX, LOOK_SLACK_SHARE * expected_px)
+
 
 def guided_points(
     cameras: list[CameraModel],
@@ -289,10 +300,10 @@ def look_along_epipolar(
 
 
 def _is_the_ball(miss_px: float, radius_px: float, expected_px: float) -> bool:
-    """Whether a look's outline is the ball: less than half the ball's image radius (or 3 px) from where the
-    geometry allows it, and of its size there (within MAX_SIZE_RATIO)."""
+    """Whether a look's outline is the ball: less than :func:`look_slack_px` from where the geometry allows it,
+    and of its size there (within MAX_SIZE_RATIO)."""
     size = radius_px / expected_px
-    return miss_px < max(3.0, 0.5 * expected_px) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO
+    return miss_px < look_slack_px(expected_px) and 1.0 / MAX_SIZE_RATIO < size < MAX_SIZE_RATIO
 
 
 def _miss_px(found_px: Array, looked_px: Array, camera: CameraModel, first_m: Array, last_m: Array) -> float:
