@@ -8,6 +8,7 @@ software triggers).
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 
 import pytest
@@ -166,16 +167,28 @@ def test_trackerd_run_exits_2_with_one_line_for_a_refused_value(loopback_rig, tm
     assert "which allows 10 to 1e+07 us" in lines[0]
 
 
-def test_a_camera_the_rig_gives_no_way_to_find_is_a_configuration_error(simulated_rig: RigConfig) -> None:
+@pytest.mark.parametrize(
+    ("backend", "message"),
+    [
+        ("aravis", "camera 'right' has no serial, address or device_id in the rig file"),
+        ("pylon", r"camera 'right' \(backend pylon\) has no serial or device_id in the rig file"),
+    ],
+)
+def test_a_camera_the_rig_gives_no_way_to_find_is_a_configuration_error(
+    simulated_rig: RigConfig, backend: str, message: str, caplog: pytest.LogCaptureFixture
+) -> None:
     from trackerd.acquisition.arv import CameraConfigError
     from trackerd.acquisition.live import AravisPairSource
 
     cameras = list(simulated_rig.cameras)
-    cameras[1] = cameras[1].model_copy(update={"serial": None, "address": None, "device_id": None})
+    cameras[1] = cameras[1].model_copy(update={"serial": None, "address": None, "device_id": None, "backend": backend})
     rig = simulated_rig.model_copy(update={"cameras": tuple(cameras)})
-    with pytest.raises(CameraConfigError, match="camera 'right' has no serial, address or device_id") as err:
-        AravisPairSource(rig, wait_for_cameras=True).start()  # waiting cannot help: it raises at once
+    with caplog.at_level(logging.DEBUG), pytest.raises(CameraConfigError, match=message) as err:
+        AravisPairSource(rig, wait_for_cameras=True).start()
     assert err.value.exit_code == 2
+    # Waiting cannot supply the key: no camera was looked for (camera 'left', not on this machine,
+    # was waited for a second, with a warning, before the error named camera 'right').
+    assert not [record.getMessage() for record in caplog.records if "camera left" in record.getMessage()]
 
 
 def test_the_daemons_status_carries_stream_counters_and_pairing_mode(loopback_rig) -> None:

@@ -131,17 +131,29 @@ def _lookup(cam: CameraConfig) -> str:
     return "no serial, address or device_id"
 
 
+def require_a_way_to_find(cam: CameraConfig) -> None:
+    """CameraConfigError if the rig file gives no key to find the camera by (its backend's keys).
+
+    A rig without them is valid for replay and simulation, which open no camera; every backend's
+    lookup starts here, and a live source checks every camera before it opens any (waiting for
+    the cameras cannot supply a missing key)."""
+    keys = ("serial", "address", "device_id") if cam.backend == "aravis" else ("serial", "device_id")
+    if any(getattr(cam, key) for key in keys):
+        return
+    backend = "" if cam.backend == "aravis" else f" (backend {cam.backend})"
+    raise CameraConfigError(f"camera '{cam.id}'{backend} has no {', '.join(keys[:-1])} or {keys[-1]} in the rig file")
+
+
 def resolve_device_id(cam: CameraConfig) -> str:
     """The id Aravis opens the camera by: device id or address as given, else found by serial.
 
     Looking up a serial runs Aravis's discovery (about a second).
     """
+    require_a_way_to_find(cam)
     if cam.device_id:
         return cam.device_id
     if cam.address:
         return cam.address
-    if not cam.serial:
-        raise CameraConfigError(f"camera '{cam.id}' has no serial, address or device_id in the rig file")
     aravis, _ = load_aravis()
     aravis.update_device_list()
     for index in range(aravis.get_n_devices()):

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from trackerd.acquisition.arv import CameraConfigError, describe_lookup
+from trackerd.acquisition.arv import CameraConfigError, describe_lookup, require_a_way_to_find
 from trackerd.acquisition.gentl_producer import (
     GENTL_EXTRA,
     GentlDevice,
@@ -81,10 +81,9 @@ PADDED_FORMATS = {"RGB8": "RGBa8", "BGR8": "BGRa8"}
 def resolve_device_id(cam: CameraConfig) -> str:
     """The producer's id of the camera: ``device_id`` as given, else found by serial."""
     path = producer_path(cam)
+    require_a_way_to_find(cam)
     if cam.device_id:
         return cam.device_id
-    if not cam.serial:
-        raise CameraConfigError(f"camera '{cam.id}' (backend gentl) has no serial or device_id in the rig file")
     for device in producer(path).devices():
         if device.serial == cam.serial:
             return device.device_id

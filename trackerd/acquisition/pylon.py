@@ -37,7 +37,7 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from trackerd.acquisition.arv import CameraConfigError, describe_lookup
+from trackerd.acquisition.arv import CameraConfigError, describe_lookup, require_a_way_to_find
 from trackerd.acquisition.session import Grab
 from trackerd.config.acquisition import RigAcquisition
 from trackerd.config.models import CameraConfig
@@ -126,10 +126,9 @@ def list_pylon_devices() -> list[PylonDevice]:
 
 def resolve_device_id(cam: CameraConfig) -> str:
     """pylon's full name of the camera: ``device_id`` as given, else found by serial."""
+    require_a_way_to_find(cam)
     if cam.device_id:
         return cam.device_id
-    if not cam.serial:
-        raise CameraConfigError(f"camera '{cam.id}' (backend pylon) has no serial or device_id in the rig file")
     for device in list_pylon_devices():
         if device.serial == cam.serial:
             return device.full_name

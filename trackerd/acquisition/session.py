@@ -97,7 +97,14 @@ def resolve_device_id(cam: CameraConfig) -> str:
 
 
 def load_backends(rig_cameras: tuple[CameraConfig, ...] | list[CameraConfig]) -> None:
-    """Load every library the rig's cameras need; CameraError saying what to install if one is missing."""
+    """Load every library the rig's cameras need; CameraError saying what to install if one is missing.
+
+    CameraConfigError, before any camera is opened or waited for, if the rig file gives one of
+    them no way to be found: waiting cannot supply the key."""
+    from trackerd.acquisition.arv import require_a_way_to_find
+
+    for cam in rig_cameras:
+        require_a_way_to_find(cam)
     backends = {cam.backend for cam in rig_cameras}
     if "aravis" in backends:
         from trackerd.acquisition.arv import load_aravis
