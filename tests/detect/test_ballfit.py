@@ -9,7 +9,14 @@ from detect_synthetic import RED, ROD, WALL, Scene, Shape
 
 from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
-from trackerd.detect.ballfit import arc_deformation_covariance, fit_ball, independent_rims, robust_circle
+from trackerd.detect.ballfit import (
+    _bilinear,
+    _median,
+    arc_deformation_covariance,
+    fit_ball,
+    independent_rims,
+    robust_circle,
+)
 from trackerd.detect.colour import sample_grid
 
 FORMATS = ("BayerRG8", "BayerGB8", "RGB8")
@@ -132,6 +139,32 @@ def test_robust_circle_ignores_a_quarter_of_wild_points() -> None:
     centre, radius, weights, _ = circle
     assert np.hypot(*(centre - [50, 40])) < 0.05 and abs(radius - 9) < 0.05
     assert np.all(weights[:10] == 0) and np.all(weights[10:] > 0)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_fits_median_is_numpys_to_the_last_bit(dtype) -> None:
+    rng = np.random.default_rng(11)
+    for size in range(1, 60):
+        values = rng.normal(3.0, 2.0, size).astype(dtype)
+        values[: size // 3] = values[-1]  # ties, as residuals of rims on one lattice row have
+        assert _median(values) == float(np.median(values))
+
+
+def test_the_rays_samples_are_bilinear_and_nan_outside() -> None:
+    rng = np.random.default_rng(5)
+    image = rng.uniform(0, 255, (7, 9)).astype(np.float32)
+    u = rng.uniform(-1.0, 9.0, 200)
+    v = rng.uniform(-1.0, 7.0, 200)
+    sampled = _bilinear(image, u, v)
+    inside = (u >= 0) & (v >= 0) & (u <= 8) & (v <= 6)
+    assert np.all(np.isnan(sampled[~inside]))
+    for uu, vv, got in zip(u[inside], v[inside], sampled[inside], strict=True):
+        c, r = min(int(uu), 7), min(int(vv), 5)
+        fu, fv = uu - c, vv - r
+        expected = (image[r, c] * (1 - fu) + image[r, c + 1] * fu) * (1 - fv) + (
+            image[r + 1, c] * (1 - fu) + image[r + 1, c + 1] * fu
+        ) * fv
+        assert got == pytest.approx(expected, abs=1e-9)
 
 
 @pytest.mark.parametrize("phase", np.linspace(0.0, np.pi, 7))
