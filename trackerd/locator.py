@@ -248,6 +248,12 @@ class Locator:
         self.offsets = None
         self._tracked_by_fit = None
 
+    @property
+    def step_known(self) -> bool:
+        """Whether :meth:`predicted_ends_m` moves the last pair's ends on by a step (the pair before was found
+        too); without one, the prediction lags the pointer by a frame's motion."""
+        return self._last_line is not None and self._line_before is not None
+
     def predicted_ends_m(self) -> Array | None:
         """Where the pointer's ends (front, back; (2, 3)) should be at this pair: the last pair's, moved on by the
         step they made from the pair before when that was found too; None when the last pair's pointer was

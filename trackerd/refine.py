@@ -101,6 +101,11 @@ PATIENT_SEARCHES = 8
 60 pairs a second with the default 6) before the wait between them doubles (:meth:`RefinedPath._search_wait`):
 a presenter who lowers the pointer for a moment is found again as soon as before."""
 
+UNSTEPPED_SLACK_FACTOR = 2.0
+"""Where the followed look's prediction has no step (the pair before the last was not found), its slack is
+this times the usual half radius: the ends are where they were a frame ago, and a presenter's hand moves
+up to half a ball's diameter in a frame (12 mm in `bench robustness --follow`'s motion)."""
+
 SEARCH_VIEW_TOLERANCE = 0.15
 """The same for the search's seeds, which are many and mostly not balls: only where the outline departs
 from a circle by more than this (30 degrees off the axis) is a failed seed fitted again in the view's
@@ -471,7 +476,7 @@ class RefinedPath:
         """The last pair's pointer, moved on by its last step (:meth:`Locator.predicted_ends_m`), looked for in
         every camera: each end's outline where the pointer now projects, within half a ball's radius
         (:func:`trackerd.joint.looks.look_slack_px`: a presenter's hand changes speed by less than that in a
-        frame) and of a ball's size there (the detector's own measurement where it is that, else fitted there
+        frame; twice that without a step to predict by, UNSTEPPED_SLACK_FACTOR) and of a ball's size there (the detector's own measurement where it is that, else fitted there
         by :func:`guided_fits`), and the pointer fitted to them from the predicted ends. None without a last
         pair or when the fit makes no pointer (nor :meth:`_followed_from_one_camera` on the same outlines,
         where the last pair's end rested on one camera).
@@ -486,6 +491,8 @@ class RefinedPath:
         if predicted is None:
             return None
         ball_radius_m = self.loc.pointer.end_diameter_m / 2.0
+        # Without a step the ends are where they were a frame ago: the slack takes a frame's motion too.
+        widen = 1.0 if self.loc.step_known else UNSTEPPED_SLACK_FACTOR
         looked: list[dict[str, Any]] = []
         for index, (camera, ends) in enumerate(zip(self.loc.cameras, per_camera, strict=True)):
             found: dict[str, Any] = {c: None for c in COLOURS}
@@ -499,7 +506,7 @@ class RefinedPath:
                 if not (0.0 <= at[0] < size.width_px and 0.0 <= at[1] < size.height_px):
                     continue
                 expected = _ball_radius_px(camera, predicted[e], ball_radius_m)
-                slack = look_slack_px(expected)
+                slack = widen * look_slack_px(expected)
                 own = ends[colour]
                 if (
                     own is not None
