@@ -476,8 +476,9 @@ class RefinedPath:
         """The last pair's pointer, moved on by its last step (:meth:`Locator.predicted_ends_m`), looked for in
         every camera: each end's outline where the pointer now projects, within half a ball's radius
         (:func:`trackerd.joint.looks.look_slack_px`: a presenter's hand changes speed by less than that in a
-        frame; twice that without a step to predict by, UNSTEPPED_SLACK_FACTOR) and of a ball's size there (the detector's own measurement where it is that, else fitted there
-        by :func:`guided_fits`), and the pointer fitted to them from the predicted ends. None without a last
+        frame; twice that without a step to predict by, UNSTEPPED_SLACK_FACTOR) and of a ball's size there
+        (the detector's own measurement where it is that, else fitted there by :func:`guided_fits`), and the
+        pointer fitted to them from the predicted ends. None without a last
         pair or when the fit makes no pointer (nor :meth:`_followed_from_one_camera` on the same outlines,
         where the last pair's end rested on one camera).
 
