@@ -11,6 +11,7 @@ from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
 from trackerd.detect.ballfit import (
     _bilinear,
+    _leaning_shift,
     _median,
     arc_deformation_covariance,
     fit_ball,
@@ -139,6 +140,29 @@ def test_robust_circle_ignores_a_quarter_of_wild_points() -> None:
     centre, radius, weights, _ = circle
     assert np.hypot(*(centre - [50, 40])) < 0.05 and abs(radius - 9) < 0.05
     assert np.all(weights[:10] == 0) and np.all(weights[10:] > 0)
+
+
+def test_a_circle_held_up_by_one_rim_point_says_how_far_its_centre_moves_without_it() -> None:
+    """A short arc of a ball's outline (100 degrees: a body hides the rest) and one rim point across the ball,
+    where the colour falls at the body's edge: the circle goes through that point, smaller than the ball and
+    its centre off, and agrees with every point it kept. Leaving the point out moves the centre by most of
+    that error; on a whole outline no point holds the circle up, and nothing moves."""
+    rng = np.random.default_rng(4)
+    angles = np.radians(np.linspace(130.0, 230.0, 13))
+    arc = np.column_stack([15.0 * np.cos(angles), 15.0 * np.sin(angles)]) + rng.normal(0.0, 0.15, (13, 2))
+    points = np.vstack([arc, [11.0, 1.0]])
+    circle = robust_circle(points, radius_range_px=(12.0, 18.0))
+    assert circle is not None
+    centre, radius, weights, _ = circle
+    assert np.all(weights > 0) and radius < 14.0 and np.hypot(*centre) > 1.5
+    shift = _leaning_shift(points, weights, centre, radius, (12.0, 18.0))
+    assert shift is not None and np.hypot(*shift) > 0.6 * np.hypot(*centre)
+    assert np.dot(shift, -centre) > 0  # towards the ball's centre
+    around = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
+    whole = np.column_stack([15.0 * np.cos(around), 15.0 * np.sin(around)]) + rng.normal(0.0, 0.15, (48, 2))
+    circle = robust_circle(whole)
+    assert circle is not None
+    assert np.all(_leaning_shift(whole, circle[2], circle[0], circle[1], None) == 0.0)
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
