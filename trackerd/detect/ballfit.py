@@ -278,7 +278,7 @@ def _leaning_shift(
 ) -> Array | None:
     """How far the circle's centre (fitted to ``points`` with ``weights``, robust_circle's) moves without the
     rim point it leans on most, when that point's leverage is over LEVERAGE_LIMIT; zero otherwise; None when
-    without it the other points make no circle (of a radius in ``radius_range_px``).
+    without it the other points make no circle (of a radius in ``radius_range_px``, else of any radius).
 
     Where a hand or the presenter's body hides most of a ball, its outline is a short arc, and the circle's
     radius and its centre along the arc's axis are fixed together by little. A rim point across the ball, where
@@ -300,7 +300,9 @@ def _leaning_shift(
     most = int(np.argmax(leverage))
     if leverage[most] <= LEVERAGE_LIMIT:
         return np.zeros(2)
-    without = robust_circle(np.delete(used, most, axis=0), radius_range_px=radius_range_px)
+    rest = np.delete(used, most, axis=0)
+    # Without the point the arc may want a radius outside the range: where it is then is still the answer.
+    without = robust_circle(rest, radius_range_px=radius_range_px) or robust_circle(rest)
     if without is None:
         return None
     return without[0] - centre
