@@ -276,8 +276,8 @@ def test_the_pair_after_a_first_sighting_is_looked_for_with_a_frames_motion_of_s
 
 def test_a_hidden_end_on_a_circle_held_up_by_one_rim_point_is_not_a_confident_hit() -> None:
     """`bench robustness --seed 404` (a seed nothing was tuned on), installation 0, frame 38: the presenter's
-    body hides the back ball in one camera (36-40 % of each ball visible there) and most of it in the other,
-    where its outline is a short arc plus one rim point at the body's edge, across the ball; the circle
+    body hides most of both balls in one camera (36-40 % visible) and part of the back ball in the other (62 %
+    visible), where its outline is a short arc plus one rim point at the body's edge, across the ball; the circle
     through them is smaller than the ball and its centre 6.7 px off. The hit was 42.9 mm off at a sigma of
     4.3 mm (10 sigma: the bench's one confidently wrong hidden-end hit on that seed). The circle's error now
     includes how far its centre moves without that point (trackerd.detect.ballfit._leaning_shift)."""
