@@ -252,7 +252,7 @@ class Locator:
     def step_known(self) -> bool:
         """Whether :meth:`predicted_ends_m` moves the last pair's ends on by a step (the pair before was found
         too); without one, the prediction lags the pointer by a frame's motion."""
-        return self._last_line is not None and self._line_before is not None
+        return self._line_before is not None  # kept only while the last pair's line is
 
     def predicted_ends_m(self) -> Array | None:
         """Where the pointer's ends (front, back; (2, 3)) should be at this pair: the last pair's, moved on by the

@@ -302,7 +302,9 @@ def _leaning_shift(
         return np.zeros(2)
     rest = np.delete(used, most, axis=0)
     # Without the point the arc may want a radius outside the range: where it is then is still the answer.
-    without = robust_circle(rest, radius_range_px=radius_range_px) or robust_circle(rest)
+    without = robust_circle(rest, radius_range_px=radius_range_px)
+    if without is None and radius_range_px is not None:
+        without = robust_circle(rest)
     if without is None:
         return None
     return without[0] - centre
