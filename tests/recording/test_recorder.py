@@ -173,6 +173,156 @@ def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_pat
             assert recording.metadata.rig["recording"]["enabled"] is True
 
 
+def _status_states(endpoint: str, seconds: float, until, topics: list[dict]) -> None:
+    """Status messages from ``endpoint`` into ``topics`` until ``until(status)`` holds (or ``seconds`` pass)."""
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"status")
+    sub.connect(endpoint)
+    try:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and not (topics and until(topics[-1])):
+            if sub.poll(20):
+                topics.append(json.loads(sub.recv_multipart()[1]))
+    finally:
+        sub.close(0)
+        ctx.term()
+
+
+def test_a_reload_that_first_asks_for_recording_and_interaction_builds_them(bundle_pairs, tmp_path) -> None:
+    """A daemon started without ``[recording] directory`` and with interaction off: a reload that adds the
+    directory (enabled) and turns smoothing on starts a recording and the interaction stage, as a start
+    with that rig would have (before, a reload only reloaded the extensions built at the start, so
+    neither happened and nothing said so)."""
+    from trackerd.cli.run import extension_kinds
+
+    rig, pairs = bundle_pairs
+    directory = tmp_path / "recordings"
+    endpoint = f"ipc://{tmp_path}/pub.sock"
+    zmq_cfg = rig.outputs.zmq.model_copy(update={"endpoints": (endpoint,), "status_interval_ms": 100.0})
+    plain = rig.model_copy(
+        update={
+            "outputs": rig.outputs.model_copy(update={"zmq": zmq_cfg}),
+            "recording": RecordingConfig(),
+            "interaction": rig.interaction.model_copy(
+                update={
+                    "smoothing": rig.interaction.smoothing.model_copy(update={"enabled": False}),
+                    "pointing": rig.interaction.pointing.model_copy(update={"enabled": False}),
+                }
+            ),
+        }
+    )
+    assert not plain.interaction.any_enabled
+    asking = plain.model_copy(
+        update={
+            "recording": RecordingConfig(directory=directory, enabled=True),
+            "interaction": plain.interaction.model_copy(
+                update={"smoothing": plain.interaction.smoothing.model_copy(update={"enabled": True})}
+            ),
+        }
+    )
+    context = ExtensionContext()
+    images = [pair.images for pair in pairs]
+    pipeline = Pipeline(
+        plain,
+        lambda r: MemoryPairSource(r, images, rate_hz=60.0),
+        lambda r: Publisher(r.outputs.zmq),
+        extensions=build_extensions(plain, context),
+        extension_kinds=extension_kinds(),
+        extension_context=context,
+    )
+    statuses: list[dict] = []
+    try:
+        pipeline.start()
+        _status_states(endpoint, 20.0, lambda s: True, statuses)
+        assert statuses and statuses[-1]["recording"] is None and statuses[-1]["interaction"] is None
+        pipeline.request_reload(asking)
+        _status_states(
+            endpoint, 20.0, lambda s: (s.get("recording") or {}).get("pairs", 0) > 5 and s["interaction"], statuses
+        )
+    finally:
+        pipeline.stop()
+    assert pipeline.failure is None
+    assert [e.name for e in pipeline.extensions] == ["recording", "interaction"]
+    last = statuses[-1]
+    assert last["recording"]["state"] == "recording" and last["interaction"] is not None, last
+    (path,) = directory.glob("*.trec")
+    with Recording.open(path) as recording:
+        assert recording.problems == [] and len(recording) > 5
+
+
+def _fed_until(extension, pairs, done) -> int:
+    """Pairs given to ``extension`` in turn (round and round) until ``done()``; how many."""
+    deadline = time.monotonic() + 30.0
+    count = 0
+    while not done():
+        assert time.monotonic() < deadline, extension.status()
+        extension.on_pair(pairs[count % len(pairs)])
+        count += 1
+        time.sleep(0.005)  # at most a pair every 5 ms: the writer thread keeps up
+    return count
+
+
+def test_after_a_recording_stops_at_its_limit_the_console_can_start_another(bundle_pairs, tmp_path) -> None:
+    """A recording that ended at its pair limit is no longer the current one: ``record start`` starts the
+    next (it answered "already recording into" the finished one) and ``record stop`` says nothing is
+    being recorded (it answered "finishing" it)."""
+    from trackerd.recording.extension import RecordingExtension
+
+    rig, pairs = bundle_pairs
+    directory = tmp_path / "recordings"
+    extension = RecordingExtension(
+        rig.model_copy(update={"recording": RecordingConfig(directory=directory, enabled=True, max_pairs=3)})
+    )
+    try:
+        _fed_until(extension, pairs, lambda: (extension.status() or {}).get("state") == "stopped")
+        assert extension.status()["detail"] == "pair limit"
+        assert extension.stop_now() == "not recording"
+        assert extension.start_now() == "a recording starts with the next pair"
+        assert extension.on_pair(pairs[0]) is True  # a recording starts with it
+        assert extension.status()["state"] == "recording"
+        assert extension.start_now().startswith("already recording into ")
+        _fed_until(extension, pairs, lambda: (extension.status() or {}).get("state") == "stopped")
+    finally:
+        extension.close()
+    recordings = sorted(directory.glob("*.trec"))
+    assert len(recordings) == 2
+    for path in recordings:
+        with Recording.open(path) as recording:
+            assert recording.problems == [] and len(recording) == 3
+
+
+def test_a_recording_folder_that_cannot_be_made_is_reported_failed_with_why(bundle_pairs, tmp_path) -> None:
+    """The status says the recording failed and why, as docs/recording.md's ``failed`` state promises (it
+    said ``idle``, "enabled = false"); a reload clears it and tries again."""
+    from trackerd.recording.extension import RecordingExtension
+
+    rig, pairs = bundle_pairs
+    (tmp_path / "a-file").write_text("not a folder")
+    blocked = tmp_path / "a-file" / "recordings"
+    extension = RecordingExtension(
+        rig.model_copy(update={"recording": RecordingConfig(directory=blocked, enabled=True)})
+    )
+    try:
+        assert extension.on_pair(pairs[0]) is False
+        assert extension.status() == {
+            "state": "failed",
+            "path": None,
+            "detail": f"cannot create {blocked}: Not a directory",
+        }
+        assert extension.start_now() == "a recording starts with the next pair"
+        assert extension.on_pair(pairs[1]) is False
+        assert extension.status()["state"] == "failed"
+        good = tmp_path / "recordings"
+        extension.reload(rig.model_copy(update={"recording": RecordingConfig(directory=good, enabled=True)}))
+        assert extension.status() == {"state": "idle", "detail": "starts with the next pair"}
+        assert extension.on_pair(pairs[2]) is True
+        assert extension.status()["state"] == "recording"
+    finally:
+        extension.close()
+    assert len(list(good.glob("*.trec"))) == 1
+
+
 @pytest.mark.skipif(aravis_missing_reason() is not None, reason=f"needs Aravis: {aravis_missing_reason()}")
 def test_what_the_cameras_say_and_the_rig_file_reach_the_metadata_when_passed_in(bundle_pairs, tmp_path) -> None:
     """The recorder side of recording on demand: a CameraInfo given to the source as its open hook

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from trackerd.acquisition.worker import OpenHook
     from trackerd.console.server import ConsoleServer
     from trackerd.pipeline.daemon import Pipeline
-    from trackerd.pipeline.extensions import ExtensionContext, PipelineExtension
+    from trackerd.pipeline.extensions import ExtensionContext, ExtensionKind, PipelineExtension
     from trackerd.publish import Publisher
     from trackerd.recording.cameras import CameraInfo
 
@@ -88,24 +88,27 @@ def run_command(args: argparse.Namespace) -> int:
     )
 
 
-def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[PipelineExtension]:
-    """The extensions the rig asks for, in a fixed order: recording sees pairs before interaction.
+def extension_kinds() -> tuple[ExtensionKind, ...]:
+    """The kinds of extension the daemon runs, in a fixed order: recording sees pairs before interaction.
 
     Each is imported here, by name: they and their dependencies are part of trackerd (pyproject's
     dependencies), so one that cannot be imported is a broken installation and fails the start
-    with its ImportError, never skipped. What the rig asks of one is checked by its ``create``;
-    a ConfigError then names the rig file, as the loader's own errors do."""
+    with its ImportError, never skipped."""
     from trackerd.interaction.extension import create as interaction_extension
+    from trackerd.pipeline.extensions import ExtensionKind
     from trackerd.recording.extension import create as recording_extension
 
-    creators: list[Callable[[RigConfig, ExtensionContext], PipelineExtension | None]] = [
-        recording_extension,
-        interaction_extension,
-    ]
+    return (ExtensionKind("recording", recording_extension), ExtensionKind("interaction", interaction_extension))
+
+
+def build_extensions(rig: RigConfig, context: ExtensionContext) -> list[PipelineExtension]:
+    """The extensions the rig asks for (:func:`extension_kinds`, in their order). What the rig asks of
+    one is checked by its ``create``; a ConfigError then names the rig file, as the loader's own
+    errors do."""
     built = []
-    for create in creators:
+    for kind in extension_kinds():
         try:
-            extension = create(rig, context)
+            extension = kind.create(rig, context)
         except ConfigError as err:
             if context.rig_file is None:
                 raise
@@ -163,6 +166,8 @@ def serve(
         publisher_factory,
         notifier,
         extensions=build_extensions(rig, context),
+        extension_kinds=extension_kinds(),
+        extension_context=context,
         clock_offset_ns=clock_offset_ns,
         tap=tap,
     )

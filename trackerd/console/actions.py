@@ -59,8 +59,10 @@ class Actions:
     # ------------------------------------------------------------------ recording
 
     def _recording(self) -> Any:
+        """The recording extension while the rig makes recording available (a reload may add or take
+        ``[recording] directory``), else None."""
         for extension in self.pipeline.extensions:
-            if extension.name == "recording":
+            if extension.name == "recording" and extension.available:
                 return extension
         return None
 

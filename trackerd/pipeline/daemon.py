@@ -41,7 +41,7 @@ from trackerd.acquisition.status import SourceStatus
 from trackerd.config.models import RigConfig
 from trackerd.locator import Locator
 from trackerd.pipeline.colourwatch import ColourWatch
-from trackerd.pipeline.extensions import PipelineExtension
+from trackerd.pipeline.extensions import ExtensionContext, ExtensionKind, PipelineExtension
 from trackerd.pipeline.figures import PipelineFigures
 from trackerd.pipeline.handover import Processed, StageLinks
 from trackerd.pipeline.observer import PairObserver
@@ -94,6 +94,8 @@ class Pipeline:
         queue_length: int = 16,
         clock_offset_ns: int | None = None,
         extensions: Sequence[PipelineExtension] | None = None,
+        extension_kinds: Sequence[ExtensionKind] = (),
+        extension_context: ExtensionContext | None = None,
         tap: ConsoleTap | None = None,
         observer: PairObserver | None = None,
     ) -> None:
@@ -114,7 +116,7 @@ class Pipeline:
         self._status_sequence = 0
         self._slot = SourceSlot(source_factory, self._notifier)
         links = StageLinks(self._queue, self.figures, self._reload, self._notifier, self.clock_offset_ns, tap, observer)
-        self._processing = ProcessingStage(rig, self._slot, links, self.extensions)
+        self._processing = ProcessingStage(rig, self._slot, links, self.extensions, extension_kinds, extension_context)
         self._publishing = PublishingStage(
             rig, publisher_factory, links, self._state, source_status=self._slot.status, status_for=self._status_for
         )

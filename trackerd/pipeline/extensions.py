@@ -10,7 +10,10 @@ messages once (trackerd.publish.from_fix). Its status becomes a field of the
 Extensions are built explicitly where the daemon is assembled (`trackerd run`
 and `trackerd replay` in trackerd/cli/run.py, the replay benchmark, the
 recording export), each from its own module's ``create(rig, context)``, which
-returns None when the rig does not ask for it.
+returns None when the rig does not ask for it. Given the kinds it may build
+(:class:`ExtensionKind`), the daemon also builds, at a reload, one that the new
+rig asks for and the old one did not (``[recording] directory`` added, an
+``[interaction]`` turned on); one already built is reloaded instead.
 
 Starting afresh: when a pair does not follow from the one before (an on-demand
 recording starts with it, a replay loops round), every stage forgets what it
@@ -21,7 +24,7 @@ on, and a replay of the recording reproduces it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -95,3 +98,13 @@ class ExtensionContext:
     """The pairs come from a recording (a replay, an export): what is published must follow from
     the pairs alone, never from timing, so work an extension does on a thread of its own when live
     (hand poses) is done in the processing thread instead."""
+
+
+@dataclass(frozen=True)
+class ExtensionKind:
+    """One kind of extension a daemon can run, for building it when a reload first asks for it."""
+
+    name: str
+    """The name its extensions have (:attr:`PipelineExtension.name`)."""
+    create: Callable[[RigConfig, ExtensionContext], PipelineExtension | None]
+    """Its module's ``create``: the extension a rig asks for, or None."""

@@ -24,10 +24,11 @@ from collections.abc import Sequence
 
 from trackerd.calibration.health import CalibrationHealth
 from trackerd.config.models import RigConfig
+from trackerd.errors import ConfigError
 from trackerd.locator import Locator, PointerFix
 from trackerd.pipeline.colourwatch import ColourWatch, WatchThread
 from trackerd.pipeline.events import NOTHING, PairEvents
-from trackerd.pipeline.extensions import Located, PipelineExtension
+from trackerd.pipeline.extensions import ExtensionContext, ExtensionKind, Located, PipelineExtension
 from trackerd.pipeline.handover import Processed, StageLinks
 from trackerd.pipeline.reload import changes_calibration, changes_colours, source_settings
 from trackerd.pipeline.sourceslot import SourceSlot
@@ -57,12 +58,22 @@ class ProcessingStage:
     """The processing thread's loop and what it owns (see the module's docstring)."""
 
     def __init__(
-        self, rig: RigConfig, slot: SourceSlot, links: StageLinks, extensions: Sequence[PipelineExtension]
+        self,
+        rig: RigConfig,
+        slot: SourceSlot,
+        links: StageLinks,
+        extensions: list[PipelineExtension],
+        kinds: Sequence[ExtensionKind] = (),
+        context: ExtensionContext | None = None,
     ) -> None:
+        """``extensions`` is shared with the daemon (its status and console read it): an extension a reload
+        first asks for (one of ``kinds``, built with ``context``) is put into it, in the kinds' order."""
         self.rig = rig
         self.slot = slot
         self._links = links
         self.extensions = extensions
+        self._kinds = tuple(kinds)
+        self._context = context or ExtensionContext()
         self.locator = Locator(rig)
         self.health = CalibrationHealth.for_rig(rig, self.locator.cameras)
         """The record fixes are measured into; a reload with a new calibration replaces it."""
@@ -171,6 +182,25 @@ class ProcessingStage:
             figures.pairs_processed += 1
             self._links.notifier.progress()
 
+    def _build_asked_for(self, rig: RigConfig) -> None:
+        """The extensions the reloaded rig asks for that were not built (none was asked for before: a
+        ``[recording] directory`` added, ``[interaction]`` turned on), put in their kinds' order. One
+        whose ``create`` refuses the rig is left out, and the log says why."""
+        order = {kind.name: n for n, kind in enumerate(self._kinds)}
+        for kind in self._kinds:
+            if any(extension.name == kind.name for extension in self.extensions):
+                continue
+            try:
+                extension = kind.create(rig, self._context)
+            except ConfigError as err:
+                log.error("reload: %s not started: %s", kind.name, err)
+                continue
+            if extension is None:
+                continue
+            position = sum(1 for e in self.extensions if order.get(e.name, -1) < order[kind.name])
+            self.extensions.insert(position, extension)
+            log.info("reload: %s started", kind.name)
+
     def _apply_requested_rig(self) -> None:
         """The first phase of a reload (trackerd.pipeline.reload); a failure keeps the old rig."""
         rig = self._links.reload.take_rig()
@@ -192,6 +222,7 @@ class ProcessingStage:
         self.locator = locator
         for extension in self.extensions:
             extension.reload(rig)
+        self._build_asked_for(rig)
         if changes_calibration(rig, old):
             self.health = CalibrationHealth.for_rig(rig, locator.cameras)
         if changes_colours(rig, old):

@@ -66,8 +66,12 @@ class RecordingExtension:
         self._context = context or ExtensionContext()
         self._armed = rig.recording.enabled
         self._recorder: Recorder | None = None
+        """The recording being written; one that ended by itself (a limit, a full disk) is dropped from
+        here by the next pair or console request (:meth:`_writing`), and stays ``_last``."""
         self._finishing: list[Recorder] = []
         self._last: Recorder | None = None
+        self._failure: str | None = None
+        """Why the last recording could not be started (its folder could not be made), until one starts."""
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ processing thread
@@ -75,9 +79,12 @@ class RecordingExtension:
     def on_pair(self, pair: FramePair) -> bool:
         """Queue the pair for the current recording; True when a recording starts with it."""
         recorder = self._recorder
-        if recorder is not None:
+        if recorder is not None and not recorder.done:
             recorder.put(pair)
             return False
+        if recorder is not None:
+            with self._lock:
+                self._writing()
         if not self._armed:
             return False
         self._armed = False
@@ -107,6 +114,7 @@ class RecordingExtension:
                 self._recorder = None
             self._rig = rig
             self._armed = rig.recording.enabled and rig.recording.directory is not None
+            self._failure = None  # a new configuration: its own start says whether it fails
 
     # ------------------------------------------------------------------ the console (any thread)
 
@@ -117,8 +125,9 @@ class RecordingExtension:
     def start_now(self) -> str:
         """Start a recording with the next pair (as a reload with ``enabled`` does); what happens, in words."""
         with self._lock:
-            if self._recorder is not None:
-                return f"already recording into {self._recorder.path}"
+            recorder = self._writing()
+            if recorder is not None:
+                return f"already recording into {recorder.path}"
             self._armed = True
         return "a recording starts with the next pair"
 
@@ -126,13 +135,21 @@ class RecordingExtension:
         """Finish the current recording (without waiting for the disk); what happens, in words."""
         with self._lock:
             self._armed = False
-            recorder, self._recorder = self._recorder, None
+            recorder, self._recorder = self._writing(), None
             if recorder is None:
                 return "not recording"
             recorder.finish()
             self._finishing.append(recorder)
         log.info("recording: finishing %s (asked from the console)", recorder.path)
         return f"finishing {recorder.path}"
+
+    def _writing(self) -> Recorder | None:
+        """The recording being written, or None; one that has ended by itself (at a limit, on a full disk) is
+        let go here, kept as the last one for the status. Called with the lock held."""
+        recorder = self._recorder
+        if recorder is not None and recorder.done:
+            self._recorder = recorder = None
+        return recorder
 
     def _start(self) -> Recorder | None:
         cfg = self._rig.recording
@@ -141,7 +158,10 @@ class RecordingExtension:
             cfg.directory.mkdir(parents=True, exist_ok=True)
             path = recording_path(cfg.directory, self._rig.name)
         except OSError as err:
-            log.error("recording: cannot create %s: %s", cfg.directory, err.strerror)
+            failure = f"cannot create {cfg.directory}: {err.strerror}"
+            log.error("recording: %s", failure)
+            with self._lock:
+                self._failure = failure
             return None
         recorder = Recorder(
             path,
@@ -156,15 +176,24 @@ class RecordingExtension:
         with self._lock:
             self._recorder = recorder
             self._last = recorder
+            self._failure = None
         return recorder
 
     # ------------------------------------------------------------------ publishing thread
 
     def status(self) -> dict[str, Any] | None:
+        """The status message's ``recording`` object; None once a reload has taken ``directory`` away."""
+        if not self.available:
+            return None
         with self._lock:
             recorder = self._recorder or self._last
             armed = self._armed
+            failure = self._failure
             self._finishing = [r for r in self._finishing if not r.done]
+        if failure is not None:
+            # The last start failed: that, not the recording before it, is what the operator must see.
+            detail = "; ".join(filter(None, [failure, "tried again with the next pair" if armed else None]))
+            return {"state": "failed", "path": None, "detail": detail}
         if recorder is None:
             detail = "starts with the next pair" if armed else "enabled = false"
             return {"state": "idle", "detail": detail}
