@@ -11,8 +11,9 @@ from ``publish_ns`` (capture times are the recorded ones).
 throughput). By default the rig recorded with the frames is used; --config
 replaces it (a newer calibration, other detector thresholds), and the output
 says so. The frames' pixel formats and sizes always come from the recording.
-Replay starts --delay seconds after the publisher binds, so subscribers can
-connect first (ZeroMQ drops what is published before they are connected).
+The first pair is due --delay seconds after the replay starts up (the publisher
+binds within it), so subscribers can connect first (ZeroMQ drops what is
+published before they are connected).
 A replay does not reload its configuration on SIGHUP.
 """
 
@@ -71,7 +72,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=1.0,
         metavar="S",
-        help="seconds between binding the publisher and the first pair (default 1.0)",
+        help="seconds from start-up (the publisher binds within them) to the first pair (default 1.0)",
     )
     parser.add_argument("--first", type=int, default=0, metavar="N", help="start at pair N (default 0)")
     parser.add_argument("--count", type=int, metavar="N", help="replay N pairs (default: to the end)")
@@ -137,7 +138,7 @@ def replay_command(args: argparse.Namespace) -> int:
         print(f"  {note}", file=sys.stderr)
     publishers: list[Publisher] = []
     progress = ProgressLine()
-    total = source.stop_at - source.first
+    total = (source.stop_at - source.first) * (args.passes or 1)  # a --loop without --passes: per pass
 
     def publisher_factory(r: RigConfig) -> Publisher:
         publishers.append(zmq_publisher(r))
@@ -151,9 +152,12 @@ def replay_command(args: argparse.Namespace) -> int:
         if progress.due():
             hits = publishers[-1].counts.get("hit", 0) if publishers else 0
             rate = source.status().pair_rate_hz
-            progress.show(
-                f"replay: {source.delivered}/{total} pairs, {rate:.0f} pairs/s, {hits} hits, lag {source.lag_ms:.0f} ms"
+            done = (
+                f"{source.delivered}/{total}"
+                if args.passes or not args.loop
+                else f"{source.delivered} ({total} a pass)"
             )
+            progress.show(f"replay: {done} pairs, {rate:.0f} pairs/s, {hits} hits, lag {source.lag_ms:.0f} ms")
         return source.finished and pipeline.pairs_processed >= source.delivered and pipeline.backlog <= 0
 
     code = serve(

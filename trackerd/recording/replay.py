@@ -140,6 +140,9 @@ class ReplayPairSource(PairSource):
         self._sequence_step = max(entries[self.stop_at - 1].sequence, 0) + 1
         default_shift = time.monotonic_ns() + int(start_delay_s * 1e9) - self._t0_rec
         self.shift_ns = default_shift if shift_ns is None else shift_ns
+        self._planned_start_ns: int | None = self._t0_rec + default_shift if shift_ns is None else None
+        """When the first pair's moved timestamp says it is due (the default shift's plan), for the first
+        :meth:`start`: the pairs are then delivered at the times they carry."""
         self._lock = threading.Lock()
         self._running = False
         self._finished = False
@@ -184,7 +187,13 @@ class ReplayPairSource(PairSource):
             self._finished = False
             self._pending = None
             self._delivered_pass = 0
-            self._start_ns = time.monotonic_ns() + int(self.start_delay_s * 1e9)
+            now = time.monotonic_ns()
+            # Due at the times their timestamps say, so that a pair's latency is the pipeline's own: the
+            # pipeline is set up (a publisher bound, a locator made) between construction and here, and
+            # due start_delay_s after this call, every pair's latency counted that time too (135-220 ms).
+            # Never before now: a setup longer than the delay makes the first pairs late, and says so.
+            planned, self._planned_start_ns = self._planned_start_ns, None
+            self._start_ns = max(now, planned) if planned is not None else now + int(self.start_delay_s * 1e9)
         self._halt = threading.Event()
         self._ahead = queue.Queue(maxsize=self._queue_batches())
         self._local = deque()
