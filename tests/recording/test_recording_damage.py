@@ -7,6 +7,7 @@ import os
 import shutil
 from pathlib import Path
 
+import pytest
 from rec_helpers import one_line_error, trackerd
 
 from trackerd.recording.format import INDEX_ENTRY
@@ -82,6 +83,25 @@ def test_a_damaged_index_entry_ends_the_index_and_the_rest_is_recovered_by_scann
     report = json.loads(trackerd("recording", "check", copy, "--json").stdout)
     assert (report["pairs"], report["indexed"], report["recovered"], report["replayable"]) == (16, 7, 9, 16)
     assert report["sequence_gaps"] == 0
+    assert _replayed_sequences(copy) == list(range(1, 17))
+
+
+@pytest.mark.parametrize("name", ["pairs.dat", "pairs.idx"])
+def test_a_damaged_file_header_is_named_as_damage_and_every_pair_still_replays(bundle, tmp_path, name) -> None:
+    """Four bytes flipped over a binary file's version (its header has no checksum): the recording is of a
+    format this trackerd reads (recording.json says so), so the header is named damaged and the pairs, each
+    with its own checksums, are read. Before, both read as "format 65534.x is newer than this trackerd reads;
+    upgrade trackerd" and not one pair was read."""
+    copy = _copy(bundle, tmp_path)
+    data = bytearray((copy / name).read_bytes())
+    data[8:12] = bytes(b ^ 0xFF for b in data[8:12])
+    (copy / name).write_bytes(bytes(data))
+    check = trackerd("recording", "check", copy)
+    assert check.returncode == 1 and "Traceback" not in check.stderr, check.stderr
+    assert f"{name}: its file header is damaged (it says format 65534.65535" in check.stdout, check.stdout
+    assert "upgrade" not in check.stdout + check.stderr
+    report = json.loads(trackerd("recording", "check", copy, "--json").stdout)
+    assert (report["pairs"], report["replayable"], report["sequence_gaps"]) == (16, 16, 0)
     assert _replayed_sequences(copy) == list(range(1, 17))
 
 

@@ -257,6 +257,22 @@ def unpack_file_header(data: bytes, magic: bytes, where: str) -> tuple[int, int,
     return major, minor, extra
 
 
+def damaged_file_header(data: bytes, magic: bytes, where: str) -> str | None:
+    """Why a binary file's header is damaged, for a recording whose recording.json this trackerd reads (so
+    the recording is of a format it reads, whatever the header says); None when the header is sound.
+
+    The header has no checksum of its own: a flipped version field read as a format "newer than this
+    trackerd" and told the user to upgrade, and the whole recording was refused, although every record
+    carries its own magic and checksums and can be read without it."""
+    if len(data) < FILE_HEADER.size:
+        return None  # too short to hold records either: the callers say so
+    found, major, minor, _ = FILE_HEADER.unpack_from(data)
+    if found == magic and 1 <= major <= FORMAT_MAJOR:
+        return None
+    said = f"begins {found!r}" if found != magic else f"says format {major}.{minor}"
+    return f"{where}: its file header is damaged (it {said}; {METADATA_FILE} is of a format this trackerd reads)"
+
+
 def pack_record_header(header: RecordHeader) -> bytes:
     fixed = RECORD_FIXED.pack(
         RECORD_MAGIC,

@@ -18,6 +18,7 @@ from trackerd.recording.format import (
     INDEX_MAGIC,
     IndexEntry,
     check_major,
+    damaged_file_header,
     unpack_file_header,
     unpack_index_entry,
     unpack_record_header,
@@ -39,6 +40,9 @@ def read_index(index_path: Path, data_size: int) -> tuple[list[IndexEntry], list
         return entries, [f"{err}; pairs found by scanning {DATA_FILE}"]
     except OSError as err:
         return entries, [f"{index_path}: cannot read ({err.strerror}); pairs found by scanning {DATA_FILE}"]
+    damaged = damaged_file_header(raw, INDEX_MAGIC, str(index_path))
+    if damaged is not None:
+        return entries, [f"{damaged}; pairs found by scanning {DATA_FILE}"]
     try:
         major, _minor, entry_bytes = unpack_file_header(raw, INDEX_MAGIC, str(index_path))
         check_major(major, str(index_path))

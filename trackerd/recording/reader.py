@@ -43,11 +43,13 @@ from trackerd.recording.format import (
     INDEX_FILE,
     METADATA_FILE,
     MODES,
+    RECORD_MAGIC,
     CameraMeta,
     IndexEntry,
     RecordHeader,
     RecordingMetadata,
     check_major,
+    damaged_file_header,
     parse_version,
     unpack_file_header,
     unpack_record_header,
@@ -115,13 +117,19 @@ class Recording:
         try:
             size = os.fstat(data_fd).st_size
             head = os.pread(data_fd, FILE_HEADER.size, 0)
-            major, _minor, _ = unpack_file_header(head, DATA_MAGIC, str(data_path))
-            check_major(major, str(data_path))
+            damaged = damaged_file_header(head, DATA_MAGIC, str(data_path))
+            if damaged is not None and os.pread(data_fd, len(RECORD_MAGIC), FILE_HEADER.size) != RECORD_MAGIC:
+                damaged = None  # no record where the first one begins: a file of something else, refused below
+            if damaged is None:
+                major, _minor, _ = unpack_file_header(head, DATA_MAGIC, str(data_path))
+                check_major(major, str(data_path))
             mapped = mmap.mmap(data_fd, size, prot=mmap.PROT_READ) if size > FILE_HEADER.size else None
         finally:
             os.close(data_fd)
         # Every entry taken counts as indexed, however the index ended (cut short, a damaged entry).
         entries, problems = read_index(folder / INDEX_FILE, size)
+        if damaged is not None:
+            problems.insert(0, f"{damaged}; its pairs are read by their own checksums")
         recording = cls(folder, metadata, entries, len(entries), size, problems, mapped)
         recording.problems += scan_unindexed(recording.view, folder / DATA_FILE, size, recording.entries)
         if metadata.end is None:
