@@ -149,6 +149,23 @@ def test_a_wrong_version_or_a_foreign_folder_is_one_clear_line(bundle, tmp_path)
     one_line_error(trackerd("replay", copy), "replay", "pairs.dat: does not begin with TRKDDATA")
 
 
+def test_frames_recorded_in_a_format_without_colour_are_one_line_not_a_crashed_pipeline(bundle, tmp_path) -> None:
+    """recording.json says a camera's frames are Mono16 (edited by hand, or a recording of something else):
+    replay and export refuse it in one line before the pipeline starts. Before, every pair crashed the
+    locator's thread with a traceback (ImageError from the colour sampling)."""
+    copy = _copy(bundle, tmp_path)
+    meta = json.loads((copy / "recording.json").read_text())
+    meta["cameras"][0]["pixel_format"] = "Mono16"
+    (copy / "recording.json").write_text(json.dumps(meta))
+    fragments = ("camera 'left': its recorded frames' pixel format 'Mono16' cannot show the pointer's colours",)
+    one_line_error(
+        trackerd("replay", copy, "--speed", "max", "--delay", "0", "--endpoint", "tcp://127.0.0.1:*"),
+        "replay",
+        *fragments,
+    )
+    one_line_error(trackerd("recording", "export", copy, tmp_path / "out"), "recording", *fragments)
+
+
 def test_hostile_metadata_is_one_clear_line_never_a_traceback_or_a_hang(bundle, tmp_path) -> None:
     """recording.json nested 1,200 deep (the JSON parser runs out of recursion), nested past what any
     recording has, a FIFO in its place (reading it would wait for a writer), and one far too large."""

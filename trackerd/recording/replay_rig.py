@@ -12,7 +12,8 @@ from typing import Any
 from trackerd.config.loader import check_ready_to_track, load_rig, with_endpoints
 from trackerd.config.models import RigConfig
 from trackerd.config.recording import RecordingConfig
-from trackerd.errors import CalibrationPending, ConfigError
+from trackerd.detect.colour import sample_grid
+from trackerd.errors import CalibrationPending, ConfigError, ImageError, RecordingError
 from trackerd.recording.format import METADATA_FILE
 from trackerd.recording.reader import Recording
 
@@ -53,6 +54,12 @@ def replay_rig(recording: Recording, config: str | None, endpoints: list[str] | 
                 f"{config or recording.path}: camera '{cam.id}' is configured for {cam.width_px}x{cam.height_px}"
                 f" but the recording's frames are {meta.width_px}x{meta.height_px}"
             )
+        try:
+            # The frames must show the pointer's colours whatever the rig says (recording.json edited, a
+            # recording of something else): one line here, not a crashed pipeline thread per pair.
+            sample_grid(meta.pixel_format, meta.width_px, meta.height_px)
+        except ImageError as err:
+            raise RecordingError(f"{recording.path}: camera '{cam.id}': its recorded frames' {err}") from None
         if cam.pixel_format != meta.pixel_format:
             notes.append(f"camera '{cam.id}': frames are {meta.pixel_format} (the rig says {cam.pixel_format})")
             cam = cam.model_copy(update={"pixel_format": meta.pixel_format})
