@@ -341,6 +341,13 @@ def test_snap_and_ctl_on_the_command_line_talk_to_the_daemon(daemon, tmp_path) -
     check = trackerd("ctl", "--config", rig_file, "--console", daemon["listen"], "check", "--fixes", "20")
     assert check.returncode == 0, check.stdout + check.stderr
     assert check.stdout.startswith("check: 20 pointer fixes") and ": OK" in check.stdout
+    # `record` cannot take the cameras from it (it failed on an Aravis register write that timed out):
+    # one line saying so and how to record, before any camera is opened or folder made.
+    record = trackerd("record", "--config", rig_file, str(tmp_path / "held.trec"), "--pairs", "5")
+    errors = [line for line in record.stderr.splitlines() if line.startswith("trackerd record:")]
+    assert record.returncode == 1 and "Traceback" not in record.stderr, record.stderr
+    assert len(errors) == 1 and "the daemon is running and holds the cameras" in errors[0], record.stderr
+    assert "record start" in errors[0] and not (tmp_path / "held.trec").exists()
 
 
 def test_ctl_without_a_daemon_says_so_in_one_line(daemon, capsys) -> None:

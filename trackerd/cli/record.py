@@ -24,6 +24,7 @@ from pathlib import Path
 from trackerd.cli._args import positive_seconds
 from trackerd.cli._cameras import add_virtual_arguments
 from trackerd.config.loader import load_rig
+from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
 
 
@@ -56,6 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="S",
         help="compressed and windowed: a pair stored whole at least every S seconds (default 1)",
     )
+    parser.add_argument(
+        "--console", metavar="ADDR", help="the running daemon's console HOST:PORT (default: the rig's [console] listen)"
+    )
     add_virtual_arguments(parser, "record")
     parser.set_defaults(handler=record_command)
 
@@ -82,6 +86,8 @@ def record_command(args: argparse.Namespace) -> int:
     # Before the cameras open: where the recording goes, and room for it.
     check_new_recording(out)
     check_free_space(out, config.min_free_space_mb)
+    if not args.virtual:
+        _refuse_if_the_daemon_holds_the_cameras(loaded.config, args.config, args.console)
 
     stop = threading.Event()
 
@@ -147,3 +153,18 @@ def record_command(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def _refuse_if_the_daemon_holds_the_cameras(rig: RigConfig, rig_file: str, console: str | None) -> None:
+    """RecordingError when a daemon runs this rig's cameras: a GigE Vision camera takes one controller, and
+    opening it anyway failed deep in Aravis (a register write timing out). The daemon records itself."""
+    from trackerd.console.client import ConsoleClient
+
+    client = ConsoleClient.for_rig(rig, console)
+    info = client.find()
+    if info is not None and client.runs_cameras_of(info, rig):
+        raise RecordingError(
+            f"the daemon is running and holds the cameras ({client.base}); record from it:"
+            f" `trackerd ctl --config {rig_file} record start` with [recording] directory in its rig"
+            " (docs/recording.md), or stop it first"
+        )
