@@ -10,6 +10,7 @@ from detect_synthetic import RED, ROD, WALL, Scene, Shape
 from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
 from trackerd.detect.ballfit import (
+    RESTING_ERROR_SHARE,
     _bilinear,
     _leaning_shift,
     _median,
@@ -163,6 +164,27 @@ def test_a_circle_held_up_by_one_rim_point_says_how_far_its_centre_moves_without
     circle = robust_circle(whole)
     assert circle is not None
     assert np.all(_leaning_shift(whole, circle[2], circle[0], circle[1], None) == 0.0)
+
+
+def test_a_refit_that_jumps_far_away_counts_as_no_circle_at_all() -> None:
+    """A flat arc (the edge of something larger, 40 px in radius, beside the ball) and one rim point across:
+    the circle through both is the ball's size, and without the point the arc's own circle is 26 px away.
+    That says the centre rests on one point, no more: the shift is the half radius a centre with no circle
+    left is given (RESTING_ERROR_SHARE), along the way the refit went."""
+    rng = np.random.default_rng(0)
+    angles = np.radians(np.linspace(165.0, 195.0, 11))
+    arc = np.column_stack([25.0 + 40.0 * np.cos(angles), 40.0 * np.sin(angles)]) + rng.normal(0.0, 0.1, (11, 2))
+    points = np.vstack([arc, [12.0, 1.0]])
+    circle = robust_circle(points)
+    assert circle is not None
+    centre, radius, weights, _ = circle
+    assert np.all(weights > 0) and 13.0 < radius < 15.0
+    refit = robust_circle(arc)
+    assert refit is not None and np.hypot(*(refit[0] - centre)) > 1.5 * radius  # what the refit jumps to
+    shift = _leaning_shift(points, weights, centre, radius, None)
+    assert shift is not None
+    assert np.hypot(*shift) == pytest.approx(RESTING_ERROR_SHARE * radius, rel=1e-9)
+    assert shift[0] > 0.99 * np.hypot(*shift)  # towards the arc's own centre
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])

@@ -287,7 +287,8 @@ def _leaning_shift(
     is uncertain. Leaving the point out and fitting again does: `bench robustness --seed 404`, installation 0,
     frame 38 (the back ball 62 % visible in one camera, 36-40 % in the other): a circle 2.0 px smaller than
     the ball's through such a point, its centre 6.7 px off with a stated error of 0.8 px, the hit 42.9 mm off
-    at a sigma of 4.3 mm; leaving the point out moves the centre 1.9 px, and the hit's sigma is 13.2 mm."""
+    at a sigma of 4.3 mm; leaving the point out moves the centre 1.9 px, and the hit's sigma is 13.2 mm.
+    The shift is capped at RESTING_ERROR_SHARE of the radius, the error of a centre with no circle left."""
     agree = weights > 0.0
     used, w = points[agree], weights[agree]
     directions = (used - centre) / radius
@@ -307,7 +308,11 @@ def _leaning_shift(
         without = robust_circle(rest)
     if without is None:
         return None
-    return without[0] - centre
+    shift = without[0] - centre
+    # A refit that jumps further than an unknown centre's error (a near-straight arc's circle, far away) says
+    # no more than that the centre rests on the point: it is capped there, as if no circle were left.
+    length, limit = float(np.hypot(shift[0], shift[1])), RESTING_ERROR_SHARE * radius
+    return shift * (limit / length) if length > limit else shift
 
 
 def _annulus(rim: Array, radius_range_px: tuple[float, float], slack_px: float) -> Array:
