@@ -163,6 +163,12 @@ def test_the_command_learns_from_files_writes_the_calibration_and_the_rig_file_o
         run = _trackerd("calibrate", "pointer", "--config", "rig.toml", *args, cwd=tmp_path)
         assert run.returncode == 1 and "Traceback" not in run.stderr and says in run.stderr, run.stderr
     assert not (tmp_path / "no").exists()
+    # A rig that names no calibration file, without --output: refused before a pair is read (it said so
+    # only once every pair was learnt from; live, after the pointer had been waved for nothing).
+    (tmp_path / "nameless.toml").write_text(dump_rig(rig))
+    run = _trackerd("calibrate", "pointer", "--config", "nameless.toml", "--pairs", "waving", cwd=tmp_path)
+    assert run.returncode == 1 and "the rig names no calibration file" in run.stderr, run.stderr
+    assert "waving:" not in run.stdout + run.stderr  # the folder was never read
     inline = tmp_path / "inline.toml"
     colours = (tmp_path / "cal.toml").read_text().split("[pointer_colours]", 1)[1]
     inline.write_text(rig_text + "\n[pointer_colours]" + colours)

@@ -17,7 +17,7 @@ from trackerd.calibration import CalibrationError
 from trackerd.calibration.board import BoardSpec
 from trackerd.calibration.live import Session, run_session
 from trackerd.calibration.stereo import Lens
-from trackerd.calibration.store import RigContext, require_output, write_calibration
+from trackerd.calibration.store import RigContext, open_rig, require_output, write_calibration
 from trackerd.config.models import CalibrationFile, CameraConfig, PointerConfig, PoseExtrinsics, RigConfig, WallConfig
 from trackerd.config.rig_geometry import camera_model
 
@@ -111,6 +111,16 @@ def snapshot_dir(args: argparse.Namespace, step: str) -> Path | None:
     import datetime as dt
 
     return Path("calibration-snapshots") / f"{step}-{dt.datetime.now():%Y%m%d-%H%M%S}"
+
+
+def open_rig_to_write(args: argparse.Namespace) -> RigContext:
+    """The rig and calibration a step reads (``--config``, ``--output``), refused at once when the step
+    would have nowhere to write its result (the rig names no calibration file, no ``--output``, no
+    ``--dry-run``): said before the pointer is waved or a board shown, not after."""
+    context = open_rig(args.config, args.output)
+    if not args.dry_run:
+        require_output(context)
+    return context
 
 
 def write_result(

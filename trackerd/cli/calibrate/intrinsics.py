@@ -14,13 +14,13 @@ from trackerd.calibration.intrinsics import MIN_VIEWS, MIN_VIEWS_FLOOR, Intrinsi
 from trackerd.calibration.live import IntrinsicsSession
 from trackerd.calibration.pictures import intrinsics_pictures, write_index
 from trackerd.calibration.report import intrinsics_json, intrinsics_text
-from trackerd.calibration.store import open_rig
 from trackerd.calibration.update import apply_intrinsics
 from trackerd.calibration.views import MIN_VIEW_CHANGE, ViewSelector
 from trackerd.cli.calibrate.common import (
     Output,
     check_source,
     no_board_hint,
+    open_rig_to_write,
     rig_camera,
     run_live,
     simulated_boards,
@@ -33,7 +33,7 @@ from trackerd.config.rig_geometry import MAX_LENS_INVERSION_PX, lens_fold_px
 
 def intrinsics_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
-    context = open_rig(args.config, args.output)
+    context = open_rig_to_write(args)
     index, cam = rig_camera(context.rig, args.camera)
     mode = check_source(args, "IMAGE... files", bool(args.images))
     quality = Quality(max_sharpness_px=args.max_blur)

@@ -8,8 +8,15 @@ from typing import Any
 from trackerd.calibration import CalibrationError
 from trackerd.calibration.colours import COLOURS, ColourLearner, LearnedFigures
 from trackerd.calibration.inputs import pair_files, read_pair
-from trackerd.calibration.store import RigContext, open_rig, today, with_pointer_colours
-from trackerd.cli.calibrate.common import Output, check_source, run_live, simulated_pointer, write_result
+from trackerd.calibration.store import RigContext, today, with_pointer_colours
+from trackerd.cli.calibrate.common import (
+    Output,
+    check_source,
+    open_rig_to_write,
+    run_live,
+    simulated_pointer,
+    write_result,
+)
 from trackerd.config.rig_geometry import camera_model
 
 DEFAULT_FRAMES = 60
@@ -18,7 +25,7 @@ DEFAULT_FRAMES = 60
 
 def pointer_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
-    context = open_rig(args.config, args.output)
+    context = open_rig_to_write(args)
     if context.rig.pointer_colours is not None:
         raise CalibrationError(
             f"{context.rig_path}: the rig file gives [pointer_colours] itself; this step writes them into the"

@@ -17,7 +17,6 @@ from trackerd.calibration.live import StereoSession
 from trackerd.calibration.pictures import stereo_pictures, write_index
 from trackerd.calibration.report import quality_warnings, stereo_json, stereo_text
 from trackerd.calibration.stereo import MIN_PAIRS, MIN_PAIRS_FLOOR, baseline_warning, calibrate_stereo
-from trackerd.calibration.store import open_rig
 from trackerd.calibration.update import apply_stereo
 from trackerd.calibration.views import MIN_VIEW_CHANGE, ViewSelector
 from trackerd.cli.calibrate.common import (
@@ -25,6 +24,7 @@ from trackerd.cli.calibrate.common import (
     check_source,
     lens_of,
     no_board_hint,
+    open_rig_to_write,
     run_live,
     simulated_boards,
     snapshot_dir,
@@ -41,7 +41,7 @@ def stereo_command(args: argparse.Namespace) -> int:
             f"--min-pairs {args.min_pairs} is under {MIN_PAIRS_FLOOR}: with fewer pairs one taken out of sync"
             " cannot be told from the others"
         )
-    context = open_rig(args.config, args.output)
+    context = open_rig_to_write(args)
     rig = context.merged()
     cam1, cam2 = rig.cameras[0], rig.cameras[1]
     lens1, lens2 = lens_of(cam1), lens_of(cam2)

@@ -19,13 +19,14 @@ from trackerd.calibration.inputs import (
 )
 from trackerd.calibration.pointer_sessions import WallSession
 from trackerd.calibration.report import measured_wall_text, wall_fit_json, wall_fit_text
-from trackerd.calibration.store import WORLD_FRAME_KEY, RigContext, open_rig
+from trackerd.calibration.store import WORLD_FRAME_KEY, RigContext
 from trackerd.calibration.update import apply_measured_wall, apply_wall_fit
 from trackerd.calibration.visibility import common_view_rectangle, touch_seen, view_targets
 from trackerd.calibration.wall import Pointing, Target, Touch, fit_problem, fit_wall
 from trackerd.cli.calibrate.common import (
     Output,
     check_source,
+    open_rig_to_write,
     rig_pointer,
     rig_wall,
     run_live,
@@ -45,7 +46,7 @@ if TYPE_CHECKING:
 
 def wall_command(args: argparse.Namespace) -> int:
     out = Output(args.json)
-    context = open_rig(args.config, args.output)
+    context = open_rig_to_write(args)
     if args.points:
         given = (("--pairs", args.pairs), ("--live", args.live), ("--recording", args.recording))
         extra = [name for name, value in given if value]
