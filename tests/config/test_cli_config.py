@@ -57,6 +57,25 @@ def test_example_rigs_pass(run_check: RunCheck, rig: Path) -> None:
     assert any(line.startswith("  wall: 3.6576 x 0.9144 m (12.00 x 3.00 ft)") for line in lines)
 
 
+def test_the_documented_check_output_is_what_the_command_prints() -> None:
+    """docs/configuration.md shows `config check config/datawall.toml`'s output: it lacked the thresholds
+    line for a while after the command gained it."""
+    repo = CONFIG_DIR.parent
+    doc = (repo / "docs" / "configuration.md").read_text()
+    command = "$ trackerd config check config/datawall.toml\n"
+    assert doc.count(command) == 1
+    shown = doc.split(command, 1)[1].split("```", 1)[0]
+    run = subprocess.run(
+        [sys.executable, "-m", "trackerd", "config", "check", "config/datawall.toml"],
+        cwd=repo,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert run.returncode == 0 and run.stdout == shown, run.stdout
+
+
 @pytest.mark.parametrize("rig", EXAMPLE_RIGS, ids=lambda p: p.name)
 def test_json_output_parses_and_matches_the_rig(run_check: RunCheck, rig: Path) -> None:
     run = run_check(rig, "--json")

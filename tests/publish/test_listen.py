@@ -140,6 +140,15 @@ def test_listen_refuses_a_topic_trackerd_never_publishes():
     assert len(err.splitlines()) == 1
 
 
+@pytest.mark.parametrize("endpoint", ["tcp://127.0.0.1:99999", "tcp://127.0.0.1:*", "tcp://127.0.0.1"])
+def test_listen_refuses_an_endpoint_it_cannot_connect_to(endpoint):
+    # ZeroMQ took tcp://127.0.0.1:99999 and the command waited until its timeout.
+    process = _listen("--endpoint", endpoint, "--timeout", "30")
+    out, err = process.communicate(timeout=20)
+    assert process.returncode == 2 and out == ""
+    assert err == f"trackerd listen: --endpoint {endpoint}: connect to tcp://HOST:PORT, PORT a number from 1 to 65535\n"
+
+
 def test_listen_names_a_key_file_that_is_missing_or_not_a_key(tmp_path):
     # Regression: a missing --server-key said "cannot read CURVE key file: None".
     not_a_key = tmp_path / "server.key"

@@ -125,6 +125,17 @@ def test_a_replay_endpoint_is_checked_as_the_rig_files_are(bundle, endpoint, rea
     assert run.stderr.startswith(f"trackerd replay: --endpoint: {reason}") and len(run.stderr.splitlines()) == 1
 
 
+@pytest.mark.parametrize(
+    ("option", "value", "reason"),
+    [("--count", "0", "must be at least 1, not 0"), ("--first", "-2", "pairs are numbered from 0, not -2")],
+)
+def test_a_count_or_first_pair_out_of_range_is_refused_as_an_argument(bundle, option, value, reason) -> None:
+    # --count 0 said "no intact pairs to replay" of an intact recording; --first -2 was taken as 0.
+    run = trackerd("replay", bundle, option, value)
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.strip().endswith(f"argument {option}: {reason}") and "Traceback" not in run.stderr
+
+
 def test_paced_replay_keeps_the_recorded_intervals_and_loops_on(bundle) -> None:
     with Recording.open(bundle) as recording:
         recorded_ns = [e.timestamp_ns for e in recording.entries]

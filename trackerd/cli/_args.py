@@ -17,6 +17,17 @@ def positive_seconds(text: str) -> float:
     return value
 
 
+def pair_number(text: str) -> int:
+    """A pair's number in a recording, from 0 (a negative one was taken as 0 in silence)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"pairs are numbered from 0, not {value}")
+    return value
+
+
 def positive_int(text: str) -> int:
     """A count of at least 1."""
     try:

@@ -19,7 +19,13 @@ from trackerd.interaction.validate import check_interaction
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("config", help="check rig configuration files")
+    parser = subparsers.add_parser(
+        "config",
+        help="check rig configuration files",
+        description="check FILE: validate a rig file (every key, type and range; the calibration file it"
+        " names) and print the rig as trackerd resolves it; --ready also asks whether it can track"
+        " (docs/configuration.md)",
+    )
     config_sub = parser.add_subparsers(dest="config_command", metavar="ACTION", required=True)
     check = config_sub.add_parser("check", help="validate a rig file and print the resolved rig")
     check.add_argument("file", help="rig TOML file, for example config/datawall.toml")

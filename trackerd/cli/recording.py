@@ -1,4 +1,4 @@
-"""`trackerd recording check|import|export`: inspect, build and unpack recordings (docs/recording.md).
+"""`trackerd recording check|import|convert|export`: inspect, build and unpack recordings (docs/recording.md).
 
 check PATH          how much of a recording is intact: pairs readable, recovered past the
                     index after a crash, damaged frames, each problem with its file and byte

@@ -25,7 +25,7 @@ import sys
 import time
 from typing import TYPE_CHECKING, Any
 
-from trackerd.cli._args import add_console_option, positive_int, positive_seconds
+from trackerd.cli._args import add_console_option, pair_number, positive_int, positive_seconds
 from trackerd.config.loader import with_console
 from trackerd.config.models import RigConfig
 from trackerd.recording.reader import Recording
@@ -74,8 +74,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="S",
         help="seconds from start-up (the publisher binds within them) to the first pair (default 1.0)",
     )
-    parser.add_argument("--first", type=int, default=0, metavar="N", help="start at pair N (default 0)")
-    parser.add_argument("--count", type=int, metavar="N", help="replay N pairs (default: to the end)")
+    parser.add_argument("--first", type=pair_number, default=0, metavar="N", help="start at pair N (default 0)")
+    parser.add_argument("--count", type=positive_int, metavar="N", help="replay N pairs (default: to the end)")
     parser.add_argument(
         "--no-verify",
         action="store_true",
