@@ -139,9 +139,9 @@ def test_a_count_or_first_pair_out_of_range_is_refused_as_an_argument(bundle, op
 def test_paced_replay_keeps_the_recorded_intervals_and_loops_on(bundle) -> None:
     with Recording.open(bundle) as recording:
         recorded_ns = [e.timestamp_ns for e in recording.entries]
+        before_start = time.monotonic_ns()  # the pace counts from the source's making (its first pair's time)
         source = ReplayPairSource(recording, speed=2.0, loop=True)
         delivered, pairs = [], []
-        before_start = time.monotonic_ns()
         with source:
             while len(pairs) < 20:
                 pair = source.next_pair(1.0)
@@ -171,6 +171,14 @@ def test_a_paced_replay_delivers_each_pair_when_the_time_it_carries_says(bundle)
             due_ns = [source._due_ns(source.first + k, 0) for k in range(3)]
     assert all(pair is not None for pair in pairs)
     assert [pair.timestamp_ns for pair in pairs if pair is not None] == due_ns
+    # A start-up longer than the delay: the first pair is overdue by at least that, and the lag says so (it
+    # read 0 while every latency carried the start-up).
+    with Recording.open(bundle) as recording:
+        source = ReplayPairSource(recording, speed=1.0, start_delay_s=0.0)
+        time.sleep(0.3)
+        with source:
+            first = source.next_pair(5.0)
+    assert first is not None and source.max_lag_ms >= 300.0
 
 
 def test_each_pass_of_a_looped_replay_publishes_what_the_first_did(bundle, first_replay, tmp_path) -> None:

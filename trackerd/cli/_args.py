@@ -17,6 +17,17 @@ def positive_seconds(text: str) -> float:
     return value
 
 
+def delay_seconds(text: str) -> float:
+    """``--delay``: a finite number of seconds, 0 or more (nan and inf crashed the replay's start)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds, 0 or more, not {text!r}")
+    return value
+
+
 def pair_number(text: str) -> int:
     """A pair's number in a recording, from 0 (a negative one was taken as 0 in silence)."""
     try:
@@ -37,6 +48,17 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
     return value
+
+
+def console_address(text: str) -> str:
+    """``--console HOST:PORT`` of a running daemon's console (a malformed one was a traceback)."""
+    from trackerd.config.console import split_listen
+
+    try:
+        split_listen(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
 
 
 def add_console_option(parser: argparse.ArgumentParser) -> None:

@@ -78,7 +78,7 @@ def listen_command(args: argparse.Namespace) -> int:
             # ZeroMQ matches topics by prefix, so a typo ('hits') would wait for ever in silence.
             raise ConfigError(f"--topic {topic}: trackerd publishes no such topic; topics: {', '.join(TOPICS)}")
     endpoint, server_key, status_interval_s = _target(args)
-    _check_connectable(endpoint)
+    _check_connectable(endpoint, "--endpoint" if args.endpoint else f"{args.config}: outputs.zmq.endpoints")
     context = zmq.Context()
     sub = context.socket(zmq.SUB)
     sub.setsockopt(zmq.LINGER, 0)
@@ -115,7 +115,7 @@ def listen_command(args: argparse.Namespace) -> int:
         context.term()
 
 
-def _check_connectable(endpoint: str) -> None:
+def _check_connectable(endpoint: str, given_by: str) -> None:
     """ConfigError for a tcp endpoint a subscriber cannot connect to: ZeroMQ takes tcp://HOST:99999 and
     waits in silence (the port is checked where the daemon binds, not here)."""
     scheme, _, rest = endpoint.partition("://")
@@ -123,7 +123,7 @@ def _check_connectable(endpoint: str) -> None:
         return
     host, colon, port = rest.rpartition(":")
     if not colon or not host or not (port.isdigit() and 1 <= int(port) <= 65535):
-        raise ConfigError(f"--endpoint {endpoint}: connect to tcp://HOST:PORT, PORT a number from 1 to 65535")
+        raise ConfigError(f"{given_by} {endpoint}: connect to tcp://HOST:PORT, PORT a number from 1 to 65535")
 
 
 def _target(args: argparse.Namespace) -> tuple[str, bytes | None, float]:

@@ -21,11 +21,11 @@ import sys
 import threading
 from pathlib import Path
 
-from trackerd.cli._args import positive_seconds
+from trackerd.cli._args import console_address, positive_seconds
 from trackerd.cli._cameras import add_virtual_arguments
 from trackerd.config.loader import load_rig
 from trackerd.config.models import RigConfig
-from trackerd.errors import RecordingError
+from trackerd.errors import ConfigError, RecordingError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -58,7 +58,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="compressed and windowed: a pair stored whole at least every S seconds (default 1)",
     )
     parser.add_argument(
-        "--console", metavar="ADDR", help="the running daemon's console HOST:PORT (default: the rig's [console] listen)"
+        "--console",
+        type=console_address,
+        metavar="ADDR",
+        help="the running daemon's console HOST:PORT (default: the rig's [console] listen)",
     )
     add_virtual_arguments(parser, "record")
     parser.set_defaults(handler=record_command)
@@ -160,11 +163,17 @@ def _refuse_if_the_daemon_holds_the_cameras(rig: RigConfig, rig_file: str, conso
     opening it anyway failed deep in Aravis (a register write timing out). The daemon records itself."""
     from trackerd.console.client import ConsoleClient
 
-    client = ConsoleClient.for_rig(rig, console)
+    try:
+        client = ConsoleClient.for_rig(rig, console)
+    except ConfigError:
+        # The console's token file is the daemon's group's to read: ask without it (the daemon's /api/info
+        # then refuses, and the cameras are tried as before).
+        client = ConsoleClient(console or rig.console.listen)
     info = client.find()
     if info is not None and client.runs_cameras_of(info, rig):
+        where = f" --console {console}" if console else ""
         raise RecordingError(
             f"the daemon is running and holds the cameras ({client.base}); record from it:"
-            f" `trackerd ctl --config {rig_file} record start` with [recording] directory in its rig"
+            f" `trackerd ctl --config {rig_file}{where} record start` with [recording] directory in its rig"
             " (docs/recording.md), or stop it first"
         )

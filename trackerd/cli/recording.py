@@ -18,7 +18,7 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from trackerd.cli._args import positive_seconds
+from trackerd.cli._args import pair_number, positive_int, positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.errors import RecordingError
 from trackerd.recording.reader import Recording
@@ -96,9 +96,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     exp.add_argument("recording", metavar="REC", help="a recording folder (*.trec)")
     exp.add_argument("out", metavar="OUT", help="folder to write into (created if missing)")
     exp.add_argument("--config", help="rig TOML file to use instead of the recorded rig")
-    exp.add_argument("--every", type=int, default=1, metavar="N", help="write images of every N-th pair (default 1)")
-    exp.add_argument("--first", type=int, default=0, metavar="N", help="start at pair N (default 0)")
-    exp.add_argument("--count", type=int, metavar="N", help="export N pairs (default: to the end)")
+    exp.add_argument(
+        "--every", type=positive_int, default=1, metavar="N", help="write images of every N-th pair (default 1)"
+    )
+    exp.add_argument("--first", type=pair_number, default=0, metavar="N", help="start at pair N (default 0)")
+    exp.add_argument("--count", type=positive_int, metavar="N", help="export N pairs (default: to the end)")
     exp.add_argument("--no-images", action="store_true", help="write hits.csv only")
     exp.set_defaults(handler=export_command)
 

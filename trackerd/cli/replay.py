@@ -25,7 +25,7 @@ import sys
 import time
 from typing import TYPE_CHECKING, Any
 
-from trackerd.cli._args import add_console_option, pair_number, positive_int, positive_seconds
+from trackerd.cli._args import add_console_option, delay_seconds, pair_number, positive_int, positive_seconds
 from trackerd.config.loader import with_console
 from trackerd.config.models import RigConfig
 from trackerd.recording.reader import Recording
@@ -69,7 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--delay",
-        type=float,
+        type=delay_seconds,
         default=1.0,
         metavar="S",
         help="seconds from start-up (the publisher binds within them) to the first pair (default 1.0)",

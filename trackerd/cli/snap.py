@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from trackerd.cli._args import console_address
 from trackerd.cli._cameras import add_virtual_arguments
 from trackerd.config.loader import load_rig
 from trackerd.errors import CameraError
@@ -63,7 +64,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="give up if no pair arrives within this many seconds (default 10)",
     )
     parser.add_argument(
-        "--console", metavar="ADDR", help="the running daemon's console HOST:PORT (default: the rig's [console] listen)"
+        "--console",
+        type=console_address,
+        metavar="ADDR",
+        help="the running daemon's console HOST:PORT (default: the rig's [console] listen)",
     )
     add_virtual_arguments(parser, "snap")
     parser.set_defaults(handler=snap_command)

@@ -310,7 +310,7 @@ def _leaning_shift(
         return None
     shift = without[0] - centre
     # A refit that jumps further than an unknown centre's error (a near-straight arc's circle, far away) says
-    # no more than that the centre rests on the point: it is capped there, as if no circle were left.
+    # no more than that the centre rests on the point: it is capped at that error's size, along its way.
     length, limit = float(np.hypot(shift[0], shift[1])), RESTING_ERROR_SHARE * radius
     return shift * (limit / length) if length > limit else shift
 

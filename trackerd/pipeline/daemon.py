@@ -103,7 +103,6 @@ class Pipeline:
         """The operator's console's view of the pipeline (trackerd.pipeline.tap), or None."""
         self._notifier = notifier or SdNotify({})
         self.clock_offset_ns = time.time_ns() - time.monotonic_ns() if clock_offset_ns is None else clock_offset_ns
-        self.extensions: list[PipelineExtension] = list(extensions or [])
         self.figures = PipelineFigures()
         """Counts and latency windows (trackerd.pipeline.figures): the status drains the latencies."""
         self._queue: DropOldestQueue[Processed] = DropOldestQueue(queue_length)
@@ -116,7 +115,9 @@ class Pipeline:
         self._status_sequence = 0
         self._slot = SourceSlot(source_factory, self._notifier)
         links = StageLinks(self._queue, self.figures, self._reload, self._notifier, self.clock_offset_ns, tap, observer)
-        self._processing = ProcessingStage(rig, self._slot, links, self.extensions, extension_kinds, extension_context)
+        self._processing = ProcessingStage(
+            rig, self._slot, links, list(extensions or []), extension_kinds, extension_context
+        )
         self._publishing = PublishingStage(
             rig, publisher_factory, links, self._state, source_status=self._slot.status, status_for=self._status_for
         )
@@ -190,6 +191,9 @@ class Pipeline:
     rig = _ReadThrough[RigConfig]("_processing", "rig")
     """The configuration in force (a reload replaces it)."""
     colour_watch = _ReadThrough[ColourWatch]("_processing", "colour_watch")
+    extensions = _ReadThrough["list[PipelineExtension]"]("_processing", "extensions")
+    """The extensions, in order; a reload that builds one replaces the list (never changes it in place), so a
+    thread going through it sees the old list or the new one whole."""
     source = _ReadThrough["PairSource | None"]("_slot", "source")
     publisher = _ReadThrough["Publisher | None"]("_publishing", "publisher")
     pairs_processed = _ReadThrough[int]("figures", "pairs_processed")

@@ -66,8 +66,9 @@ class ProcessingStage:
         kinds: Sequence[ExtensionKind] = (),
         context: ExtensionContext | None = None,
     ) -> None:
-        """``extensions`` is shared with the daemon (its status and console read it): an extension a reload
-        first asks for (one of ``kinds``, built with ``context``) is put into it, in the kinds' order."""
+        """``extensions`` is read by the daemon's other threads too (its status, the console): an extension a
+        reload first asks for (one of ``kinds``, built with ``context``) goes into a new list, in the kinds'
+        order, which replaces it whole."""
         self.rig = rig
         self.slot = slot
         self._links = links
@@ -198,7 +199,7 @@ class ProcessingStage:
             if extension is None:
                 continue
             position = sum(1 for e in self.extensions if order.get(e.name, -1) < order[kind.name])
-            self.extensions.insert(position, extension)
+            self.extensions = [*self.extensions[:position], extension, *self.extensions[position:]]
             log.info("reload: %s started", kind.name)
 
     def _apply_requested_rig(self) -> None:

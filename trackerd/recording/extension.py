@@ -85,7 +85,7 @@ class RecordingExtension:
         if recorder is not None:
             with self._lock:
                 self._writing()
-        if not self._armed:
+        if not self._armed or not self.available:
             return False
         self._armed = False
         recorder = self._start()
@@ -107,10 +107,11 @@ class RecordingExtension:
     def reload(self, rig: RigConfig) -> None:
         """A reload closes the current recording (without waiting); enabled starts the next one."""
         with self._lock:
-            if self._recorder is not None:
-                log.info("recording: closing %s (configuration reloaded)", self._recorder.path)
-                self._recorder.finish()
-                self._finishing.append(self._recorder)
+            recorder = self._writing()
+            if recorder is not None:
+                log.info("recording: closing %s (configuration reloaded)", recorder.path)
+                recorder.finish()
+                self._finishing.append(recorder)
                 self._recorder = None
             self._rig = rig
             self._armed = rig.recording.enabled and rig.recording.directory is not None
@@ -125,6 +126,8 @@ class RecordingExtension:
     def start_now(self) -> str:
         """Start a recording with the next pair (as a reload with ``enabled`` does); what happens, in words."""
         with self._lock:
+            if not self.available:  # a reload took the directory away since the console looked
+                return "recording is not available: the rig sets no [recording] directory"
             recorder = self._writing()
             if recorder is not None:
                 return f"already recording into {recorder.path}"
@@ -182,10 +185,11 @@ class RecordingExtension:
     # ------------------------------------------------------------------ publishing thread
 
     def status(self) -> dict[str, Any] | None:
-        """The status message's ``recording`` object; None once a reload has taken ``directory`` away."""
-        if not self.available:
-            return None
+        """The status message's ``recording`` object; None once a reload has taken ``directory`` away (and
+        the recording it closed is written)."""
         with self._lock:
+            if not self.available and not any(not r.done for r in self._finishing):
+                return None
             recorder = self._recorder or self._last
             armed = self._armed
             failure = self._failure

@@ -191,9 +191,10 @@ class ReplayPairSource(PairSource):
             # Due at the times their timestamps say, so that a pair's latency is the pipeline's own: the
             # pipeline is set up (a publisher bound, a locator made) between construction and here, and
             # due start_delay_s after this call, every pair's latency counted that time too (135-220 ms).
-            # Never before now: a setup longer than the delay makes the first pairs late, and says so.
+            # A set-up longer than the delay leaves the first pairs overdue: they are delivered at once, late
+            # by what lag_ms says, until the replay has caught up with the times they carry.
             planned, self._planned_start_ns = self._planned_start_ns, None
-            self._start_ns = max(now, planned) if planned is not None else now + int(self.start_delay_s * 1e9)
+            self._start_ns = planned if planned is not None else now + int(self.start_delay_s * 1e9)
         self._halt = threading.Event()
         self._ahead = queue.Queue(maxsize=self._queue_batches())
         self._local = deque()

@@ -176,8 +176,9 @@ function onStatus(msg) {
     $("status").innerHTML = rows;
     document.body.dataset.recording = r ? r.state : "unavailable";
     const recording = r && (r.state === "recording" || r.state === "finishing");
-    $("record-start").disabled = !page.info.recording_available || recording;
-    $("record-stop").disabled = !page.info.recording_available || !recording;
+    // From the status, not the page's info: a reload may make recording available or take it away.
+    $("record-start").disabled = !r || recording;
+    $("record-stop").disabled = !r || !recording;
   }
   const list = $("warnings");
   for (const w of msg.warnings || []) {

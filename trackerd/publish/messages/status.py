@@ -178,9 +178,10 @@ class RecordingStatusPart(Part):
 
     state: Literal["idle", "recording", "finishing", "stopped", "failed"]
     """idle: available, not recording; recording; finishing: writing what is queued after a stop
-    request; stopped: on request or at a limit; failed: a full disk or an error stopped it (see detail)."""
+    request; stopped: on request or at a limit; failed: a full disk or an error stopped it, or its folder
+    could not be made (see detail)."""
     path: str | None = None
-    """The recording being written, or the last one."""
+    """The recording being written, or the last one; null when the last one could not be started."""
     pairs: int = Field(default=0, ge=0)
     """Pairs written to it."""
     written_mb: float = Field(default=0.0, ge=0.0)
