@@ -19,6 +19,7 @@ such a frame is suspect, for the commands to warn.
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import cast
 
@@ -28,6 +29,7 @@ from numpy.typing import NDArray
 
 from trackerd.config.models import CameraConfig
 from trackerd.errors import ImageError
+from trackerd.files import NotRegularFile, TooLarge, read_bounded
 from trackerd.pixelformat import frame_shape, is_bayer
 
 
@@ -39,12 +41,11 @@ def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) ->
     and then read as Mono8.
     """
     path = Path(path)
-    if not path.exists():
-        raise ImageError(f"{path}: no such file")
+    data = _file_bytes(path)
     if path.suffix.lower() == ".npy":
         try:
-            frame = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as err:
+            frame = np.load(io.BytesIO(data), allow_pickle=False)
+        except (OSError, ValueError, EOFError) as err:
             raise ImageError(f"{path}: not a readable NumPy file ({err})") from err
         expected = frame_shape(camera.pixel_format, camera.width_px, camera.height_px)
         if frame.dtype != np.uint8 or frame.shape != expected:
@@ -53,7 +54,18 @@ def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) ->
                 f" delivers {camera.pixel_format} frames of shape {expected} (uint8)"
             )
         return frame, camera.pixel_format
-    decoded = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    # Decoded from the bytes read here: OpenCV's imread crashed (a segmentation fault) on a file name that
+    # is not UTF-8, and its size limit (a PNG header claiming 100000x100000) raises its own error.
+    # OpenCV's own warnings about a damaged file ("PNG input buffer is incomplete") are silenced while it
+    # decodes: the line below says what is wrong, once.
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) if data else None
+    except cv2.error as err:
+        raise ImageError(f"{path}: not an image OpenCV can read ({_opencv_reason(err)})") from None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if decoded is None:
         raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, TIFF, PGM, or .npy)")
     if decoded.dtype != np.uint8:
@@ -80,6 +92,32 @@ def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) ->
     if frame.ndim == 3 and frame.shape[2] == 3:
         return np.ascontiguousarray(frame), "BGR8"
     raise ImageError(f"{path}: unsupported image layout {frame.shape}")
+
+
+MAX_IMAGE_BYTES = 1 << 30
+"""No still of a camera frame is larger (an uncompressed 8K RGB TIFF is 100 MB)."""
+
+
+def _file_bytes(path: Path) -> bytes:
+    """The file's bytes, or ImageError saying in one line why there are none."""
+    try:
+        return read_bounded(path, MAX_IMAGE_BYTES)
+    except FileNotFoundError:
+        raise ImageError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise ImageError(f"{path}: a directory, not an image") from None
+    except (NotRegularFile, TooLarge) as err:
+        raise ImageError(f"{err}; not an image") from None
+    except OSError as err:
+        raise ImageError(f"{path}: cannot read ({err.strerror or err})") from None
+
+
+def _opencv_reason(err: cv2.error) -> str:
+    """What an OpenCV error says is wrong, without its source file and line."""
+    condition = str(getattr(err, "err", "") or "").strip()
+    if "CV_IO_MAX_IMAGE_PIXELS" in condition:
+        return "its header claims more pixels than any camera frame has: damaged, or not a camera's image"
+    return condition or "OpenCV refused it"
 
 
 MOSAIC_SMOOTHNESS_LIMIT = 0.9
