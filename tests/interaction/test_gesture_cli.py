@@ -52,9 +52,11 @@ def test_record_a_gesture_from_hits_and_list_it(tmp_path, rng):
 
 
 def test_bad_input_is_one_line_and_a_nonzero_exit(tmp_path):
+    (tmp_path / "utf16.jsonl").write_bytes('{"topic": "hit"}\n'.encode("utf-16"))  # begins 0xFF 0xFE
     for args, code, text in (
         (("record", "dwell", "--dir", str(tmp_path)), 2, "cannot name a gesture"),
         (("record", "ok", "--dir", str(tmp_path), "--from", str(tmp_path / "missing")), 2, "cannot read"),
+        (("record", "ok", "--dir", str(tmp_path), "--from", str(tmp_path / "utf16.jsonl")), 2, "not text"),
     ):
         done = _cli(*args)
         assert done.returncode == code and text in done.stderr and "Traceback" not in done.stderr

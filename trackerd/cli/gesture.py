@@ -328,6 +328,8 @@ def _hits_from_file(path: Path) -> Iterator[tuple[int, np.ndarray | None]]:
         lines = path.read_text(encoding="utf-8").splitlines()
     except OSError as err:
         raise ConfigError(f"{path}: cannot read: {err.strerror}") from err
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: not text (byte {err.start} is not UTF-8); hits are JSON lines") from None
     for number, line in enumerate(lines, 1):
         if not line.strip():
             continue
