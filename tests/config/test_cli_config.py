@@ -418,6 +418,33 @@ def test_a_rig_not_ready_to_track_passes_the_check_and_says_what_is_left(
         load_rig(rig)
 
 
+@pytest.mark.parametrize(
+    ("case", "added", "says"),
+    [
+        ("token file missing", '\n[console]\ntoken_file = "missing-token"\n', "cannot read the console token file"),
+        ("token file empty", '\n[console]\ntoken_file = "empty-token"\n', "the console token file is empty"),
+        ("CURVE key missing", 'curve_secret_key_file = "missing.key_secret"\n', "no such CURVE key file"),
+    ],
+    ids=["token file missing", "token file empty", "CURVE key missing"],
+)
+def test_check_refuses_a_rig_whose_files_the_daemon_would_refuse(
+    run_check: RunCheck, write: Write, edit: Edit, minimal_rig: str, case: str, added: str, says: str
+) -> None:
+    """`config check --ready FILE && systemctl reload trackerd` (docs/deployment.md): OK must mean the
+    daemon starts. A console token file or a CURVE key file it cannot use passed the check, and `run` then
+    refused the rig (exit 2)."""
+    write("empty-token", "")
+    if added.startswith("curve"):
+        text = edit(
+            minimal_rig, 'endpoints = ["tcp://127.0.0.1:5560"]\n', 'endpoints = ["tcp://127.0.0.1:5560"]\n' + added
+        )
+    else:
+        text = minimal_rig + added
+    write("rig.toml", text)
+    for extra in ((), ("--ready",)):
+        assert_one_line_error(run_check("rig.toml", *extra), "rig.toml: ", says)
+
+
 def test_the_daemon_refuses_a_rig_not_ready_to_track_in_one_line(
     write: Write, edit: Edit, minimal_rig: str, tmp_path: Path
 ) -> None:

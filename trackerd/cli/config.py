@@ -55,18 +55,30 @@ def check_command(args: argparse.Namespace) -> int:
     cameras = [camera_model(cam) for cam in loaded.config.cameras]
     assert loaded.config.wall is not None  # load_rig raised CalibrationPending without one
     wall = wall_frame(loaded.config.wall)
-    if loaded.config.interaction.any_enabled:
-        # What the daemon's interaction stage checks at start (templates, commands, hand camera,
-        # TUIO host): OK here means `run` and `replay` start.
-        try:
+    try:
+        if loaded.config.interaction.any_enabled:
+            # What the daemon's interaction stage checks at start (templates, commands, hand camera,
+            # TUIO host): OK here means `run` and `replay` start.
             check_interaction(loaded.config)
-        except ConfigError as err:
-            raise err.in_file(loaded.path) from None
+        check_files_read_at_start(loaded.config)
+    except ConfigError as err:
+        raise err.in_file(loaded.path) from None
     if args.json:
         print(json.dumps(resolved_summary(loaded, cameras, wall), indent=2))
     else:
         print(describe(loaded, cameras, wall))
     return 0
+
+
+def check_files_read_at_start(rig: RigConfig) -> None:
+    """ConfigError for a file the daemon reads at start and would refuse: the publisher's CURVE keys and
+    its client keys' directory, the console's token file (OK here means `run` starts)."""
+    from trackerd.console.access import read_token
+    from trackerd.publish.publisher import curve_keys
+
+    curve_keys(rig.outputs.zmq)
+    if rig.console.enabled and rig.console.token_file is not None:
+        read_token(rig.console.token_file)
 
 
 def resolved_summary(loaded: LoadedRig, cameras: list[CameraModel], wall: WallFrame) -> dict[str, Any]:

@@ -92,6 +92,19 @@ def _authorized_keys_dir(path: Path, allow_empty: bool = False) -> Path:
     return path
 
 
+def curve_keys(config: ZmqOutput) -> tuple[bytes, bytes] | None:
+    """The publisher's CURVE key pair (None without CURVE), its client keys' directory checked; ConfigError
+    for anything unusable. What the daemon reads at start, and `config check --ready` with it."""
+    if config.curve_secret_key_file is None:
+        return None
+    if not zmq.has("curve"):
+        raise ConfigError("outputs.zmq.curve_secret_key_file: this libzmq was built without CURVE")
+    keys = load_curve_key_pair(config.curve_secret_key_file)
+    if config.curve_authorized_keys_dir is not None:
+        _authorized_keys_dir(config.curve_authorized_keys_dir)
+    return keys
+
+
 class Publisher:
     """Binds the configured endpoints and publishes messages; use from one thread only.
 
@@ -107,8 +120,7 @@ class Publisher:
                 f"outputs.zmq.endpoints: {', '.join(exposed)} is reachable from the network; set"
                 " curve_secret_key_file or allow_insecure_network = true"
             )
-        if config.curve_secret_key_file is not None and not zmq.has("curve"):
-            raise ConfigError("outputs.zmq.curve_secret_key_file: this libzmq was built without CURVE")
+        keys = curve_keys(config)
         self.config = config
         self._clock = clock
         self._counts: dict[str, int] = {}
@@ -116,11 +128,6 @@ class Publisher:
         self._closed = False
         self._auth: ThreadAuthenticator | None = None
         self._statuses_sent = 0
-        keys = None
-        if config.curve_secret_key_file is not None:
-            keys = load_curve_key_pair(config.curve_secret_key_file)
-            if config.curve_authorized_keys_dir is not None:
-                _authorized_keys_dir(config.curve_authorized_keys_dir)
         self._context = zmq.Context()
         self._lvc = _LastValue(self._context)
         base = f"inproc://trackerd-publisher-{os.getpid()}-{next(_pipe_ids)}"
