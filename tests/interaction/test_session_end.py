@@ -10,6 +10,7 @@ on the display, as `kill -TERM` does.
 
 from __future__ import annotations
 
+import json
 import socket
 import time
 
@@ -275,3 +276,95 @@ def test_stopping_the_pipeline_with_the_pointer_on_the_display_removes_the_tuio_
     assert topics.index("leave") > max(i for i, t in enumerate(topics) if t == "hit")
     frames = [_fseq(b) for b in bundles]
     assert frames == sorted(frames) and len(set(frames)) == len(frames)
+
+
+def test_a_source_that_stalls_ends_the_session_once_no_pair_has_come_for_half_a_second(simulated_rig, udp, rng):
+    """A camera lost or the cameras stalled: no pair comes, and none would decide the ``leave`` (it was
+    decided when the next pair arrived), so a client kept its cursor for the whole outage. Once no pair has
+    come for QUIET_LEAVE_MS the session ends as a reset ends it; TUIO's empty ``alive`` then goes on once
+    a second. Replayed, the output follows from the pairs alone: nothing is ended by time."""
+    from trackerd.interaction.extension import QUIET_LEAVE_MS
+
+    extension = create(_rig(simulated_rig, udp.getsockname()[1], leave="bye"))
+    assert extension is not None
+    feeder = Feeder(extension)
+    feeder.feed(rest(np.array([1.5, 0.5]), 0.5, rng))
+    assert extension.engine.inside and _alive(_bundles(udp)[-1]) == [1]
+    last_ns = 10**12 + int((feeder.sequence - 1) * 1e9 / RATE_HZ)
+    assert extension.on_quiet(last_ns + int(0.9 * QUIET_LEAVE_MS * 1e6)) == []  # a late pair, not an outage
+    assert _bundles(udp) == []
+    ending = event_messages(extension.on_quiet(last_ns + int(1.1 * QUIET_LEAVE_MS * 1e6)))
+    assert [(m.topic, m.cursor_id) for m in ending] == [("leave", 1), ("command", 1)]
+    assert ending[0].reason == "lost" and ending[0].sequence == feeder.sequence - 1  # stamped with its last pair
+    assert not extension.engine.inside and [_alive(b) for b in _bundles(udp)] == [[]]
+    assert extension.on_quiet(last_ns + int(1.2 * QUIET_LEAVE_MS * 1e6)) == [] and _bundles(udp) == []
+    extension.on_quiet(last_ns + int(1.1 * QUIET_LEAVE_MS * 1e6) + 1_100_000_000)  # a second on: alive again
+    assert [_alive(b) for b in _bundles(udp)] == [[]]
+    # The pointer back: a new session, the next cursor id.
+    feeder.feed(rest(np.array([1.5, 0.5]), 0.5, rng))
+    assert extension.engine.inside and extension.engine.cursor_id == 2
+
+    replayed = InteractionExtension(_rig(simulated_rig, None), threaded_hands=False, live=False)
+    Feeder(replayed).feed(rest(np.array([1.5, 0.5]), 0.5, rng))
+    assert replayed.engine.inside and replayed.on_quiet(10**12 + 60 * 10**9) == [] and replayed.engine.inside
+
+
+def test_the_pipeline_publishes_the_leave_of_a_session_its_stalled_source_ended(simulated_rig, renderer, tmp_path):
+    """The real pipeline on rendered frames: the source serves the pointer for two seconds and then nothing
+    (as when a camera is lost); the ``leave`` is published while the daemon runs, and the status says
+    nothing points."""
+    rng = np.random.default_rng(9)
+    stage = Stage.from_rig(simulated_rig)
+    pose = pose_aimed_at(stage.hand_m, renderer.wall.from_wall_m(np.array([1.5, 0.5])), simulated_rig.pointer.length_m)
+    pointing = [renderer.render(i, pose, rng).image for i in range(2)]
+    endpoint = f"ipc://{tmp_path}/pub.sock"
+    rig = simulated_rig.model_copy(
+        update={
+            "outputs": simulated_rig.outputs.model_copy(
+                update={
+                    "zmq": simulated_rig.outputs.zmq.model_copy(
+                        update={"endpoints": (endpoint,), "status_interval_ms": 100.0}
+                    )
+                }
+            )
+        }
+    )
+    extension = create(rig)
+    assert extension is not None
+    sources: list[GatedPairSource] = []
+
+    def source_for(r):
+        sources.append(GatedPairSource(r, [pointing] * 60, rate_hz=30.0, loop=False))
+        return sources[-1]
+
+    pipeline = Pipeline(rig, source_for, lambda r: Publisher(r.outputs.zmq), extensions=[extension])
+    ctx = zmq.Context()
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(endpoint)
+    received: list[tuple[str, dict]] = []
+    pipeline.start()
+    try:
+        received += wait_for_status(sub)
+        sources[0].open()
+        deadline = time.monotonic() + 30.0
+        # Until the leave, and a status after it that no longer says the pointer is pointing.
+        while time.monotonic() < deadline and not (
+            any(t == "leave" for t, _ in received)
+            and received[-1][0] == "status"
+            and not (received[-1][1].get("interaction") or {}).get("pointing", True)
+        ):
+            if sub.poll(50):
+                topic, payload = sub.recv_multipart()
+                received.append((topic.decode(), json.loads(payload)))
+        running = pipeline.state == "running" or pipeline.state == "degraded"
+    finally:
+        pipeline.stop()
+        sub.close(0)
+        ctx.term()
+    assert pipeline.failure is None and running
+    topics = [t for t, _ in received]
+    assert topics.count("enter") == 1 and topics.count("leave") == 1, topics
+    leave = next(m for t, m in received if t == "leave")
+    assert leave["reason"] == "lost"
+    assert topics.index("leave") > max(i for i, t in enumerate(topics) if t == "hit")

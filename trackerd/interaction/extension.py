@@ -61,6 +61,13 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
+QUIET_LEAVE_MS = 500.0
+QUIET_LEAVE_PERIODS = 5.0
+"""A pointing session ends when no pair at all has come for QUIET_LEAVE_MS, or QUIET_LEAVE_PERIODS frame
+periods of the rig's ``[acquisition] frame_rate_hz``, or ``leave_after_ms``, whichever is longest: far more
+than the gap between two pairs, and soon enough for a client."""
+
+
 def create(rig: RigConfig, context: ExtensionContext | None = None) -> InteractionExtension | None:
     """The interaction stage for a rig, or None when ``[interaction]`` turns everything off.
 
@@ -68,7 +75,8 @@ def create(rig: RigConfig, context: ExtensionContext | None = None) -> Interacti
     replay publishes what the pairs alone decide (trackerd/interaction/handposes.py)."""
     if not rig.interaction.any_enabled:
         return None
-    return InteractionExtension(rig, threaded_hands=not (context is not None and context.replay))
+    replay = context is not None and context.replay
+    return InteractionExtension(rig, threaded_hands=not replay, live=not replay)
 
 
 @dataclass(frozen=True)
@@ -87,8 +95,11 @@ class InteractionExtension:
 
     name = "interaction"
 
-    def __init__(self, rig: RigConfig, *, threaded_hands: bool = True) -> None:
+    def __init__(self, rig: RigConfig, *, threaded_hands: bool = True, live: bool = True) -> None:
+        """``live`` False (a replay): what is published follows from the pairs alone, so a stalled source
+        ends no session (:meth:`on_quiet`)."""
         self._threaded_hands = threaded_hands
+        self._live = live
         self._install(self._parts(rig, None))
         self.cost = Window()
         """Time per pair in on_located (ns), drained into each status."""
@@ -103,6 +114,8 @@ class InteractionExtension:
         self._last_sequence = 0
         self._last_capture_ns = 0
         """The last pair's sequence and capture time: a session ended between pairs ended with it."""
+        self._last_pair_ns: int | None = None
+        """The last pair's capture time on the pairs' monotonic clock (:meth:`on_quiet`)."""
         self._tuio_frames = 0
         """The last ``fseq`` of the TUIO senders closed so far."""
 
@@ -169,6 +182,7 @@ class InteractionExtension:
         self._count(events)
         self._pairs += 1
         self._last_sequence, self._last_capture_ns = pair.sequence, capture_ns
+        self._last_pair_ns = pair.timestamp_ns
         self.cost.add(time.perf_counter_ns() - start)
         return PairEvents(pending, cursor, events)
 
@@ -231,6 +245,30 @@ class InteractionExtension:
         the counts in the status carry on.
         """
         self._reset_requested.set()
+
+    def on_quiet(self, now_ns: int) -> list[Event]:
+        """No pair for a while: the cameras stalled, or one was lost. A client must not keep a cursor that
+        nobody moves (an outage lasts seconds to minutes), so once no pair has come for long enough
+        (QUIET_LEAVE_MS and QUIET_LEAVE_PERIODS), a session in progress ends as a reset ends it: a ``leave``, reason
+        ``lost``, stamped with its last pair, and an empty TUIO ``alive``, which then goes on once a second
+        as while nothing points. Not in a replay, whose output follows from its pairs alone."""
+        if not self._live or self._last_pair_ns is None:
+            return []
+        quiet_ns = now_ns - self._last_pair_ns
+        period_ms = 1000.0 / self.rig.acquisition.frame_rate_hz
+        if quiet_ns <= max(QUIET_LEAVE_MS, QUIET_LEAVE_PERIODS * period_ms, self.config.pointing.leave_after_ms) * 1e6:
+            return []
+        events: list[Event] = []
+        if self.engine.inside:
+            events = self._pending + self._end_session()
+            self._pending = []
+            self._count(events)
+            log.info("interaction: no pair for %.1f s: the pointing session ends (leave, lost)", quiet_ns / 1e9)
+            if self.tuio is not None:
+                self.tuio.forget()
+        elif self.tuio is not None:
+            self.tuio.sender.frame(now_ns, None)  # the empty alive, once a second
+        return events
 
     def finish(self) -> list[Event]:
         """The stage's last events, at stop: the ``leave`` (and command) of a session in

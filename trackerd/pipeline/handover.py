@@ -27,10 +27,10 @@ from trackerd.sdnotify import SdNotify
 
 @dataclass
 class Processed:
-    """What the processing thread hands the publisher for one pair (or, ``final``, at stop)."""
+    """What the processing thread hands the publisher for one pair (or, ``pairless``, events of none)."""
 
     fix: PointerFix | None
-    """The pair's fix (None: the extensions' last events at stop, no pair's)."""
+    """The pair's fix (None: events of no pair, at stop or while no pair comes)."""
     front_colour: str
     """The colour of the pointer's front end when the pair was located (a reload may change it)."""
     sequence: int
@@ -41,8 +41,9 @@ class Processed:
     events: PairEvents = NOTHING
     """What the extensions made of the pair."""
     stage_ns: dict[str, int] = field(default_factory=dict)
-    final: bool = False
-    """The extensions' last events at stop, not a pair's: not counted in the figures."""
+    pairless: bool = False
+    """The extensions' events of no pair (their last ones at stop, or a session a stalled source ended):
+    not counted in the figures."""
     taken_ns: int = 0
     """Monotonic time the processing thread took the pair."""
     queued_ns: int = 0

@@ -96,20 +96,7 @@ class ProcessingStage:
                     observer.thread_stopped()
             # The extensions' last words (a session still entered ends with a leave), queued
             # ahead of the final status so subscribers hear them before the socket closes.
-            last = [event for extension in self.extensions for event in extension.finish()]
-            if last:
-                now = time.monotonic_ns()
-                self._links.queue.put(
-                    Processed(
-                        None,
-                        self.locator.front_colour,
-                        0,
-                        now,
-                        now + self._links.clock_offset_ns,
-                        PairEvents(events=last),
-                        final=True,
-                    )
-                )
+            self._hand_over_pairless([event for extension in self.extensions for event in extension.finish()])
         finally:
             self.done.set()
 
@@ -123,6 +110,8 @@ class ProcessingStage:
                 if self.slot.some_camera_recovering():
                     # A power-cycled camera is not a stalled pipeline: keep systemd's watchdog fed.
                     self._links.notifier.progress()
+                now = time.monotonic_ns()
+                self._hand_over_pairless([event for extension in self.extensions for event in extension.on_quiet(now)])
                 continue
             taken_mark = observer.mark() if observer is not None else None
             start, start_cpu = time.monotonic_ns(), time.thread_time_ns()
@@ -182,6 +171,24 @@ class ProcessingStage:
             figures.processing_cpu.add(time.thread_time_ns() - start_cpu)
             figures.pairs_processed += 1
             self._links.notifier.progress()
+
+    def _hand_over_pairless(self, events: list) -> None:
+        """Events of no pair (the extensions' last words at stop, a session a stalled source ended), to the
+        publishing thread now: stamped with the time they were decided."""
+        if not events:
+            return
+        now = time.monotonic_ns()
+        self._links.queue.put(
+            Processed(
+                None,
+                self.locator.front_colour,
+                0,
+                now,
+                now + self._links.clock_offset_ns,
+                PairEvents(events=events),
+                pairless=True,
+            )
+        )
 
     def _build_asked_for(self, rig: RigConfig) -> None:
         """The extensions the reloaded rig asks for that were not built (none was asked for before: a

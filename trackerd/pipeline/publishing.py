@@ -115,12 +115,12 @@ class PublishingStage:
         assert self.publisher is not None
         links = self._links
         observer = links.observer
-        sending_mark = observer.mark() if observer is not None and not item.final else None
+        sending_mark = observer.mark() if observer is not None and not item.pairless else None
         start = time.monotonic_ns()
         messages = item.messages()
         for message in messages:
             self.publisher.publish(message)
-        if item.final:
+        if item.pairless:
             return
         done = time.monotonic_ns()
         links.figures.add_published(

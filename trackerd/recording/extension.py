@@ -100,6 +100,10 @@ class RecordingExtension:
     def finish(self) -> list[Event]:
         return []
 
+    def on_quiet(self, now_ns: int) -> list[Event]:
+        """Nothing: the recording goes on with the next pair."""
+        return []
+
     def on_located(self, located: Located) -> PairEvents:
         """Nothing to add: the pair was queued before the locator."""
         return NOTHING
