@@ -91,6 +91,21 @@ def test_every_path_needs_the_token(console) -> None:
     assert "HttpOnly" in headers["Set-Cookie"] and "SameSite=Strict" in headers["Set-Cookie"]
 
 
+def test_a_client_without_the_token_is_told_so_not_that_no_daemon_answers(console) -> None:
+    """`trackerd ctl` with a rig that gives no token (or another one) said "no trackerd daemon's console
+    answers" of a console that had answered 401."""
+    from trackerd.console.client import ConsoleClient, ConsoleError
+
+    _server, _pipeline, base = console
+    listen = base.removeprefix("http://")
+    assert ConsoleClient(listen, "s3cret-token").find() is not None
+    for token, says in ((None, "this rig gives none"), ("wrong", "this rig gives a different token")):
+        with pytest.raises(ConsoleError) as refused:
+            ConsoleClient(listen, token).find()
+        assert refused.value.status == 401 and "wants its token" in str(refused.value) and says in str(refused.value)
+    assert ConsoleClient(f"127.0.0.1:{_free_port()}").find() is None  # nothing listening: no daemon
+
+
 def test_what_another_site_could_make_a_browser_send_is_refused(console) -> None:
     import aiohttp
 

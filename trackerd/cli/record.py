@@ -161,7 +161,7 @@ def record_command(args: argparse.Namespace) -> int:
 def _refuse_if_the_daemon_holds_the_cameras(rig: RigConfig, rig_file: str, console: str | None) -> None:
     """RecordingError when a daemon runs this rig's cameras: a GigE Vision camera takes one controller, and
     opening it anyway failed deep in Aravis (a register write timing out). The daemon records itself."""
-    from trackerd.console.client import ConsoleClient
+    from trackerd.console.client import ConsoleClient, ConsoleError
 
     try:
         client = ConsoleClient.for_rig(rig, console)
@@ -169,7 +169,14 @@ def _refuse_if_the_daemon_holds_the_cameras(rig: RigConfig, rig_file: str, conso
         # The console's token file is the daemon's group's to read: ask without it (the daemon's /api/info
         # then refuses, and the cameras are tried as before).
         client = ConsoleClient(console or rig.console.listen)
-    info = client.find()
+    try:
+        info = client.find()
+    except ConsoleError:  # it answered, and wants a token: a daemon is running there
+        raise RecordingError(
+            f"a daemon's console answers at {client.base} (and wants its token): the daemon likely holds the"
+            f" cameras; record from it with `trackerd ctl --config {rig_file} record start` (docs/recording.md),"
+            " or stop it first"
+        ) from None
     if info is not None and client.runs_cameras_of(info, rig):
         where = f" --console {console}" if console else ""
         raise RecordingError(

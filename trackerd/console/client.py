@@ -22,6 +22,11 @@ FIND_TIMEOUT_S = 1.0
 class ConsoleError(TrackerdError):
     """The daemon's console refused a request or did not answer as expected."""
 
+    def __init__(self, message: str, status: int | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+        """The HTTP status it answered with, when it answered."""
+
 
 class ConsoleClient:
     """Requests to one daemon's console."""
@@ -42,10 +47,20 @@ class ConsoleClient:
         return cls(listen or rig.console.listen, token)
 
     def find(self) -> dict[str, Any] | None:
-        """The daemon's rig info if a trackerd console answers there, else None (nothing listening)."""
+        """The daemon's rig info if a trackerd console answers there, else None (nothing listening).
+        ConsoleError when one answers but wants a token this client does not have (or not that one)."""
         try:
             info = self._request("GET", "/api/info", timeout_s=FIND_TIMEOUT_S)
-        except (urllib.error.URLError, OSError, ConsoleError):
+        except ConsoleError as err:
+            if err.status == 401:
+                given = "a different token" if self.token is not None else "none"
+                raise ConsoleError(
+                    f"the console at {self.base} wants its token, and this rig gives {given}: name the daemon's"
+                    " token file in [console] token_file (docs/console.md)",
+                    401,
+                ) from None
+            return None
+        except (urllib.error.URLError, OSError):
             return None
         return info if isinstance(info, dict) and "rig" in info and "cameras" in info else None
 
@@ -70,7 +85,7 @@ class ConsoleClient:
                 problem = body.get("error") or body.get("message") or err.reason
             except ValueError:
                 problem = err.reason
-            raise ConsoleError(f"the daemon at {self.base} answered {err.code}: {problem}") from None
+            raise ConsoleError(f"the daemon at {self.base} answered {err.code}: {problem}", err.code) from None
 
     def get(self, path: str) -> Any:
         return self._request("GET", path)
