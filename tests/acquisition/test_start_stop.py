@@ -104,6 +104,22 @@ def test_a_camera_that_is_not_there_fails_start_naming_it(simulated_rig: RigConf
     assert acquisition_threads() == []
 
 
+def test_a_camera_another_source_holds_is_refused_saying_what_to_check(loopback_rig) -> None:
+    """A second daemon on the same rig retried for ever on Aravis's "write_register timeout" alone: a GigE
+    Vision camera takes one controller, and the line now says so."""
+    from trackerd.acquisition.live import AravisPairSource
+
+    holder = AravisPairSource(loopback_rig.daemon_rig, on_open=loopback_rig.on_open)
+    with holder:
+        assert holder.next_pair(5.0) is not None, holder.status()
+        with pytest.raises(CameraError) as refused:
+            AravisPairSource(loopback_rig.daemon_rig).start()
+    assert "camera 'left' (address 127.0.0.1)" in str(refused.value)
+    assert "a camera takes one controller: is another program, a trackerd daemon or a viewer, holding it?" in str(
+        refused.value
+    )
+
+
 def test_a_region_the_camera_cannot_give_is_refused(simulated_rig: RigConfig, out_dir: Path) -> None:
     from trackerd.acquisition.arv import CameraConfigError, open_session
     from trackerd.sim.rig import VirtualRig

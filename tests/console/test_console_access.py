@@ -106,6 +106,39 @@ def test_a_client_without_the_token_is_told_so_not_that_no_daemon_answers(consol
     assert ConsoleClient(f"127.0.0.1:{_free_port()}").find() is None  # nothing listening: no daemon
 
 
+def test_a_malformed_request_is_answered_400_and_logged_as_one_debug_line(console, caplog) -> None:
+    """A URL or a header line over aiohttp's 8190 bytes: aiohttp answered 400 and logged an ERROR with its
+    traceback, which anyone reaching the port could repeat into the journal."""
+    import logging
+
+    _server, _pipeline, base = console
+    caplog.set_level(logging.DEBUG)
+    code, _, _ = _get(base + "/api/info?" + "a" * 9000)
+    assert code == 400
+    code, _, _ = _get(base + "/api/info", {"X-Long": "b" * 9000})
+    assert code in (400, 431)
+    assert _wait(lambda: sum("refused a malformed request" in r.getMessage() for r in caplog.records) >= 2)
+    assert not [r for r in caplog.records if r.name.startswith("aiohttp") and r.levelno >= logging.WARNING]
+
+
+def test_every_error_answers_with_a_json_object(console) -> None:
+    """docs/console.md: errors answer {"error": ...} with a 4xx status. aiohttp's own 404 and 405 were text
+    pages, and a check asked for an impossible number of fixes answered 409 (a conflict) instead of 400."""
+    _server, _pipeline, base = console
+    bearer = {"Authorization": "Bearer s3cret-token", "X-Trackerd-Console": "1"}
+    code, body, _ = _get(base + "/api/nope", bearer)
+    assert code == 404 and json.loads(body) == {"error": "Not Found"}
+    code, body, headers = _get(base + "/api/snapshot", bearer)  # POST only
+    assert code == 405 and json.loads(body) == {"error": "Method Not Allowed"} and "POST" in headers["Allow"]
+    for fixes in ("-5", "0", "99999999"):
+        request = urllib.request.Request(base + f"/api/check?fixes={fixes}", method="POST", data=b"", headers=bearer)
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(request, timeout=10)
+        assert refused.value.code == 400 and json.loads(refused.value.read()) == {
+            "error": "fixes must be from 10 to 5000"
+        }
+
+
 def test_what_another_site_could_make_a_browser_send_is_refused(console) -> None:
     import aiohttp
 

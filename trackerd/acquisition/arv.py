@@ -299,6 +299,16 @@ class CameraSession:
             self._handler = None
 
 
+def held_hint(message: str) -> str:
+    """What to check when a camera that answered refuses to be written: a GigE Vision camera takes one
+    controller, and another's writes time out or are denied (a second daemon on the same rig logged only
+    Aravis's "write_register timeout" at every retry)."""
+    lowered = message.lower()
+    if "write_register timeout" in lowered or "access denied" in lowered or "access_denied" in lowered:
+        return " (a camera takes one controller: is another program, a trackerd daemon or a viewer, holding it?)"
+    return ""
+
+
 def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> CameraSession:
     """Open ``device_id``, configure it from the rig file, allocate its buffers and start it.
 
@@ -325,7 +335,7 @@ def open_session(cam: CameraConfig, rig: RigAcquisition, device_id: str) -> Came
         camera.start_acquisition()
     except glib.Error as err:
         session.abandon()
-        raise CameraError(f"camera '{cam.id}' ({describe_lookup(cam)}): {err.message}") from err
+        raise CameraError(f"camera '{cam.id}' ({describe_lookup(cam)}): {err.message}{held_hint(err.message)}") from err
     except CameraError:
         # The camera answered and refused a setting: hand its control back now. Dropping our
         # reference is not enough while the exception's traceback keeps the camera object alive,

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from trackerd.cli._args import positive_int, positive_seconds
+from trackerd.cli._args import console_address, positive_int, positive_seconds
 from trackerd.config.loader import load_rig
 from trackerd.errors import TrackerdError
 
@@ -37,7 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, help="rig TOML file the daemon runs with")
-    parser.add_argument("--console", metavar="ADDR", help="the daemon's console HOST:PORT (default: the rig's)")
+    parser.add_argument(
+        "--console", type=console_address, metavar="ADDR", help="the daemon's console HOST:PORT (default: the rig's)"
+    )
     actions = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
     status = actions.add_parser("status", help="the daemon's state and figures")
     status.add_argument("--json", action="store_true", help="print the last status message as JSON")
@@ -46,9 +48,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     record = actions.add_parser("record", help="start or stop recording on demand")
     record.add_argument("what", choices=["start", "stop"])
     check = actions.add_parser("check", help="calibration check on the live pointer")
-    check.add_argument("--fixes", type=positive_int, default=200, help="fixes to measure (default 200)")
-    check.add_argument("--timeout", type=positive_seconds, default=120.0, help="give up after S seconds")
+    check.add_argument("--fixes", type=check_fixes, default=200, help="fixes to measure, 10 to 5000 (default 200)")
+    check.add_argument("--timeout", type=positive_seconds, default=120.0, help="give up after S seconds (default 120)")
     parser.set_defaults(handler=ctl_command)
+
+
+def check_fixes(text: str) -> int:
+    """``--fixes``: as many as the console takes for a check (it refused others only once asked)."""
+    from trackerd.console.actions import CHECK_MAX_FIXES, MIN_CHECK_FIXES
+
+    value = positive_int(text)
+    if not MIN_CHECK_FIXES <= value <= CHECK_MAX_FIXES:
+        raise argparse.ArgumentTypeError(f"must be from {MIN_CHECK_FIXES} to {CHECK_MAX_FIXES}, not {value}")
+    return value
 
 
 class NoDaemon(TrackerdError):

@@ -33,6 +33,19 @@ def read_token(path: Path) -> str:
     return text.splitlines()[0].strip()
 
 
+@web.middleware
+async def json_errors(request: web.Request, handler: Handler) -> web.StreamResponse:
+    """An error aiohttp answers itself (no such path: 404; a method the path does not take: 405) as the
+    console's own errors are: a JSON object ``{"error": ...}`` (docs/console.md), not a text page."""
+    try:
+        return await handler(request)
+    except web.HTTPException as err:
+        if err.status < 400:
+            raise
+        allow = {"Allow": err.headers["Allow"]} if "Allow" in err.headers else None
+        return web.json_response({"error": err.reason}, status=err.status, headers=allow)
+
+
 def access_middleware(token: str | None) -> Middleware:
     """The middleware that refuses cross-site requests (403) and, with a ``token``, requests without
     it (401); a request that gave the token as ``?token=`` gets it back as a cookie."""

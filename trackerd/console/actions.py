@@ -11,6 +11,7 @@ from trackerd.calibration.health import CalibrationHealth
 from trackerd.calibration.report import health_text
 from trackerd.pipeline.tap import ConsoleTap
 
+MIN_CHECK_FIXES = 10
 CHECK_MAX_FIXES = 5000
 HEALTHY_STATES = ("running",)
 """States /healthz answers 200 for; starting, degraded (a camera not streaming), reloading and
@@ -80,8 +81,8 @@ class Actions:
 
     def start_check(self, fixes: int) -> tuple[bool, str]:
         """Begin a check over the next ``fixes`` fixes of the live pointer (as `calibrate check --live`)."""
-        if not 10 <= fixes <= CHECK_MAX_FIXES:
-            return False, f"fixes must be from 10 to {CHECK_MAX_FIXES}"
+        if not MIN_CHECK_FIXES <= fixes <= CHECK_MAX_FIXES:
+            return False, f"fixes must be from {MIN_CHECK_FIXES} to {CHECK_MAX_FIXES}"
         rig = self.pipeline.rig
         if rig.pointer is None:
             return False, "the rig has no [pointer]: nothing to check with"

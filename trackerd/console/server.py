@@ -36,8 +36,8 @@ from typing import Any
 from aiohttp import web
 
 from trackerd.config.console import split_listen
-from trackerd.console.access import access_middleware, read_token
-from trackerd.console.actions import Actions
+from trackerd.console.access import access_middleware, json_errors, read_token
+from trackerd.console.actions import CHECK_MAX_FIXES, MIN_CHECK_FIXES, Actions
 from trackerd.console.frames import CameraImage, FrameThread
 from trackerd.console.logbook import Logbook
 from trackerd.console.metrics import exposition, registry_for
@@ -46,6 +46,25 @@ from trackerd.errors import TrackerdError
 from trackerd.pipeline.tap import ConsoleTap
 
 log = logging.getLogger(__name__)
+
+
+class _MalformedRequests(logging.Filter):
+    """aiohttp logs a request it cannot parse (a URL or header line over 8190 bytes, a bad request line)
+    as an ERROR with its traceback, although it answered 400 and nothing is wrong with the daemon: anyone
+    who reaches the port could fill the journal with error-priority tracebacks. Such a record becomes one
+    debug line of the console's own."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        from aiohttp.http_exceptions import HttpProcessingError
+
+        error = record.exc_info[1] if record.exc_info else None
+        if isinstance(error, HttpProcessingError):
+            log.debug("refused a malformed request (%s: %s)", type(error).__name__, error.message)
+            return False
+        return True
+
+
+MALFORMED_REQUESTS = _MalformedRequests()
 
 SNAPSHOT_TIMEOUT_S = 10.0
 STOP_TIMEOUT_S = 0.6
@@ -99,6 +118,7 @@ class ConsoleServer:
         if self._start_error is not None:
             raise self._start_error
         logging.getLogger("trackerd").addHandler(self.logbook)
+        logging.getLogger("aiohttp.server").addFilter(MALFORMED_REQUESTS)  # once: a set of filters
         self.frames.start()
 
     def begin_stop(self) -> None:
@@ -139,7 +159,7 @@ class ConsoleServer:
 
     async def _main(self) -> None:
         self._stop_event = asyncio.Event()
-        app = web.Application(middlewares=[access_middleware(self.token)], client_max_size=64 * 1024)
+        app = web.Application(middlewares=[json_errors, access_middleware(self.token)], client_max_size=64 * 1024)
         app.add_routes(
             [
                 web.get("/", self._index),
@@ -284,6 +304,10 @@ class ConsoleServer:
             fixes = int(request.query.get("fixes", "200"))
         except ValueError:
             return web.json_response({"error": "fixes must be a whole number"}, status=400)
+        if not MIN_CHECK_FIXES <= fixes <= CHECK_MAX_FIXES:  # a bad request, not a conflict with a check running
+            return web.json_response(
+                {"error": f"fixes must be from {MIN_CHECK_FIXES} to {CHECK_MAX_FIXES}"}, status=400
+            )
         ok, text = self.actions.start_check(fixes)
         return web.json_response(
             {"ok": ok, "message": text, "check": self.actions.check_progress()}, status=200 if ok else 409
