@@ -1,4 +1,4 @@
-"""`trackerd gesture`: gesture templates: record your own, list them, try strokes against them.
+"""`trackerd gesture`: gesture templates: record your own, and list them with their gates.
 
     trackerd gesture record NAME [--examples 5] [--dir DIR] [--config RIG | --endpoint E | --from FILE]
     trackerd gesture list [--dir DIR] [--config RIG]
@@ -120,7 +120,7 @@ def list_command(args: argparse.Namespace) -> int:
     for name, t in sorted(templates.items()):
         where = "built-in" if Path(t.source).parent == BUILTIN_DIR else t.source
         gates = [
-            f"{label} {value:g}"
+            f"{label} {value:.0f}" if label == "max ms" else f"{label} {round(value, 3):g}"
             for label, value in (
                 ("min speed m/s", t.min_mean_speed_m_s),
                 ("max ms", t.max_duration_ms),

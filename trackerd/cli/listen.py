@@ -2,9 +2,10 @@
 
 One line per message, for operators and application developers::
 
-    hit      #1234  x 1.234 m  y 0.567 m  (2951, 733 px)  on wall  +-1.8 mm  gap 0.9 mm
+    hit      #1234  x 1.234 m  y 0.567 m  (2951, 733 px)  on wall  +-1.8 mm  raw 1.235, 0.566 m  gap 0.9 mm
 
-or, with --json, each payload as one JSON line (pipe it into jq). CURVE keys come
+(``raw``: the unsmoothed position, while the daemon smooths hits), or, with --json, each payload as one
+JSON line (pipe it into jq). CURVE keys come
 from --server-key/--client-key or from the rig file given with --config.
 Exit status: 0 after --count messages or on Ctrl-C; 1 when --timeout passes
 without a message. On stderr it says where it listens, and, when nothing at all

@@ -31,7 +31,7 @@ class SimulationConfig(ConfigModel):
     noise_sigma: float = Field(default=1.0, ge=0.0)
     """Sensor read noise, standard deviation in 8-bit grey levels. The defaults model a 1080p
     CMOS machine-vision sensor (about 32 000 e- full well, 7 e- read noise) at +12 dB gain, as
-    a 60 fps camera with a short exposure indoors needs; docs/simulation.md."""
+    a 60 fps camera with a short exposure indoors needs (trackerd/sim/render.py applies it)."""
     shot_noise: float = Field(default=0.2, ge=0.0)
     """Photon (shot) noise scale: the standard deviation in grey levels is this times
     sqrt(grey level) (0.2: 31 electrons per grey level)."""
