@@ -210,3 +210,43 @@ def test_console_addresses_are_checked_in_one_line(simulated_rig) -> None:
     moved = with_console(simulated_rig, "127.0.0.1:9000").console
     assert moved.listen == "127.0.0.1:9000" and "listen" in moved.model_fields_set
     assert "listen" not in simulated_rig.console.model_fields_set
+
+
+def test_snapshots_by_hand_go_to_a_folder_of_the_users_own(tmp_path, monkeypatch) -> None:
+    """Without systemd's state directory the console's snapshots went to /tmp/trackerd-snapshots, one name
+    for every user (0755: each saw the others'), which anyone could make first, or make a link by that
+    name to where root's snapshots would then be written."""
+    import os
+
+    from trackerd.console.frames import own_directory
+    from trackerd.console.server import default_snapshot_directory
+
+    monkeypatch.delenv("STATE_DIRECTORY", raising=False)
+    assert default_snapshot_directory().name == f"trackerd-snapshots-{os.getuid()}"
+    fresh = tmp_path / "mine" / "snaps"
+    own_directory(fresh)
+    assert fresh.is_dir() and (fresh.stat().st_mode & 0o777) == 0o700
+    own_directory(fresh)  # again: it is ours
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(PermissionError, match="not a folder of this user's"):
+        own_directory(tmp_path / "link")
+    if os.getuid() == 0:
+        (tmp_path / "theirs").mkdir()
+        os.chown(tmp_path / "theirs", 65534, 65534)
+        with pytest.raises(PermissionError, match="not a folder of this user's"):
+            own_directory(tmp_path / "theirs")
+
+
+def test_a_token_every_user_can_read_is_warned_about(tmp_path) -> None:
+    from trackerd.console.access import token_exposed
+
+    token = tmp_path / "token"
+    token.write_text("s3cret-token\n")
+    token.chmod(0o644)
+    assert (
+        token_exposed(token)
+        == f"{token}: the console token is readable by every user of this host (mode 0644); chmod o-r it"
+    )
+    token.chmod(0o640)
+    assert token_exposed(token) is None

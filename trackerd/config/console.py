@@ -63,7 +63,7 @@ class ConsoleConfig(ConfigModel):
     snapshot_directory: Path | None = None
     """Where the console's snapshots are saved (one folder per snapshot). Omit for ``snapshots`` in
     the service's state directory under systemd (/var/lib/trackerd/snapshots), else
-    ``trackerd-snapshots`` under the system's temporary directory."""
+    ``trackerd-snapshots-UID`` under the system's temporary directory (the user's own, 0700)."""
 
     @field_validator("listen")
     @classmethod

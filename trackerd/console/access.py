@@ -7,7 +7,9 @@ query parameter once, then a cookie, or an ``Authorization: Bearer`` header).
 
 from __future__ import annotations
 
+import os
 import secrets
+import stat
 from pathlib import Path
 
 from aiohttp import web
@@ -20,6 +22,19 @@ COOKIE = "trackerd_console_token"
 ACTION_HEADER = "X-Trackerd-Console"
 """Every POST must carry it: a page of another site cannot add it without the console's consent."""
 LOCAL_NAMES = ("127.0.0.1", "localhost", "::1")
+
+
+def token_exposed(path: Path) -> str | None:
+    """Why the token file at ``path`` lets every user of the host in (other users may read it), else None:
+    the daemon's CURVE secret key is refused for that; a token file that many deployments made 0644 is
+    warned about instead."""
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        return None
+    if mode & stat.S_IROTH:
+        return f"{path}: the console token is readable by every user of this host (mode {mode:04o}); chmod o-r it"
+    return None
 
 
 def read_token(path: Path) -> str:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import os
+import stat
 import threading
 import time
 from collections.abc import Callable
@@ -27,6 +29,15 @@ log = logging.getLogger(__name__)
 
 TAKE_WAIT_S = 0.2
 """How long one wait for a pair lasts before the thread looks at its stop flag again."""
+
+
+def own_directory(path: Path) -> None:
+    """Make ``path`` (and its parents) if missing, the leaf readable by its owner only; OSError when it is
+    a link or a folder another user owns (in a shared temporary directory, someone else's choice)."""
+    path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    info = os.lstat(path)
+    if stat.S_ISLNK(info.st_mode) or not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
+        raise PermissionError(13, "not a folder of this user's (set [console] snapshot_directory)", str(path))
 
 
 @dataclass(frozen=True)
@@ -147,7 +158,7 @@ class FrameThread:
         """Save the next pair the pipeline processes (named ``name``, else snap-<local time>, made
         unique); returns the snapshot's name."""
         with self._wake:
-            self.snapshot_directory.mkdir(parents=True, exist_ok=True)
+            own_directory(self.snapshot_directory)
             taken = {r.name for r in self._snapshots}
             name = snapshot_name(self.snapshot_directory, name)
             while name in taken:

@@ -36,7 +36,7 @@ from typing import Any
 from aiohttp import web
 
 from trackerd.config.console import split_listen
-from trackerd.console.access import access_middleware, json_errors, read_token
+from trackerd.console.access import access_middleware, json_errors, read_token, token_exposed
 from trackerd.console.actions import CHECK_MAX_FIXES, MIN_CHECK_FIXES, Actions
 from trackerd.console.frames import CameraImage, FrameThread
 from trackerd.console.logbook import Logbook
@@ -72,11 +72,13 @@ STOP_TIMEOUT_S = 0.6
 
 def default_snapshot_directory() -> Path:
     """Under systemd, the unit's state directory (``StateDirectory=trackerd``: /var/lib/trackerd);
-    otherwise ``trackerd-snapshots`` in the system's temporary directory."""
+    otherwise ``trackerd-snapshots-UID`` in the system's temporary directory, the user's own (one name
+    for every user there, 0755, let each see the others' snapshots, and let anyone who made it first,
+    or a link by that name, decide where root's went: :func:`trackerd.console.frames.own_directory`)."""
     state = os.environ.get("STATE_DIRECTORY")
     if state:
         return Path(state.split(":")[0]) / "snapshots"
-    return Path(tempfile.gettempdir()) / "trackerd-snapshots"
+    return Path(tempfile.gettempdir()) / f"trackerd-snapshots-{os.getuid()}"
 
 
 class ConsoleServer:
@@ -90,6 +92,9 @@ class ConsoleServer:
         self.listen = listen or self.config.listen
         self.host, self.port = split_listen(self.listen)
         self.token = read_token(self.config.token_file) if self.config.token_file is not None else None
+        exposed = token_exposed(self.config.token_file) if self.config.token_file is not None else None
+        if exposed is not None:
+            log.warning("%s", exposed)
         self.snapshot_directory = self.config.snapshot_directory or default_snapshot_directory()
         self.logbook = Logbook()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -258,7 +263,11 @@ class ConsoleServer:
 
             loop.call_soon_threadsafe(settle)
 
-        name = self.frames.request_snapshot(done, wanted)
+        try:
+            name = self.frames.request_snapshot(done, wanted)
+        except OSError as err:
+            where = err.filename or self.snapshot_directory
+            return web.json_response({"error": f"{where}: cannot save snapshots there: {err.strerror}"}, status=500)
         try:
             result = await asyncio.wait_for(future, SNAPSHOT_TIMEOUT_S)
         except TimeoutError:
