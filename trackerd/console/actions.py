@@ -74,7 +74,10 @@ class Actions:
     def recording(self, action: str) -> tuple[bool, str]:
         extension = self._recording()
         if extension is None:
-            return False, "recording is not available: set [recording] directory in the rig (docs/recording.md)"
+            return False, (
+                "recording is not available: the rig in use sets no [recording] directory (docs/recording.md;"
+                " a replay never records)"
+            )
         return True, extension.start_now() if action == "start" else extension.stop_now()
 
     # ------------------------------------------------------------------ calibration check
