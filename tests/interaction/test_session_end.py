@@ -309,6 +309,35 @@ def test_a_source_that_stalls_ends_the_session_once_no_pair_has_come_for_half_a_
     assert replayed.engine.inside and replayed.on_quiet(10**12 + 60 * 10**9) == [] and replayed.engine.inside
 
 
+def test_a_replay_of_a_stall_gives_the_events_the_live_run_gave(simulated_rig, rng):
+    """Live, the stalled source's session ends during the wait (on_quiet); replayed, no wait happens, and
+    the pair after the gap decides the same from the pairs' times: the same leave, the same next session
+    (before, the replay kept the session and sent a dwell the live run never did)."""
+    from trackerd.interaction.extension import QUIET_LEAVE_MS
+
+    before = rest(np.array([1.5, 0.5]), 0.5, rng)
+    after = rest(np.array([1.0, 0.4]), 2.5, rng)
+    gap_pairs = int(2.0 * RATE_HZ)  # two seconds without a pair
+    runs = []
+    for live in (True, False):
+        extension = InteractionExtension(_rig(simulated_rig, None, leave="bye"), threaded_hands=False, live=live)
+        feeder = Feeder(extension)
+        messages = feeder.feed(before)
+        last_ns = 10**12 + int((feeder.sequence - 1) * 1e9 / RATE_HZ)
+        messages += event_messages(extension.on_quiet(last_ns + int(2 * QUIET_LEAVE_MS * 1e6)))
+        feeder.sequence += gap_pairs
+        messages += feeder.feed(after)
+        runs.append([m.model_dump() for m in _events(messages)])
+    live_events, replayed_events = runs
+    assert [(e["topic"], e.get("reason")) for e in live_events][:4] == [
+        ("enter", None),
+        ("leave", "lost"),
+        ("command", None),
+        ("enter", None),
+    ]
+    assert replayed_events == live_events
+
+
 def test_the_pipeline_publishes_the_leave_of_a_session_its_stalled_source_ended(simulated_rig, renderer, tmp_path):
     """The real pipeline on rendered frames: the source serves the pointer for two seconds and then nothing
     (as when a camera is lost); the ``leave`` is published while the daemon runs, and the status says

@@ -304,7 +304,7 @@ def held_hint(message: str) -> str:
     controller, and another's writes time out or are denied (a second daemon on the same rig logged only
     Aravis's "write_register timeout" at every retry)."""
     lowered = message.lower()
-    if "write_register timeout" in lowered or "access denied" in lowered or "access_denied" in lowered:
+    if "write_register timeout" in lowered or any(f"access{c}denied" in lowered for c in " _-"):
         return " (a camera takes one controller: is another program, a trackerd daemon or a viewer, holding it?)"
     return ""
 

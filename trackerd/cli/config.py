@@ -60,7 +60,8 @@ def check_command(args: argparse.Namespace) -> int:
             # What the daemon's interaction stage checks at start (templates, commands, hand camera,
             # TUIO host): OK here means `run` and `replay` start.
             check_interaction(loaded.config)
-        check_files_read_at_start(loaded.config)
+        if args.ready:
+            check_files_read_at_start(loaded.config)
     except ConfigError as err:
         raise err.in_file(loaded.path) from None
     if args.json:
@@ -72,11 +73,11 @@ def check_command(args: argparse.Namespace) -> int:
 
 def check_files_read_at_start(rig: RigConfig) -> None:
     """ConfigError for a file the daemon reads at start and would refuse: the publisher's CURVE keys and
-    its client keys' directory, the console's token file (OK here means `run` starts)."""
+    its client keys' directory (one without keys passes: a reload takes it), the console's token file."""
     from trackerd.console.access import read_token
     from trackerd.publish.publisher import curve_keys
 
-    curve_keys(rig.outputs.zmq)
+    curve_keys(rig.outputs.zmq, allow_no_clients=True)
     if rig.console.enabled and rig.console.token_file is not None:
         read_token(rig.console.token_file)
 

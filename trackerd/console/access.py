@@ -58,7 +58,9 @@ async def json_errors(request: web.Request, handler: Handler) -> web.StreamRespo
         if err.status < 400:
             raise
         allow = {"Allow": err.headers["Allow"]} if "Allow" in err.headers else None
-        return web.json_response({"error": err.reason}, status=err.status, headers=allow)
+        # Its text says why where aiohttp says more than the reason ("No WebSocket UPGRADE hdr").
+        text = (err.text or "").removeprefix(f"{err.status}: ").strip()
+        return web.json_response({"error": text or err.reason}, status=err.status, headers=allow)
 
 
 def access_middleware(token: str | None) -> Middleware:

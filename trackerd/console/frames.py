@@ -119,12 +119,18 @@ class FrameThread:
         on_images: Callable[[list[CameraImage]], None],
         snapshot_directory: Path,
         camera_info: Any = None,
+        *,
+        private_snapshots: bool = False,
     ) -> None:
+        """``private_snapshots``: ``snapshot_directory`` is the default in the shared temporary directory,
+        made and checked as the user's own (:func:`own_directory`); one the rig names, or the service's state
+        directory, is made as it was asked for."""
         self.tap = tap
         self.rig = rig
         self.period_s = 1.0 / rig.console.frame_rate_hz
         self._on_images = on_images
         self.snapshot_directory = snapshot_directory
+        self._private_snapshots = private_snapshots
         self._camera_info = camera_info
         self.viewers = 0
         self._snapshots: list[SnapshotRequest] = []
@@ -158,7 +164,10 @@ class FrameThread:
         """Save the next pair the pipeline processes (named ``name``, else snap-<local time>, made
         unique); returns the snapshot's name."""
         with self._wake:
-            own_directory(self.snapshot_directory)
+            if self._private_snapshots:
+                own_directory(self.snapshot_directory)
+            else:
+                self.snapshot_directory.mkdir(parents=True, exist_ok=True)
             taken = {r.name for r in self._snapshots}
             name = snapshot_name(self.snapshot_directory, name)
             while name in taken:

@@ -103,7 +103,10 @@ class ConsoleServer:
         self._started = threading.Event()
         self._start_error: BaseException | None = None
         self._stop_event: asyncio.Event | None = None
-        self.frames = FrameThread(tap, rig, self._images_from_thread, self.snapshot_directory, camera_info)
+        private = self.config.snapshot_directory is None and "STATE_DIRECTORY" not in os.environ
+        self.frames = FrameThread(
+            tap, rig, self._images_from_thread, self.snapshot_directory, camera_info, private_snapshots=private
+        )
         self.actions = Actions(pipeline, tap, self.frames)
         self.pages = Pages(tap, self.frames, self.actions, self.logbook)
         self.registry = registry_for(tap, self._extra_metrics)

@@ -159,8 +159,13 @@ class InteractionExtension:
         if self._reset_requested.is_set():
             self._reset_requested.clear()
             self._reset_now()
-        pending, self._pending = self._pending, []
         pair, capture_ns = located.pair, located.capture_ns
+        if self._last_pair_ns is not None and self._quiet(pair.timestamp_ns - self._last_pair_ns):
+            # No pair for as long as ends a session while the daemon waits (on_quiet): decided from the pairs'
+            # own times too, so a replay of a recording that spans a stall gives the same leave (with this
+            # pair's messages, where live it went out during the wait; live, on_quiet has ended it already).
+            self._end_quietly()
+        pending, self._pending = self._pending, []
         self._offset_ns = located.clock_offset_ns
         hit = published_hit(located.fix)
         raw = None if hit is None else np.array([float(v) for v in hit.wall_xy_m[:2]])
@@ -213,6 +218,7 @@ class InteractionExtension:
         """A new configuration: rebuild everything. A pointing session in progress ends (see the
         module docstring), and the old TUIO socket says so before it closes."""
         if rig.interaction == self.config and rig.wall == self.rig.wall:
+            self.rig = rig  # nothing to rebuild, but the frame rate (on_quiet) may be new
             return
         try:
             parts = self._parts(rig, self.engine)
@@ -249,26 +255,38 @@ class InteractionExtension:
     def on_quiet(self, now_ns: int) -> list[Event]:
         """No pair for a while: the cameras stalled, or one was lost. A client must not keep a cursor that
         nobody moves (an outage lasts seconds to minutes), so once no pair has come for long enough
-        (QUIET_LEAVE_MS and QUIET_LEAVE_PERIODS), a session in progress ends as a reset ends it: a ``leave``, reason
-        ``lost``, stamped with its last pair, and an empty TUIO ``alive``, which then goes on once a second
-        as while nothing points. Not in a replay, whose output follows from its pairs alone."""
-        if not self._live or self._last_pair_ns is None:
+        (:meth:`_quiet`), a session in progress ends as a reset ends it: a ``leave``, reason ``lost``, stamped
+        with its last pair, and an empty TUIO ``alive``, which then goes on once a second as while nothing
+        points. Not in a replay, whose output follows from its pairs alone: there the pair after the gap
+        ends it (:meth:`on_located` decides the same from the pairs' times), with the same events."""
+        if not self._live or self._last_pair_ns is None or not self._quiet(now_ns - self._last_pair_ns):
             return []
-        quiet_ns = now_ns - self._last_pair_ns
-        period_ms = 1000.0 / self.rig.acquisition.frame_rate_hz
-        if quiet_ns <= max(QUIET_LEAVE_MS, QUIET_LEAVE_PERIODS * period_ms, self.config.pointing.leave_after_ms) * 1e6:
-            return []
-        events: list[Event] = []
         if self.engine.inside:
-            events = self._pending + self._end_session()
-            self._pending = []
-            self._count(events)
-            log.info("interaction: no pair for %.1f s: the pointing session ends (leave, lost)", quiet_ns / 1e9)
-            if self.tuio is not None:
-                self.tuio.forget()
+            log.info(
+                "interaction: no pair for %.1f s: the pointing session ends (leave, lost)",
+                (now_ns - self._last_pair_ns) / 1e9,
+            )
+            self._end_quietly()
         elif self.tuio is not None:
             self.tuio.sender.frame(now_ns, None)  # the empty alive, once a second
+        events, self._pending = self._pending, []  # and any a reload ended meanwhile
         return events
+
+    def _quiet(self, gap_ns: int) -> bool:
+        """Whether no pair for ``gap_ns`` ends a session: over QUIET_LEAVE_MS, QUIET_LEAVE_PERIODS frame
+        periods and ``leave_after_ms``."""
+        period_ms = 1000.0 / self.rig.acquisition.frame_rate_hz
+        return gap_ns > max(QUIET_LEAVE_MS, QUIET_LEAVE_PERIODS * period_ms, self.config.pointing.leave_after_ms) * 1e6
+
+    def _end_quietly(self) -> None:
+        """A session in progress ends as a reset ends it, into ``_pending``, and the TUIO cursor goes."""
+        if not self.engine.inside:
+            return
+        ending = self._end_session()
+        self._pending += ending
+        self._count(ending)
+        if self.tuio is not None:
+            self.tuio.forget()
 
     def finish(self) -> list[Event]:
         """The stage's last events, at stop: the ``leave`` (and command) of a session in
@@ -295,6 +313,7 @@ class InteractionExtension:
             self.tuio = None
 
     def _reset_now(self) -> None:
+        self._last_pair_ns = None  # what came before the reset is not a gap to the pair after it
         ending = self._end_session(forget_scene=True)
         self._pending += ending
         self._count(ending)

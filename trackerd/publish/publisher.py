@@ -92,16 +92,17 @@ def _authorized_keys_dir(path: Path, allow_empty: bool = False) -> Path:
     return path
 
 
-def curve_keys(config: ZmqOutput) -> tuple[bytes, bytes] | None:
+def curve_keys(config: ZmqOutput, allow_no_clients: bool = False) -> tuple[bytes, bytes] | None:
     """The publisher's CURVE key pair (None without CURVE), its client keys' directory checked; ConfigError
-    for anything unusable. What the daemon reads at start, and `config check --ready` with it."""
+    for anything unusable. What the daemon reads at start, and `config check --ready` with it (which allows
+    a directory without keys: a reload takes it, to let nobody in)."""
     if config.curve_secret_key_file is None:
         return None
     if not zmq.has("curve"):
         raise ConfigError("outputs.zmq.curve_secret_key_file: this libzmq was built without CURVE")
     keys = load_curve_key_pair(config.curve_secret_key_file)
     if config.curve_authorized_keys_dir is not None:
-        _authorized_keys_dir(config.curve_authorized_keys_dir)
+        _authorized_keys_dir(config.curve_authorized_keys_dir, allow_empty=allow_no_clients)
     return keys
 
 

@@ -41,8 +41,8 @@ class LeaveMessage(WallPoint):
     """Always ``leave``."""
     reason: Literal["off_display", "lost"]
     """off_display: it points at the wall outside the display (or away); lost: no hit at all (the
-    pointer is out of view, hidden, or points away from the wall), or no pair at all for half a second
-    (a camera lost: the daemon is degraded)."""
+    pointer is out of view, hidden, or points away from the wall), or no pair at all for half a second or
+    more (a camera lost, the cameras stalled)."""
     duration_ms: float = Field(ge=0.0)
     """Time from the ``enter`` to this ``leave``."""
 
