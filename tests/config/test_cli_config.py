@@ -57,6 +57,13 @@ def test_example_rigs_pass(run_check: RunCheck, rig: Path) -> None:
     assert any(line.startswith("  wall: 3.6576 x 0.9144 m (12.00 x 3.00 ft)") for line in lines)
 
 
+def _trackerd(*args: str, cwd: Path) -> CliRun:
+    """The real command, in its own process, from ``cwd``."""
+    return subprocess.run(
+        [sys.executable, "-m", "trackerd", *args], cwd=cwd, capture_output=True, text=True, timeout=60, check=False
+    )
+
+
 def test_the_documented_check_output_is_what_the_command_prints() -> None:
     """docs/configuration.md shows `config check config/datawall.toml`'s output: it lacked the thresholds
     line for a while after the command gained it."""
@@ -65,14 +72,7 @@ def test_the_documented_check_output_is_what_the_command_prints() -> None:
     command = "$ trackerd config check config/datawall.toml\n"
     assert doc.count(command) == 1
     shown = doc.split(command, 1)[1].split("```", 1)[0]
-    run = subprocess.run(
-        [sys.executable, "-m", "trackerd", "config", "check", "config/datawall.toml"],
-        cwd=repo,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    run = _trackerd("config", "check", "config/datawall.toml", cwd=repo)
     assert run.returncode == 0 and run.stdout == shown, run.stdout
 
 
@@ -450,14 +450,7 @@ def test_the_daemon_refuses_a_rig_not_ready_to_track_in_one_line(
     write: Write, edit: Edit, minimal_rig: str, tmp_path: Path
 ) -> None:
     write("rig.toml", edit(minimal_rig, 'pixel_format = "BGR8"', 'pixel_format = "Mono8"'))
-    run = subprocess.run(
-        [sys.executable, "-m", "trackerd", "run", "--config", "rig.toml"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    run = _trackerd("run", "--config", "rig.toml", cwd=tmp_path)
     assert run.returncode == 2 and "Traceback" not in run.stderr
     assert run.stderr.strip().splitlines()[-1].endswith("so it needs colour too)")
     assert "cameras[1].pixel_format: Mono8 is monochrome" in run.stderr

@@ -6,34 +6,39 @@ import argparse
 import math
 
 
-def positive_seconds(text: str) -> float:
-    """``--seconds``: a finite number above zero (0 or -1 used to run for a moment and exit 0)."""
+def _finite(text: str) -> float:
+    """The number in ``text``, NaN when it is none or not finite (nan and inf crashed where they were taken)."""
     try:
         value = float(text)
     except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
+        return math.nan
+    return value if math.isfinite(value) else math.nan
+
+
+def _whole(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+
+
+def positive_seconds(text: str) -> float:
+    """``--seconds``: a finite number above zero (0 or -1 used to run for a moment and exit 0)."""
+    if not _finite(text) > 0:
         raise argparse.ArgumentTypeError(f"must be a positive number of seconds, not {text!r}")
-    return value
+    return float(text)
 
 
 def delay_seconds(text: str) -> float:
-    """``--delay``: a finite number of seconds, 0 or more (nan and inf crashed the replay's start)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 0):
+    """``--delay``: a finite number of seconds, 0 or more."""
+    if not _finite(text) >= 0:
         raise argparse.ArgumentTypeError(f"must be a number of seconds, 0 or more, not {text!r}")
-    return value
+    return float(text)
 
 
 def pair_number(text: str) -> int:
     """A pair's number in a recording, from 0 (a negative one was taken as 0 in silence)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    value = _whole(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"pairs are numbered from 0, not {value}")
     return value
@@ -41,10 +46,7 @@ def pair_number(text: str) -> int:
 
 def positive_int(text: str) -> int:
     """A count of at least 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    value = _whole(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
     return value

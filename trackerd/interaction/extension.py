@@ -229,9 +229,7 @@ class InteractionExtension:
         except ConfigError as err:
             log.error("reload: interaction settings kept: %s", err)
             return
-        ending = self._end_session()
-        self._pending += ending
-        self._count(ending)
+        self._end_to_pending()
         if self.hands is not None:
             self.hands.stop()
         if self.tuio is not None:
@@ -286,9 +284,7 @@ class InteractionExtension:
         """A session in progress ends as a reset ends it, into ``_pending``, and the TUIO cursor goes."""
         if not self.engine.inside:
             return
-        ending = self._end_session()
-        self._pending += ending
-        self._count(ending)
+        self._end_to_pending()
         if self.tuio is not None:
             self.tuio.forget()
 
@@ -318,12 +314,16 @@ class InteractionExtension:
 
     def _reset_now(self) -> None:
         self._last_pair_ns = None  # what came before the reset is not a gap to the pair after it
-        ending = self._end_session(forget_scene=True)
-        self._pending += ending
-        self._count(ending)
+        self._end_to_pending(forget_scene=True)
         self._pairs = 0
         if self.tuio is not None:
             self.tuio.forget()
+
+    def _end_to_pending(self, *, forget_scene: bool = False) -> None:
+        """End what was going on (:meth:`_end_session`), its events published ahead of the next pair's."""
+        ending = self._end_session(forget_scene=forget_scene)
+        self._pending += ending
+        self._count(ending)
 
     def _end_session(self, *, forget_scene: bool = False) -> list[Event]:
         """Reset the engine and the hand's count; the events that end what was going on."""
