@@ -160,15 +160,20 @@ class InteractionExtension:
             self._reset_requested.clear()
             self._reset_now()
         pair, capture_ns = located.pair, located.capture_ns
-        if self._last_pair_ns is not None and self.engine.inside:
-            # No pair made for as long as ends a session while the daemon waits (on_quiet): decided from the
-            # pairs' own times and numbers too, so a replay of a recording that spans a stall gives the same
-            # leave (with this pair's messages, where live it went out during the wait, and on_quiet has
-            # ended it already). Pairs the source made meanwhile that were not located (the processing
-            # thread was slow: a search, a loaded machine) are no stall: a session goes on across them.
-            made = max(pair.sequence - self._last_sequence - 1, 0) * 1e9 / self.rig.acquisition.frame_rate_hz
-            if self._quiet(int(pair.timestamp_ns - self._last_pair_ns - made)):
-                self._end_quietly()
+        # No pair made for as long as ends a session while the daemon waits (on_quiet): decided from the pairs'
+        # own times too, so a replay of a recording that spans a stall gives the same leave (with this pair's
+        # messages, where live it went out during the wait, and on_quiet has ended it already). Only where
+        # the source numbered no pair in between: pairs it made that were not located (the processing thread
+        # was slow: a search, a loaded machine) are no stall, and a session goes on across them. After a
+        # stall the waiting thread takes the next pair at once.
+        last_ns = self._last_pair_ns
+        if (
+            last_ns is not None
+            and pair.sequence == self._last_sequence + 1
+            and self.engine.inside
+            and self._quiet(pair.timestamp_ns - last_ns)
+        ):
+            self._end_quietly()
         pending, self._pending = self._pending, []
         self._offset_ns = located.clock_offset_ns
         hit = published_hit(located.fix)
