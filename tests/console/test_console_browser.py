@@ -338,6 +338,9 @@ def test_snap_and_ctl_on_the_command_line_talk_to_the_daemon(daemon, tmp_path) -
         "aim-right.png",
         "aim.json",
     ]
+    status = trackerd("ctl", "--config", rig_file, "status")
+    assert status.returncode == 0, status.stderr
+    assert "  recording: idle (enabled = false)" in status.stdout.splitlines(), status.stdout  # [recording] is set
     check = trackerd("ctl", "--config", rig_file, "--console", daemon["listen"], "check", "--fixes", "20")
     assert check.returncode == 0, check.stdout + check.stderr
     assert check.stdout.startswith("check: 20 pointer fixes") and ": OK" in check.stdout

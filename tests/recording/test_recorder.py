@@ -310,7 +310,10 @@ def test_a_recording_folder_that_cannot_be_made_is_reported_failed_with_why(bund
             "path": None,
             "detail": f"cannot create {blocked}: Not a directory",
         }
-        assert extension.start_now() == "a recording starts with the next pair"
+        assert extension.start_now() == (
+            "a recording is tried again with the next pair (the last one failed:"
+            f" cannot create {blocked}: Not a directory)"
+        )
         assert extension.on_pair(pairs[1]) is False
         assert extension.status()["state"] == "failed"
         good = tmp_path / "recordings"

@@ -98,6 +98,19 @@ def ctl_command(args: argparse.Namespace) -> int:
         print(f"  cameras: {cams}; pairs {status['pairing']['pair_rate_hz']:.1f}/s")
         if latency.get("p50_ms") is not None:
             print(f"  latency p50 {latency['p50_ms']:.2f} ms, p99 {latency['p99_ms']:.2f} ms")
+        recording = status.get("recording")
+        if recording is not None:
+            what = ", ".join(
+                filter(
+                    None,
+                    [
+                        recording.get("path"),
+                        f"{recording['pairs']} pairs" if recording.get("pairs") else None,
+                        recording.get("detail"),
+                    ],
+                )
+            )
+            print(f"  recording: {recording['state']}" + (f" ({what})" if what else ""))
         return 0
     if args.action == "snap":
         answer = client.snapshot_into(Path(args.out))

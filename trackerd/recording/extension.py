@@ -136,6 +136,9 @@ class RecordingExtension:
             if recorder is not None:
                 return f"already recording into {recorder.path}"
             self._armed = True
+            failure = self._failure
+        if failure is not None:
+            return f"a recording is tried again with the next pair (the last one failed: {failure})"
         return "a recording starts with the next pair"
 
     def stop_now(self) -> str:
