@@ -169,18 +169,15 @@ def _refuse_if_the_daemon_holds_the_cameras(rig: RigConfig, rig_file: str, conso
         # The console's token file is the daemon's group's to read: ask without it (a daemon there answers
         # 401, which is refused below as a daemon that holds the cameras).
         client = ConsoleClient(console or rig.console.listen)
-    where = f" --console {console}" if console else ""
     try:
         info = client.find()
+        held, who = info is not None and client.runs_cameras_of(info, rig), "the daemon is running"
     except ConsoleError:  # it answered, and wants a token: a daemon is running there
+        held, who = True, "a daemon's console answers and wants its token: the daemon is likely running"
+    if held:
+        where = f" --console {console}" if console else ""
         raise RecordingError(
-            f"a daemon's console answers at {client.base} (and wants its token): the daemon likely holds the"
-            f" cameras; record from it with `trackerd ctl --config {rig_file}{where} record start`"
-            " (docs/recording.md), or stop it first"
-        ) from None
-    if info is not None and client.runs_cameras_of(info, rig):
-        raise RecordingError(
-            f"the daemon is running and holds the cameras ({client.base}); record from it:"
+            f"{who} and holds the cameras ({client.base}); record from it:"
             f" `trackerd ctl --config {rig_file}{where} record start` with [recording] directory in its rig"
             " (docs/recording.md), or stop it first"
         )

@@ -83,9 +83,11 @@ class Actions:
     # ------------------------------------------------------------------ calibration check
 
     def start_check(self, fixes: int) -> tuple[bool, str]:
-        """Begin a check over the next ``fixes`` fixes of the live pointer (as `calibrate check --live`)."""
+        """Begin a check over the next ``fixes`` fixes of the live pointer (as `calibrate check --live`);
+        (False, why) when it cannot begin now. ValueError for a number of fixes no check takes (a bad request,
+        not a conflict with the daemon's state)."""
         if not MIN_CHECK_FIXES <= fixes <= CHECK_MAX_FIXES:
-            return False, f"fixes must be from {MIN_CHECK_FIXES} to {CHECK_MAX_FIXES}"
+            raise ValueError(f"fixes must be from {MIN_CHECK_FIXES} to {CHECK_MAX_FIXES}")
         rig = self.pipeline.rig
         if rig.pointer is None:
             return False, "the rig has no [pointer]: nothing to check with"

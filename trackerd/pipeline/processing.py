@@ -27,7 +27,7 @@ from trackerd.config.models import RigConfig
 from trackerd.errors import ConfigError
 from trackerd.locator import Locator, PointerFix
 from trackerd.pipeline.colourwatch import ColourWatch, WatchThread
-from trackerd.pipeline.events import NOTHING, PairEvents
+from trackerd.pipeline.events import NOTHING, Event, PairEvents
 from trackerd.pipeline.extensions import ExtensionContext, ExtensionKind, Located, PipelineExtension
 from trackerd.pipeline.handover import Processed, StageLinks
 from trackerd.pipeline.reload import changes_calibration, changes_colours, source_settings
@@ -172,7 +172,7 @@ class ProcessingStage:
             figures.pairs_processed += 1
             self._links.notifier.progress()
 
-    def _hand_over_pairless(self, events: list) -> None:
+    def _hand_over_pairless(self, events: list[Event]) -> None:
         """Events of no pair (the extensions' last words at stop, a session a stalled source ended), to the
         publishing thread now: stamped with the time they were decided."""
         if not events:

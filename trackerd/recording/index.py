@@ -17,7 +17,6 @@ from trackerd.recording.format import (
     INDEX_ENTRY,
     INDEX_MAGIC,
     IndexEntry,
-    check_major,
     damaged_file_header,
     unpack_file_header,
     unpack_index_entry,
@@ -44,8 +43,7 @@ def read_index(index_path: Path, data_size: int) -> tuple[list[IndexEntry], list
     if damaged is not None:
         return entries, [f"{damaged}; pairs found by scanning {DATA_FILE}"]
     try:
-        major, _minor, entry_bytes = unpack_file_header(raw, INDEX_MAGIC, str(index_path))
-        check_major(major, str(index_path))
+        _major, _minor, entry_bytes = unpack_file_header(raw, INDEX_MAGIC, str(index_path))
         if entry_bytes < INDEX_ENTRY.size:
             raise RecordingError(f"{index_path}: entries of {entry_bytes} bytes, fewer than {INDEX_ENTRY.size}")
     except RecordingError as err:
