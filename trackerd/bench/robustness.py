@@ -314,7 +314,16 @@ def run_rig(task: tuple[int, int, int, str | None, int, int]) -> list[dict[str, 
         records.append(record)
     if follow:
         # A generator of its own: the frames above are those of a run without --follow.
-        records += follow_rig(drawn, rig, renderer, wall, np.random.default_rng([seed, index, 3]), follow, index)
+        records += follow_rig(
+            drawn,
+            rig,
+            renderer,
+            wall,
+            np.random.default_rng([seed, index, 3]),
+            follow,
+            index,
+            np.random.default_rng([seed, index, 4]),
+        )
     return records
 
 

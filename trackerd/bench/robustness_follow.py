@@ -5,7 +5,9 @@ first sighting, every time. The daemon spends almost all its frames tracking (th
 window search, the locator's tracked path), which those frames never reach. Here each installation
 also renders ``N`` consecutive frames of the pointer sweeping between aimed poses at a hand's pace
 (MAX_STEP_M per frame at 60 fps, half a frame's motion blurred into each exposure), in front of one
-still picture, and locates them twice: with one locator that keeps its tracking state from frame to
+still picture, with what the bench's shots have in front of an end as often as they have it (a finger on
+one ball all along, or the presenter standing between one camera and where an end passes mid-sequence),
+and locates them twice: with one locator that keeps its tracking state from frame to
 frame, as the daemon does, and from scratch. The figures of the two side by side say what tracking
 costs or saves in rooms trackerd was not tuned on.
 
@@ -28,6 +30,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from trackerd.config.models import RigConfig
     from trackerd.geometry.wall import WallFrame
+    from trackerd.sim.appearance import Occluder
     from trackerd.sim.randomized import RandomRig
     from trackerd.sim.render import RenderedView, SceneRenderer
     from trackerd.sim.scene import PointerPose
@@ -69,6 +72,83 @@ def followed_poses(drawn: RandomRig, wall: WallFrame, rng: np.random.Generator, 
 
 
 @dataclass(frozen=True)
+class FingerOnBall:
+    """A finger (or thumb) resting on one ball through a followed sequence: it moves with the pointer."""
+
+    end: str
+    """'front' or 'back'."""
+    angle_rad: float
+    """Where around the pointer's axis it rests (0: the side towards the world's up, turned about the axis)."""
+    radius_m: float
+    out_share: float
+    """How far out from the ball's surface its centre is, as a share of its radius."""
+    rgb: tuple[float, float, float]
+
+    def at(self, pose: PointerPose, ball_radius_m: float) -> Occluder:
+        """The finger on the ball in ``pose``."""
+        from trackerd.sim.appearance import Occluder
+
+        direction = pose.direction
+        across = np.cross(direction, [0.0, 1.0, 0.0])
+        if np.linalg.norm(across) < 1e-6:
+            across = np.cross(direction, [1.0, 0.0, 0.0])
+        across /= np.linalg.norm(across)
+        up = np.cross(across, direction)
+        side = math.cos(self.angle_rad) * up + math.sin(self.angle_rad) * across
+        ball = pose.front_m if self.end == "front" else pose.back_m
+        place = ball + side * (ball_radius_m + self.radius_m * self.out_share)
+        x, y, z = (float(v) for v in place)
+        return Occluder("sphere", (x, y, z), self.radius_m, self.rgb, label="hand")
+
+
+def followed_occluders(
+    drawn: RandomRig, poses: list[PointerPose], rng: np.random.Generator
+) -> tuple[str, list[tuple[Occluder, ...]]]:
+    """The occlusion level of a followed sequence (drawn as often as the bench's shots draw each) and what
+    is in front of the pointer in each of ``poses``: nothing; a finger on one ball (FingerOnBall, drawn as
+    the shots' hands are); or the presenter's body, standing still between one camera and where one end
+    is mid-sequence, so that the end passes behind it and out again. A body that would touch the pointer
+    in some pose is drawn again (20 tries), else the sequence has none ("none")."""
+    from trackerd.sim.appearance import Occluder
+    from trackerd.sim.randomized import CLOTHES_RGB, OCCLUSION_ODDS, OCCLUSIONS, clear_of_pointer
+    from trackerd.sim.scene import scene_pointer
+
+    occlusion = str(rng.choice(OCCLUSIONS, p=list(OCCLUSION_ODDS)))
+    ball_r = scene_pointer(drawn.rig).end_diameter_m / 2.0
+    if occlusion == "hand":
+        radius = ball_r * float(rng.uniform(0.45, 0.8))
+        skin = np.clip(np.array([0.80, 0.58, 0.47]) * rng.uniform(0.7, 1.1), 0, 1)
+        finger = FingerOnBall(
+            "front" if rng.uniform() < 0.5 else "back",
+            float(rng.uniform(0.0, 2.0 * math.pi)),
+            radius,
+            float(rng.uniform(0.2, 0.7)),
+            (float(skin[0]), float(skin[1]), float(skin[2])),
+        )
+        return occlusion, [(finger.at(pose, ball_r),) for pose in poses]
+    if occlusion == "body":
+        middle = poses[len(poses) // 2]
+        camera = drawn.cameras[int(rng.integers(0, len(drawn.cameras)))]
+        end = middle.front_m if rng.uniform() < 0.5 else middle.back_m
+        to_camera = camera.centre_m - end
+        across = np.cross(to_camera, [0.0, 1.0, 0.0])
+        if np.linalg.norm(across) > 1e-6:
+            across /= np.linalg.norm(across)
+            clothes = CLOTHES_RGB[int(rng.integers(0, len(CLOTHES_RGB)))]
+            for _ in range(20):
+                radius = float(rng.uniform(0.1, 0.18))
+                point = (
+                    end + float(rng.uniform(0.25, 0.6)) * to_camera + across * radius * float(rng.uniform(-1.3, 1.3))
+                )
+                centre = np.array([point[0], point[1] - 0.1, point[2]])
+                if all(clear_of_pointer(centre, radius, 0.4, pose, ball_r) for pose in poses):
+                    x, y, z = (float(v) for v in centre)
+                    body = Occluder("cylinder", (x, y, z), radius, clothes, height_m=0.4, label="body")
+                    return occlusion, [(body,)] * len(poses)
+    return "none", [()] * len(poses)
+
+
+@dataclass(frozen=True)
 class FollowedFrame:
     """One frame of a followed sequence: every camera's view, and the true wall hit at the exposure's middle."""
 
@@ -78,10 +158,18 @@ class FollowedFrame:
 
 
 def followed_frames(
-    drawn: RandomRig, renderer: SceneRenderer, wall: WallFrame, rng: np.random.Generator, count: int
-) -> tuple[str, Iterator[FollowedFrame]]:
-    """The wall's content kind and ``count`` consecutive frames of installation ``drawn`` (:func:`followed_poses`,
-    half of each frame's motion blurred into its exposure), rendered from ``rng`` in order as iterated."""
+    drawn: RandomRig,
+    renderer: SceneRenderer,
+    wall: WallFrame,
+    rng: np.random.Generator,
+    count: int,
+    occlusion_rng: np.random.Generator | None = None,
+) -> tuple[dict[str, str], Iterator[FollowedFrame]]:
+    """The sequence's factors (what the wall shows, what is in front of the pointer) and ``count``
+    consecutive frames of installation ``drawn`` (:func:`followed_poses`, half of each frame's motion blurred
+    into its exposure), rendered from ``rng`` in order as iterated. What is in front of the pointer is drawn
+    from ``occlusion_rng`` (:func:`followed_occluders`; None: nothing), a generator of its own so that the
+    same ``rng`` renders the same pointer, room and noise with or without it."""
     from trackerd.sim.appearance import wall_content
     from trackerd.sim.randomized import random_shot
     from trackerd.sim.scene import true_wall_hit
@@ -89,17 +177,24 @@ def followed_frames(
     kind = random_shot(drawn, rng, wall).content_kind
     content = wall_content(kind, rng)
     poses = followed_poses(drawn, wall, rng, count + 1)
+    # Each frame's occluders are placed at the middle of its exposure.
+    middles = [pose.interpolate(following, 0.5 * EXPOSURE_SHARE) for pose, following in itertools.pairwise(poses)]
+    occlusion, occluders = (
+        ("none", [()] * count) if occlusion_rng is None else followed_occluders(drawn, middles, occlusion_rng)
+    )
 
     def frames() -> Iterator[FollowedFrame]:
         for number, (pose, following) in enumerate(itertools.pairwise(poses)):
             motion_to = pose.interpolate(following, EXPOSURE_SHARE)
             views = [
-                renderer.render(i, pose, rng, motion_to=motion_to, motion_steps=3, occluders=(), content=content)
+                renderer.render(
+                    i, pose, rng, motion_to=motion_to, motion_steps=3, occluders=occluders[number], content=content
+                )
                 for i in range(len(drawn.cameras))
             ]
             yield FollowedFrame(number, views, true_wall_hit(pose.interpolate(motion_to, 0.5), wall).wall_xy_m)
 
-    return kind, frames()
+    return {"content": kind, "occlusion": occlusion}, frames()
 
 
 def follow_rig(
@@ -110,12 +205,14 @@ def follow_rig(
     rng: np.random.Generator,
     count: int,
     index: int,
+    occlusion_rng: np.random.Generator | None = None,
 ) -> list[dict[str, Any]]:
-    """One record per frame of a followed sequence: trackerd tracking, and from scratch, on the same images."""
+    """One record per frame of a followed sequence (:func:`followed_frames`): trackerd tracking, and from
+    scratch, on the same images."""
     from trackerd.bench.robustness import MIN_VISIBLE
     from trackerd.locator import Locator
 
-    kind, frames = followed_frames(drawn, renderer, wall, rng, count)
+    factors, frames = followed_frames(drawn, renderer, wall, rng, count, occlusion_rng)
     tracking = Locator(rig, cameras=drawn.cameras)
     scratch = Locator(rig, cameras=drawn.cameras)
     records = []
@@ -127,7 +224,7 @@ def follow_rig(
             "rig": index,
             "frame": number,
             "sequence": True,
-            "factors": {**drawn.factors, "content": kind},
+            "factors": {**drawn.factors, **factors},
             "eligible": sum(1 for pair in visible if min(pair) >= MIN_VISIBLE) >= 2,
             "visible": visible,
         }
@@ -180,6 +277,19 @@ def follow_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     out["kept_by_tracking"] = sum(
         1 for r in eligible if r["tracking"]["error_m"] is not None and r["scratch"]["error_m"] is None
     )
+    out["tracking_by_occlusion"] = {}
+    for level in sorted({r["factors"].get("occlusion", "none") for r in records}):
+        own = [r for r in records if r["factors"].get("occlusion", "none") == level]
+        shares = figures(
+            [{**r["tracking"], "eligible": r["eligible"], "naive_error_m": None, "floor_error_m": None} for r in own]
+        )
+        out["tracking_by_occlusion"][level] = {
+            "frames": shares["frames"],
+            "eligible": shares["eligible"],
+            **shares["trackerd"],
+            "hidden_hits": shares["hidden"]["hits"],
+            "hidden_confidently_wrong": shares["hidden"]["confidently_wrong"],
+        }
     cameras = sum(len(r["visible"]) for r in records)
     windowed = sum(r["tracking"]["window_searches"] for r in records)
     out["tracking_window_search_percent"] = round(100.0 * windowed / cameras, 1) if cameras else None
@@ -206,6 +316,14 @@ def format_follow(figures: dict[str, Any], count: int) -> list[str]:
             f"{cell(f['within_1_sigma_percent'], 6, '.0f')}{cell(f['within_2_sigma_percent'], 6, '.0f')}"
             f"{cell(f['locate_ms_median'], 7, '.2f')}{cell(f['refined_percent'], 8, '.0f')} %"
             f" | {f['hidden_hits']:>4} {f['hidden_confidently_wrong']:>3}"
+        )
+    for level, f in figures.get("tracking_by_occlusion", {}).items():
+        lines.append(
+            f"  {'':<2}{level:<8}{cell(f['found_percent'], 7)}{cell(f['median_mm'], 8, '.2f')}"
+            f"{cell(f['p95_mm'], 8, '.2f')}{cell(f['worst_mm'], 8)}{cell(f['over_3_sigma_percent'], 6)}"
+            f"{cell(f['over_5_sigma_percent'], 6)}{cell(f['within_1_sigma_percent'], 6, '.0f')}"
+            f"{cell(f['within_2_sigma_percent'], 6, '.0f')}{'':>17} | {f['hidden_hits']:>4}"
+            f" {f['hidden_confidently_wrong']:>3}   (tracking, {f['eligible']} of {f['frames']} frames eligible)"
         )
     lines.append(
         f"  eligible frames found from scratch but not while tracking: {figures['lost_by_tracking']};"

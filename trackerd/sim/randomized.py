@@ -48,6 +48,7 @@ Array = NDArray[np.float64]
 __all__ = [
     "LIGHTINGS",
     "OCCLUSIONS",
+    "OCCLUSION_ODDS",
     "PAINTS",
     "PLACEMENTS",
     "RESOLUTIONS",
@@ -65,6 +66,8 @@ PLACEMENTS = ("side-on", "behind high", "behind low", "ceiling", "asymmetric", "
 LIGHTINGS = ("standard", "dim", "bright", "warm", "cold", "spotlight", "uneven", "glossy")
 PAINTS = ("standard", "dark", "orange-red", "crimson and navy", "bright and cyan")
 OCCLUSIONS = ("none", "hand", "body")
+OCCLUSION_ODDS = (0.55, 0.25, 0.2)
+"""How often a shot (or a followed sequence) has each of OCCLUSIONS."""
 
 _PAINT_RGB: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
     "standard": ((0.86, 0.10, 0.08), (0.10, 0.20, 0.86)),
@@ -74,7 +77,7 @@ _PAINT_RGB: dict[str, tuple[tuple[float, float, float], tuple[float, float, floa
     "bright and cyan": ((1.00, 0.20, 0.26), (0.05, 0.48, 0.95)),
 }
 
-_CLOTHES_RGB = ((0.12, 0.12, 0.14), (0.10, 0.12, 0.30), (0.35, 0.08, 0.10), (0.55, 0.55, 0.52), (0.20, 0.30, 0.20))
+CLOTHES_RGB = ((0.12, 0.12, 0.14), (0.10, 0.12, 0.30), (0.35, 0.08, 0.10), (0.55, 0.55, 0.52), (0.20, 0.30, 0.20))
 
 MIN_BALL_DIAMETER_PX = 10.0
 """A drawn rig is kept only if the balls image at least this wide (at the presenter area's
@@ -240,7 +243,7 @@ def random_shot(drawn: RandomRig, rng: np.random.Generator, wall: WallFrame | No
         if true_wall_hit(pose, wall).wall_xy_m is None or _seen_by(pose, drawn.cameras) < 2:
             continue
         motion_to, blur_px = _motion(rng, pose, drawn.cameras)
-        occlusion = str(rng.choice(OCCLUSIONS, p=[0.55, 0.25, 0.2]))
+        occlusion = str(rng.choice(OCCLUSIONS, p=list(OCCLUSION_ODDS)))
         occluders = _occluders(rng, occlusion, pose, drawn)
         if occluders is None:
             continue
@@ -319,13 +322,13 @@ def _occluders(
         across /= np.linalg.norm(across)
         point = point + across * radius * float(rng.uniform(-1.3, 1.3))
         centre = (float(point[0]), float(point[1] - 0.1), float(point[2]))
-        if _clear_of_pointer(np.asarray(centre), radius, 0.4, pose, ball_r):
-            clothes = _CLOTHES_RGB[int(rng.integers(0, len(_CLOTHES_RGB)))]
+        if clear_of_pointer(np.asarray(centre), radius, 0.4, pose, ball_r):
+            clothes = CLOTHES_RGB[int(rng.integers(0, len(CLOTHES_RGB)))]
             return (Occluder("cylinder", centre, radius, clothes, height_m=0.4, label="body"),)
     return None
 
 
-def _clear_of_pointer(centre: Array, radius: float, height: float, pose: PointerPose, ball_r: float) -> bool:
+def clear_of_pointer(centre: Array, radius: float, height: float, pose: PointerPose, ball_r: float) -> bool:
     """Whether an upright cylinder stays clear of the pointer (both balls and the rod between)."""
     for f in np.linspace(0.0, 1.0, 12):
         p = pose.back_m + f * (pose.front_m - pose.back_m)
