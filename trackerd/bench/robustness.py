@@ -313,11 +313,13 @@ def run_rig(task: tuple[int, int, int, str | None, int, int]) -> list[dict[str, 
             record["naive_error_m"] = float(np.linalg.norm(naive - truth))
         records.append(record)
     if follow:
-        # A generator of its own: the frames above are those of a run without --follow.
+        # A generator and a renderer of their own: the frames above are those of a run without --follow,
+        # and the followed frames those of a run without the frames above (scripts/robustness_frame.py
+        # --followed renders them alone). A renderer keeps what it drew first (each camera's noise field).
         records += follow_rig(
             drawn,
             rig,
-            renderer,
+            renderer_for(drawn),
             wall,
             np.random.default_rng([seed, index, 3]),
             follow,

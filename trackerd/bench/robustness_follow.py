@@ -279,9 +279,12 @@ def follow_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     )
     out["tracking_by_occlusion"] = {}
     for level in sorted({r["factors"].get("occlusion", "none") for r in records}):
-        own = [r for r in records if r["factors"].get("occlusion", "none") == level]
+        at_level = [r for r in records if r["factors"].get("occlusion", "none") == level]
         shares = figures(
-            [{**r["tracking"], "eligible": r["eligible"], "naive_error_m": None, "floor_error_m": None} for r in own]
+            [
+                {**r["tracking"], "eligible": r["eligible"], "naive_error_m": None, "floor_error_m": None}
+                for r in at_level
+            ]
         )
         out["tracking_by_occlusion"][level] = {
             "frames": shares["frames"],
