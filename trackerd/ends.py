@@ -112,6 +112,12 @@ class EndMeasurement:
     measurement (with RESIDUAL_SHARE's floor, which stood in for what this models per measurement), so
     that modelling the errors moves no hit."""
 
+    fit_error: Array | None = None
+    """(2, 2) error (normalised units squared) the refined pointer fit gave this measurement beyond
+    ``actual_covariance``: an outline of the wrong size for the ball's distance there (trackerd/refine.py,
+    :func:`partial_arc_error`). The outline's centroid offset carries it to the tracked pairs that follow
+    (trackerd/tracked_ends.py); None: nothing added."""
+
     @property
     def actual_covariance(self) -> Array:
         """The covariance of the measurement's actual error: ``error_covariance`` where modelled, else

@@ -301,7 +301,8 @@ class Locator:
                 area_change = area_change_log(offset, end.area_px, depth)
                 moved = moved_px(offset, end.centroid_px)
                 if is_stale(staleness(offset, moved, area_change), area_change):
-                    again = self._measure_again(images[i], i, detection, colour, offset, depth)
+                    point = None if last is None else (last.front_m if e == 0 else last.back_m)
+                    again = self._measure_again(images[i], i, detection, colour, offset, depth, point)
                     if again is None:
                         return None
                     offsets[i][colour] = offset = again
@@ -398,11 +399,14 @@ class Locator:
         colour: str,
         offset: EndOffset,
         depth_m: float,
+        point_m: Array | None = None,
     ) -> EndOffset | None:
         """One end's outline measured again beside its tracked centroid; None when it is not found, is not
-        the ball the detector follows, or is not the size the ball had (scaled by its distance)."""
+        the ball the detector follows, or is not the size the ball had (scaled by its distance). Where the last
+        pair put the end (``point_m``), an outline of another size than a ball's there keeps the error the refined
+        fit would give it (:func:`trackerd.refine.wrong_size_error`), as the outline it replaces did."""
         from trackerd.ends import across_pointer, measure_end, same_ball
-        from trackerd.refine import blob_radius_px
+        from trackerd.refine import blob_radius_px, wrong_size_error
 
         centroid, red, blue = detection.end(colour).centroid_px, detection.red.centroid_px, detection.blue.centroid_px
         assert centroid is not None and red is not None and blue is not None  # a camera that sees both ends
@@ -428,6 +432,11 @@ class Locator:
             expected *= offset.depth_m / depth_m
         if not 1.0 / GUIDED_RADIUS_RATIO <= measured.radius_px / expected <= GUIDED_RADIUS_RATIO:
             return None
+        if point_m is not None:
+            added = wrong_size_error(measured, camera, point_m, self.pointer.end_diameter_m / 2.0)
+            if added is None:
+                return None
+            measured = replace(measured, fit_error=added)
         return end_offset(camera, measured, centroid, area_px, depth_m)
 
     def learn_offsets(self, fix: PointerFix) -> None:

@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from trackerd.detect.colour import SampleGrid
     from trackerd.detect.result import EndDetection
     from trackerd.detect.search import Candidate
+    from trackerd.ends import EndMeasurement
     from trackerd.geometry.camera import CameraModel
     from trackerd.locator import Locator
 
@@ -241,6 +242,26 @@ def _ball_radius_px(camera: CameraModel, point_m: Array, ball_radius_m: float) -
     times the focal length)."""
     distance = float(np.linalg.norm(point_m - camera.centre_m))
     return float(camera.focal_px * ball_radius_m / math.sqrt(max(distance**2 - ball_radius_m**2, 1e-6)))
+
+
+def wrong_size_error(
+    measurement: EndMeasurement, camera: CameraModel, point_m: Array, ball_radius_m: float
+) -> Array | None:
+    """What an outline's error gains for its size, were the ball at ``point_m`` (normalised units squared), as
+    the refined fit adds it to an outline it could not fit again: nothing within GUIDED_SIZE of a ball's radius
+    there, :func:`trackerd.ends.partial_arc_error` within MAX_RADIUS_RATIO; None beyond (not a ball's outline)."""
+    from trackerd.ends import partial_arc_error
+
+    expected = _ball_radius_px(camera, point_m, ball_radius_m)
+    ratio = measurement.radius_px / expected
+    if 1.0 / GUIDED_SIZE <= ratio <= GUIDED_SIZE:
+        return np.zeros((2, 2))
+    if not _ball_sized(measurement.radius_px, expected):
+        return None
+    if measurement.fit is None:
+        wrong = abs(measurement.radius_px - expected) / camera.focal_px
+        return np.eye(2) * wrong * wrong
+    return partial_arc_error(measurement.fit, expected, camera.focal_px)
 
 
 def _colour_medians(
@@ -1011,6 +1032,13 @@ class RefinedPath:
         from trackerd.ends import partial_arc_error
 
         ball_radius = pointer.end_diameter_m / 2.0
+        # What this fit adds to each measurement's error, kept with the measurement (EndMeasurement.fit_error)
+        # for the tracked pairs that follow: they take the outline's offset from its centroid, and with it
+        # what is known of its error. A measurement fitted again starts from its own errors.
+        for i, ends in enumerate(per_camera):
+            for colour, m in ends.items():
+                if m is not None and m.fit_error is not None:
+                    per_camera[i][colour] = replace(m, fit_error=None)
         for k, i in enumerate(used):
             for e, colour in enumerate((front, back)):
                 m = per_camera[i][colour]
@@ -1030,16 +1058,20 @@ class RefinedPath:
                     continue
                 if _ball_sized(m.radius_px, expected):
                     if m.fit is not None:
-                        errors[k, e] = errors[k, e] + partial_arc_error(m.fit, expected, camera.focal_px)
+                        added = partial_arc_error(m.fit, expected, camera.focal_px)
+                        errors[k, e] = errors[k, e] + added
+                        per_camera[i][colour] = replace(m, fit_error=added)
                     continue
                 seen_by = int(np.count_nonzero(np.trace(covariances[:, e], axis1=1, axis2=2) < DROPPED_VARIANCE))
                 if seen_by > 2:
                     covariances[k, e] = np.eye(2) * DROPPED_VARIANCE
                     errors[k, e] = covariances[k, e]
+                    per_camera[i][colour] = replace(m, fit_error=errors[k, e] - m.actual_covariance)
                 else:
                     wrong = abs(m.radius_px - expected) / camera.focal_px
                     covariances[k, e] = covariances[k, e] + np.eye(2) * wrong * wrong
                     errors[k, e] = errors[k, e] + np.eye(2) * wrong * wrong
+                    per_camera[i][colour] = replace(m, fit_error=np.eye(2) * wrong * wrong)
         try:
             views = EndViews.of(
                 rotations,

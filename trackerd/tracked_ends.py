@@ -95,7 +95,8 @@ class EndOffset:
     radius_px: float
     """The ball's image radius (its outline's)."""
     covariance_n: Array
-    """(2, 2) the outline measurement's error covariance (normalised units)."""
+    """(2, 2) the outline measurement's error covariance (normalised units), with what the refined pointer fit
+    added for an outline of the wrong size (EndMeasurement.fit_error)."""
 
 
 def end_offset(
@@ -114,7 +115,12 @@ def end_offset(
         float(area_px),
         float(depth_m),
         float(measurement.radius_px),
-        np.array(measurement.actual_covariance, dtype=np.float64),
+        np.array(
+            measurement.actual_covariance
+            if measurement.fit_error is None
+            else measurement.actual_covariance + measurement.fit_error,
+            dtype=np.float64,
+        ),
     )
 
 
