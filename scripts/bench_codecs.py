@@ -68,11 +68,8 @@ def main() -> None:
         raw = sum(f.nbytes for f in frames)
         for name, (comp, decomp) in table.items():
             for on in ("frame", "delta"):
-                inputs = (
-                    [frames[0]] + [frames[i] - frames[i - 1] for i in range(1, len(frames))]
-                    if on == "delta"
+                inputs = [frames[0]] + [frames[i] - frames[i - 1] for i in range(1, len(frames))] if on == "delta" \
                     else frames
-                )
                 t0 = time.thread_time()
                 packed = [comp(x.tobytes()) for x in inputs]
                 t1 = time.thread_time()
@@ -80,10 +77,8 @@ def main() -> None:
                     decomp(p)
                 t2 = time.thread_time()
                 stored = sum(len(p) for p in packed)
-                print(
-                    f"{label:<26}{name:<16}{on:<7}{raw / stored:>7.2f}{1e3 * (t1 - t0) / len(frames):>13.1f}"
-                    f"{1e3 * (t2 - t1) / len(frames):>15.1f}"
-                )
+                print(f"{label:<26}{name:<16}{on:<7}{raw / stored:>7.2f}{1e3 * (t1 - t0) / len(frames):>13.1f}"
+                      f"{1e3 * (t2 - t1) / len(frames):>15.1f}")
 
 
 if __name__ == "__main__":

@@ -102,7 +102,9 @@ def _type_text(annotation: Any, anchors: dict[type[BaseModel], str]) -> str:
     annotation, _ = _strip_optional(annotation)
     members, tag = _union_members(annotation)
     if members:
-        forms = ", ".join(f"[`{tag} = {_toml_value(_tag_value(m, tag))}`](#{anchors[m]})" for m in members)
+        forms = ", ".join(
+            f"[`{tag} = {_toml_value(_tag_value(m, tag))}`](#{anchors[m]})" for m in members
+        )
         return f"table, one of: {forms}"
     if get_origin(annotation) is Annotated:
         return _type_text(get_args(annotation)[0], anchors)
@@ -298,7 +300,9 @@ def splice(document: str, generated: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true", help="exit 1 if the document is out of date")
+    parser.add_argument(
+        "--check", action="store_true", help="exit 1 if the document is out of date"
+    )
     args = parser.parse_args(argv)
     sys.path.insert(0, str(REPO_ROOT))
     document = DOC_PATH.read_text(encoding="utf-8")

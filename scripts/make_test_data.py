@@ -34,10 +34,8 @@ def main() -> None:
     poses["02"] = (random_pose(rig, rng, on_wall_fraction=1.0), "aimed at the display")
     # 03: aimed above the top edge of the display, at the wall itself.
     tip = wall.origin_m + 1.4 * wall.x_axis + 2.0 * wall.normal + (0.55 - wall.origin_m[1]) * np.array([0, 1.0, 0])
-    poses["03"] = (
-        pose_aimed_at(tip, wall.from_wall_m(np.array([2.4, 1.25])), rig.pointer.length_m),
-        "aimed at the wall above the display",
-    )
+    poses["03"] = (pose_aimed_at(tip, wall.from_wall_m(np.array([2.4, 1.25])), rig.pointer.length_m),
+                   "aimed at the wall above the display")
     OUT.mkdir(parents=True, exist_ok=True)
     for name, (pose, note) in poses.items():
         hit = true_wall_hit(pose, wall)

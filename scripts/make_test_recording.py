@@ -70,48 +70,28 @@ def main() -> None:
         for index, cam in enumerate(rig.cameras):
             view = renderer.render(index, pose, np.random.default_rng([k, index]), noise=False)
             exposure = capture + index * SKEW_NS - SKEW_NS // 2
-            frames.append(
-                Frame(
-                    cam.id,
-                    k + 1,
-                    exposure + DEVICE_OFFSETS_NS[index],
-                    exposure + 3_100_000,
-                    view.pixel_format,
-                    view.image,
-                )
-            )
+            frames.append(Frame(cam.id, k + 1, exposure + DEVICE_OFFSETS_NS[index], exposure + 3_100_000,
+                                view.pixel_format, view.image))
         pair = FramePair(tuple(frames), capture, SKEW_NS, k + 1)
         if writer is None:
             metadata = build_metadata(
-                rig,
-                pair,
-                producer="scripts/make_test_recording.py (frames rendered by trackerd.sim)",
-                clock_offset_ns=CLOCK_OFFSET_NS,
-                rig_file="config/simulated.toml",
+                rig, pair, producer="scripts/make_test_recording.py (frames rendered by trackerd.sim)",
+                clock_offset_ns=CLOCK_OFFSET_NS, rig_file="config/simulated.toml",
                 notes="figure-eight motion, pointer out of the room for pairs 10-11; no sensor noise",
             )
             writer = RecordingWriter(folder, metadata, compression="deflate", compression_level=9)
         writer.write(pair)
-        entry: dict[str, object] = {
-            "pair_index": k,
-            "sequence": k + 1,
-            "motion_time_s": motion_time,
-            "present": pose is not None,
-        }
+        entry: dict[str, object] = {"pair_index": k, "sequence": k + 1, "motion_time_s": motion_time,
+                                    "present": pose is not None}
         if pose is not None:
             hit = true_wall_hit(pose, renderer.wall)
-            entry.update(
-                front_m=pose.front_m.tolist(),
-                back_m=pose.back_m.tolist(),
-                wall_xy_m=None if hit.wall_xy_m is None else hit.wall_xy_m.tolist(),
-                on_wall=hit.on_wall,
-            )
+            entry.update(front_m=pose.front_m.tolist(), back_m=pose.back_m.tolist(),
+                         wall_xy_m=None if hit.wall_xy_m is None else hit.wall_xy_m.tolist(), on_wall=hit.on_wall)
         truth.append(entry)
     assert writer is not None
     writer.close("rendered")
-    (OUT / "truth.json").write_text(
-        json.dumps({"recording": NAME, "motion": "figure8", "pairs": truth}, indent=1) + "\n"
-    )
+    (OUT / "truth.json").write_text(json.dumps({"recording": NAME, "motion": "figure8", "pairs": truth}, indent=1)
+                                    + "\n")
     size = sum(p.stat().st_size for p in folder.iterdir())
     print(f"wrote {folder}: {writer.pairs} pairs, {size / 1e6:.2f} MB, and {OUT / 'truth.json'}")
 
