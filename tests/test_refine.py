@@ -91,7 +91,9 @@ def test_a_partial_outlines_centre_error_is_where_a_circle_of_the_expected_radiu
     """`partial_arc_error`: an arc fitted by a circle 10-30 % too large or small. The centre a circle of the
     expected radius fits to the same arc is off along the arc's axis (two thirds of the radius's error for
     three quarters of the outline, about all of it for half, more for less, none for a whole one), and the
-    error says so within a factor 1.5 (first order)."""
+    error says so within a factor 1.5 (first order). A circle smaller than the ball has, besides, its
+    shortfall in every direction: its rim may hold the edge of what hides the rest, on a side the arc does
+    not tell."""
     radius_px, centre_px, axis_rad = 10.0, np.array([50.0, 40.0]), math.radians(30.0)
     for half_arc_deg in (60.0, 90.0, 135.0, 170.0):
         angles = axis_rad + np.radians(np.linspace(-half_arc_deg, half_arc_deg, 40))
@@ -101,7 +103,9 @@ def test_a_partial_outlines_centre_error_is_where_a_circle_of_the_expected_radiu
             expected_px = radius_px / ratio
             shift_px = _fixed_radius_fit(rim_px, expected_px, centre_px) - centre_px
             error = partial_arc_error(fit, expected_px, 1.0)
-            variances, directions = np.linalg.eigh(error)
+            short_px = max(expected_px - radius_px, 0.0)
+            assert np.linalg.eigvalsh(error)[0] == pytest.approx(short_px**2, abs=1e-9)
+            variances, directions = np.linalg.eigh(error - np.eye(2) * short_px**2)
             said_px = math.sqrt(variances[1])
             assert variances[0] < 1e-12  # nothing across the axis
             assert abs(directions[:, 1] @ np.array([math.cos(axis_rad), math.sin(axis_rad)])) > 0.999
@@ -110,6 +114,7 @@ def test_a_partial_outlines_centre_error_is_where_a_circle_of_the_expected_radiu
     rim_px = centre_px + radius_px * np.stack([np.cos(whole), np.sin(whole)], axis=1)
     fit = BallFit(True, centre_px, radius_px, rim_px, 1.0, 0.25, 0.05, 100.0)
     assert np.abs(partial_arc_error(fit, radius_px / 1.2, 1.0)).max() < 1e-20
+    np.testing.assert_allclose(partial_arc_error(fit, radius_px * 1.2, 1.0), np.eye(2) * 4.0, atol=1e-12)
 
 
 def test_a_partial_outline_too_large_for_its_distance_is_not_a_confident_hit() -> None:
