@@ -295,9 +295,9 @@ def partial_arc_error(fit: BallFit, expected_radius_px: float, focal_px: float) 
     A circle smaller than the ball is the outline of the part of it that shows, and its rim holds the edge
     of whatever hides the rest (a finger, a hand, the presenter), whose side the arc tells only where the
     rim left is the ball's own: its centre is off across the arc's axis too, by about as much as its radius
-    is short (59 such outlines on `bench robustness` seeds 7 and 2026: half of it at the median, one and a
-    half at the 90th percentile; a circle larger than the ball, a twentieth at the median). So a circle that
-    is too small has that shortfall besides, in every direction.
+    is short (59 such outlines in installations 0-25 and 0-23 of `bench robustness` seeds 7 and 2026: half
+    of it at the median, one and a half at the 90th percentile; a circle larger than the ball, a twentieth
+    at the median). So a circle that is too small has that shortfall besides, in every direction.
     """
     outward = fit.rim_px - fit.centre_px
     outward = outward / np.maximum(np.linalg.norm(outward, axis=1, keepdims=True), 1e-12)
