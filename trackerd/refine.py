@@ -1028,7 +1028,8 @@ class RefinedPath:
         # again, it is left out while each end keeps two cameras, and otherwise kept with an error as large as
         # its radius is wrong, so that the hit's uncertainty says what it rests on. Within MAX_RADIUS_RATIO
         # and not found again, it keeps its weight, and a partial outline has an error along its arc's axis,
-        # where its centre moves with its radius (:func:`trackerd.ends.partial_arc_error`).
+        # where its centre moves with its radius, and one smaller than the ball its shortfall in every
+        # direction besides (:func:`trackerd.ends.partial_arc_error`).
         from trackerd.ends import partial_arc_error
 
         ball_radius = pointer.end_diameter_m / 2.0
