@@ -103,15 +103,15 @@ def test_an_outline_of_the_wrong_size_keeps_its_error_on_the_tracked_pairs() -> 
     # skin nearly its colour), which camera 1 sees half of. Its outline there is a circle too small for the
     # ball's distance, 4 px off (3 px along its arc's axis, 3 px across); the refined pair gives it the error
     # of a partial arc of the wrong size. The tracked pairs that followed took the outline's offset without
-    # that error and stated 4.7 mm at 35 mm off (7 sigma); with it, but along the arc's axis alone, 5.5-7.8 mm
-    # at 35-40 mm. A circle too short for the ball is now as wrong across its axis as it is short: the tracked
+    # that error and stated 4.7 mm at 35 mm off (7 sigma); with it, but along the arc's axis alone, 5.5-9.4 mm
+    # at 34-40 mm. A circle too short for the ball is now as wrong across its axis as it is short: the tracked
     # pairs weigh that outline down, and are 7-9 mm off at 15 mm sigma.
     from trackerd.bench.robustness_follow import followed_frames
     from trackerd.locator import Locator
 
     drawn, _ = draw_installation(2026, 16)
     assert drawn.rig.wall is not None
-    factors, frames = followed_frames(
+    factors, sequence = followed_frames(
         drawn,
         renderer_for(drawn),
         wall_frame(drawn.rig.wall),
@@ -120,7 +120,7 @@ def test_an_outline_of_the_wrong_size_keeps_its_error_on_the_tracked_pairs() -> 
         np.random.default_rng([2026, 16, 4]),
     )
     assert factors["occlusion"] == "hand"
-    frames = list(frames)
+    frames = list(sequence)
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     refined = locator.locate([v.image for v in frames[0].views])
     assert refined.found and refined.measurements
