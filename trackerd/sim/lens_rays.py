@@ -7,6 +7,9 @@ interpolated from it.
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -35,8 +38,62 @@ def undistort_pixels(cam: CameraModel, pixels: Array) -> Array:
     return cam.normalized_from_pixels(pixels)
 
 
+SHARED_MAPS_BYTES = 384 * 1024 * 1024
+"""How much memory the lens maps shared between renderers may hold (a 1080p map is 17 MB, a 4K one 66 MB);
+the least recently used go first."""
+
+
+class _SharedMaps:
+    """Lens maps by the intrinsics they depend on (size, K, distortion), shared by every renderer of a
+    process. A map takes a quarter of a second for a 1080p camera, and renderers of the same cameras are
+    many: `bench accuracy` builds one per variant, a followed `bench robustness` frame is rendered by a
+    renderer of its own; without sharing, most of their time went to the same map again."""
+
+    def __init__(self, limit_bytes: int) -> None:
+        self.limit_bytes = limit_bytes
+        self._maps: OrderedDict[bytes, NDArray[np.float32]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    @staticmethod
+    def key(cam: CameraModel) -> bytes:
+        size = np.array([cam.width_px, cam.height_px], dtype=np.int64)
+        return size.tobytes() + cam.matrix.tobytes() + cam.distortion.tobytes()
+
+    def get(self, cam: CameraModel) -> NDArray[np.float32]:
+        key = self.key(cam)
+        with self._lock:
+            cached = self._maps.get(key)
+            if cached is not None:
+                self._maps.move_to_end(key)
+                return cached
+        planes = _normalized_planes(cam)  # outside the lock: two threads may both build it, never wait
+        with self._lock:
+            self._maps[key] = planes
+            self._maps.move_to_end(key)
+            while len(self._maps) > 1 and sum(m.nbytes for m in self._maps.values()) > self.limit_bytes:
+                self._maps.popitem(last=False)
+        return planes
+
+
+def _normalized_planes(cam: CameraModel) -> NDArray[np.float32]:
+    """Undistorted normalised x and y of every pixel centre, padded by one pixel: (2, H+2, W+2)."""
+    xs = np.arange(-1, cam.width_px + 1, dtype=np.float64)
+    ys = np.arange(-1, cam.height_px + 1, dtype=np.float64)
+    grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+    normalized = undistort_pixels(cam, grid).reshape(len(ys), len(xs), 2).astype(np.float32)
+    # One plane per coordinate: a gather from a plane is a contiguous column, and NumPy works on
+    # whole columns several times faster than on rows of two.
+    planes = np.ascontiguousarray(normalized.transpose(2, 0, 1))
+    planes.setflags(write=False)  # shared between renderers
+    return planes
+
+
+_SHARED = _SharedMaps(SHARED_MAPS_BYTES)
+
+
 class LensRays:
-    """Rays through sub-pixel positions of each of a rig's cameras, from a per-camera map built on first use."""
+    """Rays through sub-pixel positions of each of a rig's cameras, from a per-camera map built on first use
+    (and shared with every other renderer of a camera with the same intrinsics)."""
 
     def __init__(self, cameras: list[CameraModel]) -> None:
         self.cameras = cameras
@@ -45,18 +102,9 @@ class LensRays:
     def normalized_map(self, index: int) -> NDArray[np.float32]:
         """Undistorted normalised x and y of every pixel centre, padded by one pixel: (2, H+2, W+2)."""
         cached = self._maps.get(index)
-        if cached is not None:
-            return cached
-        cam = self.cameras[index]
-        xs = np.arange(-1, cam.width_px + 1, dtype=np.float64)
-        ys = np.arange(-1, cam.height_px + 1, dtype=np.float64)
-        grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-        normalized = undistort_pixels(cam, grid).reshape(len(ys), len(xs), 2).astype(np.float32)
-        # One plane per coordinate: a gather from a plane is a contiguous column, and NumPy works on
-        # whole columns several times faster than on rows of two.
-        planes = np.ascontiguousarray(normalized.transpose(2, 0, 1))
-        self._maps[index] = planes
-        return planes
+        if cached is None:
+            cached = self._maps[index] = _SHARED.get(self.cameras[index])
+        return cached
 
     def rays(self, index: int, px: Array, py: Array) -> Array:
         """World ray directions (N, 3) through sub-pixel positions (N,), by bilinear lookup in the map.
