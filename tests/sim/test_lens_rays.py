@@ -7,7 +7,8 @@ import numpy as np
 
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.rotation import world_from_camera_ypr
-from trackerd.sim.lens_rays import LensRays, _SharedMaps
+from trackerd.sim.lens_rays import LensRays
+from trackerd.sim.shared_maps import SharedMaps, lens_key
 
 # A draw of the randomized installations (seed 7, installation 29, its fourth camera): strong
 # barrel distortion that does not fold. Rendered with OpenCV's default 5-iteration inverse, its
@@ -85,11 +86,15 @@ def test_the_shared_maps_keep_the_newest_within_their_memory() -> None:
         for k1 in (-0.2, -0.1, -0.05)
     ]
     one_map_bytes = 2 * (cams[0].width_px + 2) * (cams[0].height_px + 2) * 4
-    maps = _SharedMaps(limit_bytes=2 * one_map_bytes)
-    built = [maps.get(cam) for cam in cams]
+    maps: SharedMaps[np.ndarray] = SharedMaps(2 * one_map_bytes, lambda planes: planes.nbytes)
+
+    def get(cam: CameraModel) -> np.ndarray:
+        return maps.get(lens_key(cam), lambda: LensRays([cam]).normalized_map(0).copy())
+
+    built = [get(cam) for cam in cams]
     # The first was evicted (rebuilt equal, as a new array); the two newest are kept.
-    assert maps.get(cams[2]) is built[2] and maps.get(cams[1]) is built[1]
-    again = maps.get(cams[0])
+    assert get(cams[2]) is built[2] and get(cams[1]) is built[1]
+    again = get(cams[0])
     assert again is not built[0] and np.array_equal(again, built[0])
     # Used last, cams[1] outlived cams[2] when cams[0] came back.
-    assert maps.get(cams[1]) is built[1] and maps.get(cams[2]) is not built[2]
+    assert get(cams[1]) is built[1] and get(cams[2]) is not built[2]

@@ -104,6 +104,30 @@ def test_the_display_shows_its_content_and_the_look_changes_the_frame() -> None:
     assert DEFAULT_LOOK.illumination(640, 480) is None
 
 
+def test_renderers_of_one_room_share_where_each_camera_sees_the_display() -> None:
+    """The display map depends on the camera (lens and pose) and the room (its fingerprint): a second
+    renderer takes the first one's; a camera moved, or a room of other clutter, gets its own, solved alike."""
+    from dataclasses import replace
+
+    from trackerd.sim.display import DisplayScreen
+
+    rig, cams = _two_cameras()
+    first = SceneRenderer(rig, cams, cache_dir=False)
+    shared = first.display.map(1)
+    second = SceneRenderer(rig, cams, cache_dir=False)
+    assert second.display.map(1) is shared and second.display.map(0) is not shared
+    assert not shared.map_x.flags.writeable
+    # Solved afresh (a room without a fingerprint is never shared): the same map.
+    unshared = DisplayScreen(cams, replace(first.room, fingerprint=""), first.lens).map(1)
+    assert unshared is not shared and unshared.box == shared.box
+    assert np.array_equal(unshared.map_x, shared.map_x) and np.array_equal(unshared.map_y, shared.map_y)
+    # Another room (the display elsewhere on the wall) is another map.
+    x0, y0, x1, y1 = first.room.display
+    moved = replace(first.room, display=(x0 + 0.2, y0, x1 + 0.2, y1), fingerprint=first.room.fingerprint + "+moved")
+    other = DisplayScreen(cams, moved, first.lens).map(1)
+    assert other is not shared and not np.array_equal(other.map_x, shared.map_x)
+
+
 def test_the_wall_plane_of_a_built_rig_is_the_display() -> None:
     rig, _ = _two_cameras()
     wall = wall_frame(rig.wall)

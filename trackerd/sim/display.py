@@ -18,6 +18,7 @@ from trackerd.sim.lens_rays import LensRays
 from trackerd.sim.raycast import ray_sphere
 from trackerd.sim.room_shading import room_hits
 from trackerd.sim.scene import Room
+from trackerd.sim.shared_maps import SHARED_MAPS_BYTES, SharedMaps, camera_key
 
 FloatImage = NDArray[np.float32]
 
@@ -115,10 +116,20 @@ class DisplayScreen:
         return _Lookup(x, y, room_seen)
 
     def map(self, index: int) -> DisplayMap:
-        """Where each pixel's ray meets the display (see :class:`DisplayMap`), computed once per camera."""
+        """Where each pixel's ray meets the display (see :class:`DisplayMap`), computed once per camera
+        (and shared with every renderer of the same camera in the same room, by its fingerprint)."""
         cached = self._maps.get(index)
-        if cached is not None:
-            return cached
+        if cached is None:
+            cam = self.cameras[index]
+            if self.room.fingerprint:
+                key = camera_key(cam) + self.room.fingerprint.encode()
+                cached = _SHARED.get(key, lambda: self._solve_map(index))
+            else:
+                cached = self._solve_map(index)
+            self._maps[index] = cached
+        return cached
+
+    def _solve_map(self, index: int) -> DisplayMap:
         cam = self.cameras[index]
         xs = np.arange(cam.width_px)
         map_x = np.full((cam.height_px, cam.width_px), -1.0, dtype=np.float32)
@@ -152,5 +163,9 @@ class DisplayScreen:
             box = (0, 0, 0, 0)
         r0, r1, c0, c1 = box
         cropped = DisplayMap(np.ascontiguousarray(map_x[r0:r1, c0:c1]), np.ascontiguousarray(map_y[r0:r1, c0:c1]), box)
-        self._maps[index] = cropped
+        for plane in (cropped.map_x, cropped.map_y):
+            plane.setflags(write=False)  # shared between renderers
         return cropped
+
+
+_SHARED: SharedMaps[DisplayMap] = SharedMaps(SHARED_MAPS_BYTES, lambda m: m.map_x.nbytes + m.map_y.nbytes)

@@ -7,14 +7,12 @@ interpolated from it.
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
-
 import numpy as np
 from numpy.typing import NDArray
 
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.lens_inverse import is_five_term, newton_undistort
+from trackerd.sim.shared_maps import SHARED_MAPS_BYTES, SharedMaps, lens_key
 
 Array = NDArray[np.float64]
 
@@ -38,43 +36,6 @@ def undistort_pixels(cam: CameraModel, pixels: Array) -> Array:
     return cam.normalized_from_pixels(pixels)
 
 
-SHARED_MAPS_BYTES = 384 * 1024 * 1024
-"""How much memory the lens maps shared between renderers may hold (a 1080p map is 17 MB, a 4K one 66 MB);
-the least recently used go first."""
-
-
-class _SharedMaps:
-    """Lens maps by the intrinsics they depend on (size, K, distortion), shared by every renderer of a
-    process. A map takes a quarter of a second for a 1080p camera, and renderers of the same cameras are
-    many: `bench accuracy` builds one per variant, a followed `bench robustness` frame is rendered by a
-    renderer of its own; without sharing, most of their time went to the same map again."""
-
-    def __init__(self, limit_bytes: int) -> None:
-        self.limit_bytes = limit_bytes
-        self._maps: OrderedDict[bytes, NDArray[np.float32]] = OrderedDict()
-        self._lock = threading.Lock()
-
-    @staticmethod
-    def key(cam: CameraModel) -> bytes:
-        size = np.array([cam.width_px, cam.height_px], dtype=np.int64)
-        return size.tobytes() + cam.matrix.tobytes() + cam.distortion.tobytes()
-
-    def get(self, cam: CameraModel) -> NDArray[np.float32]:
-        key = self.key(cam)
-        with self._lock:
-            cached = self._maps.get(key)
-            if cached is not None:
-                self._maps.move_to_end(key)
-                return cached
-        planes = _normalized_planes(cam)  # outside the lock: two threads may both build it, never wait
-        with self._lock:
-            self._maps[key] = planes
-            self._maps.move_to_end(key)
-            while len(self._maps) > 1 and sum(m.nbytes for m in self._maps.values()) > self.limit_bytes:
-                self._maps.popitem(last=False)
-        return planes
-
-
 def _normalized_planes(cam: CameraModel) -> NDArray[np.float32]:
     """Undistorted normalised x and y of every pixel centre, padded by one pixel: (2, H+2, W+2)."""
     xs = np.arange(-1, cam.width_px + 1, dtype=np.float64)
@@ -88,7 +49,7 @@ def _normalized_planes(cam: CameraModel) -> NDArray[np.float32]:
     return planes
 
 
-_SHARED = _SharedMaps(SHARED_MAPS_BYTES)
+_SHARED: SharedMaps[NDArray[np.float32]] = SharedMaps(SHARED_MAPS_BYTES, lambda planes: planes.nbytes)
 
 
 class LensRays:
@@ -103,7 +64,8 @@ class LensRays:
         """Undistorted normalised x and y of every pixel centre, padded by one pixel: (2, H+2, W+2)."""
         cached = self._maps.get(index)
         if cached is None:
-            cached = self._maps[index] = _SHARED.get(self.cameras[index])
+            cam = self.cameras[index]
+            cached = self._maps[index] = _SHARED.get(lens_key(cam), lambda: _normalized_planes(cam))
         return cached
 
     def rays(self, index: int, px: Array, py: Array) -> Array:
