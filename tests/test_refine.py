@@ -172,8 +172,8 @@ def test_a_large_ball_in_strong_blur_is_found_where_the_geometry_says() -> None:
     light, dark paint, red text on the display, strong blur and a hand. One camera's search offers no blue
     ball; the joint choice's look finds it where the pointer's length puts it (18 px radius), but its smeared
     rim scatters 1.45 px about its circle, and a look had to be round within 1 px at any size: not found.
-    A look may now scatter by a tenth of the ball's radius (`refine.guided_scatter_limit_px`), and the hit
-    is as close as its sigma says."""
+    A look may now scatter by a tenth of the ball's radius (`detect.guided.guided_scatter_limit_px`), and the
+    hit is as close as its sigma says."""
     clear, blurred = run_rig((7, 2, 2, None, 0, 0))
     assert blurred["factors"]["blur"] == "strong" and blurred["eligible"]
     # On the display's edge: a located frame is "hit" or "off_wall" (the wall's plane beside the display).

@@ -242,7 +242,7 @@ def test_a_blue_ball_before_a_violet_picture_with_as_much_blue_is_found() -> Non
     104 grey levels) before a violet block (34, 22, 96): blue exceeds the other channels by 64 and 62, so
     the ball has no outline in its colour's excess and the guided look found no rim on any of 32 rays: not
     found. In the direction from the block's colour to the ball's (less red, more green) its outline is
-    plain (trackerd/refine.py, ball_tint)."""
+    plain (trackerd/detect/guided.py, ball_tint)."""
     from trackerd.bench.robustness import run_rig
 
     frame = run_rig((2026, 26, 2, None, 0, 0))[1]
@@ -261,6 +261,7 @@ def test_a_ball_touching_a_hand_of_nearly_its_hue_is_a_candidate_and_the_pointer
     half its own channel, which the skin's is not) fits the ball (trackerd/detect/search.py, _vivid_part)."""
     from trackerd.bench.robustness import draw_installation, drawn_frames, renderer_for
     from trackerd.detect.search import search_candidates
+    from trackerd.joint.search import JointSearch
     from trackerd.refine import RefinedPath
 
     drawn, rng = draw_installation(7, 10)
@@ -271,7 +272,9 @@ def test_a_ball_touching_a_hand_of_nearly_its_hue_is_a_candidate_and_the_pointer
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     view = frame.views[1]
     assert view.truth.visible_fraction("red") > 0.8
-    offered = search_candidates(view.image, locator.grids[1], RefinedPath(locator)._radius_range_px(1))["red"]
+    offered = search_candidates(view.image, locator.grids[1], JointSearch(RefinedPath(locator)).radius_range_px(1))[
+        "red"
+    ]
     truth_px = np.asarray(view.truth.centre_px["red"])
     assert min(float(np.hypot(*(c.fit.centre_px - truth_px))) for c in offered) < 1.0
     fix = locator.locate([v.image for v in frame.views])
@@ -309,8 +312,8 @@ def test_the_last_resort_does_not_pair_junk_with_a_ball_hidden_from_all_cameras_
     seed: int, installation: int, number: int, hidden: str
 ) -> None:
     """`trackerd bench robustness` frames where one end is seen by one camera only, each found as a
-    confidently wrong hit by a build of the search's last resort (trackerd/refine.py,
-    RefinedPath._one_paint): seed 7 installation 21 frame 17, a vivid thing of another hue (green 0.82 of
+    confidently wrong hit by a build of the search's last resort (trackerd/joint/search.py,
+    JointSearch._one_paint): seed 7 installation 21 frame 17, a vivid thing of another hue (green 0.82 of
     its red, the ball's 0.11) paired with the red ball, 1.86 m off at 109 mm sigma; installation 9 frame 1,
     a blue thing of 0.64 a ball's size and another shade, 784 mm off at 71 mm sigma; seed 11 installation 5
     frame 13, a red block of the display's, plain red, found through the last resort's looser looks, 1.0 m

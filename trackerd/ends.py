@@ -33,6 +33,10 @@ from trackerd.geometry.sphere import fit_sphere_direction
 
 Array = NDArray[np.float64]
 
+MAX_RADIUS_RATIO = 1.3
+"""A ball's fitted outline more than this much larger or smaller than a ball at its distance is left out
+of the pointer fit (when its end is measured by two other cameras)."""
+
 MIN_SIGMA_PX = 0.05
 """No end is measured better than this (pixels, 1 sigma), whatever its fit says."""
 
@@ -123,6 +127,18 @@ class EndMeasurement:
         """The covariance of the measurement's actual error: ``error_covariance`` where modelled, else
         ``covariance``."""
         return self.covariance if self.error_covariance is None else self.error_covariance
+
+
+def expected_radius_px(camera: CameraModel, point_m: Array, ball_radius_m: float) -> float:
+    """The image radius of a ball of ``ball_radius_m`` centred at ``point_m`` (its silhouette's half-angle,
+    times the focal length)."""
+    distance = float(np.linalg.norm(point_m - camera.centre_m))
+    return float(camera.focal_px * ball_radius_m / math.sqrt(max(distance**2 - ball_radius_m**2, 1e-6)))
+
+
+def ball_sized(radius_px: float, expected_px: float) -> bool:
+    """Whether an outline's radius is within MAX_RADIUS_RATIO of a ball's expected one, either way."""
+    return 1.0 / MAX_RADIUS_RATIO <= radius_px / expected_px <= MAX_RADIUS_RATIO
 
 
 def across_pointer(red_px: Array, blue_px: Array) -> Array | None:

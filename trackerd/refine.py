@@ -5,97 +5,42 @@ length (docs/detection.md, "When the room is not the one the thresholds were set
 
 :class:`~trackerd.locator.Locator` decides which pairs take this path (``[locator] refine``); this
 module owns what the path does, and its own state: when the slow search over every camera's candidates
-last ran.
+last ran. The search itself is :class:`trackerd.joint.search.JointSearch`; a ball looked for where the
+geometry puts it, :mod:`trackerd.detect.guided`.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.detect.guided import (
+    GUIDED_SIZE,
+    MAX_GUIDED_RESIDUAL_PX,
+    guided_fits,
+)
+from trackerd.detect.rod import ROD_ABSENT, ROD_CLEAR, ROD_OFF_DEG
+from trackerd.ends import ball_sized, expected_radius_px
 from trackerd.errors import GeometryError
 from trackerd.geometry.pointer_fit import DROPPED_VARIANCE, EndViews, fit_pointer_robust, hit_covariance
 from trackerd.geometry.pointer_line import PointerLine
-from trackerd.geometry.sphere import view_map
 from trackerd.joint.looks import look_slack_px
+from trackerd.joint.search import JointSearch, fix_support
 from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
-    from trackerd.detect.ballfit import BallFit
-    from trackerd.detect.colour import SampleGrid
     from trackerd.detect.result import EndDetection
-    from trackerd.detect.search import Candidate
     from trackerd.ends import EndMeasurement
     from trackerd.geometry.camera import CameraModel
     from trackerd.locator import Locator
 
 Array = NDArray[np.float64]
-
-MAX_RADIUS_RATIO = 1.3
-"""A ball's fitted outline more than this much larger or smaller than a ball at its distance is left out
-of the pointer fit (when its end is measured by two other cameras)."""
-
-MAX_GUIDED_RESIDUAL_PX = 1.0
-"""A ball looked for where the geometry puts it must be a circle this closely (rim scatter, pixels)..."""
-
-MAX_GUIDED_RESIDUAL_SHARE = 0.1
-"""...or within this share of its expected radius, where that is more: a large ball's rim in motion blur or
-under a hand scatters by more than a pixel about its circle and is still plainly a ball (`bench robustness`
-seed 7, installation 2, frame 1: a dark blue ball of 18 px radius, in strong blur, 1.45 px). The search's own
-limit is looser (:data:`trackerd.detect.ballfit.MAX_SCATTER_SHARE`, 0.12): there nothing says where a ball is."""
-
-GUIDED_SIZE = 1.15
-"""And its radius within this factor of a ball's at the distance the geometry puts it."""
-
-TINT_PAINT_DN = 10.0
-"""Where the geometry puts a ball, its colour's own channel must exceed both others by this (grey levels) for
-the ball to be looked for by its tint (:func:`ball_tint`): it is the pointer's paint, however dull."""
-
-TINT_CONTRAST_DN = 15.0
-"""And it must differ from its surroundings by this (grey levels, the length of the colour difference): less
-is no outline to fit."""
-
-TOUCHING_LARGEST = 1.05
-"""Where that fails, the ball may touch something of its colour; it is fitted again with its radius at most
-this factor of the geometry's (an outline's rim lies on or just inside the ball's silhouette; a circle through
-the ball's arc and the far edge of a letter it touches is larger; :func:`guided_fits`)..."""
-
-TOUCHING_SLACK_PX = 3.0
-"""...and the rim points that no such circle centred within this of where the geometry puts the ball can
-pass through left out (the far edges of what it touches)."""
-
-VIVID_SEEDS = 8
-"""Seeds fitted per colour by the search's last resort (trackerd.detect.search.vivid_mask): what the plain test
-left of a room's vivid colours, best first. Fewer than the plain search's 20, since the last resort runs on
-every search that finds nothing (a room without the pointer: every `search_every_pairs`-th pair)."""
-
-PAINT_SPREAD = 0.15
-"""The last resort's choice (:meth:`RefinedPath._one_paint`) stands only where each end's candidates in every
-camera have their green and their other colour within this share of their own channel of each other (a
-ball's own, across four cameras: within 0.11; junk that paired with a navy ball: 0.20 off it)."""
-
-ROD_OFF_DEG = 8.0
-"""An end's measurement is left out of the pointer fit when, in its camera, the rod clearly leaves the other
-end's sound ball at least this far from the direction to it (:meth:`RefinedPath._off_the_rod`)..."""
-
-ROD_CLEAR = 0.75
-"""...along a direction where at least this share of the rod's points are darker than both its sides..."""
-
-ROD_ABSENT = 0.25
-"""...and at most this share along any direction within :data:`trackerd.detect.rod.NEAR_DEG` of the one to the
-measurement."""
-
-VIEW_TOLERANCE = 0.05
-"""Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
-this share away from 1, a ball's outline is not a circle of the expected radius in pixels: a guided look
-that fails in pixels there is tried again in the view's units."""
 
 PATIENT_SEARCHES = 8
 """While nothing is found, this many searches in a row run every search_every_pairs-th pair (about 0.8 s at
@@ -106,12 +51,6 @@ UNSTEPPED_SLACK_FACTOR = 2.0
 """Where the followed look's prediction has no step (the pair before the last was not found), its slack is
 this times the usual half radius: the ends are where they were a frame ago, and a presenter's hand moves
 up to half a ball's diameter in a frame (12 mm in `bench robustness --follow`'s motion)."""
-
-SEARCH_VIEW_TOLERANCE = 0.15
-"""The same for the search's seeds, which are many and mostly not balls: only where the outline departs
-from a circle by more than this (30 degrees off the axis) is a failed seed fitted again in the view's
-units. At VIEW_TOLERANCE a wide 4K lens refitted a third of its seeds, and the search took 1.5x as long
-on the default robustness run for no ball found that this tolerance misses."""
 
 
 def blob_radius_px(end: EndDetection) -> float:
@@ -124,126 +63,6 @@ def blob_radius_px(end: EndDetection) -> float:
     return radius
 
 
-def guided_scatter_limit_px(radius_px: float) -> float:
-    """How far a guided fit's rim may scatter about its circle (in the units of ``radius_px``)."""
-    return max(MAX_GUIDED_RESIDUAL_PX, MAX_GUIDED_RESIDUAL_SHARE * radius_px)
-
-
-def guided_fits(
-    image: NDArray[np.uint8],
-    grid: SampleGrid,
-    colour: str,
-    x_px: float,
-    y_px: float,
-    radius_px: float,
-    axis: tuple[float, float] | None,
-    view: Array | None = None,
-    vivid: bool = False,
-) -> Iterator[BallFit]:
-    """The ball looked for where the geometry puts it (centre, image radius, and the direction where the rod
-    meets it), for the joint choice's ``look``: its outlines that are round within
-    :func:`guided_scatter_limit_px`, in order of preference, each made only when the one before was not
-    taken; none after one not of the pointer's colour (:func:`_of_its_colour`: then something else is
-    there). Fitted in its colour's excess, then as touching something of its colour (below), then in its
-    tint (:func:`ball_tint`). With ``view`` (:func:`trackerd.geometry.sphere.view_map`), the radius, the
-    circle and its scatter are in the view's units (``fit_ball``'s ``view``); the slack below then is too.
-
-    The geometry knows the ball's size to a few percent, so the fit keeps its radius within GUIDED_SIZE and
-    takes rising rims (a shaded ball before a brighter surface of its hue). Where that fails (or the caller
-    refuses the outline) the ball may
-    touch something of its colour (a letter, a picture): on those rays the colour falls only at that
-    thing's far edge, and a larger circle through the ball's arc and that edge fits best. So it is fitted
-    again with the radius at most TOUCHING_LARGEST of the geometry's and the rims no such circle centred
-    within TOUCHING_SLACK_PX of the start can pass through left out. ``vivid``: its colour may pass the
-    search's looser test instead (:func:`trackerd.detect.search.vivid_mask`; the search's last resort).
-    ``next(guided_fits(...), None)`` is the preferred outline, or None.
-
-    The caller judges each outline against where the geometry allows the ball and asks for the next when it
-    is not there: a dark ball before a brighter picture of its hue can give, in the excess, a round outline
-    a radius away from it, while its tint gives the ball (`bench robustness --seed 11`, installation 29,
-    frame 16: 8 px from where the look started, on a ball of 8 px)."""
-    from trackerd.detect.ballfit import fit_ball
-
-    # Plain first; then as a ball touching something of its colour; last in its tint.
-    for largest, slack_px, in_excess in (
-        (GUIDED_SIZE, None, True),
-        (TOUCHING_LARGEST, TOUCHING_SLACK_PX, True),
-        (GUIDED_SIZE, None, False),
-    ):
-        tint = None
-        if not in_excess:
-            # A ball before a picture with as much of its colour's excess has no rim in the excess, but has one
-            # in the direction (in colour) from the picture to the ball.
-            tint = ball_tint(image, grid, colour, x_px, y_px, radius_px)
-            if tint is None:
-                return
-        fit = fit_ball(
-            image,
-            grid,
-            colour,
-            x_px,
-            y_px,
-            radius_px,
-            axis=axis,
-            radius_range_px=(radius_px / GUIDED_SIZE, radius_px * largest),
-            rising_rims=in_excess,
-            centre_slack_px=slack_px,
-            view=view,
-            tint=tint,
-        )
-        if fit.found and fit.residual_px <= guided_scatter_limit_px(radius_px):
-            if not _of_its_colour(image, grid, colour, fit, view, vivid):
-                return
-            yield fit
-
-
-def _of_its_colour(
-    image: NDArray[np.uint8], grid: SampleGrid, colour: str, fit: BallFit, view: Array | None, vivid: bool = False
-) -> bool:
-    """Whether what a guided fit found is of the pointer's colour by the search's relative hue thresholds
-    (:data:`~trackerd.detect.search.RELATIVE_EXCESS`, :data:`~trackerd.detect.search.MIN_EXCESS`), applied to its
-    inner half's median colour: the look fits any round edge of the right size where the geometry points, and a
-    corner of a tan sleeve in warm light, only 22 % redder than it is green, once made a red end out of
-    junk in two cameras for a ball hidden in one (`bench robustness` seed 7, installation 23, frame 38: a
-    hit 736 mm off at 17 sigma). The balls the looks rightly found on the frames looked into were 43-91 % (dim,
-    dark, blurred, merged). With ``vivid``, the search's looser test (:func:`~trackerd.detect.search.vivid_mask`)
-    passes it too."""
-    from trackerd.detect.search import vivid_mask
-
-    radius_px = fit.radius_px if view is None else fit.radius_px / math.sqrt(abs(float(np.linalg.det(view))))
-    colours = _colour_medians(image, grid, colour, float(fit.centre_px[0]), float(fit.centre_px[1]), radius_px)
-    if colours is None:
-        return False
-    own, green, other = colours[0]
-    if _plain_colour(own, green, other):
-        return True
-    return vivid and bool(vivid_mask(np.array(own), np.array(own - max(green, other)), np.array(min(green, other))))
-
-
-def _ball_sized(radius_px: float, expected_px: float) -> bool:
-    """Whether an outline's radius is within MAX_RADIUS_RATIO of a ball's expected one, either way."""
-    return 1.0 / MAX_RADIUS_RATIO <= radius_px / expected_px <= MAX_RADIUS_RATIO
-
-
-def _support(sound: dict[str, int]) -> tuple[int, int]:
-    """What a fix rests on, for comparing two: its weaker end's sound outlines, then both ends' together."""
-    return min(sound.values()), sum(sound.values())
-
-
-def _plain_colour(own: float, green: float, other: float) -> bool:
-    """Whether a colour (its own channel, green, the other colour) passes the search's plain hue test."""
-    from trackerd.detect.search import hue_mask
-
-    return bool(hue_mask(np.array(own), np.array(own - max(green, other))))
-
-
-def _ball_radius_px(camera: CameraModel, point_m: Array, ball_radius_m: float) -> float:
-    """The image radius of a ball of ``ball_radius_m`` centred at ``point_m`` (its silhouette's half-angle,
-    times the focal length)."""
-    distance = float(np.linalg.norm(point_m - camera.centre_m))
-    return float(camera.focal_px * ball_radius_m / math.sqrt(max(distance**2 - ball_radius_m**2, 1e-6)))
-
-
 def wrong_size_error(
     measurement: EndMeasurement, camera: CameraModel, point_m: Array, ball_radius_m: float
 ) -> Array | None:
@@ -252,77 +71,16 @@ def wrong_size_error(
     there, :func:`trackerd.ends.partial_arc_error` within MAX_RADIUS_RATIO; None beyond (not a ball's outline)."""
     from trackerd.ends import partial_arc_error
 
-    expected = _ball_radius_px(camera, point_m, ball_radius_m)
+    expected = expected_radius_px(camera, point_m, ball_radius_m)
     ratio = measurement.radius_px / expected
     if 1.0 / GUIDED_SIZE <= ratio <= GUIDED_SIZE:
         return np.zeros((2, 2))
-    if not _ball_sized(measurement.radius_px, expected):
+    if not ball_sized(measurement.radius_px, expected):
         return None
     if measurement.fit is None:
         wrong = abs(measurement.radius_px - expected) / camera.focal_px
         return np.eye(2) * wrong * wrong
     return partial_arc_error(measurement.fit, expected, camera.focal_px)
-
-
-def _colour_medians(
-    image: NDArray[np.uint8], grid: SampleGrid, colour: str, x_px: float, y_px: float, radius_px: float
-) -> tuple[Array, Array | None] | None:
-    """The median colour (the colour's own channel, green, the other colour, at the colour's samples) over the
-    inner half of a ball's radius, and over the ring from 1.5 to 2.2 radii around it (None where the frame's
-    edge leaves fewer than 8 samples of it); None at the frame's edge. Medians: a rod or a hand across part of
-    either does not move them."""
-    from trackerd.detect.colour import cells_around, channel_windows
-
-    s = grid.cell_px
-    dr, dc = grid.offset(colour)
-    region = cells_around(grid, colour, x_px, y_px, 2.2 * radius_px)
-    if region[1] - region[0] < 3 or region[3] - region[2] < 3:
-        return None
-    channels = channel_windows(image, grid, colour, region)
-    rows = (np.arange(region[0], region[1]) * s + dr - y_px)[:, None]
-    cols = (np.arange(region[2], region[3]) * s + dc - x_px)[None, :]
-    distance = np.hypot(rows, cols)
-    inner = distance <= max(0.5 * radius_px, 0.75 * s)
-    ring = (distance >= 1.5 * radius_px) & (distance <= 2.2 * radius_px)
-    if not inner.any():
-        return None
-    ball: Array = np.median(channels[:, inner], axis=1).astype(np.float64)
-    around: Array | None = None
-    if np.count_nonzero(ring) >= 8:
-        around = np.median(channels[:, ring], axis=1).astype(np.float64)
-    return ball, around
-
-
-def ball_tint(
-    image: NDArray[np.uint8], grid: SampleGrid, colour: str, x_px: float, y_px: float, radius_px: float
-) -> Array | None:
-    """The direction in colour (weights of the colour's own channel, green and the other colour) from what
-    surrounds the place where the geometry puts a ball to what is there, for ``fit_ball``'s ``tint``; None
-    where that place is not of the ball's colour (its own channel not above both others by TINT_PAINT_DN) or
-    does not differ from its surroundings by TINT_CONTRAST_DN.
-
-    The colours of the ball and of its surroundings are :func:`_colour_medians`."""
-    colours = _colour_medians(image, grid, colour, x_px, y_px, radius_px)
-    if colours is None:
-        return None
-    ball, around = colours
-    if around is None or ball[0] < max(ball[1], ball[2]) + TINT_PAINT_DN:
-        return None
-    direction = (ball - around).astype(np.float64)
-    size = float(np.linalg.norm(direction))
-    if size < TINT_CONTRAST_DN:
-        return None
-    tint: Array = direction / size
-    return tint
-
-
-def _new_candidates(found: list[Candidate], known: list[Candidate]) -> list[Candidate]:
-    """The candidates of ``found`` that are not within half a radius of one of ``known`` (the same ball)."""
-    return [
-        cand
-        for cand in found
-        if all(np.hypot(*(cand.fit.centre_px - k.fit.centre_px)) > 0.5 * k.fit.radius_px for k in known)
-    ]
 
 
 def _tracks(detection: Any, red: Any, blue: Any) -> bool:
@@ -340,6 +98,7 @@ class RefinedPath:
 
     def __init__(self, locator: Locator) -> None:
         self.loc = locator
+        self._search = JointSearch(self)
         self._since_search = 0
         self._searched_once = False
         self._weak_fixes = 0
@@ -388,16 +147,16 @@ class RefinedPath:
                         across,
                         sigma_px,
                     )
-        fix = self._fix_from_measurements(per_camera, None, detections, start, images)
+        fix = self.fix_from_measurements(per_camera, None, detections, start, images)
         if not fix.found:
             fix = self._followed_from_one_camera(per_camera, detections, start, images) or fix
-        support = _support(self._sound_ends(fix)) if fix.found else None
+        support = fix_support(self.sound_ends(fix)) if fix.found else None
         if support is None or support[0] < 2:
             # The detectors took something else, or lost a ball: the last pair's pointer looked for where it
             # has moved to, before the search over every camera's candidates (a hundred times slower).
             looked = self._looked_where_it_was(per_camera, detections, start, images)
             if looked is not None:
-                looked_support = _support(self._sound_ends(looked))
+                looked_support = fix_support(self.sound_ends(looked))
                 if support is None or looked_support > support:
                     fix, support = looked, looked_support
         weak = support is not None and support[0] < 2
@@ -412,7 +171,7 @@ class RefinedPath:
             # when both ends together do). At the search's cadence while such fixes follow each other (the
             # search takes tens of milliseconds, a refined pair a few).
             searched = self._locate_searched(images, detections, start)
-            if searched.found and support is not None and _support(self._sound_ends(searched)) > support:
+            if searched.found and support is not None and fix_support(self.sound_ends(searched)) > support:
                 fix = searched
         if fix.found:
             self._after_refined(fix)
@@ -429,7 +188,7 @@ class RefinedPath:
         if searched.found:
             self._after_refined(searched)
             # On one sound outline, this pair's search counts as the first of the cadence's above.
-            self._weak_fixes = int(_support(self._sound_ends(searched))[0] < 2)
+            self._weak_fixes = int(fix_support(self.sound_ends(searched))[0] < 2)
             return searched
         if fix.status == "not_found":
             return searched
@@ -470,7 +229,7 @@ class RefinedPath:
         # search's two cameras gave 5-7, and one hit 77 mm off).
         if last is None or last is not self._lone_line or len(lone) != 1 or max(len(v) for v in seeing.values()) < 2:
             return None
-        fix = self._fix_from_measurements(
+        fix = self.fix_from_measurements(
             [dict(ends) for ends in per_camera],
             (last.front_m, last.back_m),
             detections,
@@ -527,14 +286,14 @@ class RefinedPath:
                 at, toward = projected[e], projected[1 - e]
                 if not (0.0 <= at[0] < size.width_px and 0.0 <= at[1] < size.height_px):
                     continue
-                expected = _ball_radius_px(camera, predicted[e], ball_radius_m)
+                expected = expected_radius_px(camera, predicted[e], ball_radius_m)
                 slack = widen * look_slack_px(expected)
                 own = ends[colour]
                 if (
                     own is not None
                     and own.source != "centroid"
                     and float(np.hypot(*(own.centre_px - at))) <= slack
-                    and _ball_sized(own.radius_px, expected)
+                    and ball_sized(own.radius_px, expected)
                 ):
                     found[colour] = own
                     continue
@@ -550,7 +309,7 @@ class RefinedPath:
                     if float(np.hypot(*(fit.centre_px - at))) <= slack:
                         found[colour] = from_fit(camera, index, colour, fit)
                         break
-        fix = self._fix_from_measurements(
+        fix = self.fix_from_measurements(
             [dict(ends) for ends in looked], (predicted[0], predicted[1]), detections, start, images
         )
         if fix.found:
@@ -558,7 +317,7 @@ class RefinedPath:
         # An end that one camera alone measured at the last pair, and again now.
         return self._followed_from_one_camera(looked, detections, start, images)
 
-    def _sound_ends(self, fix: PointerFix) -> dict[str, int]:
+    def sound_ends(self, fix: PointerFix) -> dict[str, int]:
         """How many cameras measured each end of a found fix by an outline of a ball's size where the fit puts
         it (within MAX_RADIUS_RATIO)."""
         assert fix.line is not None
@@ -574,8 +333,8 @@ class RefinedPath:
         """Whether an end's measurement is an outline of a ball's size at ``point_m`` (not a centroid)."""
         if measurement.source == "centroid":
             return False
-        return _ball_sized(
-            measurement.radius_px, _ball_radius_px(camera, point_m, self.loc.pointer.end_diameter_m / 2.0)
+        return ball_sized(
+            measurement.radius_px, expected_radius_px(camera, point_m, self.loc.pointer.end_diameter_m / 2.0)
         )
 
     def _after_refined(self, fix: PointerFix) -> None:
@@ -596,219 +355,9 @@ class RefinedPath:
             detector.follow(red.centre_px, blue.centre_px, red.radius_px, blue.radius_px)
 
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
-        """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
-        from trackerd.detect.rod import rod_leaving
-        from trackerd.detect.search import Candidate, search_candidates, split_candidates
-        from trackerd.joint import choose_jointly
-
-        def searched(**options: Any) -> list[dict[str, list[Candidate]]]:
-            return [
-                search_candidates(
-                    image,
-                    self.loc.grids[index],
-                    self._radius_range_px(index),
-                    view=self._view_at(index, SEARCH_VIEW_TOLERANCE),
-                    **options,
-                )
-                for index, image in enumerate(images)
-            ]
-
-        candidates = searched()
-        pointer = self.loc.pointer
-        room = self._room_side()
-        vivid = False  # the last resort below looks for vivid colours too
-
-        def look(
-            camera: int, colour: str, x_px: float, y_px: float, radius_px: float, axis: tuple[float, float] | None
-        ) -> Iterator[Candidate]:
-            # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
-            # size, which is its size in pixels only near the lens's axis (VIEW_TOLERANCE).
-            grid = self.loc.grids[camera]
-            fits = guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, vivid=vivid)
-            first = next(fits, None)
-            if first is not None:
-                fits = itertools.chain([first], fits)
-            else:
-                # In the view's units only when pixels offered no outline at all.
-                local = self._view_at(camera, VIEW_TOLERANCE)(x_px, y_px)
-                if local is None:
-                    return
-                fits = guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, view=local, vivid=vivid)
-            for fit in fits:
-                yield Candidate(colour, fit, (x_px, y_px), radius_px)
-
-        rod_share = pointer.rod_diameter_m / pointer.end_diameter_m
-        rods: dict[tuple[int, float, float, float], tuple[float, float] | None] = {}
-
-        def rod(camera: int, x_px: float, y_px: float, radius_px: float) -> tuple[float, float] | None:
-            # A clear dark line leaving the ball, and no other as clear (an edge of a picture, the presenter's
-            # arm): the rod, followed to a ball no camera offered. Once per ball: each stage's choice asks again.
-            key = (camera, x_px, y_px, radius_px)
-            if key not in rods:
-                leaving = rod_leaving(
-                    images[camera], self.loc.grids[camera], np.array([x_px, y_px]), radius_px, rod_share * radius_px
-                )
-                clear = leaving.evidence >= ROD_CLEAR and leaving.rival < leaving.evidence
-                rods[key] = (float(leaving.direction[0]), float(leaving.direction[1])) if clear else None
-            return rods[key]
-
-        def choose(offered: list[dict[str, list[Candidate]]]) -> Any:
-            return choose_jointly(
-                self.loc.cameras,
-                offered,
-                pointer.end_diameter_m / 2.0,
-                pointer.length_m,
-                pointer.length_tolerance_m,
-                self.loc.rig.locator.max_ray_gap_m,
-                room,
-                look,
-                rod,
-            )
-
-        # The plain candidates first; then, while their choice makes no pointer or one whose weaker end rests on
-        # fewer than two sound outlines (something of its colour taken where a camera's ball merged with a
-        # picture), the merged groups split, and last the vivid colours. The best-supported fix is kept.
-        best: PointerFix | None = None
-        best_support = (-1, -1)  # of best, while it is found
-        reason = ""
-        for stage in ("plain", "split", "vivid"):
-            if stage == "plain":
-                choice = choose(candidates)
-            elif stage == "split":
-                # A ball of nearly its picture's hue stays merged with the picture in every camera that sees
-                # it there, and then no camera offers it. Split the merged groups (slower, and only now: the
-                # plain candidates make a pointer on nearly every first sighting) and choose again from all.
-                extra = [
-                    split_candidates(image, self.loc.grids[index], self._radius_range_px(index))
-                    for index, image in enumerate(images)
-                ]
-                if not any(extra_per_camera[c] for extra_per_camera in extra for c in COLOURS):
-                    continue
-                choice = choose(
-                    [{c: plain[c] + more[c] for c in COLOURS} for plain, more in zip(candidates, extra, strict=True)]
-                )
-            else:
-                # Last, a paint the plain test does not take for its colour (cyan in warm light: bluer than it
-                # is green by a fifth only): the vivid colours whose strongest channel is the end's join, and
-                # the looks may find them too (vivid_mask).
-                vivid = True
-                loose = searched(vivid=True, max_seeds=VIVID_SEEDS)
-                added = [
-                    {c: _new_candidates(more[c], plain[c]) for c in COLOURS}
-                    for plain, more in zip(candidates, loose, strict=True)
-                ]
-                if not any(per_camera[c] for per_camera in added for c in COLOURS):
-                    continue
-                choice = choose(
-                    [{c: plain[c] + more[c] for c in COLOURS} for plain, more in zip(candidates, added, strict=True)]
-                )
-                painted = None if isinstance(choice, str) else self._one_paint(images, choice)
-                if painted is None:
-                    continue
-                choice = replace(choice, chosen=painted)
-            if isinstance(choice, str):
-                reason = reason or choice
-                continue
-            fix = self._fix_from_choice(choice, detections, start, images)
-            if not fix.found:
-                reason = reason or (fix.reason or "")
-                best = best or fix
-                continue
-            support = _support(self._sound_ends(fix))
-            if support > best_support:
-                best, best_support = fix, support
-            if best_support[0] >= 2:
-                break
-        if best is not None:
-            return best
-        missing = self.loc._missing(detections)
-        reason = "; ".join([reason, *missing]) if missing else reason
-        empty: tuple[dict[str, Array | None], ...] = tuple({c: None for c in COLOURS} for _ in self.loc.cameras)
-        return PointerFix(
-            "not_found",
-            reason,
-            empty,
-            timings_ns={"triangulate_ns": time.perf_counter_ns() - start},
-            detections=detections,
-        )
-
-    def _fix_from_choice(
-        self, choice: Any, detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
-    ) -> PointerFix:
-        """The pointer fit on a joint choice's outlines, started from its triangulated points."""
-        from trackerd.ends import from_fit
-
-        per_camera = []
-        for index, (cam, picks) in enumerate(zip(self.loc.cameras, choice.chosen, strict=True)):
-            ends = {}
-            for colour in COLOURS:
-                cand = picks[colour]
-                ends[colour] = None if cand is None else from_fit(cam, index, colour, cand.fit)
-            per_camera.append(ends)
-        points = {"red": choice.red_m, "blue": choice.blue_m}
-        init = (points[self.loc.front_colour], points[self.loc.back_colour])
-        return self._fix_from_measurements(
-            per_camera, init, detections, start, images, one_camera_end=choice.one_camera is not None
-        )
-
-    def _one_paint(self, images: Sequence[NDArray[np.uint8]], choice: Any) -> list[dict[str, Any]] | None:
-        """Each end's chosen candidates, kept where they are of one paint in every camera: all of them pass the
-        plain hue test or none does (:func:`~trackerd.detect.search.hue_mask` on their inner halves' median
-        colour), and their median green and other colour, as shares of their own channel, lie within
-        PAINT_SPREAD of each other. Where they do not, the camera farthest from the others (the lone one of
-        its kind, else the farthest from the median shares) is left out of that end while two remain; None
-        when they still do not. The last resort's looser test admits vivid things of nearly any hue, and
-        one of them in a camera that does not see an end pairs with the ball in one that does (`bench
-        robustness --seed 7`, installation 21, frame 17: a hit 1.86 m off at 109 mm sigma; installation 9,
-        frame 1: 784 mm off at 71 mm sigma, its junk 0.64 of a ball's size). And a candidate whose outline is
-        not within MAX_RADIUS_RATIO of a ball's size where the choice puts it is left out first."""
-        kept = [dict(picks) for picks in choice.chosen]
-        ball_radius = self.loc.pointer.end_diameter_m / 2.0
-        vivid_end = False
-        for colour in COLOURS:
-            point = choice.red_m if colour == "red" else choice.blue_m
-            shares: dict[int, Array] = {}
-            plain: dict[int, bool] = {}
-            for index, picks in enumerate(kept):
-                cand = picks.get(colour)
-                if cand is None:
-                    continue
-                expected = _ball_radius_px(self.loc.cameras[index], point, ball_radius)
-                if not _ball_sized(cand.fit.radius_px, expected):
-                    picks[colour] = None
-                    continue
-                x_px, y_px = (float(v) for v in cand.fit.centre_px)
-                medians = _colour_medians(images[index], self.loc.grids[index], colour, x_px, y_px, cand.fit.radius_px)
-                if medians is None:
-                    return None
-                own, green, other = medians[0]
-                shares[index] = np.array([green, other]) / max(float(own), 1.0)
-                plain[index] = _plain_colour(own, green, other)
-            if sum(1 for picks in kept if picks.get(colour) is not None) < 2:
-                return None
-            while shares:
-                kinds = set(plain[i] for i in shares)
-                spread = float(np.max(np.ptp(np.array(list(shares.values())), axis=0)))
-                if len(kinds) == 1 and spread <= PAINT_SPREAD:
-                    break
-                if len(shares) <= 2:
-                    return None
-                if len(kinds) > 1:
-                    count = sum(plain[i] for i in shares)
-                    minority = count * 2 < len(shares)
-                    suspects = [i for i in shares if plain[i] == minority] if count * 2 != len(shares) else list(shares)
-                else:
-                    suspects = list(shares)
-                middle = np.median(np.array(list(shares.values())), axis=0)
-                farthest = max(suspects, key=lambda i: float(np.max(np.abs(shares[i] - middle))))
-                del shares[farthest]
-                kept[farthest][colour] = None
-            vivid_end = vivid_end or not any(plain[i] for i in shares)
-        # A choice of plain colours only is one the plain candidates could have made: the last resort is for
-        # a paint the plain test does not take (seed 11, installation 5, frame 13: red hidden from two
-        # cameras of three, a red block of the display's in one paired with the ball in the other, 1.0 m off
-        # at 8 mm sigma, found only through the looser looks).
-        return kept if vivid_end else None
+        """Every camera's candidates of both colours, chosen jointly, then the pointer fit
+        (:class:`trackerd.joint.search.JointSearch`)."""
+        return self._search.locate(images, detections, start)
 
     def _look_again(
         self,
@@ -844,34 +393,6 @@ class RefinedPath:
             return None
         return from_fit(camera, camera_index, colour, fit)
 
-    def _view_at(self, index: int, tolerance: float) -> Callable[[float, float], Array | None]:
-        """Camera ``index``'s view map at a pixel, or None where it is within ``tolerance`` of the identity
-        (a ball's outline there is a circle of its expected radius in pixels)."""
-        camera = self.loc.cameras[index]
-
-        def at(x_px: float, y_px: float) -> Array | None:
-            local = view_map(camera, np.array([x_px, y_px]))
-            scales = np.linalg.svd(local, compute_uv=False)
-            if float(np.max(np.abs(scales - 1.0))) <= tolerance:
-                return None
-            return local
-
-        return at
-
-    def _radius_range_px(self, index: int) -> tuple[float, float]:
-        """The image radius a ball can have in camera ``index``: from half a metre away to as far as the
-        wall's farthest corner (it is held in front of the wall)."""
-        cam = self.loc.cameras[index]
-        radius = self.loc.pointer.end_diameter_m / 2.0
-        farthest = float(np.max(np.linalg.norm(self.loc.wall.corners_m - cam.centre_m, axis=1))) + 0.5
-        return cam.focal_px * radius / farthest, cam.focal_px * radius / 0.5
-
-    def _room_side(self) -> tuple[Array, float]:
-        """The wall's plane, oriented so that the cameras (the room) are on its positive side."""
-        plane = self.loc.wall.plane
-        sign = 1.0 if float(np.mean(plane.signed_distance_m(self.loc._centres))) >= 0 else -1.0
-        return sign * plane.normal, sign * plane.offset_m
-
     def _checked_by_rod(
         self, fix: PointerFix, detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
     ) -> PointerFix:
@@ -889,7 +410,7 @@ class RefinedPath:
         # judge what is left), otherwise from the fix: its line is wrong only where the left-out ends put it.
         both = sum(1 for ends in kept if all(ends.get(c) is not None for c in COLOURS))
         init = None if both >= 2 else (fix.line.front_m, fix.line.back_m)
-        refit = self._fix_from_measurements(kept, init, detections, start, images, check_rod=False)
+        refit = self.fix_from_measurements(kept, init, detections, start, images, check_rod=False)
         if refit.found:
             return refit
         timings = {"triangulate_ns": time.perf_counter_ns() - start}
@@ -942,7 +463,7 @@ class RefinedPath:
                     off.append((index, colour, abs(bearing.offset_deg)))
         return off
 
-    def _fix_from_measurements(
+    def fix_from_measurements(
         self,
         per_camera: list[dict[str, Any]],
         init: tuple[Array, Array] | None,
@@ -1046,7 +567,7 @@ class RefinedPath:
                 if m is None or m.source == "centroid":
                     continue
                 camera = self.loc.cameras[i]
-                expected = _ball_radius_px(camera, start_points[e], ball_radius)
+                expected = expected_radius_px(camera, start_points[e], ball_radius)
                 ratio = m.radius_px / expected
                 if 1.0 / GUIDED_SIZE <= ratio <= GUIDED_SIZE:
                     continue
@@ -1057,7 +578,7 @@ class RefinedPath:
                     covariances[k, e] = again.covariance
                     errors[k, e] = again.actual_covariance
                     continue
-                if _ball_sized(m.radius_px, expected):
+                if ball_sized(m.radius_px, expected):
                     if m.fit is not None:
                         added = partial_arc_error(m.fit, expected, camera.focal_px)
                         errors[k, e] = errors[k, e] + added

@@ -107,7 +107,7 @@ def test_excess_is_symmetric_about_each_sample(pixel_format: str, colour: str) -
     excess, _ = excess_window(mosaic, grid, colour, (i - k, i + k + 1, j - k, j + k + 1))
     assert excess.shape == (2 * k + 1, 2 * k + 1)
     assert np.array_equal(excess, excess[::-1, ::-1])
-    # So are all three channels at the colour's samples (the guided look's tint, trackerd/refine.py).
+    # So are all three channels at the colour's samples (the guided look's tint, trackerd/detect/guided.py).
     channels = channel_windows(mosaic, grid, colour, (i - k, i + k + 1, j - k, j + k + 1))
     assert np.array_equal(channels, channels[:, ::-1, ::-1])
 

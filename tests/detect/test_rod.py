@@ -9,9 +9,8 @@ import pytest
 
 from tests.rooms import POINTER, room, waved
 from trackerd.detect.colour import brightest_at, green_at, sample_grid
-from trackerd.detect.rod import FAN_STEP_DEG, darker_share, rod_bearing, rod_leaving
+from trackerd.detect.rod import FAN_STEP_DEG, ROD_ABSENT, ROD_CLEAR, darker_share, rod_bearing, rod_leaving
 from trackerd.joint.looks import ROD_DIRECTION_ERROR_DEG
-from trackerd.refine import ROD_ABSENT, ROD_CLEAR
 
 ROD_SHARE = POINTER["rod_diameter_m"] / POINTER["end_diameter_m"]
 

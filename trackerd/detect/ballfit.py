@@ -165,7 +165,7 @@ def fit_ball(
     result's radius and scatter are then in those units; the centre and the rim points stay in pixels.
     ``tint``: weights (3,) of the colour's own channel, green and the other colour; the rims are then looked
     for in that combination of the channels (in grey levels) instead of the colour's excess over the others
-    (:func:`trackerd.refine.ball_tint`: a ball before a picture of nearly its colour can differ from it in
+    (:func:`trackerd.detect.guided.ball_tint`: a ball before a picture of nearly its colour can differ from it in
     another direction).
     """
     if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:

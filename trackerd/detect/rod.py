@@ -26,6 +26,17 @@ from numpy.typing import NDArray
 
 from trackerd.detect.colour import SampleGrid, brightest_at
 
+ROD_OFF_DEG = 8.0
+"""An end's measurement is left out of the pointer fit when, in its camera, the rod clearly leaves the other
+end's sound ball at least this far from the direction to it (:meth:`trackerd.refine.RefinedPath._off_the_rod`)..."""
+
+ROD_CLEAR = 0.75
+"""...along a direction where at least this share of the rod's points are darker than both its sides..."""
+
+ROD_ABSENT = 0.25
+"""...and at most this share along any direction within :data:`NEAR_DEG` of the one to the
+measurement."""
+
 ROD_CONTRAST = 12.0
 """Grey levels by which a point on the rod must be darker than both sides of it to count: here in the brightest
 of its colours (:func:`~trackerd.detect.colour.brightest_at`: the rod is dark in all three, a red picture

@@ -30,7 +30,7 @@ from trackerd.joint.points import SIZE_SCALE, Array, Point
 
 LONE_SIZE_RATIO = 1.3
 """The one camera's outline is within this factor of a ball's image radius at the point taken (as the
-pointer fit's own test of an outline's size, ``MAX_RADIUS_RATIO`` in :mod:`trackerd.refine`)."""
+pointer fit's own test of an outline's size, ``MAX_RADIUS_RATIO`` in :mod:`trackerd.ends`)."""
 
 LONE_MIN_COS = 0.25
 """The one camera's ray must meet the pointer's axis at a cosine of at least this (within about 75 degrees of
