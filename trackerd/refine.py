@@ -98,7 +98,6 @@ class RefinedPath:
 
     def __init__(self, locator: Locator) -> None:
         self.loc = locator
-        self._search = JointSearch(self)
         self._since_search = 0
         self._searched_once = False
         self._weak_fixes = 0
@@ -356,8 +355,10 @@ class RefinedPath:
 
     def _locate_searched(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit
-        (:class:`trackerd.joint.search.JointSearch`)."""
-        return self._search.locate(images, detections, start)
+        (:class:`trackerd.joint.search.JointSearch`, which keeps no state of its own: what the search
+        leaves for the next pair, when it last ran, is this path's, and all of it is in ``vars(self)``, which
+        the windowed recording's check compares, trackerd/recording/windowed.py)."""
+        return JointSearch(self).locate(images, detections, start)
 
     def _look_again(
         self,
