@@ -2,8 +2,9 @@
 are known, so its outline is fitted with the radius held close to the geometry's, as touching something of
 its colour, or in its tint, and kept only where it is of the pointer's colour by the search's hue test.
 
-The joint choice's looks (trackerd/joint/looks.py) and the refined path's search (trackerd/refine.py) ask
-for it; docs/detection.md, "When the room is not the one the thresholds were set for", has the cases it
+The search's looks for a ball no camera offered (trackerd/joint/search.py, through trackerd/joint/looks.py)
+and the refined path's look where the last pair's pointer has moved to (trackerd/refine.py) ask for it;
+docs/detection.md, "When the room is not the one the thresholds were set for", has the cases it
 was made for.
 """
 
