@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.ballfit import MIN_SCALE_PX, BallFit, fit_ball
+from trackerd.detect.ballfit import BallFit, fit_ball
+from trackerd.detect.circle import MIN_SCALE_PX
 from trackerd.detect.colour import SampleGrid
 from trackerd.geometry.camera import CameraModel
 from trackerd.geometry.sphere import fit_sphere_direction

@@ -13,12 +13,12 @@ from trackerd.detect.ballfit import (
     RESTING_ERROR_SHARE,
     _bilinear,
     _leaning_shift,
-    _median,
     arc_deformation_covariance,
     fit_ball,
+    fit_balls,
     independent_rims,
-    robust_circle,
 )
+from trackerd.detect.circle import robust_circle
 from trackerd.detect.colour import sample_grid
 
 FORMATS = ("BayerRG8", "BayerGB8", "RGB8")
@@ -130,19 +130,6 @@ def test_a_dark_ball_before_a_brighter_surface_of_its_hue_is_found_where_the_geo
     assert not plain.found or plain.rim_fraction < 0.6  # only the half against the wall
 
 
-def test_robust_circle_ignores_a_quarter_of_wild_points() -> None:
-    rng = np.random.default_rng(3)
-    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
-    points = np.column_stack([50 + 9 * np.cos(angles), 40 + 9 * np.sin(angles)]) + rng.normal(0, 0.05, (40, 2))
-    # An occluder's edge: a quarter of the points 2.5 px inside the circle.
-    points[:10] = np.column_stack([50 + 6.5 * np.cos(angles[:10]), 40 + 6.5 * np.sin(angles[:10])])
-    circle = robust_circle(points)
-    assert circle is not None
-    centre, radius, weights, _ = circle
-    assert np.hypot(*(centre - [50, 40])) < 0.05 and abs(radius - 9) < 0.05
-    assert np.all(weights[:10] == 0) and np.all(weights[10:] > 0)
-
-
 def test_a_circle_held_up_by_one_rim_point_says_how_far_its_centre_moves_without_it() -> None:
     """A short arc of a ball's outline (100 degrees: a body hides the rest) and one rim point across the ball,
     where the colour falls at the body's edge: the circle goes through that point, smaller than the ball and
@@ -185,15 +172,6 @@ def test_a_refit_that_jumps_far_away_counts_as_no_circle_at_all() -> None:
     assert shift is not None
     assert np.hypot(*shift) == pytest.approx(RESTING_ERROR_SHARE * radius, rel=1e-9)
     assert shift[0] > 0.99 * np.hypot(*shift)  # towards the arc's own centre
-
-
-@pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_the_fits_median_is_numpys_to_the_last_bit(dtype) -> None:
-    rng = np.random.default_rng(11)
-    for size in range(1, 60):
-        values = rng.normal(3.0, 2.0, size).astype(dtype)
-        values[: size // 3] = values[-1]  # ties, as residuals of rims on one lattice row have
-        assert _median(values) == float(np.median(values))
 
 
 def test_the_rays_samples_are_bilinear_and_nan_outside() -> None:
@@ -241,3 +219,44 @@ def test_rims_closer_than_the_lattice_share_their_noise() -> None:
     assert 9.0 < independent_rims(48, 5.0, 2.0) < 12.0
     assert independent_rims(48, 30.0, 2.0) == 48.0
     assert independent_rims(48, 5.0, 1.0) == pytest.approx(2.0 * independent_rims(48, 5.0, 2.0))
+
+
+@pytest.mark.parametrize("fmt", ("BayerRG8", "RGB8"))
+def test_balls_fitted_together_are_each_fitted_as_alone(fmt, detect_rng) -> None:
+    """The search fits every seed of a frame in one go (fit_balls): balls of different sizes (rays of
+    different lengths, padded to one array), one partly hidden, a start on the bare wall and one at the
+    frame's edge must each come out exactly as fit_ball gives them one at a time."""
+    shapes = [
+        Shape(40.3, 50.2, RED, radius=6.0),
+        Shape(110.6, 45.1, RED, radius=14.0),
+        Shape(60.2, 112.7, RED, radius=22.0),
+        Shape(70.0, 120.0, (0.80, 0.58, 0.47), radius=12.0),  # a finger over the large one
+    ]
+    frame, _ = Scene(shapes=shapes).render(fmt, detect_rng)
+    grid = sample_grid(fmt, frame.shape[1], frame.shape[0])
+    starts = np.array(
+        [[41.0, 49.0, 5.0], [112.0, 46.0, 11.0], [58.0, 110.0, 18.0], [165.0, 100.0, 9.0], [2.0, 3.0, 8.0]]
+    )
+    together = fit_balls(frame, grid, "red", starts)
+    alone = [fit_ball(frame, grid, "red", *start) for start in starts]
+    assert [fit.found for fit in alone] == [True, True, True, False, False]
+    for batched, single in zip(together, alone, strict=True):
+        assert batched.found == single.found and batched.reason == single.reason
+        if single.found:
+            assert np.array_equal(batched.centre_px, single.centre_px)
+            assert batched.radius_px == single.radius_px and batched.centre_sigma_px == single.centre_sigma_px
+            assert np.array_equal(batched.rim_px, single.rim_px)
+            assert np.array_equal(batched.arc_covariance_px, single.arc_covariance_px)
+    # Each start with its own radius range, rising rims taken (how the split search fits its seeds).
+    ranges = np.column_stack([0.6 * starts[:, 2], 1.6 * starts[:, 2]])
+    together = fit_balls(frame, grid, "red", starts, radius_range_px=ranges, rising_rims=True)
+    alone = [
+        fit_ball(frame, grid, "red", *start, radius_range_px=tuple(bounds), rising_rims=True)
+        for start, bounds in zip(starts, ranges, strict=True)
+    ]
+    assert sum(fit.found for fit in alone) >= 3
+    for batched, single in zip(together, alone, strict=True):
+        assert batched.found == single.found and batched.reason == single.reason
+        if single.found:
+            assert np.array_equal(batched.centre_px, single.centre_px)
+            assert batched.radius_px == single.radius_px and batched.centre_sigma_px == single.centre_sigma_px

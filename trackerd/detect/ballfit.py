@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from trackerd.detect.circle import Circle, clipped, median_of, robust_circle, robust_circles, row_medians
 from trackerd.detect.colour import EXCESS_SCALE, SampleGrid, cells_around, channel_windows, excess_window
 
 Array = NDArray[np.float64]
@@ -56,9 +57,6 @@ MIN_CONTRAST = 10.0
 MIN_RIM_FRACTION = 0.35
 """At least this share of the rays must find a rim that agrees with the circle."""
 
-TUKEY_C = 4.685
-"""Tukey's biweight constant, in units of the residuals' robust scale."""
-
 ROD_EXCLUSION_DEG = 30.0
 """Rays this close to the pointer's axis (either way) are not used when the axis is given."""
 
@@ -70,9 +68,6 @@ not a ball's outline (a bar, a letter, a smear)."""
 CORRELATION_CELLS = 1.5
 """The length (in lattice spacings) over which the noise of a bilinearly interpolated lattice of independent
 samples stays correlated: (integral of the triangle kernel)^2 / integral of its square = 1.5 spacings."""
-
-MIN_SCALE_PX = 0.25
-"""The rim residuals' scale is never taken below this (exact renders would otherwise give zero)."""
 
 LEVERAGE_LIMIT = 0.5
 """A rim point whose leverage on the circle (its share of the fit's three parameters, centre and radius;
@@ -124,6 +119,17 @@ _ANGLES = np.linspace(0.0, 2.0 * math.pi, RAYS, endpoint=False)
 _COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
 
 
+@dataclass(frozen=True, slots=True)
+class _Look:
+    """How the outlines are looked for (fit_ball's keyword arguments), the same for every start of a batch."""
+
+    axis: tuple[float, float] | None
+    rising_rims: bool
+    centre_slack_px: float | None
+    view: Array | None
+    tint: Array | None
+
+
 def fit_ball(
     frame: NDArray[np.uint8],
     grid: SampleGrid,
@@ -168,87 +174,236 @@ def fit_ball(
     (:func:`trackerd.detect.guided.ball_tint`: a ball before a picture of nearly its colour can differ from it in
     another direction).
     """
-    if not (math.isfinite(x_px) and math.isfinite(y_px) and math.isfinite(radius_px)) or radius_px <= 0:
-        return BallFit.missing("no position to look at")
-    fit = BallFit.missing("not looked for")
-    cx, cy, radius = float(x_px), float(y_px), max(float(radius_px), 2.0)
+    look = _Look(axis, rising_rims, centre_slack_px, view, tint)
+    ranges = None if radius_range_px is None else np.array([radius_range_px], dtype=np.float64)
+    return _fits(frame, grid, colour, np.array([[x_px, y_px, radius_px]], dtype=np.float64), ranges, look, passes)[0]
+
+
+def fit_balls(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    colour: str,
+    starts_px: Array,
+    *,
+    radius_range_px: tuple[float, float] | Array | None = None,
+    rising_rims: bool = False,
+    passes: int = 2,
+) -> list[BallFit]:
+    """:func:`fit_ball` from each start ``starts_px`` (K, 3: x, y, rough radius), all of one colour in one frame:
+    the same fits, measured together (the rays of all starts sampled in one gather, their rims found and
+    their circles fitted in one set of arrays: trackerd.detect.circle.robust_circles). The search fits
+    every seed of a frame this way; one at a time, NumPy's cost per call was most of a fit's.
+    ``radius_range_px``: one range for every start, or one per start (K, 2)."""
+    look = _Look(None, rising_rims, None, None, None)
+    starts = np.asarray(starts_px, dtype=np.float64).reshape(-1, 3)
+    ranges = None
+    if radius_range_px is not None:
+        ranges = np.broadcast_to(np.asarray(radius_range_px, dtype=np.float64), (len(starts), 2))
+    return _fits(frame, grid, colour, starts, ranges, look, passes)
+
+
+def _fits(
+    frame: NDArray[np.uint8],
+    grid: SampleGrid,
+    colour: str,
+    starts: Array,
+    ranges: Array | None,
+    look: _Look,
+    passes: int,
+) -> list[BallFit]:
+    """Each start's fit in ``passes`` passes, each pass from the one before's circle; a start whose pass
+    finds no ball keeps that pass's answer. ``ranges``: each start's radius range (K, 2), or None."""
+    fits = [BallFit.missing("not looked for")] * len(starts)
+    centres = np.zeros((len(starts), 2))
+    radii = np.zeros(len(starts))
+    pending: list[int] = []
+    for k, (x, y, r) in enumerate(starts):
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(r)) or r <= 0:
+            fits[k] = BallFit.missing("no position to look at")
+            continue
+        centres[k] = (float(x), float(y))
+        radii[k] = max(float(r), 2.0)
+        pending.append(k)
     for _ in range(passes):
-        fit = _one_pass(
-            frame, grid, colour, cx, cy, radius, axis, radius_range_px, rising_rims, centre_slack_px, view, tint
+        if not pending:
+            break
+        found = _one_pass(
+            frame, grid, colour, centres[pending], radii[pending], None if ranges is None else ranges[pending], look
         )
-        if not fit.found:
-            return fit
-        cx, cy = (float(v) for v in fit.centre_px)
-        radius = fit.radius_px
-    return fit
+        still: list[int] = []
+        for k, fit in zip(pending, found, strict=True):
+            fits[k] = fit
+            if fit.found:
+                centres[k] = fit.centre_px
+                radii[k] = fit.radius_px
+                still.append(k)
+        pending = still
+    return fits
 
 
 def _one_pass(
     frame: NDArray[np.uint8],
     grid: SampleGrid,
     colour: str,
-    cx: float,
-    cy: float,
-    radius: float,
-    axis: tuple[float, float] | None,
-    radius_range_px: tuple[float, float] | None = None,
-    rising_rims: bool = False,
-    centre_slack_px: float | None = None,
-    view: Array | None = None,
-    tint: Array | None = None,
-) -> BallFit:
+    centres: Array,
+    radii: Array,
+    ranges: Array | None,
+    look: _Look,
+) -> list[BallFit]:
+    """One pass of the fit from each (centre, radius): rays, rims, the robust circle, its errors."""
+    view = look.view
     # The rays run in the view's units (where the outline is a circle); ``image`` takes them back to pixels.
     image = np.eye(2) if view is None else np.linalg.inv(view)
-    reach = 2.0 * radius + 3.0
-    reach_px = reach if view is None else reach * float(np.linalg.norm(image, 2))
+    stretch = 1.0 if view is None else float(np.linalg.norm(image, 2))
     s = grid.cell_px
     # The colour's sample lattice's spacing in the rays' units.
     lattice = float(s) if view is None else float(s) * math.sqrt(abs(float(np.linalg.det(view))))
     dr, dc = grid.offset(colour)
-    region = cells_around(grid, colour, cx, cy, reach_px)
-    if region[1] - region[0] < 3 or region[3] - region[2] < 3:
-        return BallFit.missing("the ball is at the frame's edge")
-    if tint is None:
-        excess, _ = excess_window(frame, grid, colour, region)
-        levels = excess.astype(np.float32) / np.float32(EXCESS_SCALE)
-    else:
-        levels = np.tensordot(tint.astype(np.float32), channel_windows(frame, grid, colour, region), axes=1)
-    # Samples along the rays, as lattice coordinates of the window.
-    rho = np.arange(0.15 * radius, reach, STEP_PX)
     if view is None:
-        xs = cx + _COS[:, None] * rho[None, :]
-        ys = cy + _SIN[:, None] * rho[None, :]
+        along_x, along_y = _COS, _SIN
     else:
-        xs = cx + (image[0, 0] * _COS + image[0, 1] * _SIN)[:, None] * rho[None, :]
-        ys = cy + (image[1, 0] * _COS + image[1, 1] * _SIN)[:, None] * rho[None, :]
-    u = (xs - dc) / s - region[2]
-    v = (ys - dr) / s - region[0]
-    profile = _bilinear(levels, u, v)  # (RAYS, M), NaN outside the window
-    rim, contrast = _rims(profile, rho, radius, lattice, rising_rims)
+        along_x = image[0, 0] * _COS + image[0, 1] * _SIN
+        along_y = image[1, 0] * _COS + image[1, 1] * _SIN
+    results: list[BallFit | None] = [None] * len(centres)
+    measured: list[int] = []
+    windows: list[NDArray[np.float32]] = []
+    rhos: list[Array] = []
+    lattice_uv: list[tuple[Array, Array]] = []
+    for k, ((cx, cy), radius) in enumerate(zip(centres.tolist(), radii.tolist(), strict=True)):
+        reach = 2.0 * radius + 3.0
+        region = cells_around(grid, colour, cx, cy, reach * stretch)
+        if region[1] - region[0] < 3 or region[3] - region[2] < 3:
+            results[k] = BallFit.missing("the ball is at the frame's edge")
+            continue
+        if look.tint is None:
+            excess, _ = excess_window(frame, grid, colour, region)
+            windows.append(excess.astype(np.float32) / np.float32(EXCESS_SCALE))
+        else:
+            windows.append(
+                np.tensordot(look.tint.astype(np.float32), channel_windows(frame, grid, colour, region), axes=1)
+            )
+        # Samples along the rays, as lattice coordinates of the window.
+        rho = np.arange(0.15 * radius, reach, STEP_PX)
+        xs = cx + along_x[:, None] * rho[None, :]
+        ys = cy + along_y[:, None] * rho[None, :]
+        lattice_uv.append(((xs - dc) / s - region[2], (ys - dr) / s - region[0]))
+        rhos.append(rho)
+        measured.append(k)
+    if measured:
+        rims = np.full((len(measured), RAYS), np.nan)
+        contrasts = np.full((len(measured), RAYS), np.nan)
+        for group in _similar_lengths([len(rho) for rho in rhos]):
+            width = len(rhos[group[-1]])
+            rho_rows = np.full((len(group), width), np.nan)
+            # Beyond a start's own rays (shorter for a smaller ball) the samples are outside every window: NaN.
+            u = np.full((len(group), RAYS, width), -1.0)
+            v = np.full((len(group), RAYS, width), -1.0)
+            for j, g in enumerate(group):
+                rho, (uj, vj) = rhos[g], lattice_uv[g]
+                rho_rows[j, : len(rho)] = rho
+                u[j, :, : len(rho)] = uj
+                v[j, :, : len(rho)] = vj
+            profiles = _bilinear_windows([windows[g] for g in group], u, v)  # (starts, RAYS, samples)
+            group_rims, group_contrasts = _rims(
+                profiles.reshape(-1, width),
+                np.repeat(rho_rows, RAYS, axis=0),
+                np.repeat(radii[[measured[g] for g in group]], RAYS),
+                lattice,
+                look.rising_rims,
+            )
+            rims[group] = group_rims.reshape(-1, RAYS)
+            contrasts[group] = group_contrasts.reshape(-1, RAYS)
+        outlines = _outlines(
+            centres[measured],
+            radii[measured],
+            None if ranges is None else ranges[measured],
+            rims,
+            contrasts,
+            lattice,
+            look,
+        )
+        for k, fit in zip(measured, outlines, strict=True):
+            results[k] = fit
+    return [fit if fit is not None else BallFit.missing("not looked for") for fit in results]
+
+
+def _similar_lengths(lengths: list[int]) -> list[list[int]]:
+    """The indices of ``lengths`` in groups of similar length, each group's longest last: the rays of a
+    group are sampled in one array as long as its longest, and a seed of a large blob among small balls
+    would otherwise make every start's rays that long (twice the samples of one at a time)."""
+    order = sorted(range(len(lengths)), key=lengths.__getitem__)
+    groups: list[list[int]] = []
+    for index in order:
+        if groups and lengths[index] <= 1.25 * lengths[groups[-1][0]] + 4:
+            groups[-1].append(index)
+        else:
+            groups.append([index])
+    return groups
+
+
+def _outlines(
+    centres: Array, radii: Array, ranges: Array | None, rims: Array, contrasts: Array, lattice: float, look: _Look
+) -> list[BallFit]:
+    """Each start's circle from its rims ((K, RAYS): the rim's distance along each ray, NaN for none) and
+    the centre's errors."""
+    view = look.view
     usable = RAYS
+    axis = look.axis
     if axis is not None and view is not None:
         axis = (float(view[0, 0] * axis[0] + view[0, 1] * axis[1]), float(view[1, 0] * axis[0] + view[1, 1] * axis[1]))
     if axis is not None and math.hypot(*axis) > 0:
         ax, ay = axis[0] / math.hypot(*axis), axis[1] / math.hypot(*axis)
         off_axis = np.abs(_COS * ax + _SIN * ay) < math.cos(math.radians(ROD_EXCLUSION_DEG))
-        rim = np.where(off_axis, rim, np.nan)
+        rims = np.where(off_axis[None, :], rims, np.nan)
         usable = int(np.count_nonzero(off_axis))
-    if centre_slack_px is not None and radius_range_px is not None:
-        rim = _annulus(rim, radius_range_px, centre_slack_px)
-    ok = np.isfinite(rim)
-    if np.count_nonzero(ok) < max(6, int(MIN_RIM_FRACTION * usable)):
-        return BallFit.missing(f"the ball's outline is not visible (rim on {np.count_nonzero(ok)} of {usable} rays)")
-    points = np.column_stack([cx + _COS[ok] * rim[ok], cy + _SIN[ok] * rim[ok]])
-    circle = robust_circle(points, radius_range_px=radius_range_px)
-    if circle is None:
-        return BallFit.missing("the rim points are not a circle")
+    if look.centre_slack_px is not None and ranges is not None:
+        rims = _annulus(rims, ranges, look.centre_slack_px)
+    results: list[BallFit | None] = [None] * len(centres)
+    ok = np.isfinite(rims)
+    counts = np.count_nonzero(ok, axis=1)
+    points = np.zeros((len(centres), RAYS, 2))
+    for k in range(len(centres)):
+        if counts[k] < max(6, int(MIN_RIM_FRACTION * usable)):
+            results[k] = BallFit.missing(f"the ball's outline is not visible (rim on {counts[k]} of {usable} rays)")
+            counts[k] = 0
+            continue
+        rim = rims[k, ok[k]]
+        points[k, : counts[k]] = np.column_stack([centres[k, 0] + _COS[ok[k]] * rim, centres[k, 1] + _SIN[ok[k]] * rim])
+    circles = robust_circles(points, counts, radius_range_px=ranges)
+    for k, circle in enumerate(circles):
+        if results[k] is not None:
+            continue
+        if circle is None:
+            results[k] = BallFit.missing("the rim points are not a circle")
+            continue
+        contrast = contrasts[k, ok[k]]
+        bounds = None if ranges is None else (float(ranges[k, 0]), float(ranges[k, 1]))
+        results[k] = _outline(
+            points[k, : counts[k]], contrast, circle, centres[k], radii[k], bounds, usable, lattice, look
+        )
+    return [fit for fit in results if fit is not None]
+
+
+def _outline(
+    points: Array,
+    contrast: Array,
+    circle: Circle,
+    start: Array,
+    radius: float,
+    radius_range_px: tuple[float, float] | None,
+    usable: int,
+    lattice: float,
+    look: _Look,
+) -> BallFit:
+    """One start's ball from its rim ``points`` (in the rays' units), their ``contrast`` and their ``circle``."""
+    view = look.view
     centre, r, weights, scale = circle
     circle_points, circle_centre = points, centre  # in the rays' units, where the outline is a circle
     if view is not None:
         # Back to pixels: the centre, and the rim points (for the exact cone fit, which undistorts them).
-        origin = np.array([cx, cy])
-        centre = origin + image @ (centre - origin)
-        points = origin + (points - origin) @ image.T
+        image = np.linalg.inv(view)
+        centre = start + image @ (centre - start)
+        points = start + (points - start) @ image.T
     agree = weights > 0.0
     fraction = float(np.count_nonzero(agree)) / usable
     if fraction < MIN_RIM_FRACTION or not (0.3 * radius <= r <= 3.0 * radius):
@@ -264,11 +419,11 @@ def _one_pass(
     smallest = float(np.linalg.eigvalsh(information)[0])
     independent = independent_rims(len(used), r, lattice)
     sigma = scale / math.sqrt(max(smallest, 1e-9)) * math.sqrt(len(used) / independent)
-    contrast_level = _median(contrast[ok][agree])
+    contrast_level = median_of(contrast[agree])
     arc = arc_deformation_covariance(directions, weights[agree], scale)
     leaning = _leaning_shift(circle_points, weights, circle_centre, r, radius_range_px)
     if leaning is not None and view is not None:
-        leaning = image @ leaning
+        leaning = np.linalg.inv(view) @ leaning
     arc = arc + (np.eye(2) * (RESTING_ERROR_SHARE * r) ** 2 if leaning is None else np.outer(leaning, leaning))
     return BallFit(True, centre, r, used, fraction, scale, sigma, contrast_level, None, independent, arc)
 
@@ -315,10 +470,11 @@ def _leaning_shift(
     return shift * (limit / length) if length > limit else shift
 
 
-def _annulus(rim: Array, radius_range_px: tuple[float, float], slack_px: float) -> Array:
-    """The rims (distances from a pass's start, NaN for none) that a circle of a radius in
-    ``radius_range_px`` centred within ``slack_px`` of the start can pass through; NaN for the others."""
-    inside = (rim >= radius_range_px[0] - slack_px) & (rim <= radius_range_px[1] + slack_px)
+def _annulus(rim: Array, ranges: Array, slack_px: float) -> Array:
+    """The rims ((K, RAYS): distances from each pass's start, NaN for none) that a circle of a radius in its
+    start's range (``ranges``, (K, 2)) centred within ``slack_px`` of the start can pass through; NaN for the
+    others."""
+    inside = (rim >= ranges[:, :1] - slack_px) & (rim <= ranges[:, 1:] + slack_px)
     return np.where(inside, rim, np.nan)
 
 
@@ -361,72 +517,106 @@ def independent_rims(count: int, radius_px: float, lattice_px: float) -> float:
 
 def _bilinear(image: NDArray[np.float32], u: Array, v: Array) -> Array:
     """``image`` at fractional (column u, row v), NaN outside."""
-    h, w = image.shape
-    inside = (u >= 0) & (v >= 0) & (u <= w - 1) & (v <= h - 1)
-    u0 = _clipped(np.floor(u).astype(np.intp), 0, max(w - 2, 0))
-    v0 = _clipped(np.floor(v).astype(np.intp), 0, max(h - 2, 0))
+    values: Array = _bilinear_windows([image], u[None], v[None])[0]
+    return values
+
+
+def _bilinear_windows(images: list[NDArray[np.float32]], u: Array, v: Array) -> Array:
+    """Each of ``images`` at its own fractional (column u[k], row v[k]) (u, v: (K, ...)), NaN outside it.
+
+    The windows are gathered from one flat array of them all: one gather for every start's rays, and a
+    third of the time of indexing each window by (row, column)."""
+    shape = (len(images),) + (1,) * (u.ndim - 1)
+    heights = np.array([image.shape[0] for image in images]).reshape(shape)
+    widths = np.array([image.shape[1] for image in images]).reshape(shape)
+    sizes = np.array([image.size for image in images])
+    bases = (np.cumsum(sizes) - sizes).reshape(shape)
+    inside = (u >= 0) & (v >= 0) & (u <= widths - 1) & (v <= heights - 1)
+    u0 = clipped(np.floor(u).astype(np.intp), 0, np.maximum(widths - 2, 0))
+    v0 = clipped(np.floor(v).astype(np.intp), 0, np.maximum(heights - 2, 0))
     fu = u - u0
     fv = v - v0
-    # The four neighbours gathered from the flat image: a third of the time of indexing it by (row, column).
-    flat = image.ravel()
-    at = v0 * w + u0
+    flat = np.concatenate([image.ravel() for image in images]) if len(images) > 1 else images[0].ravel()
+    at = bases + v0 * widths + u0
     top = flat.take(at) * (1.0 - fu) + flat.take(at + 1) * fu
-    bottom = flat.take(at + w) * (1.0 - fu) + flat.take(at + w + 1) * fu
+    bottom = flat.take(at + widths) * (1.0 - fu) + flat.take(at + widths + 1) * fu
     out = top * (1.0 - fv) + bottom * fv
     return np.where(inside, out, np.nan)
 
 
 def _rims(
-    profile: Array, rho: Array, radius: float, lattice_px: float, rising_rims: bool = False
+    profile: Array, rho: Array, radius: Array, lattice_px: float, rising_rims: bool = False
 ) -> tuple[Array, Array]:
-    """Per ray, the radius where the excess falls through the midpoint of the levels just inside and
-    just outside the rim (NaN where there is no such fall), and that ray's contrast.
+    """Per ray (a row of ``profile``, sampled at its row of ``rho``, NaN beyond the ray's last sample; the
+    ball's rough ``radius`` per row), the radius where the excess falls through the midpoint of the levels
+    just inside and just outside the rim (NaN where there is no such fall), and that ray's contrast.
 
     The fall is first located against the ray's own ball level (the highest excess inside) and its
     background level (beyond 1.5 radii); the midpoint is then taken between the levels a lattice
     spacing and a half either side of it, so a ball that darkens towards its limb (or is shaded on
     one side) does not pull its rim inwards.
     """
-    rays, count = profile.shape
+    step = rho[:, 1] - rho[:, 0]
+    halves = np.maximum(1, np.round(1.5 * lattice_px / step)).astype(np.intp)
+    if np.all(halves == halves[0]):
+        return _rims_at(profile, rho, radius, step, int(halves[0]), rising_rims)
+    rim, contrast = np.full(len(profile), np.nan), np.full(len(profile), np.nan)
+    for half in np.unique(halves):
+        rows = halves == half
+        rim[rows], contrast[rows] = _rims_at(profile[rows], rho[rows], radius[rows], step[rows], int(half), rising_rims)
+    return rim, contrast
+
+
+def _rims_at(
+    profile: Array, rho: Array, radius: Array, step: Array, half: int, rising_rims: bool
+) -> tuple[Array, Array]:
+    """:func:`_rims` for rays whose levels either side of a rim lie ``half`` samples from it."""
+    rays, width = profile.shape
     row = np.arange(rays)
-    index = np.arange(count)
-    step = rho[1] - rho[0]
-    inner = rho <= 1.25 * radius
-    outer = rho >= 1.5 * radius
+    index = np.arange(width)
+    last = np.count_nonzero(np.isfinite(rho), axis=1) - 1
+    inner = rho <= 1.25 * radius[:, None]
+    outer = rho >= 1.5 * radius[:, None]
     with np.errstate(all="ignore"):
-        peak_at = np.nanargmax(np.where(inner[None, :] & np.isfinite(profile), profile, -np.inf), axis=1)
+        peak_at = np.nanargmax(np.where(inner & np.isfinite(profile), profile, -np.inf), axis=1)
         peak = profile[row, peak_at]
-        background = _row_medians(np.where(outer[None, :], profile, np.nan))
+        background = row_medians(np.where(outer, profile, np.nan))
         contrast = peak - background
         threshold = 0.5 * (peak + background)
         below = (profile < threshold[:, None]) & (index[None, :] > peak_at[:, None])
     has = below.any(axis=1) & (contrast >= MIN_CONTRAST) & np.isfinite(contrast)
     first = np.argmax(below, axis=1)
     # The levels either side of the fall, then the fall through their midpoint near it.
-    half = max(1, round(1.5 * lattice_px / step))
-    local, span, values = _levels_around(profile, first, np.maximum(first - 1 - half, peak_at), half, threshold)
+    local, span, values = _levels_around(profile, last, first, np.maximum(first - 1 - half, peak_at), half, threshold)
     falls = (values[:, :-1] >= local[:, None]) & (values[:, 1:] < local[:, None])
     found_local = falls.any(axis=1)
     # The fall nearest the first one (the last such fall before it, else the first after it).
     last_before = np.where(found_local, (falls.shape[1] - 1) - np.argmax(falls[:, ::-1], axis=1), 0)
-    k = np.where(found_local, span[row, last_before], _clipped(first - 1, 0, count - 1))
+    k = np.where(found_local, span[row, last_before], clipped(first - 1, 0, last))
     level = np.where(found_local, local, threshold)
     a = profile[row, k]
-    b = profile[row, _clipped(k + 1, 0, count - 1)]
+    b = profile[row, clipped(k + 1, 0, last)]
     with np.errstate(all="ignore"):
         frac = np.clip((a - level) / (a - b), 0.0, 1.0)
-    rim = rho[k] + frac * step
+    rim = rho[row, k] + frac * step
     rim = np.where(has & np.isfinite(rim), rim, np.nan)
     if not rising_rims:
         return rim, contrast
-    rising, rise_rim, rise_contrast = _rising_rims(profile, rho, radius, background, has, half)
+    rising, rise_rim, rise_contrast = _rising_rims(profile, rho, radius, step, last, background, has, half)
     rim = np.where(rising, rise_rim, rim)
     contrast = np.where(rising, rise_contrast, contrast)
     return rim, contrast
 
 
 def _rising_rims(
-    profile: Array, rho: Array, radius: float, background: Array, falling: NDArray[np.bool_], half: int
+    profile: Array,
+    rho: Array,
+    radius: Array,
+    step: Array,
+    last: NDArray[np.intp],
+    background: Array,
+    falling: NDArray[np.bool_],
+    half: int,
 ) -> tuple[NDArray[np.bool_], Array, Array]:
     """The rims of the rays (of those without a falling rim) that cross from the ball into something *more*
     of its colour: a shaded ball before a bright picture of its own hue, whose colour excess rises at the
@@ -437,181 +627,52 @@ def _rising_rims(
     (`bench robustness`: a dark red ball before a bright red block or the red letters of a slide)."""
     rays = profile.shape[0]
     row = np.arange(rays)
-    core = rho <= 0.6 * radius
-    ball = _row_medians(np.where(core[None, :], profile, np.nan))
+    core = rho <= 0.6 * radius[:, None]
+    ball = row_medians(np.where(core, profile, np.nan))
     with np.errstate(all="ignore"):
         contrast = background - ball
         level = 0.5 * (ball + background)
         candidates = ~falling & (contrast >= MIN_CONTRAST) & np.isfinite(contrast)
-        above = (profile >= level[:, None]) & (rho >= 0.5 * radius)[None, :]
+        above = (profile >= level[:, None]) & (rho >= 0.5 * radius[:, None])
     if not np.any(candidates):
         return candidates, np.full(rays, np.nan), contrast
-    count = len(rho)
     first = np.argmax(above, axis=1)
     found = candidates & above.any(axis=1) & (first > 0)
     # As for a fall: the midpoint of the levels just either side of the rise, since a shaded ball is darker
     # at its limb than over its inner part, and the inner level alone puts the rim outside the ball.
-    local, span, values = _levels_around(profile, first, first - 1 - half, half, level)
+    local, span, values = _levels_around(profile, last, first, first - 1 - half, half, level)
     with np.errstate(all="ignore"):
         rises = (values[:, :-1] < local[:, None]) & (values[:, 1:] >= local[:, None])
     has_local = rises.any(axis=1)
-    k = np.where(has_local, span[row, np.argmax(rises, axis=1)], _clipped(first - 1, 0, count - 1))
+    k = np.where(has_local, span[row, np.argmax(rises, axis=1)], clipped(first - 1, 0, last))
     used = np.where(has_local, local, level)
     a = profile[row, k]
-    b = profile[row, _clipped(k + 1, 0, count - 1)]
+    b = profile[row, clipped(k + 1, 0, last)]
     with np.errstate(all="ignore"):
         frac = np.clip((used - a) / (b - a), 0.0, 1.0)
-    rim = rho[k] + frac * (rho[1] - rho[0])
+    rim = rho[row, k] + frac * step
     found &= np.isfinite(rim) & (a < used)
     return found, np.where(found, rim, np.nan), contrast
 
 
 def _levels_around(
-    profile: Array, first: NDArray[np.intp], inside_at: NDArray[np.intp], half: int, fallback: Array
+    profile: Array,
+    last: NDArray[np.intp],
+    first: NDArray[np.intp],
+    inside_at: NDArray[np.intp],
+    half: int,
+    fallback: Array,
 ) -> tuple[Array, NDArray[np.intp], Array]:
     """Per ray, the midpoint of the levels at ``inside_at`` and ``half`` samples beyond ``first`` (where a
     rim was first seen; ``fallback`` where either is missing), and the samples around ``first`` to look
-    for the rim's crossing of it: (midpoints, their indices (R, 2 half + 2), their values)."""
-    rows, count = profile.shape
-    row = np.arange(rows)
-    inside = _clipped(inside_at, 0, count - 1)
-    outside = _clipped(first + half, 0, count - 1)
+    for the rim's crossing of it: (midpoints, their indices (R, 2 half + 2), their values). ``last``: each
+    ray's last sample."""
+    row = np.arange(len(profile))
+    inside = clipped(inside_at, 0, last)
+    outside = clipped(first + half, 0, last)
     with np.errstate(all="ignore"):
         local = 0.5 * (profile[row, inside] + profile[row, outside])
         local = np.where(np.isfinite(local), local, fallback)
     offsets = np.arange(-half - 1, half + 1)
-    span = _clipped(first[:, None] + offsets[None, :], 0, count - 1)
+    span = clipped(first[:, None] + offsets[None, :], 0, last[:, None])
     return local, span, profile[row[:, None], span]
-
-
-def _row_medians(values: Array) -> Array:
-    """Median of each row's finite values (NaN for a row with none); np.nanmedian is ten times slower."""
-    ordered = np.sort(np.where(np.isfinite(values), values, np.inf), axis=1)
-    count = np.sum(np.isfinite(values), axis=1)
-    rows = np.arange(len(values))
-    low = ordered[rows, _clipped((count - 1) // 2, 0, values.shape[1] - 1)]
-    high = ordered[rows, _clipped(count // 2, 0, values.shape[1] - 1)]
-    return np.where(count > 0, 0.5 * (low + high), np.nan)
-
-
-def _median(values: Array) -> float:
-    """np.median of a small 1-D array, the same value (the middle one, or the mean of the two): np.median's
-    generality costs 40 us a call, and a ball's fit takes a dozen (`trackerd bench robustness`'s searches)."""
-    ordered = np.sort(values)
-    middle = len(ordered) // 2
-    if len(ordered) % 2:
-        return float(ordered[middle])
-    return float((ordered[middle - 1] + ordered[middle]) / 2.0)
-
-
-def _clipped(values: NDArray[np.intp], low: int, high: int) -> NDArray[np.intp]:
-    """np.clip for index arrays (the same values): np.clip's dispatch costs more than the work on 48 rays."""
-    return np.minimum(np.maximum(values, low), high)
-
-
-_TRIPLES: dict[int, NDArray[np.intp]] = {}
-
-
-def _triples(n: int, trials: int) -> NDArray[np.intp]:
-    """Fixed, well spread index triples for ``n`` points (cached): the same every call, so a fit is
-    reproducible, and cheap."""
-    key = n * 1000 + trials
-    cached = _TRIPLES.get(key)
-    if cached is None:
-        rng = np.random.default_rng(n)
-        cached = np.sort(np.array([rng.choice(n, 3, replace=False) for _ in range(trials)]), axis=1)
-        _TRIPLES[key] = cached
-    return cached
-
-
-def _circle_of(points: Array) -> tuple[Array, float] | None:
-    """Least-squares (algebraic) circle through points (N, 2): centre, radius."""
-    x, y = points[:, 0], points[:, 1]
-    mx, my = x.mean(), y.mean()
-    a = np.column_stack([x - mx, y - my, np.ones(len(x))])
-    b = (x - mx) ** 2 + (y - my) ** 2
-    try:
-        sol, *_ = np.linalg.lstsq(a, b, rcond=None)
-    except np.linalg.LinAlgError:
-        return None
-    cx, cy = sol[0] / 2.0, sol[1] / 2.0
-    r2 = sol[2] + cx * cx + cy * cy
-    if not r2 > 0:
-        return None
-    return np.array([cx + mx, cy + my]), math.sqrt(r2)
-
-
-def robust_circle(
-    points: Array, trials: int = 48, radius_range_px: tuple[float, float] | None = None
-) -> tuple[Array, float, Array, float] | None:
-    """A circle through most of ``points`` (N, 2), ignoring the rest: centre, radius, per-point weights
-    (0 for points left out) and the residuals' robust scale.
-
-    Starts from the best of ``trials`` circles through three points (the most points within two
-    scales of it; deterministic for a seed), then iteratively reweighted least squares with Tukey's
-    biweight, the scale re-estimated from the median absolute residual each time.
-    """
-    n = len(points)
-    if n < 5:
-        return None
-    triples = _triples(n, trials)
-    p1, p2, p3 = points[triples[:, 0]], points[triples[:, 1]], points[triples[:, 2]]
-    # Circumcentres of all triples at once.
-    ax, ay = p1[:, 0], p1[:, 1]
-    bx, by = p2[:, 0], p2[:, 1]
-    cx, cy = p3[:, 0], p3[:, 1]
-    d = 2.0 * (ax * (by - cy) + bx * (cy - ay) + cx * (ay - by))
-    good = np.abs(d) > 1e-9
-    if not np.any(good):
-        return None
-    d = np.where(good, d, 1.0)
-    a2, b2, c2 = ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy
-    ux = (a2 * (by - cy) + b2 * (cy - ay) + c2 * (ay - by)) / d
-    uy = (a2 * (cx - bx) + b2 * (ax - cx) + c2 * (bx - ax)) / d
-    r = np.hypot(ax - ux, ay - uy)
-    if radius_range_px is not None:
-        good &= (r >= radius_range_px[0]) & (r <= radius_range_px[1])
-        if not np.any(good):
-            return None
-    residual = np.abs(np.hypot(points[None, :, 0] - ux[:, None], points[None, :, 1] - uy[:, None]) - r[:, None])
-    support = np.where(good[:, None], residual < 2.0 * max(MIN_SCALE_PX, 0.05 * _median(r[good])), False)
-    best = int(np.argmax(support.sum(axis=1)))
-    centre, radius = np.array([ux[best], uy[best]]), float(r[best])
-    weights = np.ones(n)
-    scale = MIN_SCALE_PX
-    x, y = points[:, 0], points[:, 1]
-    design = np.ones((n, 3))
-    for _ in range(6):
-        distance = np.hypot(x - centre[0], y - centre[1])
-        res = distance - radius
-        kept = np.abs(res[weights > 0]) if np.any(weights > 0) else np.abs(res)
-        scale = max(MIN_SCALE_PX, 1.4826 * _median(kept))
-        z = res / (TUKEY_C * scale)
-        weights = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
-        if np.count_nonzero(weights) < 5:
-            return None
-        # Weighted algebraic circle (normal equations of x^2 + y^2 = a x + b y + c, about the weighted
-        # mean): a few rounds converge to the geometric fit for small residuals.
-        sw = weights.sum()
-        mx, my = (weights @ x) / sw, (weights @ y) / sw
-        dx, dy = x - mx, y - my
-        design[:, 0], design[:, 1] = dx, dy
-        weighted = design * weights[:, None]
-        try:
-            sol = np.linalg.solve(weighted.T @ design, weighted.T @ (dx * dx + dy * dy))
-        except np.linalg.LinAlgError:
-            return None
-        new_centre = np.array([sol[0] / 2.0 + mx, sol[1] / 2.0 + my])
-        r2 = sol[2] + (sol[0] / 2.0) ** 2 + (sol[1] / 2.0) ** 2
-        if not r2 > 0:
-            return None
-        moved = float(np.hypot(*(new_centre - centre)))
-        centre, radius = new_centre, math.sqrt(r2)
-        if moved < 1e-3:
-            break
-    if radius_range_px is not None and not radius_range_px[0] <= radius <= radius_range_px[1]:
-        return None
-    distance = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
-    z = (distance - radius) / (TUKEY_C * scale)
-    weights = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
-    return centre, radius, weights, scale

@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.ballfit import BallFit, fit_ball
+from trackerd.detect.ballfit import BallFit, fit_ball, fit_balls
 from trackerd.detect.blobs import Runs, blob_stats, find_runs, label_runs
 from trackerd.detect.colour import SampleGrid, _plane
 
@@ -194,8 +194,10 @@ def search_candidates(
             more, merged = _seeds(keep, sampled, grid, colour, smallest, largest)
             passes.append(more)
         found: list[Candidate] = []
-        for _, x, y, radius in _in_turn(passes)[:max_seeds]:
-            fit = fit_ball(frame, grid, colour, x, y, max(radius, smallest))
+        seeds = _in_turn(passes)[:max_seeds]
+        # Every seed's outline fitted in one go; only those it does not find are looked at again, one by one.
+        starts = np.array([(x, y, max(radius, smallest)) for _, x, y, radius in seeds]).reshape(-1, 3)
+        for (_, x, y, radius), fit in zip(seeds, fit_balls(frame, grid, colour, starts), strict=True):
             local = None if fit.found or view is None else view(x, y)
             if local is not None:
                 # The seed's size is in pixels: in the view's units, by its mean scale there.
@@ -248,12 +250,17 @@ def split_candidates(
         greener = sampled.green >= other
         boxes = _large_groups(mask, sampled.spacing_px, SPLIT_FROM * smallest)
         split = _split_seeds(mask, own, greener, boxes, sampled, grid, colour, smallest, largest)
-        found: list[Candidate] = []
-        for _, x, y, radius in split[:MAX_SPLIT_SEEDS]:
-            size = max(radius, smallest)
-            fit = fit_ball(frame, grid, colour, x, y, size, radius_range_px=(0.6 * size, 1.6 * size), rising_rims=True)
-            if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
-                found.append(Candidate(colour, fit, (x, y), radius))
+        seeds = split[:MAX_SPLIT_SEEDS]
+        sizes = np.array([max(radius, smallest) for _, _, _, radius in seeds])
+        starts = np.array([(x, y, size) for (_, x, y, _), size in zip(seeds, sizes, strict=True)]).reshape(-1, 3)
+        fits = fit_balls(
+            frame, grid, colour, starts, radius_range_px=np.column_stack([0.6 * sizes, 1.6 * sizes]), rising_rims=True
+        )
+        found = [
+            Candidate(colour, fit, (x, y), radius)
+            for (_, x, y, radius), fit in zip(seeds, fits, strict=True)
+            if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest
+        ]
         out[colour] = _distinct(found)
     return out
 
