@@ -11,7 +11,8 @@ Two measurements of an end exist (docs/detection.md):
 * the ball's fitted outline (:mod:`trackerd.detect.ballfit`): the circle through
   the visible rim, which none of those pull, a little less precise (0.05-0.1 px).
 
-:func:`measure_end` fits the outline and, where the centroid agrees with it
+:func:`measure_end` fits the outline (:func:`measure_ends`: every camera's ends of a pair, their outlines
+fitted together) and, where the centroid agrees with it
 across the pointer, adds the centroid's information in that direction; where it
 does not agree, the centroid is left out as biased. The result is one 2-vector
 in undistorted normalised coordinates with its 2x2 covariance, the input of
@@ -21,12 +22,13 @@ in undistorted normalised coordinates with its 2x2 covariance, the input of
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.ballfit import BallFit, fit_ball
+from trackerd.detect.ballfit import BallFit, BallLook, fit_looks
 from trackerd.detect.circle import MIN_SCALE_PX
 from trackerd.detect.colour import SampleGrid
 from trackerd.geometry.camera import CameraModel
@@ -155,6 +157,21 @@ def same_ball(centroid_px: Array, measurement: EndMeasurement) -> bool:
     return float(np.hypot(*(centroid_px - measurement.centre_px))) <= 0.5 * measurement.radius_px
 
 
+@dataclass(frozen=True, slots=True)
+class EndRequest:
+    """One end to measure (:func:`measure_end`'s arguments but the centroid's sigma, the same for a pair's ends)."""
+
+    frame: NDArray[np.uint8]
+    grid: SampleGrid
+    camera: CameraModel
+    camera_index: int
+    colour: str
+    rough_px: Array
+    radius_px: float
+    centroid_px: Array | None
+    across_px: Array | None
+
+
 def measure_end(
     frame: NDArray[np.uint8],
     grid: SampleGrid,
@@ -176,8 +193,34 @@ def measure_end(
     or more (randomized scenes, crimson paint), where the outline's rim, found at each ray's own level,
     stays put. Returns None when neither an outline nor a centroid is there.
     """
-    axis = None if across_px is None else (float(-across_px[1]), float(across_px[0]))
-    fit = fit_ball(frame, grid, colour, float(rough_px[0]), float(rough_px[1]), radius_px, axis=axis)
+    request = EndRequest(frame, grid, camera, camera_index, colour, rough_px, radius_px, centroid_px, across_px)
+    return measure_ends([request], centroid_sigma_px)[0]
+
+
+def measure_ends(requests: Sequence[EndRequest], centroid_sigma_px: float) -> list[EndMeasurement | None]:
+    """:func:`measure_end` for each of ``requests`` (every camera's ends of a pair): their outlines fitted in one
+    batched measurement over all the cameras' windows (:func:`trackerd.detect.ballfit.fit_looks`), the same
+    fits as one at a time."""
+    looks = [
+        BallLook(
+            request.frame,
+            request.grid,
+            request.colour,
+            float(request.rough_px[0]),
+            float(request.rough_px[1]),
+            request.radius_px,
+            None if request.across_px is None else (float(-request.across_px[1]), float(request.across_px[0])),
+        )
+        for request in requests
+    ]
+    fits = fit_looks(looks)
+    return [_measured(request, fit, centroid_sigma_px) for request, fit in zip(requests, fits, strict=True)]
+
+
+def _measured(request: EndRequest, fit: BallFit, centroid_sigma_px: float) -> EndMeasurement | None:
+    """One end's measurement from its outline's ``fit`` (see :func:`measure_end`)."""
+    camera, camera_index, colour = request.camera, request.camera_index, request.colour
+    centroid_px, across_px, radius_px = request.centroid_px, request.across_px, request.radius_px
     if not fit.found:
         if centroid_px is None:
             return None

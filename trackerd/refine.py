@@ -121,31 +121,35 @@ class RefinedPath:
         """Each end's outline fitted, then the pointer fitted to every camera's ends at once with the
         pointer's length (trackerd/ends.py, trackerd/geometry/pointer_fit.py). When the detector's ends do
         not make a pointer, every camera's candidates are searched and chosen jointly (trackerd/joint/)."""
-        from trackerd.ends import across_pointer, measure_end
+        from trackerd.ends import EndRequest, across_pointer, measure_ends
 
         start = time.perf_counter_ns()
-        sigma_px = self.loc.rig.locator.centroid_sigma_px
-        per_camera: list[dict[str, Any]] = []
+        per_camera: list[dict[str, Any]] = [{c: None for c in COLOURS} for _ in self.loc.cameras]
+        requests: list[EndRequest] = []
         for index, (cam, detection, image) in enumerate(zip(self.loc.cameras, detections, images, strict=True)):
-            ends: dict[str, Any] = {c: None for c in COLOURS}
-            per_camera.append(ends)
             red, blue = detection.red, detection.blue
             across = across_pointer(red.centroid_px, blue.centroid_px) if detection.both_found else None
             # A camera that sees one end only (the other hidden) still measures that one, by its outline.
             for colour, end in (("red", red), ("blue", blue)):
                 if end.found:
-                    ends[colour] = measure_end(
-                        image,
-                        self.loc.grids[index],
-                        cam,
-                        index,
-                        colour,
-                        end.centroid_px,
-                        blob_radius_px(end),
-                        end.centroid_px,
-                        across,
-                        sigma_px,
+                    requests.append(
+                        EndRequest(
+                            image,
+                            self.loc.grids[index],
+                            cam,
+                            index,
+                            colour,
+                            end.centroid_px,
+                            blob_radius_px(end),
+                            end.centroid_px,
+                            across,
+                        )
                     )
+        # Every camera's ends measured together: one batched outline fit over all their windows.
+        for request, measured in zip(
+            requests, measure_ends(requests, self.loc.rig.locator.centroid_sigma_px), strict=True
+        ):
+            per_camera[request.camera_index][request.colour] = measured
         fix = self.fix_from_measurements(per_camera, None, detections, start, images)
         if not fix.found:
             fix = self._followed_from_one_camera(per_camera, detections, start, images) or fix

@@ -5,17 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from detect_synthetic import RED, ROD, WALL, Scene, Shape
+from detect_synthetic import BLUE, RED, ROD, WALL, Scene, Shape
 
 from trackerd.config.models import DetectorConfig
 from trackerd.detect import ColourEndDetector
 from trackerd.detect.ballfit import (
     RESTING_ERROR_SHARE,
+    BallLook,
     _bilinear,
     _leaning_shift,
     arc_deformation_covariance,
     fit_ball,
     fit_balls,
+    fit_looks,
     independent_rims,
 )
 from trackerd.detect.circle import robust_circle
@@ -260,3 +262,34 @@ def test_balls_fitted_together_are_each_fitted_as_alone(fmt, detect_rng) -> None
         if single.found:
             assert np.array_equal(batched.centre_px, single.centre_px)
             assert batched.radius_px == single.radius_px and batched.centre_sigma_px == single.centre_sigma_px
+
+
+def test_every_cameras_ends_fitted_together_are_each_fitted_as_alone(detect_rng) -> None:
+    """A refined pair fits every camera's ends in one go (fit_looks): two frames of different formats (sample
+    lattices of 2 and 1 px), both colours, the rod's axis left out at each ball; each must come out exactly
+    as fit_ball gives it one at a time."""
+    pointer = [Shape(80.4, 60.2, RED, radius=9.0), Shape(150.7, 90.1, BLUE, radius=12.0)]
+    rod = [(80.4, 60.2, 150.7, 90.1, 3.0)]
+    bayer, _ = Scene(shapes=pointer, rods=rod).render("BayerRG8", detect_rng)
+    rgb, _ = Scene(shapes=[Shape(60.1, 100.3, RED, radius=14.0), Shape(40.2, 30.6, BLUE, radius=7.0)]).render(
+        "RGB8", detect_rng
+    )
+    bayer_grid = sample_grid("BayerRG8", bayer.shape[1], bayer.shape[0])
+    rgb_grid = sample_grid("RGB8", rgb.shape[1], rgb.shape[0])
+    axis = (70.3, 29.9)
+    looks = [
+        BallLook(bayer, bayer_grid, "red", 81.0, 59.0, 8.0, axis),
+        BallLook(bayer, bayer_grid, "blue", 150.0, 91.0, 10.0, (-axis[0], -axis[1])),
+        BallLook(rgb, rgb_grid, "red", 61.0, 99.0, 12.0),
+        BallLook(rgb, rgb_grid, "blue", 41.0, 31.0, 6.0),
+        BallLook(rgb, rgb_grid, "blue", 170.0, 20.0, 6.0),  # nothing there
+    ]
+    together = fit_looks(looks)
+    alone = [fit_ball(k.frame, k.grid, k.colour, k.x_px, k.y_px, k.radius_px, axis=k.axis) for k in looks]
+    assert [fit.found for fit in alone] == [True, True, True, True, False]
+    for batched, single in zip(together, alone, strict=True):
+        assert batched.found == single.found and batched.reason == single.reason
+        if single.found:
+            assert np.array_equal(batched.centre_px, single.centre_px)
+            assert batched.radius_px == single.radius_px and batched.centre_sigma_px == single.centre_sigma_px
+            assert batched.independent_rims == single.independent_rims

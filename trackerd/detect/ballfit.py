@@ -35,6 +35,7 @@ outline is visible), the rim points' scatter and the centre's standard error.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,14 +121,31 @@ _COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
 
 
 @dataclass(frozen=True, slots=True)
-class _Look:
-    """How the outlines are looked for (fit_ball's keyword arguments), the same for every start of a batch."""
+class BallLook:
+    """One ball for :func:`fit_looks`: the frame it is in (with its sample grid), its colour, where to start
+    (x_px, y_px) and its rough radius_px there, and the direction of the pointer's image at it (``axis``,
+    as :func:`fit_ball`'s)."""
 
-    axis: tuple[float, float] | None
+    frame: NDArray[np.uint8]
+    grid: SampleGrid
+    colour: str
+    x_px: float
+    y_px: float
+    radius_px: float
+    axis: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class _Options:
+    """How the outlines are looked for (fit_ball's keyword arguments), the same for every ball of a batch."""
+
     rising_rims: bool
     centre_slack_px: float | None
     view: Array | None
     tint: Array | None
+
+
+_PLAIN = _Options(False, None, None, None)
 
 
 def fit_ball(
@@ -174,9 +192,10 @@ def fit_ball(
     (:func:`trackerd.detect.guided.ball_tint`: a ball before a picture of nearly its colour can differ from it in
     another direction).
     """
-    look = _Look(axis, rising_rims, centre_slack_px, view, tint)
+    options = _Options(rising_rims, centre_slack_px, view, tint)
     ranges = None if radius_range_px is None else np.array([radius_range_px], dtype=np.float64)
-    return _fits(frame, grid, colour, np.array([[x_px, y_px, radius_px]], dtype=np.float64), ranges, look, passes)[0]
+    look = BallLook(frame, grid, colour, x_px, y_px, radius_px, axis)
+    return _fits([look], ranges, options, passes)[0]
 
 
 def fit_balls(
@@ -194,41 +213,44 @@ def fit_balls(
     their circles fitted in one set of arrays: trackerd.detect.circle.robust_circles). The search fits
     every seed of a frame this way; one at a time, NumPy's cost per call was most of a fit's.
     ``radius_range_px``: one range for every start, or one per start (K, 2)."""
-    look = _Look(None, rising_rims, None, None, None)
     starts = np.asarray(starts_px, dtype=np.float64).reshape(-1, 3)
+    looks = [BallLook(frame, grid, colour, x, y, r) for x, y, r in starts.tolist()]
     ranges = None
     if radius_range_px is not None:
         ranges = np.broadcast_to(np.asarray(radius_range_px, dtype=np.float64), (len(starts), 2))
-    return _fits(frame, grid, colour, starts, ranges, look, passes)
+    return _fits(looks, ranges, _Options(rising_rims, None, None, None), passes)
 
 
-def _fits(
-    frame: NDArray[np.uint8],
-    grid: SampleGrid,
-    colour: str,
-    starts: Array,
-    ranges: Array | None,
-    look: _Look,
-    passes: int,
-) -> list[BallFit]:
-    """Each start's fit in ``passes`` passes, each pass from the one before's circle; a start whose pass
-    finds no ball keeps that pass's answer. ``ranges``: each start's radius range (K, 2), or None."""
-    fits = [BallFit.missing("not looked for")] * len(starts)
-    centres = np.zeros((len(starts), 2))
-    radii = np.zeros(len(starts))
+def fit_looks(looks: Sequence[BallLook], passes: int = 2) -> list[BallFit]:
+    """:func:`fit_ball` for each of ``looks``, in any frames and colours (every camera's ends of a pair):
+    the same fits, measured together as :func:`fit_balls`'s are."""
+    return _fits(list(looks), None, _PLAIN, passes)
+
+
+def _fits(looks: list[BallLook], ranges: Array | None, options: _Options, passes: int) -> list[BallFit]:
+    """Each look's fit in ``passes`` passes, each pass from the one before's circle; a look whose pass
+    finds no ball keeps that pass's answer. ``ranges``: each look's radius range (K, 2), or None."""
+    fits = [BallFit.missing("not looked for")] * len(looks)
+    centres = np.zeros((len(looks), 2))
+    radii = np.zeros(len(looks))
     pending: list[int] = []
-    for k, (x, y, r) in enumerate(starts):
+    for k, look in enumerate(looks):
+        x, y, r = float(look.x_px), float(look.y_px), float(look.radius_px)
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(r)) or r <= 0:
             fits[k] = BallFit.missing("no position to look at")
             continue
-        centres[k] = (float(x), float(y))
-        radii[k] = max(float(r), 2.0)
+        centres[k] = (x, y)
+        radii[k] = max(r, 2.0)
         pending.append(k)
     for _ in range(passes):
         if not pending:
             break
         found = _one_pass(
-            frame, grid, colour, centres[pending], radii[pending], None if ranges is None else ranges[pending], look
+            [looks[k] for k in pending],
+            centres[pending],
+            radii[pending],
+            None if ranges is None else ranges[pending],
+            options,
         )
         still: list[int] = []
         for k, fit in zip(pending, found, strict=True):
@@ -242,23 +264,15 @@ def _fits(
 
 
 def _one_pass(
-    frame: NDArray[np.uint8],
-    grid: SampleGrid,
-    colour: str,
-    centres: Array,
-    radii: Array,
-    ranges: Array | None,
-    look: _Look,
+    looks: list[BallLook], centres: Array, radii: Array, ranges: Array | None, options: _Options
 ) -> list[BallFit]:
-    """One pass of the fit from each (centre, radius): rays, rims, the robust circle, its errors."""
-    view = look.view
+    """One pass of the fit from each look's (centre, radius): rays, rims, the robust circle, its errors."""
+    view = options.view
     # The rays run in the view's units (where the outline is a circle); ``image`` takes them back to pixels.
     image = np.eye(2) if view is None else np.linalg.inv(view)
     stretch = 1.0 if view is None else float(np.linalg.norm(image, 2))
-    s = grid.cell_px
-    # The colour's sample lattice's spacing in the rays' units.
-    lattice = float(s) if view is None else float(s) * math.sqrt(abs(float(np.linalg.det(view))))
-    dr, dc = grid.offset(colour)
+    # A sample lattice's spacing in the rays' units is its cell's times this.
+    lattice_scale = 1.0 if view is None else math.sqrt(abs(float(np.linalg.det(view))))
     if view is None:
         along_x, along_y = _COS, _SIN
     else:
@@ -269,27 +283,33 @@ def _one_pass(
     windows: list[NDArray[np.float32]] = []
     rhos: list[Array] = []
     lattice_uv: list[tuple[Array, Array]] = []
-    for k, ((cx, cy), radius) in enumerate(zip(centres.tolist(), radii.tolist(), strict=True)):
+    lattices: list[float] = []
+    for k, (look, (cx, cy), radius) in enumerate(zip(looks, centres.tolist(), radii.tolist(), strict=True)):
+        frame, grid, colour = look.frame, look.grid, look.colour
         reach = 2.0 * radius + 3.0
         region = cells_around(grid, colour, cx, cy, reach * stretch)
         if region[1] - region[0] < 3 or region[3] - region[2] < 3:
             results[k] = BallFit.missing("the ball is at the frame's edge")
             continue
-        if look.tint is None:
+        if options.tint is None:
             excess, _ = excess_window(frame, grid, colour, region)
             windows.append(excess.astype(np.float32) / np.float32(EXCESS_SCALE))
         else:
             windows.append(
-                np.tensordot(look.tint.astype(np.float32), channel_windows(frame, grid, colour, region), axes=1)
+                np.tensordot(options.tint.astype(np.float32), channel_windows(frame, grid, colour, region), axes=1)
             )
         # Samples along the rays, as lattice coordinates of the window.
+        s = grid.cell_px
+        dr, dc = grid.offset(colour)
         rho = np.arange(0.15 * radius, reach, STEP_PX)
         xs = cx + along_x[:, None] * rho[None, :]
         ys = cy + along_y[:, None] * rho[None, :]
         lattice_uv.append(((xs - dc) / s - region[2], (ys - dr) / s - region[0]))
         rhos.append(rho)
+        lattices.append(float(s) * lattice_scale)
         measured.append(k)
     if measured:
+        lattice = np.array(lattices)
         rims = np.full((len(measured), RAYS), np.nan)
         contrasts = np.full((len(measured), RAYS), np.nan)
         for group in _similar_lengths([len(rho) for rho in rhos]):
@@ -308,19 +328,20 @@ def _one_pass(
                 profiles.reshape(-1, width),
                 np.repeat(rho_rows, RAYS, axis=0),
                 np.repeat(radii[[measured[g] for g in group]], RAYS),
-                lattice,
-                look.rising_rims,
+                np.repeat(lattice[group], RAYS),
+                options.rising_rims,
             )
             rims[group] = group_rims.reshape(-1, RAYS)
             contrasts[group] = group_contrasts.reshape(-1, RAYS)
         outlines = _outlines(
+            [looks[k].axis for k in measured],
             centres[measured],
             radii[measured],
             None if ranges is None else ranges[measured],
             rims,
             contrasts,
             lattice,
-            look,
+            options,
         )
         for k, fit in zip(measured, outlines, strict=True):
             results[k] = fit
@@ -342,29 +363,39 @@ def _similar_lengths(lengths: list[int]) -> list[list[int]]:
 
 
 def _outlines(
-    centres: Array, radii: Array, ranges: Array | None, rims: Array, contrasts: Array, lattice: float, look: _Look
+    axes: list[tuple[float, float] | None],
+    centres: Array,
+    radii: Array,
+    ranges: Array | None,
+    rims: Array,
+    contrasts: Array,
+    lattice: Array,
+    options: _Options,
 ) -> list[BallFit]:
     """Each start's circle from its rims ((K, RAYS): the rim's distance along each ray, NaN for none) and
-    the centre's errors."""
-    view = look.view
-    usable = RAYS
-    axis = look.axis
-    if axis is not None and view is not None:
-        axis = (float(view[0, 0] * axis[0] + view[0, 1] * axis[1]), float(view[1, 0] * axis[0] + view[1, 1] * axis[1]))
-    if axis is not None and math.hypot(*axis) > 0:
-        ax, ay = axis[0] / math.hypot(*axis), axis[1] / math.hypot(*axis)
-        off_axis = np.abs(_COS * ax + _SIN * ay) < math.cos(math.radians(ROD_EXCLUSION_DEG))
-        rims = np.where(off_axis[None, :], rims, np.nan)
-        usable = int(np.count_nonzero(off_axis))
-    if look.centre_slack_px is not None and ranges is not None:
-        rims = _annulus(rims, ranges, look.centre_slack_px)
+    the centre's errors; ``axes``: each start's pointer direction (fit_ball's ``axis``) or None."""
+    view = options.view
+    usable = np.full(len(centres), RAYS)
+    for k, axis in enumerate(axes):
+        if axis is not None and view is not None:
+            axis = (
+                float(view[0, 0] * axis[0] + view[0, 1] * axis[1]),
+                float(view[1, 0] * axis[0] + view[1, 1] * axis[1]),
+            )
+        if axis is not None and math.hypot(*axis) > 0:
+            ax, ay = axis[0] / math.hypot(*axis), axis[1] / math.hypot(*axis)
+            off_axis = np.abs(_COS * ax + _SIN * ay) < math.cos(math.radians(ROD_EXCLUSION_DEG))
+            rims[k] = np.where(off_axis, rims[k], np.nan)
+            usable[k] = int(np.count_nonzero(off_axis))
+    if options.centre_slack_px is not None and ranges is not None:
+        rims = _annulus(rims, ranges, options.centre_slack_px)
     results: list[BallFit | None] = [None] * len(centres)
     ok = np.isfinite(rims)
     counts = np.count_nonzero(ok, axis=1)
     points = np.zeros((len(centres), RAYS, 2))
     for k in range(len(centres)):
-        if counts[k] < max(6, int(MIN_RIM_FRACTION * usable)):
-            results[k] = BallFit.missing(f"the ball's outline is not visible (rim on {counts[k]} of {usable} rays)")
+        if counts[k] < max(6, int(MIN_RIM_FRACTION * usable[k])):
+            results[k] = BallFit.missing(f"the ball's outline is not visible (rim on {counts[k]} of {usable[k]} rays)")
             counts[k] = 0
             continue
         rim = rims[k, ok[k]]
@@ -379,7 +410,15 @@ def _outlines(
         contrast = contrasts[k, ok[k]]
         bounds = None if ranges is None else (float(ranges[k, 0]), float(ranges[k, 1]))
         results[k] = _outline(
-            points[k, : counts[k]], contrast, circle, centres[k], radii[k], bounds, usable, lattice, look
+            points[k, : counts[k]],
+            contrast,
+            circle,
+            centres[k],
+            radii[k],
+            bounds,
+            int(usable[k]),
+            float(lattice[k]),
+            options,
         )
     return [fit for fit in results if fit is not None]
 
@@ -393,10 +432,10 @@ def _outline(
     radius_range_px: tuple[float, float] | None,
     usable: int,
     lattice: float,
-    look: _Look,
+    options: _Options,
 ) -> BallFit:
     """One start's ball from its rim ``points`` (in the rays' units), their ``contrast`` and their ``circle``."""
-    view = look.view
+    view = options.view
     centre, r, weights, scale = circle
     circle_points, circle_centre = points, centre  # in the rays' units, where the outline is a circle
     if view is not None:
@@ -545,11 +584,12 @@ def _bilinear_windows(images: list[NDArray[np.float32]], u: Array, v: Array) -> 
 
 
 def _rims(
-    profile: Array, rho: Array, radius: Array, lattice_px: float, rising_rims: bool = False
+    profile: Array, rho: Array, radius: Array, lattice_px: float | Array, rising_rims: bool = False
 ) -> tuple[Array, Array]:
     """Per ray (a row of ``profile``, sampled at its row of ``rho``, NaN beyond the ray's last sample; the
-    ball's rough ``radius`` per row), the radius where the excess falls through the midpoint of the levels
-    just inside and just outside the rim (NaN where there is no such fall), and that ray's contrast.
+    ball's rough ``radius`` per row; ``lattice_px``: the sample lattice's spacing, one for all or per row), the
+    radius where the excess falls through the midpoint of the levels just inside and just outside the rim
+    (NaN where there is no such fall), and that ray's contrast.
 
     The fall is first located against the ray's own ball level (the highest excess inside) and its
     background level (beyond 1.5 radii); the midpoint is then taken between the levels a lattice
