@@ -266,8 +266,8 @@ def test_balls_fitted_together_are_each_fitted_as_alone(fmt, detect_rng) -> None
 
 def test_every_cameras_ends_fitted_together_are_each_fitted_as_alone(detect_rng) -> None:
     """A refined pair fits every camera's ends in one go (fit_looks): two frames of different formats (sample
-    lattices of 2 and 1 px), both colours, the rod's axis left out at each ball; each must come out exactly
-    as fit_ball gives it one at a time."""
+    lattices of 2 and 1 px), both colours, the rod's axis left out at each ball, one ball in a view's units;
+    each must come out exactly as fit_ball gives it one at a time."""
     pointer = [Shape(80.4, 60.2, RED, radius=9.0), Shape(150.7, 90.1, BLUE, radius=12.0)]
     rod = [(80.4, 60.2, 150.7, 90.1, 3.0)]
     bayer, _ = Scene(shapes=pointer, rods=rod).render("BayerRG8", detect_rng)
@@ -283,10 +283,12 @@ def test_every_cameras_ends_fitted_together_are_each_fitted_as_alone(detect_rng)
         BallLook(rgb, rgb_grid, "red", 61.0, 99.0, 12.0),
         BallLook(rgb, rgb_grid, "blue", 41.0, 31.0, 6.0),
         BallLook(rgb, rgb_grid, "blue", 170.0, 20.0, 6.0),  # nothing there
+        # In a view's units (a ball far off a wide lens's axis), as the search fits a seed again.
+        BallLook(bayer, bayer_grid, "red", 81.0, 59.0, 8.0, view=np.array([[1.04, 0.02], [0.02, 0.97]])),
     ]
     together = fit_looks(looks)
-    alone = [fit_ball(k.frame, k.grid, k.colour, k.x_px, k.y_px, k.radius_px, axis=k.axis) for k in looks]
-    assert [fit.found for fit in alone] == [True, True, True, True, False]
+    alone = [fit_ball(k.frame, k.grid, k.colour, k.x_px, k.y_px, k.radius_px, axis=k.axis, view=k.view) for k in looks]
+    assert [fit.found for fit in alone] == [True, True, True, True, False, True]
     for batched, single in zip(together, alone, strict=True):
         assert batched.found == single.found and batched.reason == single.reason
         if single.found:

@@ -123,8 +123,8 @@ _COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
 @dataclass(frozen=True, slots=True)
 class BallLook:
     """One ball for :func:`fit_looks`: the frame it is in (with its sample grid), its colour, where to start
-    (x_px, y_px) and its rough radius_px there, and the direction of the pointer's image at it (``axis``,
-    as :func:`fit_ball`'s)."""
+    (x_px, y_px) and its rough radius_px there, the direction of the pointer's image at it and the map to the
+    units in which its outline is a circle (``axis`` and ``view``, as :func:`fit_ball`'s)."""
 
     frame: NDArray[np.uint8]
     grid: SampleGrid
@@ -133,6 +133,7 @@ class BallLook:
     y_px: float
     radius_px: float
     axis: tuple[float, float] | None = None
+    view: Array | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,11 +142,10 @@ class _Options:
 
     rising_rims: bool
     centre_slack_px: float | None
-    view: Array | None
     tint: Array | None
 
 
-_PLAIN = _Options(False, None, None, None)
+_PLAIN = _Options(False, None, None)
 
 
 def fit_ball(
@@ -192,9 +192,9 @@ def fit_ball(
     (:func:`trackerd.detect.guided.ball_tint`: a ball before a picture of nearly its colour can differ from it in
     another direction).
     """
-    options = _Options(rising_rims, centre_slack_px, view, tint)
+    options = _Options(rising_rims, centre_slack_px, tint)
     ranges = None if radius_range_px is None else np.array([radius_range_px], dtype=np.float64)
-    look = BallLook(frame, grid, colour, x_px, y_px, radius_px, axis)
+    look = BallLook(frame, grid, colour, x_px, y_px, radius_px, axis, view)
     return _fits([look], ranges, options, passes)[0]
 
 
@@ -218,12 +218,12 @@ def fit_balls(
     ranges = None
     if radius_range_px is not None:
         ranges = np.broadcast_to(np.asarray(radius_range_px, dtype=np.float64), (len(starts), 2))
-    return _fits(looks, ranges, _Options(rising_rims, None, None, None), passes)
+    return _fits(looks, ranges, _Options(rising_rims, None, None), passes)
 
 
 def fit_looks(looks: Sequence[BallLook], passes: int = 2) -> list[BallFit]:
-    """:func:`fit_ball` for each of ``looks``, in any frames and colours (every camera's ends of a pair):
-    the same fits, measured together as :func:`fit_balls`'s are."""
+    """:func:`fit_ball` for each of ``looks``, in any frames and colours (every camera's ends of a pair, the
+    search's seeds fitted again in their views): the same fits, measured together as :func:`fit_balls`'s are."""
     return _fits(list(looks), None, _PLAIN, passes)
 
 
@@ -267,17 +267,6 @@ def _one_pass(
     looks: list[BallLook], centres: Array, radii: Array, ranges: Array | None, options: _Options
 ) -> list[BallFit]:
     """One pass of the fit from each look's (centre, radius): rays, rims, the robust circle, its errors."""
-    view = options.view
-    # The rays run in the view's units (where the outline is a circle); ``image`` takes them back to pixels.
-    image = np.eye(2) if view is None else np.linalg.inv(view)
-    stretch = 1.0 if view is None else float(np.linalg.norm(image, 2))
-    # A sample lattice's spacing in the rays' units is its cell's times this.
-    lattice_scale = 1.0 if view is None else math.sqrt(abs(float(np.linalg.det(view))))
-    if view is None:
-        along_x, along_y = _COS, _SIN
-    else:
-        along_x = image[0, 0] * _COS + image[0, 1] * _SIN
-        along_y = image[1, 0] * _COS + image[1, 1] * _SIN
     results: list[BallFit | None] = [None] * len(centres)
     measured: list[int] = []
     windows: list[NDArray[np.float32]] = []
@@ -285,7 +274,15 @@ def _one_pass(
     lattice_uv: list[tuple[Array, Array]] = []
     lattices: list[float] = []
     for k, (look, (cx, cy), radius) in enumerate(zip(looks, centres.tolist(), radii.tolist(), strict=True)):
-        frame, grid, colour = look.frame, look.grid, look.colour
+        frame, grid, colour, view = look.frame, look.grid, look.colour, look.view
+        # The rays run in the view's units (where the outline is a circle); ``image`` takes them back to pixels.
+        image = np.eye(2) if view is None else np.linalg.inv(view)
+        stretch = 1.0 if view is None else float(np.linalg.norm(image, 2))
+        if view is None:
+            along_x, along_y = _COS, _SIN
+        else:
+            along_x = image[0, 0] * _COS + image[0, 1] * _SIN
+            along_y = image[1, 0] * _COS + image[1, 1] * _SIN
         reach = 2.0 * radius + 3.0
         region = cells_around(grid, colour, cx, cy, reach * stretch)
         if region[1] - region[0] < 3 or region[3] - region[2] < 3:
@@ -306,7 +303,8 @@ def _one_pass(
         ys = cy + along_y[:, None] * rho[None, :]
         lattice_uv.append(((xs - dc) / s - region[2], (ys - dr) / s - region[0]))
         rhos.append(rho)
-        lattices.append(float(s) * lattice_scale)
+        # The colour's sample lattice's spacing in the rays' units.
+        lattices.append(float(s) if view is None else float(s) * math.sqrt(abs(float(np.linalg.det(view)))))
         measured.append(k)
     if measured:
         lattice = np.array(lattices)
@@ -334,7 +332,7 @@ def _one_pass(
             rims[group] = group_rims.reshape(-1, RAYS)
             contrasts[group] = group_contrasts.reshape(-1, RAYS)
         outlines = _outlines(
-            [looks[k].axis for k in measured],
+            [looks[k] for k in measured],
             centres[measured],
             radii[measured],
             None if ranges is None else ranges[measured],
@@ -363,7 +361,7 @@ def _similar_lengths(lengths: list[int]) -> list[list[int]]:
 
 
 def _outlines(
-    axes: list[tuple[float, float] | None],
+    looks: list[BallLook],
     centres: Array,
     radii: Array,
     ranges: Array | None,
@@ -373,10 +371,10 @@ def _outlines(
     options: _Options,
 ) -> list[BallFit]:
     """Each start's circle from its rims ((K, RAYS): the rim's distance along each ray, NaN for none) and
-    the centre's errors; ``axes``: each start's pointer direction (fit_ball's ``axis``) or None."""
-    view = options.view
+    the centre's errors (each start's ``axis`` and ``view`` from its look)."""
     usable = np.full(len(centres), RAYS)
-    for k, axis in enumerate(axes):
+    for k, look in enumerate(looks):
+        axis, view = look.axis, look.view
         if axis is not None and view is not None:
             axis = (
                 float(view[0, 0] * axis[0] + view[0, 1] * axis[1]),
@@ -418,7 +416,7 @@ def _outlines(
             bounds,
             int(usable[k]),
             float(lattice[k]),
-            options,
+            looks[k].view,
         )
     return [fit for fit in results if fit is not None]
 
@@ -432,10 +430,9 @@ def _outline(
     radius_range_px: tuple[float, float] | None,
     usable: int,
     lattice: float,
-    options: _Options,
+    view: Array | None,
 ) -> BallFit:
     """One start's ball from its rim ``points`` (in the rays' units), their ``contrast`` and their ``circle``."""
-    view = options.view
     centre, r, weights, scale = circle
     circle_points, circle_centre = points, centre  # in the rays' units, where the outline is a circle
     if view is not None:

@@ -13,8 +13,8 @@ geometry that follows (:mod:`trackerd.joint`):
   size a ball can have in this camera (``radius_range_px``) are kept, the most
   ball-like first: round, vivid (well past the hue test's edge) and alone (not
   one speck among many of its colour);
-* each seed's outline is fitted (:func:`trackerd.detect.ballfit.fit_ball`); the
-  fits are the candidates.
+* each seed's outline is fitted, all of a colour's seeds together
+  (:func:`trackerd.detect.ballfit.fit_balls`); the fits are the candidates.
 
 It runs on a first sighting and when the quick detector's answer does not hold
 together; it is not on the tracking path.
@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackerd.detect.ballfit import BallFit, fit_ball, fit_balls
+from trackerd.detect.ballfit import BallFit, BallLook, fit_balls, fit_looks
 from trackerd.detect.blobs import Runs, blob_stats, find_runs, label_runs
 from trackerd.detect.colour import SampleGrid, _plane
 
@@ -195,26 +195,37 @@ def search_candidates(
             passes.append(more)
         found: list[Candidate] = []
         seeds = _in_turn(passes)[:max_seeds]
-        # Every seed's outline fitted in one go; only those it does not find are looked at again, one by one.
+        # Every seed's outline fitted in one go; those it does not find are looked at again, together too.
         starts = np.array([(x, y, max(radius, smallest)) for _, x, y, radius in seeds]).reshape(-1, 3)
-        for (_, x, y, radius), fit in zip(seeds, fit_balls(frame, grid, colour, starts), strict=True):
-            local = None if fit.found or view is None else view(x, y)
+        fits = fit_balls(frame, grid, colour, starts)
+        again: list[int] = []
+        looks: list[BallLook] = []
+        for i, (_, x, y, radius) in enumerate(seeds):
+            local = None if fits[i].found or view is None else view(x, y)
             if local is not None:
                 # The seed's size is in pixels: in the view's units, by its mean scale there.
                 scale = math.sqrt(abs(float(np.linalg.det(local))))
-                fit = fit_ball(frame, grid, colour, x, y, scale * max(radius, smallest), view=local)
-            if not fit.found:
-                # A ball touching something that only just passes the hue test (a hand's skin beside a
-                # red ball) is one seed with it, and the outline fitted from there is not round: fitted
-                # again from the vivid part of the seed alone.
-                for share in STRICTER:
-                    part = _vivid_part(own, excess, sampled, grid, colour, x, y, radius, share, smallest)
-                    if part is None:
-                        break
+                again.append(i)
+                looks.append(BallLook(frame, grid, colour, x, y, scale * max(radius, smallest), view=local))
+        for i, fit in zip(again, fit_looks(looks), strict=True):
+            fits[i] = fit
+        # A ball touching something that only just passes the hue test (a hand's skin beside a red ball) is
+        # one seed with it, and the outline fitted from there is not round: fitted again from the vivid part
+        # of the seed alone, each stricter share only for the seeds the one before did not find.
+        trying = [i for i, fit in enumerate(fits) if not fit.found]
+        for share in STRICTER:
+            again, looks = [], []
+            for i in trying:
+                _, x, y, radius = seeds[i]
+                part = _vivid_part(own, excess, sampled, grid, colour, x, y, radius, share, smallest)
+                if part is not None:
                     vx, vy, vradius = part
-                    fit = fit_ball(frame, grid, colour, vx, vy, max(vradius, smallest))
-                    if fit.found:
-                        break
+                    again.append(i)
+                    looks.append(BallLook(frame, grid, colour, vx, vy, max(vradius, smallest)))
+            for i, fit in zip(again, fit_looks(looks), strict=True):
+                fits[i] = fit
+            trying = [i for i in again if not fits[i].found]
+        for (_, x, y, radius), fit in zip(seeds, fits, strict=True):
             if fit.found and 0.6 * smallest <= fit.radius_px <= 1.4 * largest:
                 found.append(Candidate(colour, fit, (x, y), radius))
         out[colour] = _distinct(found)
