@@ -533,8 +533,11 @@ class RefinedPath:
         start_points = np.stack([np.asarray(init[0], dtype=np.float64), np.asarray(init[1], dtype=np.float64)])
         measured = np.zeros((len(used), 2, 2))
         covariances = np.zeros((len(used), 2, 2, 2))
-        # What each measurement's error truly is, where its weight says less (trackerd/ends.py): the hit's
-        # uncertainty is the weighted fit's under these errors.
+        # What each measurement's error truly is (trackerd/ends.py: EndMeasurement.actual_covariance), and each is
+        # weighed by it: weighed by its narrower statistical covariance instead, a partial or disturbed outline
+        # pulled the fit as a clean one does (`bench robustness`, seeds 2026 and 7: 2.94 / 2.58 mm median
+        # before, 2.83 / 2.45 after; docs/geometry.md, "Weights and errors"). The hit's uncertainty is the
+        # weighted fit's under these errors.
         errors = np.zeros((len(used), 2, 2, 2))
         for k, i in enumerate(used):
             for e, colour in enumerate((front, back)):
@@ -546,16 +549,16 @@ class RefinedPath:
                     errors[k, e] = covariances[k, e]
                 else:
                     measured[k, e] = m.normalised
-                    covariances[k, e] = m.covariance
+                    covariances[k, e] = m.actual_covariance
                     errors[k, e] = m.actual_covariance
         # A ball's outline of the wrong size for its distance is likely a fit to something else (the part of a
         # ball a hand leaves, a disc on the display beside it). Off by more than GUIDED_SIZE, the ball is looked
         # for again where the start puts it, told its size; off by more than MAX_RADIUS_RATIO and not found
         # again, it is left out while each end keeps two cameras, and otherwise kept with an error as large as
         # its radius is wrong, so that the hit's uncertainty says what it rests on. Within MAX_RADIUS_RATIO
-        # and not found again, it keeps its weight, and a partial outline has an error along its arc's axis,
-        # where its centre moves with its radius, and one smaller than the ball its shortfall in every
-        # direction besides (:func:`trackerd.ends.partial_arc_error`).
+        # and not found again, a partial outline has an error along its arc's axis, where its centre moves
+        # with its radius, and one smaller than the ball its shortfall in every direction besides
+        # (:func:`trackerd.ends.partial_arc_error`), in its weight as in its error.
         from trackerd.ends import partial_arc_error
 
         ball_radius = pointer.end_diameter_m / 2.0
@@ -586,6 +589,7 @@ class RefinedPath:
                 if ball_sized(m.radius_px, expected):
                     if m.fit is not None:
                         added = partial_arc_error(m.fit, expected, camera.focal_px)
+                        covariances[k, e] = covariances[k, e] + added
                         errors[k, e] = errors[k, e] + added
                         per_camera[i][colour] = replace(m, fit_error=added)
                     continue
