@@ -30,6 +30,12 @@ So, around a rough position (a blob's centre, a tracked position, a prediction):
 The result carries the rim points that agree with the circle (for the
 locator's exact fit), the share of rays whose rim agreed (how much of the
 outline is visible), the rim points' scatter and the centre's standard error.
+
+Many balls are measured at once where many are asked for (:func:`fit_balls`: a
+frame's search seeds; :func:`fit_looks`: every camera's ends of a pair): their
+rays gathered together, their rims found and their circles fitted
+(:func:`trackerd.detect.circle.robust_circles`) in one set of arrays. Each fit is
+the one :func:`fit_ball` gives alone.
 """
 
 from __future__ import annotations
