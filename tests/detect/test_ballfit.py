@@ -12,7 +12,7 @@ from trackerd.detect import ColourEndDetector
 from trackerd.detect.ballfit import (
     RESTING_ERROR_SHARE,
     BallLook,
-    _bilinear,
+    _bilinear_windows,
     _leaning_shift,
     arc_deformation_covariance,
     fit_ball,
@@ -181,7 +181,7 @@ def test_the_rays_samples_are_bilinear_and_nan_outside() -> None:
     image = rng.uniform(0, 255, (7, 9)).astype(np.float32)
     u = rng.uniform(-1.0, 9.0, 200)
     v = rng.uniform(-1.0, 7.0, 200)
-    sampled = _bilinear(image, u, v)
+    sampled = _bilinear_windows([image], u[None], v[None])[0]
     inside = (u >= 0) & (v >= 0) & (u <= 8) & (v <= 6)
     assert np.all(np.isnan(sampled[~inside]))
     for uu, vv, got in zip(u[inside], v[inside], sampled[inside], strict=True):

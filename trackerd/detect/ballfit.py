@@ -557,12 +557,6 @@ def independent_rims(count: int, radius_px: float, lattice_px: float) -> float:
     return max(3.0, count * min(1.0, spacing_px / (CORRELATION_CELLS * lattice_px)))
 
 
-def _bilinear(image: NDArray[np.float32], u: Array, v: Array) -> Array:
-    """``image`` at fractional (column u, row v), NaN outside."""
-    values: Array = _bilinear_windows([image], u[None], v[None])[0]
-    return values
-
-
 def _bilinear_windows(images: list[NDArray[np.float32]], u: Array, v: Array) -> Array:
     """Each of ``images`` at its own fractional (column u[k], row v[k]) (u, v: (K, ...)), NaN outside it.
 

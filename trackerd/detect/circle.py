@@ -186,17 +186,11 @@ def _triples(n: int, trials: int) -> NDArray[np.intp]:
 
 def row_medians(values: Array) -> Array:
     """Median of each row's finite values (NaN for a row with none); np.nanmedian is ten times slower."""
-    ordered = np.sort(np.where(np.isfinite(values), values, np.inf), axis=1)
-    count = np.sum(np.isfinite(values), axis=1)
-    rows = np.arange(len(values))
-    low = ordered[rows, clipped((count - 1) // 2, 0, values.shape[1] - 1)]
-    high = ordered[rows, clipped(count // 2, 0, values.shape[1] - 1)]
-    return np.where(count > 0, 0.5 * (low + high), np.nan)
+    return masked_row_medians(values, np.isfinite(values))
 
 
 def masked_row_medians(values: Array, mask: NDArray[np.bool_]) -> Array:
-    """Median of each row's values where ``mask`` (NaN for a row with none): :func:`row_medians` without the
-    test for NaN, for the reweighting rounds."""
+    """Median of each row's values where ``mask`` (NaN for a row with none)."""
     if len(values) == 1:
         # One row (a single fit's every round): the plain median is half the time of the row machinery.
         kept = values[0][mask[0]]
