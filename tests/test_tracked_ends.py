@@ -136,3 +136,60 @@ def test_an_outline_of_the_wrong_size_keeps_its_error_on_the_tracked_pairs() -> 
         assert frame is frames[0] or not fix.measurements  # the tracked path answered, with that error
         error_m = float(np.linalg.norm(fix.hit.wall_xy_m - frame.truth_xy_m))
         assert error_m < 3.0 * fix.uncertainty_m, (frame.number, error_m, fix.uncertainty_m)
+
+
+def test_a_cameras_stale_ends_are_measured_again_together_as_each_alone() -> None:
+    # Seed 2026's installation 15, followed as the bench renders it (two cameras, the presenter's body in the
+    # sequence): at its fifth pair both of camera 0's ends have moved or changed beyond what their corrections
+    # may be carried, and are measured again in one batched measurement. Each must be the outline
+    # measure_end finds for that end alone, beside its new centroid, and the tracked path must answer with it.
+    from trackerd.bench.robustness_follow import followed_frames
+    from trackerd.ends import across_pointer, measure_end
+    from trackerd.locator import Locator
+    from trackerd.refine import blob_radius_px
+
+    drawn, _ = draw_installation(2026, 15)
+    assert drawn.rig.wall is not None
+    _, sequence = followed_frames(
+        drawn,
+        renderer_for(drawn),
+        wall_frame(drawn.rig.wall),
+        np.random.default_rng([2026, 15, 3]),
+        5,
+        np.random.default_rng([2026, 15, 4]),
+    )
+    frames = list(sequence)
+    locator = Locator(drawn.rig, cameras=drawn.cameras)
+    for frame in frames[:-1]:
+        assert locator.locate([v.image for v in frame.views]).found
+    assert locator.offsets is not None
+    before = {colour: locator.offsets[0][colour] for colour in ("red", "blue")}
+    images = [v.image for v in frames[-1].views]
+    fix = locator.locate(images)
+    assert fix.hit is not None and fix.uncertainty_m is not None and frames[-1].truth_xy_m is not None
+    assert not fix.measurements  # the tracked path answered
+    detection = fix.detections[0]
+    for colour in ("red", "blue"):
+        offset, end = locator.offsets[0][colour], detection.end(colour)
+        assert offset is not before[colour]
+        np.testing.assert_array_equal(offset.centroid_px, end.centroid_px)  # measured beside this centroid
+        alone = measure_end(
+            images[0],
+            locator.grids[0],
+            locator.cameras[0],
+            0,
+            colour,
+            end.centroid_px,
+            blob_radius_px(end),
+            end.centroid_px,
+            across_pointer(detection.red.centroid_px, detection.blue.centroid_px),
+            drawn.rig.locator.centroid_sigma_px,
+        )
+        assert alone is not None
+        centroid_n = locator.cameras[0].normalized_from_pixels(np.asarray(end.centroid_px)[None])[0]
+        np.testing.assert_allclose(offset.offset_n, alone.normalised - centroid_n, rtol=0, atol=1e-12)
+        assert offset.radius_px == pytest.approx(alone.radius_px, abs=1e-9)
+        # Its error is at least the outline's own (and more where its size is wrong for its distance).
+        assert np.linalg.eigvalsh(offset.covariance_n - alone.actual_covariance).min() >= -1e-18
+    error_m = float(np.linalg.norm(fix.hit.wall_xy_m - frames[-1].truth_xy_m))
+    assert error_m < 3.0 * fix.uncertainty_m, (error_m, fix.uncertainty_m)

@@ -136,6 +136,21 @@ def _detected_centroids(detections: tuple) -> tuple[dict[str, Array | None], ...
     )
 
 
+@dataclass(frozen=True, slots=True)
+class StaleEnd:
+    """A tracked end whose correction has been carried too far (trackerd/tracked_ends.py: is_stale): its
+    outline is measured again before its centroid is trusted."""
+
+    camera_index: int
+    colour: str
+    offset: EndOffset
+    """Its outline as last measured."""
+    depth_m: float
+    """Its depth in the camera where the last pair put it (0 when unknown)."""
+    point_m: Array | None
+    """Where the last pair put it (None when the last pair was not found)."""
+
+
 class Locator:
     """Detectors for each camera plus the rig's geometry; one instance per stream of image sets.
 
@@ -288,35 +303,46 @@ class Locator:
         ):
             return None
         last = self._last_line
-        remeasured = False
+        # Each end's drift since its outline; the stale ends of every camera are measured again together, in
+        # one batched measurement (:meth:`_measure_again`), before any end is corrected.
+        drifts: list[tuple[float, float]] = []
+        stale: list[StaleEnd] = []
+        for i in used:
+            camera, detection = self.cameras[i], detections[i]
+            for e, colour in enumerate((self.front_colour, self.back_colour)):
+                end = detection.end(colour)
+                point = None if last is None else (last.front_m if e == 0 else last.back_m)
+                depth = 0.0 if point is None else end_depth_m(camera, point)
+                offset = offsets[i][colour]
+                area_change = area_change_log(offset, end.area_px, depth)
+                moved = moved_px(offset, end.centroid_px)
+                if is_stale(staleness(offset, moved, area_change), area_change):
+                    stale.append(StaleEnd(i, colour, offset, depth, point))
+                    moved = area_change = 0.0  # measured again beside this very centroid
+                drifts.append((moved, area_change))
+        if stale:
+            again = self._measure_again(images, detections, stale)
+            if again is None:
+                return None
+            for end_again, offset in zip(stale, again, strict=True):
+                offsets[end_again.camera_index][end_again.colour] = offset
         normalised = np.empty((len(used), 2, 2))
         covariances = np.empty((len(used), 2, 2, 2))
         for k, i in enumerate(used):
             camera, detection = self.cameras[i], detections[i]
             ends = (detection.end(self.front_colour), detection.end(self.back_colour))
             centroids_n = camera.normalized_from_pixels(np.array([ends[0].centroid_px, ends[1].centroid_px]))
-            for e, (colour, end) in enumerate(zip((self.front_colour, self.back_colour), ends, strict=True)):
-                depth = 0.0 if last is None else end_depth_m(camera, last.front_m if e == 0 else last.back_m)
-                offset = offsets[i][colour]
-                area_change = area_change_log(offset, end.area_px, depth)
-                moved = moved_px(offset, end.centroid_px)
-                if is_stale(staleness(offset, moved, area_change), area_change):
-                    point = None if last is None else (last.front_m if e == 0 else last.back_m)
-                    again = self._measure_again(images[i], i, detection, colour, offset, depth, point)
-                    if again is None:
-                        return None
-                    offsets[i][colour] = offset = again
-                    moved = area_change = 0.0  # measured beside this very centroid
-                    remeasured = True
+            for e, colour in enumerate((self.front_colour, self.back_colour)):
+                moved, area_change = drifts[2 * k + e]
                 normalised[k, e], covariances[k, e] = corrected_end(
-                    offset, centroids_n[e], moved, area_change, camera.focal_px
+                    offsets[i][colour], centroids_n[e], moved, area_change, camera.focal_px
                 )
         centroids = _detected_centroids(detections)
         view = self.camera_set.subset(used)
         try:
             # Each corrected end already points at its ball's centre (the outline's sphere direction): no
             # sphere correction.
-            line_and_uncertainty = self._tracked_line(normalised, covariances, view, remeasured)
+            line_and_uncertainty = self._tracked_line(normalised, covariances, view, bool(stale))
         except GeometryError:
             return None
         if line_and_uncertainty is None:
@@ -392,52 +418,62 @@ class Locator:
         return line, uncertainty
 
     def _measure_again(
-        self,
-        image: NDArray[np.uint8],
-        index: int,
-        detection: ImageDetections,
-        colour: str,
-        offset: EndOffset,
-        depth_m: float,
-        point_m: Array | None = None,
-    ) -> EndOffset | None:
-        """One end's outline measured again beside its tracked centroid; None when it is not found, is not
-        the ball the detector follows, or is not the size the ball had (scaled by its distance). Where the last
-        pair put the end (``point_m``), an outline of another size than a ball's there keeps the error the refined
+        self, images: Sequence[NDArray[np.uint8]], detections: tuple, stale: Sequence[StaleEnd]
+    ) -> list[EndOffset] | None:
+        """The stale ends' outlines measured again beside their tracked centroids, all in one batched
+        measurement (:func:`trackerd.ends.measure_ends`); None when any is not found, is not the ball the
+        detector follows, or is not the size the ball had (scaled by its distance). Where the last pair put an
+        end (``StaleEnd.point_m``), an outline of another size than a ball's there keeps the error the refined
         fit would give it (:func:`trackerd.refine.wrong_size_error`), as the outline it replaces did."""
-        from trackerd.ends import across_pointer, measure_end, same_ball
+        from trackerd.ends import EndRequest, across_pointer, measure_ends, same_ball
         from trackerd.refine import blob_radius_px, wrong_size_error
 
-        centroid, red, blue = detection.end(colour).centroid_px, detection.red.centroid_px, detection.blue.centroid_px
-        assert centroid is not None and red is not None and blue is not None  # a camera that sees both ends
-        area_px = detection.end(colour).area_px
-        across = across_pointer(red, blue)
-        camera = self.cameras[index]
-        measured = measure_end(
-            image,
-            self.grids[index],
-            camera,
-            index,
-            colour,
-            centroid,
-            blob_radius_px(detection.end(colour)),
-            centroid,
-            across,
-            self.rig.locator.centroid_sigma_px,
-        )
-        if measured is None or not same_ball(centroid, measured):
-            return None
-        expected = offset.radius_px
-        if depth_m > 0.0 and offset.depth_m > 0.0:
-            expected *= offset.depth_m / depth_m
-        if not 1.0 / GUIDED_RADIUS_RATIO <= measured.radius_px / expected <= GUIDED_RADIUS_RATIO:
-            return None
-        if point_m is not None:
-            added = wrong_size_error(measured, camera, point_m, self.pointer.end_diameter_m / 2.0)
-            if added is None:
+        requests = []
+        for end in stale:
+            detection = detections[end.camera_index]
+            centroid, red, blue = (
+                detection.end(end.colour).centroid_px,
+                detection.red.centroid_px,
+                detection.blue.centroid_px,
+            )
+            assert centroid is not None and red is not None and blue is not None  # a camera that sees both ends
+            requests.append(
+                EndRequest(
+                    images[end.camera_index],
+                    self.grids[end.camera_index],
+                    self.cameras[end.camera_index],
+                    end.camera_index,
+                    end.colour,
+                    centroid,
+                    blob_radius_px(detection.end(end.colour)),
+                    centroid,
+                    across_pointer(red, blue),
+                )
+            )
+        offsets: list[EndOffset] = []
+        for end, request, measured in zip(
+            stale, requests, measure_ends(requests, self.rig.locator.centroid_sigma_px), strict=True
+        ):
+            centroid = request.centroid_px
+            assert centroid is not None
+            if measured is None or not same_ball(centroid, measured):
                 return None
-            measured = replace(measured, fit_error=added)
-        return end_offset(camera, measured, centroid, area_px, depth_m)
+            expected = end.offset.radius_px
+            if end.depth_m > 0.0 and end.offset.depth_m > 0.0:
+                expected *= end.offset.depth_m / end.depth_m
+            if not 1.0 / GUIDED_RADIUS_RATIO <= measured.radius_px / expected <= GUIDED_RADIUS_RATIO:
+                return None
+            if end.point_m is not None:
+                added = wrong_size_error(measured, request.camera, end.point_m, self.pointer.end_diameter_m / 2.0)
+                if added is None:
+                    return None
+                measured = replace(measured, fit_error=added)
+            area_px = detections[end.camera_index].end(end.colour).area_px
+            offset = end_offset(request.camera, measured, centroid, area_px, end.depth_m)
+            if offset is None:
+                return None
+            offsets.append(offset)
+        return offsets
 
     def learn_offsets(self, fix: PointerFix) -> None:
         """Each end's offset from a refined fix's outline measurements (the refined path calls this on every
