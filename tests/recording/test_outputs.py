@@ -88,3 +88,30 @@ def test_a_recorder_refused_for_free_space_leaves_no_folder_behind(small_disk) -
     writer.close()
     with Recording.open(out) as again:
         assert len(again) == 1 and again.problems == []
+
+
+def _fill(disk: Path, leave_bytes: int) -> None:
+    """Fill ``disk`` to within ``leave_bytes`` of full."""
+    free = shutil.disk_usage(disk).free
+    with (disk / "filler").open("wb") as handle:
+        handle.write(b"\0" * max(free - leave_bytes, 0))
+
+
+def test_export_onto_a_full_disk_says_so_and_keeps_what_it_wrote(small_disk) -> None:
+    """Found by a new user's audit: a full disk met by the table's rows escaped as an OSError (a traceback),
+    and one met by an image said only "cannot write the image" after libpng's own line, leaving a cut PNG."""
+    import cv2
+
+    _fill(small_disk, 0)
+    run = trackerd("recording", "export", BUNDLE, small_disk / "rows", "--no-images")
+    one_line_error(run, "recording", "rows/hits.csv: cannot write: No space left on device")
+    (small_disk / "filler").unlink()
+    _fill(small_disk, 256 * 1024)  # room for the table's rows, not for a 1080p pair's images
+    run = trackerd("recording", "export", BUNDLE, small_disk / "images", "--every", "1")
+    one_line_error(run, "recording", "images/000000-", ".png: cannot write the image: No space left on device")
+    assert "libpng" not in run.stderr, run.stderr
+    # Every image left is whole, and the table holds every row written before the disk filled.
+    for image in (small_disk / "images").glob("*.png"):
+        assert cv2.imread(str(image), cv2.IMREAD_UNCHANGED) is not None, image
+    rows = (small_disk / "images" / "hits.csv").read_text().splitlines()
+    assert rows[0].startswith("pair_index,") and rows[1].startswith("0,"), rows[:2]

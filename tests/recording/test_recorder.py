@@ -99,9 +99,12 @@ def test_import_onto_a_full_disk_says_so_in_one_line(bundle_pairs, small_disk, t
         for frame in pair.frames:
             cv2.imwrite(str(folder / f"{k:02d}-{frame.camera_id}.png"), frame.image)
     run = trackerd("recording", "import", folder, small_disk / "imported.trec", "--config", "config/simulated.toml")
-    one_line_error(run, "recording", "imported.trec", "disk full")
+    line = one_line_error(run, "recording", "imported.trec", "disk full")
     with Recording.open(small_disk / "imported.trec") as recording:
         assert 1 <= len(recording) < 4
+        # The error says what is left, and the recording says it is not the whole import.
+        assert f"the {len(recording)} pairs imported before it are left in {small_disk / 'imported.trec'}" in line
+        assert any("ended with an error" in problem for problem in recording.problems), recording.problems
 
 
 def test_recording_on_demand_starts_and_stops_with_reloads(bundle_pairs, tmp_path) -> None:

@@ -150,14 +150,15 @@ def test_a_wrong_version_or_a_foreign_folder_is_one_clear_line(bundle, tmp_path)
 
 
 def test_frames_recorded_in_a_format_without_colour_are_one_line_not_a_crashed_pipeline(bundle, tmp_path) -> None:
-    """recording.json says a camera's frames are Mono16 (edited by hand, or a recording of something else):
-    replay and export refuse it in one line before the pipeline starts. Before, every pair crashed the
-    locator's thread with a traceback (ImageError from the colour sampling)."""
+    """recording.json says a camera's frames are Mono8 (edited by hand, or a recording of a rig used to
+    calibrate): replay and export refuse it in one line before the pipeline starts. Before, every pair crashed
+    the locator's thread with a traceback (ImageError from the colour sampling). (A format a recording does
+    not store, Mono16, is refused as the metadata is read: the next test but one.)"""
     copy = _copy(bundle, tmp_path)
     meta = json.loads((copy / "recording.json").read_text())
-    meta["cameras"][0]["pixel_format"] = "Mono16"
+    meta["cameras"][0]["pixel_format"] = "Mono8"
     (copy / "recording.json").write_text(json.dumps(meta))
-    fragments = ("camera 'left': its recorded frames' pixel format 'Mono16' cannot show the pointer's colours",)
+    fragments = ("camera 'left': its recorded frames' pixel format 'Mono8' cannot show the pointer's colours",)
     one_line_error(
         trackerd("replay", copy, "--speed", "max", "--delay", "0", "--endpoint", "tcp://127.0.0.1:*"),
         "replay",
@@ -225,3 +226,78 @@ def test_a_fifo_directory_or_device_in_place_of_the_data_or_index_is_never_read(
         report = json.loads(check.stdout)
         assert (report["pairs"], report["indexed"], report["recovered"]) == (16, 0, 16), report
         assert "pairs.idx: not a regular file" in report["problems"][0], report["problems"]
+
+
+def _rewritten(bundle: Path, out: Path, retimed) -> Path:
+    """The bundle written again by the real writer with each pair's capture time ``retimed(index, ns)``,
+    as another program or a broken clock would (every checksum valid)."""
+    import dataclasses
+
+    from trackerd.recording.writer import RecordingWriter
+
+    with Recording.open(bundle) as source:
+        writer = RecordingWriter(out, source.metadata.model_copy(update={"end": None}))
+        for index in range(len(source)):
+            pair = source.pair(index)
+            writer.write(dataclasses.replace(pair, timestamp_ns=retimed(index, pair.timestamp_ns)))
+        writer.close("test")
+    return out
+
+
+@pytest.mark.parametrize(
+    ("shift_ns", "said"),
+    [
+        (-1000 * 10**9, "s before pair 9 (times go back)"),
+        (3 * 86_400 * 10**9, "3.0 days after pair 9 (longer than a recording's gap)"),
+    ],
+    ids=["back", "days ahead"],
+)
+def test_pairs_whose_capture_times_leave_the_time_line_are_damaged_not_replayed(
+    bundle, tmp_path, shift_ns: int, said: str
+) -> None:
+    """Found by a new user's audit: pairs 10 on of a recording moved 1000 s back in time (checksums made
+    again) were called intact, and replay crashed its publishing thread on the negative duration of the
+    pointer's stay on the display; moved days ahead, replay at recorded speed would have waited for them."""
+    retimed = _rewritten(bundle, tmp_path / "retimed.trec", lambda i, ns: ns + (shift_ns if i >= 10 else 0))
+    with Recording.open(retimed) as recording:
+        offset = recording.entries[10].offset
+    check = trackerd("recording", "check", retimed)
+    assert check.returncode == 1, check.stdout
+    assert f"pairs.dat: pair 10 at byte {offset}: captured" in check.stdout and said in check.stdout, check.stdout
+    assert "6 problem(s); 10 pairs replay" in check.stdout
+    # At the recorded speed (the pacing the days-ahead pairs would have held up), the first ten replay.
+    run = trackerd(
+        "replay", retimed, "--delay", "0", "--endpoint", "tcp://127.0.0.1:*", "--console", "off", "--json", timeout=60
+    )
+    assert "Traceback" not in run.stderr and "crashed" not in run.stderr, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["pairs"] == 10 and summary["hits"] == 10, summary
+    assert "6 damaged pair(s) skipped" in run.stderr and run.returncode == 1, (run.returncode, run.stderr)
+
+
+def test_check_counts_what_replay_refuses_and_what_an_error_cut_short(bundle, tmp_path) -> None:
+    """Found by a new user's audit: `recording check` called "intact" (exit 0) a recording whose stated pixel
+    format has another frame size (Mono16, 16 bits a pixel), one whose recorded rig replay refuses, and one
+    a failed import closed as interrupted."""
+    copy = _copy(bundle, tmp_path)
+    meta_path = copy / "recording.json"
+    original = json.loads(meta_path.read_text())
+
+    def with_meta(change) -> None:
+        meta = json.loads(json.dumps(original))
+        change(meta)
+        meta_path.write_text(json.dumps(meta))
+
+    with_meta(lambda m: m["cameras"][0].update(pixel_format="Mono16"))
+    said = "cameras.0.pixel_format: 'Mono16' is not a format a recording stores"
+    one_line_error(trackerd("recording", "check", copy), "recording", said)
+    one_line_error(trackerd("replay", copy, "--endpoint", "tcp://127.0.0.1:*"), "replay", said)
+    one_line_error(trackerd("recording", "export", copy, tmp_path / "out"), "recording", said)
+    with_meta(lambda m: m["rig"]["pointer"].update(length_m=-1))
+    check = trackerd("recording", "check", copy)
+    assert check.returncode == 1 and "the recorded rig does not validate" in check.stdout, check.stdout
+    assert "16 pairs replay" in check.stdout
+    with_meta(lambda m: m["end"].update(reason="error: import interrupted"))
+    check = trackerd("recording", "check", copy)
+    assert check.returncode == 1, check.stdout
+    assert "recording.json: the recording ended with an error (error: import interrupted)" in check.stdout

@@ -6,7 +6,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from trackerd.errors import RecordingError
+from trackerd.errors import ConfigError, RecordingError
 from trackerd.recording.format import FLAG_KEYFRAME
 from trackerd.recording.reader import Recording
 
@@ -59,6 +59,11 @@ def check_recording(
     """Check every pair's record header (and with ``verify`` every frame's checksum)."""
     meta = recording.metadata
     problems = list(recording.problems)
+    try:
+        # Replay and export read it: a rig they refuse is the recording's problem too.
+        recording.rig()
+    except ConfigError as err:
+        problems.append(str(err))
     damaged: list[int] = []
     previous_sequence: int | None = None
     gaps = 0

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from trackerd.errors import RecordingError
+from trackerd.errors import RecordingError, TrackerdError
 from trackerd.recording.format import Mode
 from trackerd.recording.reader import Recording
 from trackerd.recording.writer import RecordingWriter
@@ -69,6 +69,11 @@ def convert_recording(
             writer.write(pair, dropped_before=source.header(index).dropped_before)
             if progress is not None:
                 progress(index + 1, total)
+    except TrackerdError as err:
+        writer.close("error: conversion interrupted")
+        # Said with the error, so that a user does not take what is left for the whole conversion.
+        err.args = (f"{err}; the {writer.pairs} pairs converted before it are left in {out}",)
+        raise
     except BaseException:
         writer.close("error: conversion interrupted")
         raise

@@ -131,7 +131,7 @@ class FrameDecoder:
             if base_pair >= index:
                 raise RecordingError(f"{where}: its windows lie over pair {base_pair}, not an earlier pair")
             if self._whole.get(k) != base_pair:
-                if self._recording.header(base_pair).frames[k].encoding not in FULL_ENCODINGS:
+                if self._recording.record_header(base_pair).frames[k].encoding not in FULL_ENCODINGS:
                     raise RecordingError(f"{where}: its windows lie over pair {base_pair}, whose frame is not whole")
                 self._whole[k] = base_pair  # checked once, not for each of the pairs over it
             base = self._base(base_pair, k, verify, where)
@@ -154,14 +154,14 @@ class FrameDecoder:
             return cached[1]
         # Walk back to the nearest frame that is not a difference, then forward (in order, one at a time).
         first = index
-        while first > 0 and self._recording.header(first).frames[k].encoding == ENCODING_ZSTD_DELTA:
+        while first > 0 and self._recording.record_header(first).frames[k].encoding == ENCODING_ZSTD_DELTA:
             cached = self._decoded.get(k)
             if cached is not None and cached[0] == first - 1:
                 break
             first -= 1
         try:
             for j in range(first, index + 1):
-                image = self._rebuilt(j, k, self._recording.header(j), verify)
+                image = self._rebuilt(j, k, self._recording.record_header(j), verify)
         except RecordingError as err:
             raise RecordingError(f"{where}: the frame it builds on cannot be read: {err}") from err
         return image

@@ -16,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
@@ -150,6 +152,10 @@ def export_recording(
                         fix.reason or "",
                     ]
                 )
+                # Each row on the disk before the next pair: a full disk is then met by the write that
+                # meets it (closing the file would otherwise raise it over an image's error), and every
+                # row before it stays in the table.
+                handle.flush()
                 if images and (index - first) % max(every, 1) == 0:
                     for k, (cam, frame) in enumerate(zip(recording.cameras, frames, strict=True)):
                         detections = fix.detections[k] if fix.detections else None
@@ -157,15 +163,30 @@ def export_recording(
                         if detections is not None:
                             lines.append(end_summary(detections))
                         path = folder / f"{index:06d}-{cam.id}.png"
-                        if not cv2.imwrite(str(path), annotate(frame, cam.pixel_format, detections, lines)):
-                            raise RecordingError(f"{path}: cannot write the image")
+                        _write_png(path, annotate(frame, cam.pixel_format, detections, lines))
                         written += 1
                 if progress is not None:
                     progress(index - first + 1, stop - first)
+    except OSError as err:
+        # The table so far stays readable (each row is whole up to where the disk filled).
+        raise RecordingError(f"{csv_path}: cannot write: {err.strerror or err}") from err
     finally:
         for extension in extensions:
             extension.close()
     return ExportSummary(stop - first - len(skipped), written, statuses, csv_path, skipped)
+
+
+def _write_png(path: Path, image: NDArray[np.uint8]) -> None:
+    """``image`` as a PNG at ``path``; RecordingError saying why not (encoded in memory and written here, so
+    that a full disk says so, where cv2.imwrite says only that libpng failed)."""
+    encoded, data = cv2.imencode(".png", image)
+    if not encoded:
+        raise RecordingError(f"{path}: cannot encode the image as PNG")
+    try:
+        path.write_bytes(data.tobytes())
+    except OSError as err:
+        path.unlink(missing_ok=True)  # a cut PNG is no image; the ones before it stay
+        raise RecordingError(f"{path}: cannot write the image: {err.strerror or err}") from err
 
 
 def _centroids(fix: PointerFix) -> list[str]:

@@ -30,7 +30,7 @@ import zlib
 from dataclasses import dataclass, field
 from typing import Final, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from trackerd.errors import RecordingError
 
@@ -105,6 +105,10 @@ Compression = Literal["none", "deflate"]
 # --------------------------------------------------------------------------- metadata
 
 
+STORED_PIXEL_FORMATS: Final = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8", "Mono8")
+"""The pixel formats a recording's frames are stored in: the rig's, one byte a pixel (three for RGB8, BGR8)."""
+
+
 class _Meta(BaseModel):
     """Metadata objects ignore keys they do not know: a newer MINOR may add some."""
 
@@ -116,7 +120,8 @@ class CameraMeta(_Meta):
 
     id: str
     pixel_format: str
-    """GenICam pixel format of the stored frames (BayerRG8, ..., RGB8, BGR8)."""
+    """GenICam pixel format of the stored frames (BayerRG8, ..., RGB8, BGR8; Mono8 from a rig used to
+    calibrate): one of STORED_PIXEL_FORMATS, the formats whose frame size :attr:`frame_bytes` knows."""
     width_px: int = Field(gt=0)
     height_px: int = Field(gt=0)
     serial: str | None = None
@@ -124,6 +129,15 @@ class CameraMeta(_Meta):
     model: str | None = None
     device: str | None = None
     """How the camera was reached (address, device id), or where the frames came from."""
+
+    @field_validator("pixel_format")
+    @classmethod
+    def _stored(cls, value: str) -> str:
+        # Another format's frames have another size: checked against it, every frame would seem damaged or
+        # (a 16-bit format's) the wrong half of each.
+        if value not in STORED_PIXEL_FORMATS:
+            raise ValueError(f"{value!r} is not a format a recording stores ({', '.join(STORED_PIXEL_FORMATS)})")
+        return value
 
     @property
     def frame_bytes(self) -> int:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from trackerd.acquisition.frame import Frame, FramePair
 from trackerd.config.models import RigConfig
-from trackerd.errors import ImageError, RecordingError
+from trackerd.errors import ImageError, RecordingError, TrackerdError
 from trackerd.image_pairs import Moment, pair_images
 from trackerd.images import read_frame
 from trackerd.recording.format import Compression, Mode
@@ -160,6 +160,13 @@ def import_folder(
             writer.write(pair)
             if progress is not None:
                 progress(k + 1, len(moments))
+    except TrackerdError as err:
+        if writer is None:
+            raise
+        writer.close("error: import interrupted")
+        # Said with the error, so that a user does not take what is left for the whole import.
+        err.args = (f"{err}; the {writer.pairs} pairs imported before it are left in {out}",)
+        raise
     except BaseException:
         if writer is not None:
             writer.close("error: import interrupted")

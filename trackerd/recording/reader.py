@@ -57,6 +57,11 @@ from trackerd.recording.format import (
 from trackerd.recording.index import read_index, scan_unindexed
 
 MAX_METADATA_BYTES = 16 * 1024 * 1024
+
+MAX_CAPTURE_GAP_NS = 86_400 * 10**9
+"""The longest a recording's capture times may jump from one pair to the next (a day: a recording may span
+the cameras' absence, not more). Capture times are the recording host's monotonic clock, so they never go
+back either: a pair whose time does either cannot be placed in the recording's time line."""
 """recording.json holds the rig and what the cameras said of themselves: tens of kilobytes."""
 
 
@@ -84,6 +89,9 @@ class Recording:
     problems: list[str] = field(default_factory=list)
     """What is damaged or missing, one line each (empty for a recording closed cleanly and intact)."""
     _map: mmap.mmap | None = None
+    out_of_time: dict[int, str] = field(default_factory=dict)
+    """Pairs whose capture time cannot be placed in the recording's time line (:func:`capture_time_damage`),
+    with what is wrong: :meth:`header` refuses them as damaged, and replay does not wait for their times."""
     _decoder: FrameDecoder = field(init=False)
 
     def __post_init__(self) -> None:
@@ -132,12 +140,20 @@ class Recording:
             problems.insert(0, f"{damaged}; its pairs are read by their own checksums")
         recording = cls(folder, metadata, entries, len(entries), size, problems, mapped)
         recording.problems += scan_unindexed(recording.view, folder / DATA_FILE, size, recording.entries)
+        recording.out_of_time = capture_time_damage(recording.entries, str(data_path))
         if metadata.end is None:
             recording.problems.append(
                 f"{folder / METADATA_FILE}: no end record: the recorder stopped without closing the recording"
                 " (killed, crashed or power lost)"
             )
-        elif metadata.end.pairs != len(recording.entries):
+        elif metadata.end.reason.startswith("error:"):
+            # A writer that stopped on an error (an import's unreadable image, a conversion's full disk, the
+            # daemon's recorder): the pairs it wrote are whole, but the recording is not what was asked for.
+            recording.problems.append(
+                f"{folder / METADATA_FILE}: the recording ended with an error ({metadata.end.reason}); it holds"
+                f" the {metadata.end.pairs} pairs written before it"
+            )
+        if metadata.end is not None and metadata.end.pairs != len(recording.entries):
             recording.problems.append(
                 f"{folder / METADATA_FILE}: says {metadata.end.pairs} pairs were written, {len(recording.entries)}"
                 " are readable"
@@ -157,9 +173,15 @@ class Recording:
 
     @property
     def duration_s(self) -> float:
-        if len(self.entries) < 2:
+        """From the first pair's capture to the last's (pairs out of time left out)."""
+        timed = self.timed(0, len(self.entries))
+        if len(timed) < 2:
             return 0.0
-        return (self.entries[-1].timestamp_ns - self.entries[0].timestamp_ns) / 1e9
+        return (self.entries[timed[-1]].timestamp_ns - self.entries[timed[0]].timestamp_ns) / 1e9
+
+    def timed(self, first: int, stop: int) -> list[int]:
+        """The pairs from ``first`` to before ``stop`` whose capture times are in the time line."""
+        return [index for index in range(first, stop) if index not in self.out_of_time]
 
     @functools.cached_property
     def data_name(self) -> str:
@@ -173,7 +195,17 @@ class Recording:
         return memoryview(self._map)[offset : offset + length]
 
     def header(self, index: int) -> RecordHeader:
-        """Pair ``index``'s record header, checked against the index; RecordingError naming the damage."""
+        """Pair ``index``'s record header, checked against the index and the recording's time line;
+        RecordingError naming the damage."""
+        header = self.record_header(index)
+        problem = self.out_of_time.get(index)
+        if problem is not None:
+            raise RecordingError(problem)
+        return header
+
+    def record_header(self, index: int) -> RecordHeader:
+        """Pair ``index``'s record header, checked against the index (not its time: a frame stored whole
+        builds the frames stored over it whatever its pair's capture time says)."""
         entry = self.entries[index]
         where = f"{self.data_name}: pair {index} at byte {entry.offset}"
         # The whole record as a view (no copy): a newer MINOR's header may be longer than this version's.
@@ -241,6 +273,36 @@ class Recording:
         self.close()
 
 
+def capture_time_damage(entries: list[IndexEntry], data_name: str) -> dict[int, str]:
+    """The pairs whose capture time goes back from the last pair in time before them, or jumps past it by
+    more than MAX_CAPTURE_GAP_NS, each with a line saying so (the time line starts at the first pair). A
+    writer never makes such times; a file that has them was edited or made by another program, and its
+    checksums do not see it."""
+    damage: dict[int, str] = {}
+    last: IndexEntry | None = None
+    last_index = 0
+    for index, entry in enumerate(entries):
+        if last is not None:
+            step_ns = entry.timestamp_ns - last.timestamp_ns
+            where = f"{data_name}: pair {index} at byte {entry.offset}"
+            if step_ns < 0:
+                damage[index] = f"{where}: captured {_span(-step_ns)} before pair {last_index} (times go back)"
+                continue
+            if step_ns > MAX_CAPTURE_GAP_NS:
+                damage[index] = (
+                    f"{where}: captured {_span(step_ns)} after pair {last_index} (longer than a recording's gap)"
+                )
+                continue
+        last, last_index = entry, index
+    return damage
+
+
+def _span(ns: int) -> str:
+    """A time span for a message: seconds, or days when long."""
+    seconds = ns / 1e9
+    return f"{seconds:.3f} s" if seconds < 86_400 else f"{seconds / 86_400:.1f} days"
+
+
 def make_pair(
     recording: Recording,
     header: RecordHeader,
@@ -306,7 +368,8 @@ def read_metadata(folder: Path) -> RecordingMetadata:
     except ValidationError as err:
         first = err.errors()[0]
         key = ".".join(str(p) for p in first["loc"])
-        raise RecordingError(f"{path}: {key}: {first['msg']}") from err
+        message = first["msg"].removeprefix("Value error, ")  # a validator's own words
+        raise RecordingError(f"{path}: {key}: {message}") from err
     if metadata.mode not in MODES:
         raise RecordingError(
             f"{path}: recording mode {metadata.mode!r} is newer than this trackerd reads ({', '.join(MODES)});"

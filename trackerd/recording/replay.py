@@ -132,10 +132,12 @@ class ReplayPairSource(PairSource):
         self._worker: LocateAhead | None = None
         self._local: deque[_Read] = deque()
         entries = self.recording.entries
-        self._t0_rec = entries[self.first].timestamp_ns
+        # The time line of the pairs whose capture times are in it (the others are skipped as damaged).
+        timed = self.recording.timed(self.first, self.stop_at) or [self.first]
+        self._t0_rec = entries[timed[0]].timestamp_ns
         # One pass lasts from the first pair to one typical period after the last.
-        span = entries[self.stop_at - 1].timestamp_ns - self._t0_rec
-        pairs = self.stop_at - self.first
+        span = entries[timed[-1]].timestamp_ns - self._t0_rec
+        pairs = len(timed)
         self._pass_ns = span + (span // (pairs - 1) if pairs > 1 else 16_666_667)
         self._sequence_step = max(entries[self.stop_at - 1].sequence, 0) + 1
         default_shift = time.monotonic_ns() + int(start_delay_s * 1e9) - self._t0_rec
@@ -225,8 +227,8 @@ class ReplayPairSource(PairSource):
             self._worker = None
 
     def _due_ns(self, index: int, loop_pass: int) -> int:
-        if self.speed is None:
-            return self._start_ns
+        if self.speed is None or index in self.recording.out_of_time:
+            return self._start_ns  # a pair out of time is skipped as soon as it is reached
         recorded = self.recording.entries[index].timestamp_ns - self._t0_rec + loop_pass * self._pass_ns
         return self._start_ns + int(recorded / self.speed)
 
