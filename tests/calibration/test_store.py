@@ -186,3 +186,28 @@ def test_a_rig_without_a_calibration_file_needs_output(tmp_path: Path) -> None:
     with pytest.raises(CalibrationError, match=r"names no calibration file; add calibration = .* or pass --output"):
         require_output(open_rig(path))
     assert require_output(open_rig(path, tmp_path / "out.toml")) == tmp_path / "out.toml"
+
+
+def test_a_folder_that_cannot_be_written_is_one_error_and_the_old_file_stays(tmp_path: Path) -> None:
+    """Found by a new user's audit: on a read-only file system the temporary file's creation, outside the
+    write's error handling, escaped as an OSError (a traceback, the calibration's result lost without a word)."""
+    import os
+    import subprocess
+
+    if os.geteuid() != 0:
+        pytest.skip("mounting a read-only filesystem needs root")
+    mount = tmp_path / "ro"
+    mount.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount)], check=True)
+    try:
+        rig = mount / "new-wall.toml"
+        rig.write_text(BLANK_RIG)
+        write_calibration(open_rig(rig), complete_calibration(), "first")
+        before = (mount / "new-wall-calibration.toml").read_bytes()
+        subprocess.run(["mount", "-o", "remount,ro", str(mount)], check=True)
+        second = with_camera(complete_calibration(), "left", intrinsics=intrinsics(fx=1661.0).model_dump())
+        with pytest.raises(CalibrationError, match=r"new-wall-calibration.toml: cannot write the calibration file: "):
+            write_calibration(open_rig(rig), second, "second")
+        assert (mount / "new-wall-calibration.toml").read_bytes() == before
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=False)

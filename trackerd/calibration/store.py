@@ -203,7 +203,11 @@ def write_calibration(
         # A typo in --output must not create folders; the rig's own file sits beside the rig.
         raise CalibrationError(f"{path.parent}: no such folder; not written")
     backup = None
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as err:
+        # A read-only or full file system, a folder the calibrating user may not write to.
+        raise CalibrationError(f"{path}: cannot write the calibration file: {err.strerror or err}") from err
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             handle.write(text)
