@@ -350,6 +350,23 @@ RIG_EDITS = [
         "cameras[0].intrinsics.distortion: the lens model folds over near the image edge",
         ["calibration does not hold out to the corners"],
     ),
+    (
+        # A new user's audit: NumPy's overflow warnings came before the one line (here seven).
+        "a_lens_that_overflows",
+        'intrinsics = { model = "fov", horizontal_fov_deg = 60.0 }',
+        'intrinsics = { model = "opencv", fx_px = 333.0, fy_px = 333.0, cx_px = 319.5,'
+        " cy_px = 239.5, distortion = [1e300, 1e300, 0.0, 0.0, 0.0] }",
+        "cameras[0].intrinsics.distortion: the lens model folds over near the image edge",
+        ["projects back inf px away"],
+    ),
+    (
+        # A new user's audit: a billion pixels wide passed the check; twenty digits were blamed on the lens.
+        "an_image_side_beyond_any_sensor",
+        'width_px = 640\nheight_px = 480\npixel_format = "RGB8"',
+        'width_px = 6400000\nheight_px = 480\npixel_format = "RGB8"',
+        "cameras[0].width_px: Input should be less than or equal to 65535 (got 6400000)",
+        [],
+    ),
 ]
 
 
@@ -363,6 +380,7 @@ IN_A_SUBPROCESS = {
     "duplicate_camera_ids",
     "non_coplanar_corners",
     "colinear_wall_points",
+    "a_lens_that_overflows",
 }
 
 
@@ -480,6 +498,16 @@ def test_bad_rig_gives_one_line_naming_file_and_key(
 def test_bad_toml_syntax(run_check: RunCheck, write: Write, edit: Edit, minimal_rig: str) -> None:
     write("rig.toml", edit(minimal_rig, 'name = "minimal"', 'name = "minimal'))
     assert_one_line_error(run_check("rig.toml"), "rig.toml: not valid TOML: ", "(at line 2, column 16)")
+
+
+def test_a_byte_order_mark_in_front_is_not_the_files_content(
+    run_check: RunCheck, write: Write, minimal_rig: str
+) -> None:
+    # Windows editors save UTF-8 with one; it was "Invalid statement (at line 1, column 1)".
+    path = write("rig.toml", minimal_rig)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    run = run_check("rig.toml")
+    assert run.returncode == 0 and run.stderr == "", run
 
 
 def test_missing_file(run_check: RunCheck) -> None:

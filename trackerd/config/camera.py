@@ -11,6 +11,10 @@ from trackerd.config.base import ConfigModel
 from trackerd.config.lens import Extrinsics, Intrinsics, OpenCVIntrinsics
 
 COLOUR_PIXEL_FORMATS = ("BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8", "RGB8", "BGR8")
+MAX_SIDE_PX = 65_535
+"""The largest image side a rig may state: well beyond any machine-vision sensor (the largest are about
+20,000 px wide), so that a typo (an extra zero or six) is refused where it is made rather than blamed later on
+the lens model or met as an allocation of gigabytes."""
 MONO_PIXEL_FORMATS = ("Mono8", "Mono10", "Mono12", "Mono16")
 CALIBRATION_ONLY_FORMAT = "Mono8"
 """A monochrome format a camera may have in a rig used only to calibrate: tracking needs colour."""
@@ -33,9 +37,9 @@ class CameraConfig(ConfigModel):
     """Device id as `trackerd cameras` lists it (Aravis's device id, or pylon's full name with
     ``backend = "pylon"``, the producer's device id with ``backend = "gentl"``), an alternative to
     serial and address."""
-    width_px: int = Field(gt=0)
+    width_px: int = Field(gt=0, le=MAX_SIDE_PX)
     """Image width delivered by the camera."""
-    height_px: int = Field(gt=0)
+    height_px: int = Field(gt=0, le=MAX_SIDE_PX)
     """Image height delivered by the camera."""
     pixel_format: str
     """GenICam pixel format: BayerRG8, BayerGB8, BayerGR8, BayerBG8, RGB8 or BGR8; Mono8 in a rig used

@@ -108,8 +108,10 @@ def lens_fold_px(cam: CameraConfig) -> tuple[float, tuple[float, float]]:
     if not model.has_distortion:
         return 0.0, (0.0, 0.0)
     border = border_pixels(cam.width_px, cam.height_px)
-    origins, directions = model.pixel_to_ray(border)
-    miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
+    # A lens that folds over can send a ray to infinity and back: that is the finding, not a warning.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        origins, directions = model.pixel_to_ray(border)
+        miss = np.linalg.norm(model.project(origins + directions) - border, axis=1)
     miss = np.where(np.isfinite(miss), miss, np.inf)
     worst = int(np.argmax(miss))
     return float(miss[worst]), (float(border[worst][0]), float(border[worst][1]))

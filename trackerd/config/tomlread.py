@@ -21,7 +21,8 @@ def read_toml(path: Path) -> dict[str, Any]:
     read (trackerd.files): never a FIFO, which would block the reader until someone writes to it.
     """
     try:
-        text = read_bounded(path, MAX_TOML_BYTES).decode("utf-8")
+        # utf-8-sig: a byte-order mark in front (Windows editors write one) is not the file's content.
+        text = read_bounded(path, MAX_TOML_BYTES).decode("utf-8-sig")
         data = tomllib.loads(text)
     except FileNotFoundError as err:
         raise ConfigError(f"{path}: no such file") from err

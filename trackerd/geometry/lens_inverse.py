@@ -152,16 +152,19 @@ def _newton(
     """Newton's method from (xd, yd) on a residual (its x and y, and the 2x2 Jacobian a b / c d, per
     point); (N, 2) once no point moves more than TOLERANCE, None if that does not happen."""
     x, y = xd.copy(), yd.copy()
-    for _ in range(MAX_STEPS):
-        miss_x, miss_y, a, b, c, d = miss_and_jacobian(x, y)
-        det = a * d - b * c
-        step_x = (d * miss_x - b * miss_y) / det
-        step_y = (a * miss_y - c * miss_x) / det
-        x -= step_x
-        y -= step_y
-        moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
-        if moved < TOLERANCE:
-            return np.column_stack([x, y])
-        if not np.isfinite(moved):
-            return None
+    # A lens model that does not invert (a typo in its coefficients) overflows here: the finite check below
+    # reports that, in one line, without NumPy's warnings before it.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for _ in range(MAX_STEPS):
+            miss_x, miss_y, a, b, c, d = miss_and_jacobian(x, y)
+            det = a * d - b * c
+            step_x = (d * miss_x - b * miss_y) / det
+            step_y = (a * miss_y - c * miss_x) / det
+            x -= step_x
+            y -= step_y
+            moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
+            if moved < TOLERANCE:
+                return np.column_stack([x, y])
+            if not np.isfinite(moved):
+                return None
     return None
