@@ -67,7 +67,9 @@ def test_hostile_files_in_a_frames_place_are_one_line_each(left, tmp_path) -> No
     os.symlink(tmp_path / "loop-a.png", tmp_path / "loop-b.png")
     (tmp_path / "folder.png").mkdir()
     (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "text.npy").write_text("left camera, frame 7\n")  # was "contains pickled (object) data"
     cases = {
+        "text.npy": "not a NumPy .npy file",
         "huge.png": "its header claims more pixels than any camera frame has",
         "loop-a.png": "cannot read (Too many levels of symbolic links)",
         "folder.png": "a directory, not an image",

@@ -43,6 +43,9 @@ def read_frame(path: str | Path, camera: CameraConfig, grey_ok: bool = False) ->
     path = Path(path)
     data = _file_bytes(path)
     if path.suffix.lower() == ".npy":
+        if not data.startswith(b"\x93NUMPY"):
+            # np.load takes anything else for a pickle, and says so: that is not what is wrong.
+            raise ImageError(f"{path}: not a NumPy .npy file (it does not begin with \\x93NUMPY)")
         try:
             frame = np.load(io.BytesIO(data), allow_pickle=False)
         except (OSError, ValueError, EOFError) as err:

@@ -84,6 +84,15 @@ def test_a_damaged_index_entry_ends_the_index_and_the_rest_is_recovered_by_scann
     assert (report["pairs"], report["indexed"], report["recovered"], report["replayable"]) == (16, 7, 9, 16)
     assert report["sequence_gaps"] == 0
     assert _replayed_sequences(copy) == list(range(1, 17))
+    # The first entry damaged: none of the index is used (it said "used up to pair -1").
+    index[16 + 7 * INDEX_ENTRY.size + 10] ^= 0x01
+    index[16 + 10] ^= 0x01
+    (copy / "pairs.idx").write_bytes(bytes(index))
+    first = trackerd("recording", "check", copy)
+    assert "entry 0 (byte 16): index entry checksum mismatch (the entry is damaged); the index is not used" in (
+        first.stdout
+    )
+    assert "pairs: 16 readable (0 indexed, 16 recovered past the index)" in first.stdout
 
 
 @pytest.mark.parametrize("name", ["pairs.dat", "pairs.idx"])

@@ -97,7 +97,8 @@ def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, st
             try:
                 value = float(row[unit]) if unit == "timestamp_s" else int(row[unit])
             except ValueError:
-                raise RecordingError(f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not a number") from None
+                what = "a number" if unit == "timestamp_s" else "a whole number"  # 1e300 is a number, not an int
+                raise RecordingError(f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not {what}") from None
             out[(row["name"], camera)] = Stamp(round(value * _UNITS_NS[unit]), reader.line_num, f"{unit} {row[unit]}")
     return out
 

@@ -56,12 +56,12 @@ def read_index(index_path: Path, data_size: int) -> tuple[list[IndexEntry], list
         try:
             entry = unpack_index_entry(body[k * entry_bytes : (k + 1) * entry_bytes], entry_bytes, where)
         except RecordingError as err:
-            problems.append(f"{err}; the index is used up to pair {k - 1}")
+            problems.append(f"{err}; {_used_up_to(k)}")
             return entries, problems
         if entry.pair_index != k or entry.offset != expected_offset:
             problems.append(
                 f"{where}: says pair {entry.pair_index} at byte {entry.offset}, expected pair"
-                f" {k} at byte {expected_offset}; the index is used up to pair {k - 1}"
+                f" {k} at byte {expected_offset}; {_used_up_to(k)}"
             )
             return entries, problems
         if entry.end > data_size:
@@ -116,3 +116,8 @@ def scan_unindexed(
             f" the index (pairs {indexed}-{len(entries) - 1}), recovered"
         )
     return problems
+
+
+def _used_up_to(k: int) -> str:
+    """How much of the index is used when entry ``k`` is the first bad one."""
+    return f"the index is used up to pair {k - 1}" if k > 0 else "the index is not used"
