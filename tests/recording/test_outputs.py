@@ -115,3 +115,28 @@ def test_export_onto_a_full_disk_says_so_and_keeps_what_it_wrote(small_disk) -> 
         assert cv2.imread(str(image), cv2.IMREAD_UNCHANGED) is not None, image
     rows = (small_disk / "images" / "hits.csv").read_text().splitlines()
     assert rows[0].startswith("pair_index,") and rows[1].startswith("0,"), rows[:2]
+
+
+def test_a_recording_whose_first_pair_meets_a_full_disk_leaves_nothing_behind(small_disk) -> None:
+    """Found by a new user's audit: with no free-space margin (min_free_space_mb = 0) a disk with room for
+    the recording's files but not its first pair said "nothing was recorded" and left the folder, its
+    recording.json without an end record (the full disk took none), read as a recording never finished."""
+    with Recording.open(BUNDLE) as recording:
+        rig, pair = recording.rig(), recording.pair(0)
+    _fill(small_disk, 64 * 1024)
+    out = small_disk / "ondemand.trec"
+    recorder = Recorder(out, rig, producer="test", config=RecordingConfig(min_free_space_mb=0)).start()
+    recorder.put(pair)
+    assert recorder.stop(10.0)
+    assert isinstance(recorder.error, DiskFullError) and recorder.status().pairs == 0, recorder.error
+    assert not out.exists()
+    # And an import into the same room: one line, nothing imported, nothing left.
+    import cv2
+
+    images = small_disk.parent / "images"
+    images.mkdir()
+    for frame in pair.frames:
+        cv2.imwrite(str(images / f"00-{frame.camera_id}.png"), frame.image)
+    run = trackerd("recording", "import", images, small_disk / "imported.trec", "--config", RIG)
+    one_line_error(run, "recording", "imported.trec", "disk full", "nothing was imported")
+    assert not (small_disk / "imported.trec").exists()

@@ -72,7 +72,10 @@ def convert_recording(
     except TrackerdError as err:
         writer.close("error: conversion interrupted")
         # Said with the error, so that a user does not take what is left for the whole conversion.
-        err.args = (f"{err}; the {writer.pairs} pairs converted before it are left in {out}",)
+        if writer.discard_if_empty():
+            err.args = (f"{err}; nothing was converted",)
+        else:
+            err.args = (f"{err}; the {writer.pairs} pairs converted before it are left in {out}",)
         raise
     except BaseException:
         writer.close("error: conversion interrupted")

@@ -166,7 +166,10 @@ def import_folder(
             raise
         writer.close("error: import interrupted")
         # Said with the error, so that a user does not take what is left for the whole import.
-        err.args = (f"{err}; the {writer.pairs} pairs imported before it are left in {out}",)
+        if writer.discard_if_empty():
+            err.args = (f"{err}; nothing was imported",)
+        else:
+            err.args = (f"{err}; the {writer.pairs} pairs imported before it are left in {out}",)
         raise
     except BaseException:
         if writer is not None:

@@ -192,6 +192,7 @@ class Recorder:
                     self._detail = None if reason == "stopped" else reason
             if self._writer is not None:
                 self._writer.close(reason, dropped_pairs=self._queue.dropped)
+                self._writer.discard_if_empty()
             self._done.set()
 
     def _create(self, pair: FramePair) -> RecordingWriter:

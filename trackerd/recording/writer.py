@@ -110,13 +110,14 @@ def check_free_space(path: Path, min_free_space_mb: float) -> None:
         )
 
 
-def _remove_recording(folder: Path) -> None:
+def _remove_recording(folder: Path, and_folder: bool = True) -> None:
     """Remove the files of a recording this writer began but could not set up, and its folder."""
     for name in (METADATA_FILE, METADATA_FILE + ".tmp", DATA_FILE, INDEX_FILE):
         with contextlib.suppress(OSError):
             (folder / name).unlink()
-    with contextlib.suppress(OSError):
-        folder.rmdir()
+    if and_folder:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 def rig_snapshot(rig: RigConfig) -> dict[str, Any]:
@@ -244,7 +245,7 @@ class RecordingWriter:
         if self.path.exists() and (not self.path.is_dir() or any(self.path.iterdir())):
             raise RecordingError(f"{self.path}: already exists; give a new name for the recording")
         check_free_space(self.path, min_free_space_mb)
-        created = not self.path.exists()
+        created = self._created = not self.path.exists()
         fds: list[int] = []
         try:
             self.path.mkdir(parents=True, exist_ok=True)
@@ -415,6 +416,16 @@ class RecordingWriter:
             # A full disk may not even take the small metadata file: the recording stays readable
             # without its end record (it reads as not closed cleanly).
             (self.path / (METADATA_FILE + ".tmp")).unlink(missing_ok=True)
+
+    def discard_if_empty(self) -> bool:
+        """After :meth:`close`: remove a recording that holds no pair (its first write failed: a full disk),
+        as one that could not be begun is, so that "nothing was recorded" leaves nothing behind (an empty
+        shell, its end record unwritten on the full disk, read as a recording the recorder did not finish).
+        The folder goes only if this writer made it. True when the recording was removed."""
+        if not self.closed or self.pairs:
+            return False
+        _remove_recording(self.path, and_folder=self._created)
+        return True
 
 
 def _write_all(fd: int, buffers: Sequence[bytes | memoryview]) -> None:
