@@ -130,12 +130,12 @@ def test_every_error_answers_with_a_json_object(console) -> None:
     assert code == 404 and json.loads(body) == {"error": "Not Found"}
     code, body, headers = _get(base + "/api/snapshot", bearer)  # POST only
     assert code == 405 and json.loads(body) == {"error": "Method Not Allowed"} and "POST" in headers["Allow"]
-    for fixes in ("-5", "0", "99999999"):
+    for fixes in ("-5", "0", "19", "99999999"):  # 19: fewer than a verdict needs (a new user's audit)
         request = urllib.request.Request(base + f"/api/check?fixes={fixes}", method="POST", data=b"", headers=bearer)
         with pytest.raises(urllib.error.HTTPError) as refused:
             urllib.request.urlopen(request, timeout=10)
         assert refused.value.code == 400 and json.loads(refused.value.read()) == {
-            "error": "fixes must be from 10 to 5000"
+            "error": "fixes must be from 20 to 5000"
         }
 
 
@@ -250,3 +250,85 @@ def test_a_token_every_user_can_read_is_warned_about(tmp_path) -> None:
     )
     token.chmod(0o640)
     assert token_exposed(token) is None
+
+
+def test_a_token_that_is_not_utf8_is_refused_as_any_wrong_token(console) -> None:
+    """A new user's audit: one byte that is not UTF-8 in the bearer token or the cookie answered 500 and
+    logged a traceback at ERROR (shown in the page's warnings) for anyone who sent it."""
+    _server, _pipeline, base = console
+    for headers in ({"Authorization": "Bearer p\xe4"}, {"Cookie": "trackerd_console_token=\xe4\xe4"}):
+        code, body, _ = _get(base + "/api/info", headers)  # urllib sends the header's text as Latin-1 bytes
+        assert code == 401 and "needs its token" in json.loads(body)["error"], (code, body)
+
+
+def test_ctl_snap_into_a_place_it_cannot_write_says_so_before_the_daemon_takes_one(console, tmp_path) -> None:
+    """A new user's audit: `ctl snap OUT` asked the daemon for the snapshot first and then met OUT (a file, a
+    full disk) with a traceback, leaving the snapshot on the daemon's host."""
+    from trackerd.console.client import ConsoleClient
+    from trackerd.errors import RecordingError
+
+    _server, _pipeline, base = console
+    client = ConsoleClient(base.removeprefix("http://"), "s3cret-token")
+    a_file = tmp_path / "afile"
+    a_file.write_text("not a folder\n")
+    with pytest.raises(RecordingError, match="exists and is not a folder"):
+        client.snapshot_into(a_file)
+    assert not (tmp_path / "snaps").exists() or not any((tmp_path / "snaps").iterdir())
+
+
+def test_the_console_client_names_what_is_not_a_console(tmp_path) -> None:
+    """A new user's audit: `ctl --console` given the rig's ZeroMQ port, or anything that answers HTTP with other
+    than the console's JSON, ended in a traceback (BadStatusLine, LineTooLong, JSONDecodeError)."""
+    import http.server
+    import threading
+
+    from trackerd.console.client import ConsoleClient, ConsoleError
+
+    class NotJson(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            self.send_response(200)
+            self.end_headers()
+            self.wfile.write(b"<html>another web server</html>")
+
+        def log_message(self, *_args) -> None:
+            pass
+
+    web = http.server.HTTPServer(("127.0.0.1", 0), NotJson)
+    garbage = socket.socket()
+    garbage.bind(("127.0.0.1", 0))
+    garbage.listen()
+
+    def answer_garbage() -> None:
+        connection, _ = garbage.accept()
+        connection.recv(4096)
+        connection.sendall(b"\xff\x00\x01 not HTTP at all\r\n\r\n")
+        connection.close()
+
+    threads = [threading.Thread(target=web.handle_request), threading.Thread(target=answer_garbage)]
+    for thread in threads:
+        thread.start()
+    try:
+        for listen in (f"127.0.0.1:{web.server_address[1]}", f"127.0.0.1:{garbage.getsockname()[1]}"):
+            client = ConsoleClient(listen)
+            with pytest.raises(ConsoleError, match="answers, but not as a trackerd console"):
+                client.get("/api/info")
+    finally:
+        for thread in threads:
+            thread.join(10)
+        web.server_close()
+        garbage.close()
+
+
+def test_a_token_file_of_other_than_printable_ascii_is_refused_in_one_line(tmp_path) -> None:
+    """A new user's audit: a token file of random bytes was read with replacement characters and accepted;
+    `trackerd ctl` then failed with a traceback encoding it (a header carries Latin-1), and a UTF-8 token
+    was sent as other bytes than the console compared."""
+    from trackerd.console.access import read_token
+
+    for content in ("pässwort\n".encode(), bytes(range(128, 160)), b"two words\n"):
+        path = tmp_path / "token"
+        path.write_bytes(content)
+        with pytest.raises(ConfigError, match="the console token must be printable ASCII"):
+            read_token(path)
+    path.write_bytes(b"  0123abcd-token \nsecond line ignored\n")
+    assert read_token(path) == "0123abcd-token"

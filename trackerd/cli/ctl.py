@@ -48,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     record = actions.add_parser("record", help="start or stop recording on demand")
     record.add_argument("what", choices=["start", "stop"])
     check = actions.add_parser("check", help="calibration check on the live pointer")
-    check.add_argument("--fixes", type=check_fixes, default=200, help="fixes to measure, 10 to 5000 (default 200)")
+    check.add_argument("--fixes", type=check_fixes, default=200, help="fixes to measure, 20 to 5000 (default 200)")
     check.add_argument("--timeout", type=positive_seconds, default=120.0, help="give up after S seconds (default 120)")
     parser.set_defaults(handler=ctl_command)
 

@@ -38,14 +38,23 @@ def token_exposed(path: Path) -> str | None:
 
 
 def read_token(path: Path) -> str:
-    """The token in ``path`` (ConfigError naming the file when it is missing or empty)."""
+    """The token in ``path``: its first line, printable ASCII (ConfigError naming the file when it is missing,
+    empty or holds anything else: an HTTP header carries ASCII, so a token of other characters could not be
+    sent as the same bytes by every client)."""
     try:
-        text = read_bounded(path, 4096).decode("utf-8", "replace").strip()
+        data = read_bounded(path, 4096)
     except OSError as err:
         raise ConfigError(f"{path}: cannot read the console token file ({err.strerror or err})") from None
-    if not text:
+    lines = data.strip().splitlines()
+    if not lines:
         raise ConfigError(f"{path}: the console token file is empty")
-    return text.splitlines()[0].strip()
+    token = lines[0].strip()
+    if not all(0x21 <= byte <= 0x7E for byte in token):
+        raise ConfigError(
+            f"{path}: the console token must be printable ASCII without spaces"
+            " (`head -c 24 /dev/urandom | base64` makes one)"
+        )
+    return token.decode("ascii")
 
 
 @web.middleware
@@ -78,7 +87,7 @@ def access_middleware(token: str | None) -> Middleware:
         header = request.headers.get("Authorization", "")
         if header.startswith("Bearer "):
             given = header.removeprefix("Bearer ").strip()
-        if given is None or not secrets.compare_digest(given.encode(), token.encode()):
+        if given is None or not same_token(given, token):
             return web.json_response(
                 {"error": "the console needs its token (?token=... or Authorization: Bearer)"}, status=401
             )
@@ -88,6 +97,17 @@ def access_middleware(token: str | None) -> Middleware:
         return response
 
     return check
+
+
+def same_token(given: str, token: str) -> bool:
+    """Whether a request's ``given`` token is the console's, in constant time. A header's bytes that are not
+    UTF-8 come as surrogates, which do not encode: such a token is not the console's (it was an error, a
+    500 and a traceback logged for anyone who sent one)."""
+    try:
+        given_bytes = given.encode()
+    except UnicodeError:
+        return False
+    return secrets.compare_digest(given_bytes, token.encode())
 
 
 def cross_site(request: web.Request, token: str | None) -> str | None:

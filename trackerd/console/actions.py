@@ -7,11 +7,12 @@ import threading
 import time
 from typing import Any
 
-from trackerd.calibration.health import CalibrationHealth
+from trackerd.calibration.health import MIN_FIXES, CalibrationHealth
 from trackerd.calibration.report import health_text
 from trackerd.pipeline.tap import ConsoleTap
 
-MIN_CHECK_FIXES = 10
+MIN_CHECK_FIXES = MIN_FIXES
+"""A check of fewer fixes than its verdict needs (calibration.health.MIN_FIXES) could only say "undecided"."""
 CHECK_MAX_FIXES = 5000
 HEALTHY_STATES = ("running",)
 """States /healthz answers 200 for; starting, degraded (a camera not streaming), reloading and

@@ -6,6 +6,7 @@ found where the rig's ``[console] listen`` says (or ``--console ADDR``), with th
 
 from __future__ import annotations
 
+import http.client
 import json
 import urllib.error
 import urllib.parse
@@ -60,8 +61,6 @@ class ConsoleClient:
                     401,
                 ) from None
             return None
-        except (urllib.error.URLError, OSError):
-            return None
         return info if isinstance(info, dict) and "rig" in info and "cameras" in info else None
 
     def runs_cameras_of(self, info: dict[str, Any], rig: Any) -> bool:
@@ -86,6 +85,16 @@ class ConsoleClient:
             except ValueError:
                 problem = err.reason
             raise ConsoleError(f"the daemon at {self.base} answered {err.code}: {problem}", err.code) from None
+        except (http.client.HTTPException, ValueError) as err:
+            # Something answers there, but not a console: the rig's ZeroMQ port given as --console (its
+            # publisher streams messages at an HTTP request), another web server.
+            raise ConsoleError(
+                f"{self.base} answers, but not as a trackerd console ({type(err).__name__}); is it the console's"
+                " address ([console] listen)?"
+            ) from None
+        except (urllib.error.URLError, OSError) as err:
+            reason = getattr(err, "reason", None) or getattr(err, "strerror", None) or err
+            raise ConsoleError(f"the daemon's console at {self.base} did not answer ({reason})") from None
 
     def get(self, path: str) -> Any:
         return self._request("GET", path)
@@ -94,16 +103,31 @@ class ConsoleClient:
         return self._request("POST", path)
 
     def download(self, url: str, path: Path) -> None:
+        """One of the daemon's files into ``path``; ConsoleError saying what failed (a file cut short by a
+        full disk is removed)."""
         request = urllib.request.Request(f"{self.base}/{url.lstrip('/')}")
         if self.token is not None:
             request.add_header("Authorization", f"Bearer {self.token}")
-        with urllib.request.urlopen(request, timeout=self.timeout_s) as response:
-            path.write_bytes(response.read())
+        try:
+            with urllib.request.urlopen(request, timeout=self.timeout_s) as response:
+                data = response.read()
+        except urllib.error.HTTPError as err:
+            raise ConsoleError(f"the daemon at {self.base} answered {err.code} for {url}", err.code) from None
+        except (urllib.error.URLError, http.client.HTTPException, OSError) as err:
+            raise ConsoleError(f"the daemon at {self.base} did not send {url} ({err})") from None
+        try:
+            path.write_bytes(data)
+        except OSError as err:
+            path.unlink(missing_ok=True)
+            raise ConsoleError(f"{path}: cannot write ({err.strerror or err})") from None
 
     def snapshot_into(self, folder: Path, name: str | None = None) -> dict[str, Any]:
-        """Take a snapshot from the running pipeline and download its files into ``folder``."""
+        """Take a snapshot from the running pipeline and download its files into ``folder``, which is
+        checked first (a snapshot the daemon took and this side cannot save would be left on its host)."""
+        from trackerd.recording.outputs import output_folder
+
+        output_folder(folder)
         answer: dict[str, Any] = self.post("/api/snapshot" + (f"?name={urllib.parse.quote(name)}" if name else ""))
-        folder.mkdir(parents=True, exist_ok=True)
         for entry in answer["files"]:
             self.download(entry["url"], folder / entry["name"])
         return answer
