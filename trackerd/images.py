@@ -101,6 +101,20 @@ MAX_IMAGE_BYTES = 1 << 30
 """No still of a camera frame is larger (an uncompressed 8K RGB TIFF is 100 MB)."""
 
 
+def write_png(path: Path, image: NDArray[np.uint8]) -> None:
+    """``image`` as a PNG at ``path``; ImageError saying why not. Encoded in memory and written here, so that
+    a full disk says so (cv2.imwrite says only that libpng failed, on a line of its own), and a file cut
+    short is removed: every PNG left is whole."""
+    encoded, data = cv2.imencode(".png", image)
+    if not encoded:
+        raise ImageError(f"{path}: cannot encode the image as PNG")
+    try:
+        path.write_bytes(data.tobytes())
+    except OSError as err:
+        path.unlink(missing_ok=True)
+        raise ImageError(f"{path}: cannot write the image: {err.strerror or err}") from err
+
+
 def _file_bytes(path: Path) -> bytes:
     """The file's bytes, or ImageError saying in one line why there are none."""
     try:

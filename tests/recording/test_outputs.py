@@ -140,3 +140,21 @@ def test_a_recording_whose_first_pair_meets_a_full_disk_leaves_nothing_behind(sm
     run = trackerd("recording", "import", images, small_disk / "imported.trec", "--config", RIG)
     one_line_error(run, "recording", "imported.trec", "disk full", "nothing was imported")
     assert not (small_disk / "imported.trec").exists()
+
+
+def test_a_snapshot_that_meets_a_full_disk_says_why_and_leaves_no_half_of_itself(small_disk) -> None:
+    """A new user's audit: a snapshot on a full disk said "cannot write the image" after libpng's own line,
+    without the cause, and left its folder behind (empty, or with one camera's image)."""
+    from trackerd.errors import ImageError
+    from trackerd.locator import Locator
+    from trackerd.recording.snapshot import write_snapshot
+
+    with Recording.open(BUNDLE) as recording:
+        rig, pair = recording.rig(), recording.pair(0)
+    locator = Locator(rig)
+    fix = locator.locate(pair.images)
+    _fill(small_disk, 64 * 1024)
+    folder = small_disk / "snaps" / "snap-1"
+    with pytest.raises(ImageError, match=r"snap-1-left.png: cannot write the image: No space left on device"):
+        write_snapshot(pair, fix, locator, rig, folder, "snap-1")
+    assert not folder.exists()

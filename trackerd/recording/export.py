@@ -15,12 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import cv2
-import numpy as np
-from numpy.typing import NDArray
-
 from trackerd.config.models import RigConfig
 from trackerd.errors import RecordingError
+from trackerd.images import write_png
 from trackerd.locator import COLOURS, Locator, PointerFix
 from trackerd.pipeline.events import NOTHING
 from trackerd.pipeline.extensions import ExtensionContext, Located, PipelineExtension
@@ -163,7 +160,7 @@ def export_recording(
                         if detections is not None:
                             lines.append(end_summary(detections))
                         path = folder / f"{index:06d}-{cam.id}.png"
-                        _write_png(path, annotate(frame, cam.pixel_format, detections, lines))
+                        write_png(path, annotate(frame, cam.pixel_format, detections, lines))
                         written += 1
                 if progress is not None:
                     progress(index - first + 1, stop - first)
@@ -174,19 +171,6 @@ def export_recording(
         for extension in extensions:
             extension.close()
     return ExportSummary(stop - first - len(skipped), written, statuses, csv_path, skipped)
-
-
-def _write_png(path: Path, image: NDArray[np.uint8]) -> None:
-    """``image`` as a PNG at ``path``; RecordingError saying why not (encoded in memory and written here, so
-    that a full disk says so, where cv2.imwrite says only that libpng failed)."""
-    encoded, data = cv2.imencode(".png", image)
-    if not encoded:
-        raise RecordingError(f"{path}: cannot encode the image as PNG")
-    try:
-        path.write_bytes(data.tobytes())
-    except OSError as err:
-        path.unlink(missing_ok=True)  # a cut PNG is no image; the ones before it stay
-        raise RecordingError(f"{path}: cannot write the image: {err.strerror or err}") from err
 
 
 def _centroids(fix: PointerFix) -> list[str]:

@@ -12,16 +12,17 @@ Into a folder, for a stem <name>:
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from trackerd.errors import ImageError
+from trackerd.images import write_png
 
 
 def snapshot_record(pair: Any, fix: Any, rig: Any, name: str) -> dict[str, Any]:
@@ -79,8 +80,11 @@ def write_snapshot(
             overlay = camera_overlay(locator.cameras[k], locator.wall, detections, rig.detector.track_window_px)
             draw_overlay(view, overlay)
         for path, image in ((raw_path, np.ascontiguousarray(raw)), (view_path, view)):
-            if not cv2.imwrite(str(path), image):
-                raise ImageError(f"{path}: cannot write the image")
+            try:
+                write_png(path, image)
+            except ImageError:
+                _discard([*written, raw_path], folder)
+                raise
         written += [view_path, raw_path]
         say(f"  {frame.camera_id}: {ends}")
         say(f"    saved {raw_path} (raw {frame.pixel_format}) and {view_path}")
@@ -109,6 +113,18 @@ def write_snapshot(
             }
         )
     json_path = folder / f"{name}.json"
-    json_path.write_text(json.dumps(record, indent=2) + "\n")
+    try:
+        json_path.write_text(json.dumps(record, indent=2) + "\n")
+    except OSError as err:
+        _discard([*written, json_path], folder)
+        raise ImageError(f"{json_path}: cannot write the snapshot's record: {err.strerror or err}") from err
     written.append(json_path)
     return written
+
+
+def _discard(paths: list[Path], folder: Path) -> None:
+    """Half a snapshot is none: remove what it wrote, and its folder if that leaves it empty."""
+    for path in paths:
+        path.unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        folder.rmdir()
