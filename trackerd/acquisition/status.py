@@ -55,7 +55,7 @@ class SourceStatus:
     trigger: str
     """free_running, software or hardware."""
     pairing: str
-    """What pairs frames: ``trigger count``, ``device time (PTP)`` or ``host time``."""
+    """What pairs frames: ``trigger count``, ``device time (PTP)``, ``host time`` or ``recorded`` (a replay)."""
     pairs: int = 0
     """Pairs formed."""
     pair_rate_hz: float = 0.0

@@ -78,8 +78,8 @@ class PairingPart(Part):
     """99th percentile pair skew, microseconds."""
     mode: str | None = None
     """(1.2) What frames are paired by: ``trigger count`` (software trigger), ``device time (PTP)``
-    (every camera PTP-locked) or ``host time`` (estimated capture times); null when the source does
-    not say."""
+    (every camera PTP-locked), ``host time`` (estimated capture times) or ``recorded`` (a replay: the
+    recording's pairs); null when the source does not say."""
 
 
 class SpreadPart(Part):
