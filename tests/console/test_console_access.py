@@ -332,3 +332,36 @@ def test_a_token_file_of_other_than_printable_ascii_is_refused_in_one_line(tmp_p
             read_token(path)
     path.write_bytes(b"  0123abcd-token \nsecond line ignored\n")
     assert read_token(path) == "0123abcd-token"
+
+
+def test_listen_given_the_console_port_says_it_is_not_a_publisher(console) -> None:
+    """A new user's audit: `trackerd listen --endpoint` given the console's address printed the console's HTTP
+    error page as messages (and, with --json, lines that are not JSON) and exited 0: ZeroMQ took the HTTP
+    answer for an old-protocol peer's messages."""
+    import subprocess
+    import sys
+
+    _server, _pipeline, base = console
+    endpoint = "tcp://" + base.removeprefix("http://")
+    for extra in ((), ("--json",)):
+        run = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "trackerd",
+                "listen",
+                "--endpoint",
+                endpoint,
+                "--timeout",
+                "10",
+                "--count",
+                "3",
+                *extra,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert run.returncode == 1 and "Traceback" not in run.stderr, (run.returncode, run.stderr)
+        assert f"{endpoint} sends messages that are not trackerd's" in run.stderr, run.stderr
+        assert run.stdout == "", run.stdout

@@ -39,6 +39,10 @@ class ListenTimeout(TrackerdError):
     """Nothing arrived within --timeout."""
 
 
+class NotTrackerd(TrackerdError):
+    """What arrives is not trackerd's messages (two frames: an ASCII topic, a JSON object)."""
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "listen",
@@ -208,14 +212,9 @@ def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str, hint: Hin
             continue
         last_message = time.monotonic()
         received += 1
-        payload = frames[1] if len(frames) > 1 else b""
+        data = _message(frames, endpoint)
         if args.json:
-            print(payload.decode("utf-8", errors="replace"), flush=True)
-            continue
-        try:
-            data = json.loads(payload)
-        except ValueError:
-            print(f"{topic:<8} (payload is not JSON: {payload[:60]!r})", flush=True)
+            print(frames[1].decode("utf-8"), flush=True)
             continue
         version = str(data.get("schema_version", "?"))
         if version.split(".")[0] != str(SCHEMA_MAJOR) and not warned_version:
@@ -227,6 +226,28 @@ def _receive(sub: zmq.Socket, args: argparse.Namespace, endpoint: str, hint: Hin
             warned_version = True
         print(format_message(topic, data), flush=True)
     return 0
+
+
+def _message(frames: list[bytes], endpoint: str) -> dict[str, Any]:
+    """A message's JSON object; NotTrackerd when the frames are not a trackerd message. Something else that
+    answers at the endpoint (the console's HTTP port, another program) can look like a publisher to ZeroMQ,
+    which then hands its bytes over as messages: garbage printed as hits, and --json lines that are not JSON."""
+    why = None
+    if len(frames) != 2:
+        why = f"{len(frames)} frames, not a topic and a payload"
+    else:
+        try:
+            data = json.loads(frames[1])
+        except ValueError:
+            why = f"a payload that is not JSON ({frames[1][:40]!r})"
+        else:
+            if isinstance(data, dict):
+                return data
+            why = "a payload that is not a JSON object"
+    raise NotTrackerd(
+        f"{endpoint} sends messages that are not trackerd's ({why}); is it the daemon's ZeroMQ endpoint"
+        " ([outputs.zmq] endpoints), not its console?"
+    )
 
 
 # --------------------------------------------------------------------------- formatting
