@@ -14,7 +14,7 @@ import os
 import stat
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -100,11 +100,12 @@ def scaled_jpeg(image: Any, pixel_format: str, width_px: int, quality: int) -> t
     return encoded.tobytes(), bgr.shape[1], bgr.shape[0]
 
 
-def snapshot_name(directory: Path, stem: str | None = None) -> str:
-    """``stem`` (default ``snap-<local time>``), suffixed -2, -3... if taken in ``directory``."""
+def snapshot_name(directory: Path, stem: str | None = None, taken: Collection[str] = ()) -> str:
+    """``stem`` (default ``snap-<local time>``), suffixed -2, -3... if taken in ``directory`` or by a snapshot
+    still waiting (``taken``)."""
     stem = stem or f"snap-{dt.datetime.now():%Y%m%d-%H%M%S}"
     name, n = stem, 2
-    while (directory / name).exists():
+    while name in taken or (directory / name).exists():
         name, n = f"{stem}-{n}", n + 1
     return name
 
@@ -168,10 +169,9 @@ class FrameThread:
                 own_directory(self.snapshot_directory)
             else:
                 self.snapshot_directory.mkdir(parents=True, exist_ok=True)
-            taken = {r.name for r in self._snapshots}
-            name = snapshot_name(self.snapshot_directory, name)
-            while name in taken:
-                name += "-b"
+            # Numbered past the snapshots still waiting too (twenty asked for in one second were named
+            # snap-...-b-b-b..., a name growing with every one).
+            name = snapshot_name(self.snapshot_directory, name, {r.name for r in self._snapshots})
             self._snapshots.append(SnapshotRequest(name, done))
             self._wake.notify_all()
         return name
