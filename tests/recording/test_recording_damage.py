@@ -254,34 +254,91 @@ def _rewritten(bundle: Path, out: Path, retimed) -> Path:
 
 
 @pytest.mark.parametrize(
-    ("shift_ns", "said"),
+    ("moved", "bad", "said"),
     [
-        (-1000 * 10**9, "s before pair 9 (times go back)"),
-        (3 * 86_400 * 10**9, "3.0 days after pair 9 (longer than a recording's gap)"),
+        ("pairs 10 on 1000 s back", range(10, 16), "pair 10 at byte {offset}: captured 999.933 s before pair 9"),
+        (
+            "the first pair a day ahead",
+            range(0, 1),
+            "pair 0 at byte {offset}: captured 86399.933 s after pair 1, which",
+        ),
     ],
-    ids=["back", "days ahead"],
+    ids=["back", "first ahead"],
 )
-def test_pairs_whose_capture_times_leave_the_time_line_are_damaged_not_replayed(
-    bundle, tmp_path, shift_ns: int, said: str
+def test_pairs_whose_capture_times_go_back_are_damaged_not_replayed(
+    bundle, tmp_path, moved: str, bad: range, said: str
 ) -> None:
     """Found by a new user's audit: pairs 10 on of a recording moved 1000 s back in time (checksums made
     again) were called intact, and replay crashed its publishing thread on the negative duration of the
-    pointer's stay on the display; moved days ahead, replay at recorded speed would have waited for them."""
-    retimed = _rewritten(bundle, tmp_path / "retimed.trec", lambda i, ns: ns + (shift_ns if i >= 10 else 0))
+    pointer's stay on the display. The time line is the longest run of pairs whose times never go back, so a
+    single bogus time, even the first pair's, is the pair left out."""
+    shift_ns = -1000 * 10**9 if moved.startswith("pairs 10") else 86_400 * 10**9
+    retimed = _rewritten(bundle, tmp_path / "retimed.trec", lambda i, ns: ns + (shift_ns if i in bad else 0))
     with Recording.open(retimed) as recording:
-        offset = recording.entries[10].offset
+        offset = recording.entries[bad[0]].offset
     check = trackerd("recording", "check", retimed)
     assert check.returncode == 1, check.stdout
-    assert f"pairs.dat: pair 10 at byte {offset}: captured" in check.stdout and said in check.stdout, check.stdout
-    assert "6 problem(s); 10 pairs replay" in check.stdout
-    # At the recorded speed (the pacing the days-ahead pairs would have held up), the first ten replay.
+    assert f"pairs.dat: {said.format(offset=offset)}" in check.stdout and "(times go back)" in check.stdout
+    assert f"{len(bad)} problem(s); {16 - len(bad)} pairs replay" in check.stdout, check.stdout
     run = trackerd(
         "replay", retimed, "--delay", "0", "--endpoint", "tcp://127.0.0.1:*", "--console", "off", "--json", timeout=60
     )
     assert "Traceback" not in run.stderr and "crashed" not in run.stderr, run.stderr
     summary = json.loads(run.stdout)
-    assert summary["pairs"] == 10 and summary["hits"] == 10, summary
-    assert "6 damaged pair(s) skipped" in run.stderr and run.returncode == 1, (run.returncode, run.stderr)
+    # The pairs left replay as the same pairs of the untouched recording do.
+    first, count = (1, 15) if bad[0] == 0 else (0, 10)
+    same = trackerd(
+        "replay",
+        bundle,
+        "--first",
+        str(first),
+        "--count",
+        str(count),
+        "--speed",
+        "max",
+        "--delay",
+        "0",
+        "--endpoint",
+        "tcp://127.0.0.1:*",
+        "--console",
+        "off",
+        "--json",
+    )
+    untouched = json.loads(same.stdout)
+    assert summary["pairs"] == 16 - len(bad) == untouched["pairs"] and summary["hits"] == untouched["hits"], summary
+    assert f"{len(bad)} damaged pair(s) skipped" in run.stderr and run.returncode == 1, (run.returncode, run.stderr)
+
+
+def test_a_gap_of_days_is_no_damage_and_replay_does_not_wait_it(bundle, tmp_path) -> None:
+    """Found by a new user's audit: pairs moved days ahead made replay at the recorded speed wait for them (it
+    would have sat for days). Such a gap can be real (stills imported from two sessions), so it is no damage:
+    replay waits at most MAX_REPLAY_GAP_NS for it (at four times the recorded speed here, 2.5 s) and publishes
+    the recorded capture times."""
+    from trackerd.recording.replay import MAX_REPLAY_GAP_NS
+
+    retimed = _rewritten(bundle, tmp_path / "gap.trec", lambda i, ns: ns + (3 * 86_400 * 10**9 if i >= 10 else 0))
+    check = trackerd("recording", "check", retimed)
+    assert check.returncode == 0 and "intact" in check.stdout, check.stdout
+    run = trackerd(
+        "replay",
+        retimed,
+        "--speed",
+        "4",
+        "--delay",
+        "0",
+        "--endpoint",
+        "tcp://127.0.0.1:*",
+        "--console",
+        "off",
+        "--json",
+        timeout=60,
+    )
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+    summary = json.loads(run.stdout)
+    as_recorded, _, _ = _replay_summary(bundle)
+    assert summary["pairs"] == 16 and summary["hits"] == as_recorded["hits"], (summary, as_recorded)
+    assert summary["seconds"] < 3 * 86_400 / 4, summary  # not the recorded gap's wait
+    assert summary["seconds"] >= MAX_REPLAY_GAP_NS / 4 / 1e9, summary  # but the capped one
 
 
 def test_check_counts_what_replay_refuses_and_what_an_error_cut_short(bundle, tmp_path) -> None:

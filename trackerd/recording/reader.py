@@ -57,11 +57,6 @@ from trackerd.recording.format import (
 from trackerd.recording.index import read_index, scan_unindexed
 
 MAX_METADATA_BYTES = 16 * 1024 * 1024
-
-MAX_CAPTURE_GAP_NS = 86_400 * 10**9
-"""The longest a recording's capture times may jump from one pair to the next (a day: a recording may span
-the cameras' absence, not more). Capture times are the recording host's monotonic clock, so they never go
-back either: a pair whose time does either cannot be placed in the recording's time line."""
 """recording.json holds the rig and what the cameras said of themselves: tens of kilobytes."""
 
 
@@ -274,26 +269,53 @@ class Recording:
 
 
 def capture_time_damage(entries: list[IndexEntry], data_name: str) -> dict[int, str]:
-    """The pairs whose capture time goes back from the last pair in time before them, or jumps past it by
-    more than MAX_CAPTURE_GAP_NS, each with a line saying so (the time line starts at the first pair). A
-    writer never makes such times; a file that has them was edited or made by another program, and its
-    checksums do not see it."""
+    """The pairs whose capture time goes back against the recording's time line, each with a line saying so.
+
+    Capture times are the recording host's monotonic clock (or an import's increasing times), so a writer
+    never makes one go back; a file that has them was edited or made by another program, and its checksums do
+    not see it. The time line is the longest run of pairs, in order, whose times never go back (found in
+    n log n): a single bogus time, even the first pair's, is the one left out, not every pair after it."""
+    times = [entry.timestamp_ns for entry in entries]
+    # Patience sorting for the longest non-decreasing subsequence: tails[k] is the index of the smallest
+    # last time of a run of length k + 1, before[i] the run's previous pair.
+    tails: list[int] = []
+    before = [-1] * len(times)
+    for index, time_ns in enumerate(times):
+        low, high = 0, len(tails)
+        while low < high:
+            middle = (low + high) // 2
+            if times[tails[middle]] <= time_ns:
+                low = middle + 1
+            else:
+                high = middle
+        before[index] = tails[low - 1] if low > 0 else -1
+        if low == len(tails):
+            tails.append(index)
+        else:
+            tails[low] = index
+    in_line = [False] * len(times)
+    index = tails[-1] if tails else -1
+    while index >= 0:
+        in_line[index] = True
+        index = before[index]
     damage: dict[int, str] = {}
-    last: IndexEntry | None = None
-    last_index = 0
+    last_in_line = -1
     for index, entry in enumerate(entries):
-        if last is not None:
-            step_ns = entry.timestamp_ns - last.timestamp_ns
-            where = f"{data_name}: pair {index} at byte {entry.offset}"
-            if step_ns < 0:
-                damage[index] = f"{where}: captured {_span(-step_ns)} before pair {last_index} (times go back)"
-                continue
-            if step_ns > MAX_CAPTURE_GAP_NS:
-                damage[index] = (
-                    f"{where}: captured {_span(step_ns)} after pair {last_index} (longer than a recording's gap)"
-                )
-                continue
-        last, last_index = entry, index
+        if in_line[index]:
+            last_in_line = index
+            continue
+        where = f"{data_name}: pair {index} at byte {entry.offset}"
+        if last_in_line >= 0 and times[index] < times[last_in_line]:
+            damage[index] = (
+                f"{where}: captured {_span(times[last_in_line] - times[index])} before pair {last_in_line}"
+                " (times go back)"
+            )
+        else:
+            following = next(k for k in range(index + 1, len(entries)) if in_line[k])
+            damage[index] = (
+                f"{where}: captured {_span(times[index] - times[following])} after pair {following}, which"
+                " follows it (times go back)"
+            )
     return damage
 
 

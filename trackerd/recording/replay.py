@@ -62,6 +62,11 @@ which held a replay to 55-117 pairs/s. A windowed pair's windows take 0.2 ms (do
 "Replay speed"): there the hand-over to a thread would cost about what it saves."""
 
 
+MAX_REPLAY_GAP_NS = 10 * 10**9
+"""The longest replay at a recorded speed waits between two pairs (at that speed): a longer gap in the
+recording is replayed as this long. The published capture times are the recorded ones all the same."""
+
+
 @dataclass(frozen=True, slots=True)
 class _Read:
     """One pair as the reader thread found it: its header and frames, or what is wrong with it."""
@@ -133,12 +138,27 @@ class ReplayPairSource(PairSource):
         self._local: deque[_Read] = deque()
         entries = self.recording.entries
         # The time line of the pairs whose capture times are in it (the others are skipped as damaged).
-        timed = self.recording.timed(self.first, self.stop_at) or [self.first]
+        timed = self.recording.timed(self.first, self.stop_at)
+        if not timed:
+            raise RecordingError(
+                f"{self.recording.path}: no pair to replay"
+                + (f" from pair {first}" if first else "")
+                + " has a capture time in the recording's time line"
+            )
         self._t0_rec = entries[timed[0]].timestamp_ns
-        # One pass lasts from the first pair to one typical period after the last.
+        # One pass lasts from the first pair to one typical period after the last (timestamps of later passes
+        # are moved on by it).
         span = entries[timed[-1]].timestamp_ns - self._t0_rec
         pairs = len(timed)
         self._pass_ns = span + (span // (pairs - 1) if pairs > 1 else 16_666_667)
+        # When each pair is due, from the first: its recorded time, but a gap longer than MAX_REPLAY_GAP_NS
+        # (the cameras away, stills imported from two sessions, a time edited days ahead) waits only that long.
+        self._paced_ns: dict[int, int] = {}
+        paced = 0
+        for previous, index in zip([timed[0], *timed], timed, strict=False):
+            paced += min(entries[index].timestamp_ns - entries[previous].timestamp_ns, MAX_REPLAY_GAP_NS)
+            self._paced_ns[index] = paced
+        self._paced_pass_ns = paced + (paced // (pairs - 1) if pairs > 1 else 16_666_667)
         self._sequence_step = max(entries[self.stop_at - 1].sequence, 0) + 1
         default_shift = time.monotonic_ns() + int(start_delay_s * 1e9) - self._t0_rec
         self.shift_ns = default_shift if shift_ns is None else shift_ns
@@ -229,7 +249,7 @@ class ReplayPairSource(PairSource):
     def _due_ns(self, index: int, loop_pass: int) -> int:
         if self.speed is None or index in self.recording.out_of_time:
             return self._start_ns  # a pair out of time is skipped as soon as it is reached
-        recorded = self.recording.entries[index].timestamp_ns - self._t0_rec + loop_pass * self._pass_ns
+        recorded = self._paced_ns[index] + loop_pass * self._paced_pass_ns
         return self._start_ns + int(recorded / self.speed)
 
     def next_pair(self, timeout_s: float) -> FramePair | None:
