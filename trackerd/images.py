@@ -19,6 +19,7 @@ such a frame is suspect, for the commands to warn.
 
 from __future__ import annotations
 
+import contextlib
 import io
 from pathlib import Path
 from typing import cast
@@ -111,7 +112,8 @@ def write_png(path: Path, image: NDArray[np.uint8]) -> None:
     try:
         path.write_bytes(data.tobytes())
     except OSError as err:
-        path.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # a read-only file system refuses that too
+            path.unlink()
         raise ImageError(f"{path}: cannot write the image: {err.strerror or err}") from err
 
 

@@ -158,3 +158,27 @@ def test_a_snapshot_that_meets_a_full_disk_says_why_and_leaves_no_half_of_itself
     with pytest.raises(ImageError, match=r"snap-1-left.png: cannot write the image: No space left on device"):
         write_snapshot(pair, fix, locator, rig, folder, "snap-1")
     assert not folder.exists()
+    # A folder the user made (`trackerd snap OUT`) stays, empty, as it was.
+    mine = small_disk / "mine"
+    mine.mkdir()
+    with pytest.raises(ImageError, match="No space left on device"):
+        write_snapshot(pair, fix, locator, rig, mine, "snap-2")
+    assert mine.is_dir() and not any(mine.iterdir())
+
+
+def test_a_conversion_that_reads_no_pair_leaves_nothing(tmp_path) -> None:
+    """A new user's review: a source whose every pair is damaged converted into an empty recording and said
+    nothing of it (docs/recording.md says a conversion that wrote no pair leaves nothing)."""
+    copy = tmp_path / "damaged.trec"
+    shutil.copytree(BUNDLE, copy)
+    with Recording.open(copy) as recording:
+        inside = [entry.offset + entry.record_bytes - 100 for entry in recording.entries]  # in each last frame
+    data = bytearray((copy / "pairs.dat").read_bytes())
+    for at in inside:
+        data[at] ^= 0xFF
+    (copy / "pairs.dat").write_bytes(bytes(data))
+    out = tmp_path / "converted.trec"
+    run = trackerd("recording", "convert", copy, out, "--mode", "compressed")
+    assert "nothing was converted" in run.stderr and run.returncode == 1, (run.returncode, run.stderr)
+    assert "Traceback" not in run.stderr
+    assert not out.exists()

@@ -6,6 +6,7 @@ found where the rig's ``[console] listen`` says (or ``--console ADDR``), with th
 
 from __future__ import annotations
 
+import contextlib
 import http.client
 import json
 import urllib.error
@@ -27,6 +28,10 @@ class ConsoleError(TrackerdError):
         super().__init__(message)
         self.status = status
         """The HTTP status it answered with, when it answered."""
+
+
+class NotAConsole(ConsoleError):
+    """Something answers at the console's address, but not as a trackerd console."""
 
 
 class ConsoleClient:
@@ -52,6 +57,8 @@ class ConsoleClient:
         ConsoleError when one answers but wants a token this client does not have (or not that one)."""
         try:
             info = self._request("GET", "/api/info", timeout_s=FIND_TIMEOUT_S)
+        except NotAConsole:
+            raise  # said as it is: "no daemon answers" would send the user looking for a stopped daemon
         except ConsoleError as err:
             if err.status == 401:
                 given = "a different token" if self.token is not None else "none"
@@ -85,10 +92,13 @@ class ConsoleClient:
             except ValueError:
                 problem = err.reason
             raise ConsoleError(f"the daemon at {self.base} answered {err.code}: {problem}", err.code) from None
+        except (http.client.RemoteDisconnected, ConnectionError) as err:
+            # A daemon stopping or restarting mid-request: no answer, not a wrong one.
+            raise ConsoleError(f"the daemon's console at {self.base} did not answer ({err})") from None
         except (http.client.HTTPException, ValueError) as err:
             # Something answers there, but not a console: the rig's ZeroMQ port given as --console (its
             # publisher streams messages at an HTTP request), another web server.
-            raise ConsoleError(
+            raise NotAConsole(
                 f"{self.base} answers, but not as a trackerd console ({type(err).__name__}); is it the console's"
                 " address ([console] listen)?"
             ) from None
@@ -118,7 +128,8 @@ class ConsoleClient:
         try:
             path.write_bytes(data)
         except OSError as err:
-            path.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # a read-only file system refuses that too
+                path.unlink()
             raise ConsoleError(f"{path}: cannot write ({err.strerror or err})") from None
 
     def snapshot_into(self, folder: Path, name: str | None = None) -> dict[str, Any]:

@@ -135,6 +135,8 @@ class FrameThread:
         self._camera_info = camera_info
         self.viewers = 0
         self._snapshots: list[SnapshotRequest] = []
+        self._saving: set[str] = set()
+        """Names of the snapshots being saved (taken from the queue, their folder maybe not made yet)."""
         self._wake = threading.Condition()
         self._stopping = False
         self._outlines: tuple[int, list] | None = None
@@ -169,9 +171,9 @@ class FrameThread:
                 own_directory(self.snapshot_directory)
             else:
                 self.snapshot_directory.mkdir(parents=True, exist_ok=True)
-            # Numbered past the snapshots still waiting too (twenty asked for in one second were named
-            # snap-...-b-b-b..., a name growing with every one).
-            name = snapshot_name(self.snapshot_directory, name, {r.name for r in self._snapshots})
+            # Numbered past the snapshots still waiting or being saved too (twenty asked for in one second
+            # were named snap-...-b-b-b..., a name growing with every one).
+            name = snapshot_name(self.snapshot_directory, name, {r.name for r in self._snapshots} | self._saving)
             self._snapshots.append(SnapshotRequest(name, done))
             self._wake.notify_all()
         return name
@@ -203,9 +205,14 @@ class FrameThread:
             pair, fix, locator = slot
             with self._wake:
                 snapshots, self._snapshots = self._snapshots, []
+                self._saving.update(r.name for r in snapshots)
                 viewers = self.viewers
             for request in snapshots:
-                self._save(request, pair, fix, locator)
+                try:
+                    self._save(request, pair, fix, locator)
+                finally:
+                    with self._wake:
+                        self._saving.discard(request.name)
             if viewers > 0 and time.monotonic() >= next_due:
                 next_due = max(next_due + self.period_s, time.monotonic())
                 try:

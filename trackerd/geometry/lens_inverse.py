@@ -162,9 +162,10 @@ def _newton(
             step_y = (a * miss_y - c * miss_x) / det
             x -= step_x
             y -= step_y
-            moved = max(float(np.abs(step_x).max()), float(np.abs(step_y).max()))
-            if moved < TOLERANCE:
-                return np.column_stack([x, y])
+            # np.max, not max(): a NaN in either step must not pass for convergence.
+            moved = float(np.max([np.abs(step_x).max(), np.abs(step_y).max()]))
             if not np.isfinite(moved):
                 return None
+            if moved < TOLERANCE:
+                return np.column_stack([x, y])
     return None

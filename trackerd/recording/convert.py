@@ -73,7 +73,7 @@ def convert_recording(
         writer.close("error: conversion interrupted")
         # Said with the error, so that a user does not take what is left for the whole conversion.
         if writer.discard_if_empty():
-            err.args = (f"{err}; nothing was converted",)
+            err.args = (f"{str(err).removesuffix('; what was written stays readable')}; nothing was converted",)
         else:
             err.args = (f"{err}; the {writer.pairs} pairs converted before it are left in {out}",)
         raise
@@ -84,6 +84,8 @@ def convert_recording(
     writer.close(
         f"converted ({end.reason if end else 'source not closed'})", dropped_pairs=end.dropped_pairs if end else 0
     )
+    if writer.discard_if_empty():
+        raise RecordingError(f"{source.path}: no pair of it could be read; nothing was converted")
     planner = getattr(writer, "_planner", None)
     if planner is not None:
         summary.keyframes = dict(planner.keyframes)

@@ -23,6 +23,7 @@ real sequence at that rate.
 from __future__ import annotations
 
 import csv
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -99,6 +100,10 @@ def read_timestamps(path: Path, camera_ids: Sequence[str]) -> dict[tuple[str, st
             except ValueError:
                 what = "a number" if unit == "timestamp_s" else "a whole number"  # 1e300 is a number, not an int
                 raise RecordingError(f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not {what}") from None
+            if (isinstance(value, float) and not math.isfinite(value)) or abs(value * _UNITS_NS[unit]) >= 2**63:
+                raise RecordingError(
+                    f"{path}:{reader.line_num}: {unit} '{row[unit]}' is not a time a recording can hold"
+                )
             out[(row["name"], camera)] = Stamp(round(value * _UNITS_NS[unit]), reader.line_num, f"{unit} {row[unit]}")
     return out
 
@@ -167,7 +172,7 @@ def import_folder(
         writer.close("error: import interrupted")
         # Said with the error, so that a user does not take what is left for the whole import.
         if writer.discard_if_empty():
-            err.args = (f"{err}; nothing was imported",)
+            err.args = (f"{str(err).removesuffix('; what was written stays readable')}; nothing was imported",)
         else:
             err.args = (f"{err}; the {writer.pairs} pairs imported before it are left in {out}",)
         raise

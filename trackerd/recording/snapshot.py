@@ -63,6 +63,7 @@ def write_snapshot(
     from trackerd.console.overlay import camera_overlay, draw_overlay
     from trackerd.recording.annotate import annotate, end_summary, fix_summary
 
+    made_folder = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
     summary = fix_summary(fix)
     record = snapshot_record(pair, fix, rig, name)
@@ -83,7 +84,7 @@ def write_snapshot(
             try:
                 write_png(path, image)
             except ImageError:
-                _discard([*written, raw_path], folder)
+                _discard([*written, raw_path], folder if made_folder else None)
                 raise
         written += [view_path, raw_path]
         say(f"  {frame.camera_id}: {ends}")
@@ -116,15 +117,17 @@ def write_snapshot(
     try:
         json_path.write_text(json.dumps(record, indent=2) + "\n")
     except OSError as err:
-        _discard([*written, json_path], folder)
+        _discard([*written, json_path], folder if made_folder else None)
         raise ImageError(f"{json_path}: cannot write the snapshot's record: {err.strerror or err}") from err
     written.append(json_path)
     return written
 
 
-def _discard(paths: list[Path], folder: Path) -> None:
-    """Half a snapshot is none: remove what it wrote, and its folder if that leaves it empty."""
+def _discard(paths: list[Path], folder: Path | None) -> None:
+    """Half a snapshot is none: remove what it wrote, and ``folder`` (the one it made) if that leaves it empty."""
     for path in paths:
-        path.unlink(missing_ok=True)
-    with contextlib.suppress(OSError):
-        folder.rmdir()
+        with contextlib.suppress(OSError):
+            path.unlink()
+    if folder is not None:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
