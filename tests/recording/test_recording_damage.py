@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -25,6 +26,23 @@ def _replay_summary(path: Path) -> tuple[dict, str, int]:
     run = trackerd("replay", path, "--speed", "max", "--delay", "0", "--endpoint", "tcp://127.0.0.1:*", "--json")
     assert "Traceback" not in run.stderr, run.stderr
     return json.loads(run.stdout), run.stderr, run.returncode
+
+
+def _replay(path: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """`trackerd replay PATH ARGS` on a free port, no console, its summary as JSON on stdout."""
+    return trackerd(
+        "replay",
+        path,
+        *args,
+        "--delay",
+        "0",
+        "--endpoint",
+        "tcp://127.0.0.1:*",
+        "--console",
+        "off",
+        "--json",
+        timeout=60,
+    )
 
 
 def _replayed_sequences(path: Path) -> list[int]:
@@ -280,30 +298,12 @@ def test_pairs_whose_capture_times_go_back_are_damaged_not_replayed(
     assert check.returncode == 1, check.stdout
     assert f"pairs.dat: {said.format(offset=offset)}" in check.stdout and "(times go back)" in check.stdout
     assert f"{len(bad)} problem(s); {16 - len(bad)} pairs replay" in check.stdout, check.stdout
-    run = trackerd(
-        "replay", retimed, "--delay", "0", "--endpoint", "tcp://127.0.0.1:*", "--console", "off", "--json", timeout=60
-    )
+    run = _replay(retimed)
     assert "Traceback" not in run.stderr and "crashed" not in run.stderr, run.stderr
     summary = json.loads(run.stdout)
     # The pairs left replay as the same pairs of the untouched recording do.
     first, count = (1, 15) if bad[0] == 0 else (0, 10)
-    same = trackerd(
-        "replay",
-        bundle,
-        "--first",
-        str(first),
-        "--count",
-        str(count),
-        "--speed",
-        "max",
-        "--delay",
-        "0",
-        "--endpoint",
-        "tcp://127.0.0.1:*",
-        "--console",
-        "off",
-        "--json",
-    )
+    same = _replay(bundle, "--first", str(first), "--count", str(count), "--speed", "max")
     untouched = json.loads(same.stdout)
     assert summary["pairs"] == 16 - len(bad) == untouched["pairs"] and summary["hits"] == untouched["hits"], summary
     assert f"{len(bad)} damaged pair(s) skipped" in run.stderr and run.returncode == 1, (run.returncode, run.stderr)
@@ -319,20 +319,7 @@ def test_a_gap_of_days_is_no_damage_and_replay_does_not_wait_it(bundle, tmp_path
     retimed = _rewritten(bundle, tmp_path / "gap.trec", lambda i, ns: ns + (3 * 86_400 * 10**9 if i >= 10 else 0))
     check = trackerd("recording", "check", retimed)
     assert check.returncode == 0 and "intact" in check.stdout, check.stdout
-    run = trackerd(
-        "replay",
-        retimed,
-        "--speed",
-        "4",
-        "--delay",
-        "0",
-        "--endpoint",
-        "tcp://127.0.0.1:*",
-        "--console",
-        "off",
-        "--json",
-        timeout=60,
-    )
+    run = _replay(retimed, "--speed", "4")
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
     summary = json.loads(run.stdout)
     as_recorded, _, _ = _replay_summary(bundle)
