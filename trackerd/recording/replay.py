@@ -64,7 +64,9 @@ which held a replay to 55-117 pairs/s. A windowed pair's windows take 0.2 ms (do
 
 MAX_REPLAY_GAP_NS = 10 * 10**9
 """The longest replay at a recorded speed waits between two pairs (at that speed): a longer gap in the
-recording is replayed as this long. The published capture times are the recorded ones all the same."""
+recording is replayed as this long. The published capture times are the recorded ones all the same, so the
+latency the status gives for the pairs after such a gap (publish time less capture time) is short by the
+time not waited, negative for a gap of minutes or more."""
 
 
 @dataclass(frozen=True, slots=True)
