@@ -72,7 +72,7 @@ def record_command(args: argparse.Namespace) -> int:
     from trackerd.cli._progress import ProgressLine, describe
     from trackerd.recording.outputs import check_new_recording
     from trackerd.recording.recorder import Recorder
-    from trackerd.recording.writer import check_free_space
+    from trackerd.recording.writer import KEPT, check_free_space
 
     loaded = load_rig(args.config, for_tracking=False)  # the cameras are what it uses
     out = Path(args.out)
@@ -142,9 +142,9 @@ def record_command(args: argparse.Namespace) -> int:
     )
     if recorder.error is not None:
         # One line: what stopped it and what was kept (readable: the partial pair is cut off).
-        message = str(recorder.error).removesuffix("; what was written stays readable")
+        message = str(recorder.error).removesuffix(KEPT)
         if "nothing was recorded" not in message:
-            message += f"; what was written stays readable: {kept}" if status.pairs else f"; {kept}"
+            message += f"{KEPT}: {kept}" if status.pairs else f"; {kept}"
         raise RecordingError(message)
     progress.show(describe(status, source_status.dropped_pairs), force=True)
     progress.done()

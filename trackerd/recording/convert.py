@@ -70,12 +70,7 @@ def convert_recording(
             if progress is not None:
                 progress(index + 1, total)
     except TrackerdError as err:
-        writer.close("error: conversion interrupted")
-        # Said with the error, so that a user does not take what is left for the whole conversion.
-        if writer.discard_if_empty():
-            err.args = (f"{str(err).removesuffix('; what was written stays readable')}; nothing was converted",)
-        else:
-            err.args = (f"{err}; the {writer.pairs} pairs converted before it are left in {out}",)
+        writer.close_after(err, "conversion", "converted")
         raise
     except BaseException:
         writer.close("error: conversion interrupted")

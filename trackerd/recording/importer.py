@@ -169,12 +169,7 @@ def import_folder(
     except TrackerdError as err:
         if writer is None:
             raise
-        writer.close("error: import interrupted")
-        # Said with the error, so that a user does not take what is left for the whole import.
-        if writer.discard_if_empty():
-            err.args = (f"{str(err).removesuffix('; what was written stays readable')}; nothing was imported",)
-        else:
-            err.args = (f"{err}; the {writer.pairs} pairs imported before it are left in {out}",)
+        writer.close_after(err, "import", "imported")
         raise
     except BaseException:
         if writer is not None:

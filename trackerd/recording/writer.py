@@ -28,7 +28,7 @@ import numpy as np
 import trackerd
 from trackerd.acquisition.frame import FramePair
 from trackerd.config.models import RigConfig
-from trackerd.errors import RecordingError
+from trackerd.errors import RecordingError, TrackerdError
 from trackerd.recording.checksum import frame_crc32
 from trackerd.recording.codec import ZstdCoder, delta, pack_windows
 from trackerd.recording.format import (
@@ -417,6 +417,16 @@ class RecordingWriter:
             # without its end record (it reads as not closed cleanly).
             (self.path / (METADATA_FILE + ".tmp")).unlink(missing_ok=True)
 
+    def close_after(self, err: TrackerdError, what: str, done: str) -> None:
+        """Close the recording after ``err`` stopped ``what`` (an import, a conversion), and say with the error
+        what is left, so that a user does not take it for the whole: "the N pairs <done> before it are left in
+        OUT", or, a recording that holds no pair being removed, "nothing was <done>"."""
+        self.close(f"error: {what} interrupted")
+        if self.discard_if_empty():
+            err.args = (f"{str(err).removesuffix(KEPT)}; nothing was {done}",)
+        else:
+            err.args = (f"{err}; the {self.pairs} pairs {done} before it are left in {self.path}",)
+
     def discard_if_empty(self) -> bool:
         """After :meth:`close`: remove a recording that holds no pair (its first write failed: a full disk),
         as one that could not be begun is, so that "nothing was recorded" leaves nothing behind (an empty
@@ -426,6 +436,10 @@ class RecordingWriter:
             return False
         _remove_recording(self.path, and_folder=self._created)
         return True
+
+
+KEPT = "; what was written stays readable"
+"""How a disk-full error ends: what the recording holds stays readable."""
 
 
 def _write_all(fd: int, buffers: Sequence[bytes | memoryview]) -> None:
@@ -451,5 +465,5 @@ def _truncate(fd: int, size: int) -> None:
 
 def _os_error(path: Path, doing: str, err: OSError) -> RecordingError:
     if err.errno in _DISK_FULL_ERRNOS:
-        return DiskFullError(f"{path}: disk full, {doing} ({err.strerror}); what was written stays readable")
+        return DiskFullError(f"{path}: disk full, {doing} ({err.strerror}){KEPT}")
     return RecordingError(f"{path}: {doing}: {err.strerror or err}")
