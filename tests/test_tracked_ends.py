@@ -98,6 +98,24 @@ def test_tracking_where_the_centroids_are_pulled_is_honest() -> None:
     assert sum(1 for t in tracking if not t["refined"]) >= 5
 
 
+def _followed(index: int, count: int):
+    """Seed 2026's installation ``index`` and ``count`` frames of it followed as the bench renders them (what is
+    in front of the pointer drawn too): (drawn installation, factors, frames)."""
+    from trackerd.bench.robustness_follow import followed_frames
+
+    drawn, _ = draw_installation(2026, index)
+    assert drawn.rig.wall is not None
+    factors, sequence = followed_frames(
+        drawn,
+        renderer_for(drawn),
+        wall_frame(drawn.rig.wall),
+        np.random.default_rng([2026, index, 3]),
+        count,
+        np.random.default_rng([2026, index, 4]),
+    )
+    return drawn, factors, list(sequence)
+
+
 def test_an_outline_of_the_wrong_size_keeps_its_error_on_the_tracked_pairs() -> None:
     # Seed 2026's installation 16, followed as the bench renders it: a finger on the red ball (orange-red paint,
     # skin nearly its colour), which camera 1 sees half of. Its outline there is a circle too small for the
@@ -106,21 +124,10 @@ def test_an_outline_of_the_wrong_size_keeps_its_error_on_the_tracked_pairs() -> 
     # that error and stated 4.7 mm at 35 mm off (7 sigma); with it, but along the arc's axis alone, 5.5-9.4 mm
     # at 34-40 mm. A circle too short for the ball is now as wrong across its axis as it is short: the tracked
     # pairs weigh that outline down, and are 7-9 mm off at 15 mm sigma.
-    from trackerd.bench.robustness_follow import followed_frames
     from trackerd.locator import Locator
 
-    drawn, _ = draw_installation(2026, 16)
-    assert drawn.rig.wall is not None
-    factors, sequence = followed_frames(
-        drawn,
-        renderer_for(drawn),
-        wall_frame(drawn.rig.wall),
-        np.random.default_rng([2026, 16, 3]),
-        5,
-        np.random.default_rng([2026, 16, 4]),
-    )
+    drawn, factors, frames = _followed(16, 5)
     assert factors["occlusion"] == "hand"
-    frames = list(sequence)
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     refined = locator.locate([v.image for v in frames[0].views])
     assert refined.found and refined.measurements
@@ -143,22 +150,11 @@ def test_a_cameras_stale_ends_are_measured_again_together_as_each_alone() -> Non
     # sequence): at its fifth pair both of camera 0's ends have moved or changed beyond what their corrections
     # may be carried, and are measured again in one batched measurement. Each must be the outline
     # measure_end finds for that end alone, beside its new centroid, and the tracked path must answer with it.
-    from trackerd.bench.robustness_follow import followed_frames
     from trackerd.ends import across_pointer, measure_end
     from trackerd.locator import Locator
     from trackerd.refine import blob_radius_px
 
-    drawn, _ = draw_installation(2026, 15)
-    assert drawn.rig.wall is not None
-    _, sequence = followed_frames(
-        drawn,
-        renderer_for(drawn),
-        wall_frame(drawn.rig.wall),
-        np.random.default_rng([2026, 15, 3]),
-        5,
-        np.random.default_rng([2026, 15, 4]),
-    )
-    frames = list(sequence)
+    drawn, _, frames = _followed(15, 5)
     locator = Locator(drawn.rig, cameras=drawn.cameras)
     for frame in frames[:-1]:
         assert locator.locate([v.image for v in frame.views]).found
