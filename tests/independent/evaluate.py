@@ -23,13 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from trackerd.bench.robustness import naive_hit
+from trackerd.bench.robustness import MIN_VISIBLE, naive_hit
 from trackerd.config import load_rig
 from trackerd.images import read_frame
 from trackerd.locator import Locator
-
-MIN_VISIBLE = 0.6
-"""A ball counts as seen by a camera from this share of its disc visible (as `bench robustness`)."""
 
 WRONG_END_MM = 100.0
 """A reported pointer with an end this far from the truth is a wrong answer."""
