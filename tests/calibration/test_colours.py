@@ -19,6 +19,7 @@ from trackerd.calibration.colours import ColourLearner
 from trackerd.calibration.live import save_frame
 from trackerd.config.loader import dump_rig, load_rig
 from trackerd.detect.detector import ColourEndDetector
+from trackerd.sim.appearance import Look
 
 
 def _learn(rig, renderer, *, content=None, count: int = 8):
@@ -96,6 +97,20 @@ def test_no_pointer_in_view_teaches_nothing():
         )
     with pytest.raises(CalibrationError, match="not located well in any of 3 pair"):
         learner.result("2026-12-02")
+
+
+def test_an_end_too_grey_to_be_told_by_colour_is_named_when_nothing_is_learned():
+    """A blue end painted nearly grey is never located, and waving longer does not help: the refusal names
+    the end the locator missed (the commonest reason), and what would help."""
+    grey_blue = Look(red_rgb=DIM.red_rgb, blue_rgb=(0.07, 0.07, 0.08), gain=DIM.gain)
+    rig, renderer = room(grey_blue, noise_sigma=2.0, shot_noise=0.3)
+    with pytest.raises(CalibrationError) as refused:
+        _learn(rig, renderer, content=BLANK, count=3)
+    text = str(refused.value)
+    assert "not located well in any of 3 pair(s)" in text
+    most = text.split("most often (3 of 3): ", 1)[1]
+    assert most.startswith("no blue ball seen"), text
+    assert "a brighter paint" in most
 
 
 def _trackerd(*args, cwd: Path) -> subprocess.CompletedProcess[str]:

@@ -29,6 +29,8 @@ the daemon compares what it sees with them (trackerd.pipeline.colourwatch).
 from __future__ import annotations
 
 import math
+import re
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, TypedDict
@@ -182,6 +184,11 @@ class ColourLearner:
         self.locator = locator or LocatorClass(rig, cameras=self.cameras)
         self.frames = 0
         self.used = 0
+        # Why pairs were not located, by the reason's wording with its figures left out (the first
+        # sentence of each, as it was first given), so that "nothing to learn from" can say which end
+        # the locator missed: a blue end too dark to be told by its colour is not fixed by more waving.
+        self._missed: Counter[str] = Counter()
+        self._missed_first: dict[str, str] = {}
         self._cameras = [_Camera() for _ in self.cameras]
         self._kept: list[tuple[list[tuple[NDArray[np.uint8], str]], list[dict[str, Disc | None]]]] = []
         self._rng = np.random.default_rng(seed)
@@ -198,6 +205,7 @@ class ColourLearner:
         fix = self.locator.locate([image for _, image, _ in frames])
         line = fix.line
         if not fix.found or line is None or max(line.front_gap_m, line.back_gap_m) > GOOD_GAP_M:
+            self._note_missed(fix, line is not None and fix.found)
             if self.frames % 25 == 0 and self.used == 0:
                 return Event(
                     f"[{self.frames} pairs] the pointer is not located yet"
@@ -241,6 +249,22 @@ class ColourLearner:
             )
         return None
 
+    def _note_missed(self, fix: PointerFix, located: bool) -> None:
+        if located:
+            reason = f"rays met more than {GOOD_GAP_M * 1000:.0f} mm apart at an end"
+        else:
+            reason = (fix.reason or fix.status).split(";")[0].strip()
+        kind = re.sub(r"[-+]?\d+(\.\d+)?", "#", reason)
+        self._missed[kind] += 1
+        self._missed_first.setdefault(kind, reason)
+
+    def _missed_most(self) -> str:
+        """The commonest reason pairs were not located, as ``k of n pair(s): reason`` ("" if none)."""
+        if not self._missed:
+            return ""
+        kind, count = self._missed.most_common(1)[0]
+        return f"; most often ({count} of {self.frames}): {self._missed_first[kind]}"
+
     def _centre_agrees(self, fix: PointerFix, index: int, colour: str, disc: Disc | None) -> bool:
         if disc is None or index >= len(fix.centroids_px):
             return False
@@ -273,6 +297,8 @@ class ColourLearner:
                 f"the pointer was not located well in any of {self.frames} pair(s) (both ends seen by two cameras,"
                 f" rays meeting within {GOOD_GAP_M * 1000:.0f} mm): nothing to learn from; wave it where every"
                 " camera sees both ends (`trackerd calibrate check` says whether the calibration still fits)"
+                f"{self._missed_most()}. An end that looks dark or grey in the images cannot be told by its colour:"
+                " it needs more light, a longer exposure or a brighter paint, not more waving"
             )
         per_camera = []
         learned = {}
