@@ -11,6 +11,14 @@ percentile and worst, how often a hit's error exceeds 3 and 5 times its stated s
 figures, and every *wrong answer*: any pose, eligible or not, where trackerd reported a pointer (a hit, off
 the display, away, parallel) with an end more than WRONG_END_MM from the truth. Where an end cannot be seen
 the right answer is "not found"; a wrong answer that looks confident is worse.
+
+An eligible pose is also *told by colour* when each ball, in at least two cameras where it is at least 60 %
+visible, shows its colour over the inner half of its disc: its own channel's median at least COLOUR_MARGIN
+grey levels above each other channel's, and some channel's median as far from the ring of 1.5-2.5 radii around
+it (the truth's centre and visible area; the image's own pixels: a dark red ball on a dark red wall is
+not told by colour). Many
+of these rooms' pointers are not (a navy ball under warm light reads like (4, 4, 10)): no colour tracker
+can find those, and the figures for the poses that are told by colour say what trackerd does where it can.
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trackerd.bench.robustness import MIN_VISIBLE, naive_hit
 from trackerd.config import load_rig
@@ -32,6 +41,52 @@ WRONG_END_MM = 100.0
 """A reported pointer with an end this far from the truth is a wrong answer."""
 
 LINE_STATUSES = ("hit", "off_wall", "away", "parallel")
+
+COLOUR_MARGIN = 20.0
+"""A ball is told by its colour where its own channel leads the others by this many grey levels (see above)."""
+
+
+def channel_medians(
+    frame: NDArray[np.uint8], pixel_format: str, centre_px: list[float], radii_px: tuple[float, float]
+) -> NDArray[np.float64]:
+    """Median (red, green, blue) over the ring between two radii about a centre (a disc from radius 0), each
+    channel from the pixels that carry it (a Bayer RG mosaic's own sites, or every pixel of an RGB or BGR
+    frame); NaN where the ring holds none. Medians: a thin line of another colour (the rod, an edge of a
+    picture) does not move them."""
+    height, width = frame.shape[:2]
+    ys, xs = np.mgrid[:height, :width]
+    squared = (xs - centre_px[0]) ** 2 + (ys - centre_px[1]) ** 2
+    inside = (squared >= radii_px[0] ** 2) & (squared <= radii_px[1] ** 2)
+    if frame.ndim == 3:
+        order = (0, 1, 2) if pixel_format.startswith("RGB") else (2, 1, 0)
+        return np.array([np.median(frame[..., c][inside]) if inside.any() else np.nan for c in order])
+    if not pixel_format.startswith("BayerRG"):
+        return np.full(3, np.nan)
+    sites = {
+        0: (ys % 2 == 0) & (xs % 2 == 0),
+        1: (ys + xs) % 2 == 1,
+        2: (ys % 2 == 1) & (xs % 2 == 1),
+    }
+    return np.array([np.median(frame[inside & at]) if (inside & at).any() else np.nan for at in sites.values()])
+
+
+def told_by_colour(truth: dict[str, Any], cameras: list[Any], frames: list[Any], formats: list[str]) -> bool:
+    """Each ball shows its colour (COLOUR_MARGIN), and differs by as much in some channel from the ring of
+    1.5-2.5 radii around it, in at least two cameras where it is >= MIN_VISIBLE visible."""
+    for colour, channel in (("red", 0), ("blue", 2)):
+        showing = 0
+        for camera, frame, pixel_format in zip(cameras, frames, formats, strict=True):
+            ball = truth["views"][camera.id][colour]
+            if ball["centre_px"] is None or ball["visible_fraction"] < MIN_VISIBLE:
+                continue
+            radius_px = max(2.0, float(np.sqrt(ball["visible_area_px"] / np.pi)))
+            inner = channel_medians(frame, pixel_format, ball["centre_px"], (0.0, 0.5 * radius_px))
+            around = channel_medians(frame, pixel_format, ball["centre_px"], (1.5 * radius_px, 2.5 * radius_px))
+            of_its_colour = np.all(inner[channel] - np.delete(inner, channel) >= COLOUR_MARGIN)
+            showing += bool(of_its_colour and np.max(np.abs(inner - around)) >= COLOUR_MARGIN)
+        if showing < 2:
+            return False
+    return True
 
 
 def evaluate_room(folder: Path) -> list[dict[str, Any]]:
@@ -57,6 +112,7 @@ def evaluate_room(folder: Path) -> list[dict[str, Any]]:
             "room": folder.name,
             "pose": truth_path.name.removesuffix("-truth.json"),
             "eligible": sum(1 for pair in visible if min(pair) >= MIN_VISIBLE) >= 2,
+            "told_by_colour": told_by_colour(truth, rig.cameras, frames, formats),
             "status": fix.status,
             "reason": fix.reason,
             "error_mm": None if fix.hit is None else float(np.linalg.norm(fix.hit.wall_xy_m - true_xy) * 1000),
@@ -110,6 +166,11 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "over_5_sigma": int(np.sum(ratios > 5)),
         },
         "naive": {"found": len(naive), **spread(naive)},
+        "told_by_colour": {
+            "eligible": sum(1 for r in eligible if r["told_by_colour"]),
+            "found": sum(1 for r in found if r["told_by_colour"]),
+            **spread(np.array([r["error_mm"] for r in found if r["told_by_colour"]])),
+        },
         "wrong": [
             (r["room"], r["pose"], r["status"], [round(e) for e in r["end_errors_mm"]]) for r in records if is_wrong(r)
         ],
@@ -136,6 +197,13 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"naive:    found {n['found']}, median {cell(n['median_mm'])} mm, p95 {cell(n['p95_mm'])},"
         f" worst {cell(n['worst_mm'])}"
+    )
+    c = summary["told_by_colour"]
+    print(
+        f"told by colour (its colour and its difference from what is around it {COLOUR_MARGIN:.0f} grey levels,"
+        f" each ball in two cameras): {c['eligible']}"
+        f" eligible poses; trackerd found {c['found']}, median {cell(c['median_mm'])} mm, p95 {cell(c['p95_mm'])},"
+        f" worst {cell(c['worst_mm'])}"
     )
     print(f"wrong answers (an end > {WRONG_END_MM:.0f} mm off): {len(summary['wrong'])}")
     for room, pose, status, ends in summary["wrong"]:

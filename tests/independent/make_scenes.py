@@ -588,7 +588,12 @@ def draw_geometry(rng: Rng, rd: RoomDraw, cameras: tuple[Camera, ...]) -> Holdin
     raise RuntimeError("no presenter pose fits this room")
 
 
-def draw_pose(rng: Rng, rd: RoomDraw, samples: int) -> Pose:
+# The white card's grey level: as drawn (a camera left at any exposure) or as an operator sets it
+# (the card near the top of the range, as a camera's auto-exposure or a person at the console would).
+CARD_GREY = {"drawn": (35.0, 230.0), "set": (140.0, 230.0)}
+
+
+def draw_pose(rng: Rng, rd: RoomDraw, samples: int, exposure: str = "drawn") -> Pose:
     hold = draw_geometry(rng, rd, rd.cameras)
     lo, hi = rd.room.lo, rd.room.hi
     width, height = rd.room.display_m
@@ -607,7 +612,11 @@ def draw_pose(rng: Rng, rd: RoomDraw, samples: int) -> Pose:
             (pos, np.exp(rng.uniform(np.log(0.3), 0)), rng.uniform(0, 3), blackbody(kelvin + rng.normal(0, 250)))
         )
     ambient_share = rng.uniform(0.05, 0.5)
-    white = float(np.exp(rng.uniform(np.log(35), np.log(230))))
+    drawn = rng.uniform(np.log(35), np.log(230))  # the same draw whatever the exposure: the rest stays the pose's
+    if exposure != "drawn":  # the same quantile of the operator's range
+        lo_grey, hi_grey = CARD_GREY[exposure]
+        drawn = np.log(lo_grey) + (drawn - np.log(35)) * np.log(hi_grey / lo_grey) / np.log(230 / 35)
+    white = float(np.exp(drawn))
     card = np.array([width / 2, lo[1] + 1.3, 1.8])  # a white card at the presenter's hand, facing each lamp
     reach = sum(
         w * np.clip((p - card)[1] / np.linalg.norm(p - card), 0, 1) ** m / np.sum((p - card) ** 2)
@@ -746,13 +755,19 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--only", type=lambda text: [int(v) for v in text.split(",")], help="render these poses only (e.g. 2,6)"
     )
+    ap.add_argument(
+        "--exposure",
+        choices=sorted(CARD_GREY),
+        default="drawn",
+        help="drawn: the white card at the hand reads 35-230 grey levels; set: 140-230, as an operator would set it",
+    )
     args = ap.parse_args(argv)
     ss = args.supersample
     rd = draw_room(np.random.default_rng(args.seed))
     cams = [c.scaled(args.scale) for c in rd.cameras]
     # Pose i is drawn from its own generator: pose 6 alone is pose 6 of a run of ten.
     numbers = args.only if args.only is not None else list(range(args.poses))
-    poses = [draw_pose(np.random.default_rng([args.seed, i]), rd, ss) for i in numbers]
+    poses = [draw_pose(np.random.default_rng([args.seed, i]), rd, ss, args.exposure) for i in numbers]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "rig.toml").write_text(rig_toml(rd, cams, args.format, args.seed))
     ext, pixel_format = (".png", "RGB8") if args.format == "png" else (".npy", "BayerRG8")
@@ -763,7 +778,7 @@ def main(argv: list[str] | None = None) -> None:
         width, height = rd.room.display_m
         truths.append(
             {
-                "note": f"independent room, seed {args.seed}",
+                "note": f"independent room, seed {args.seed}, exposure {args.exposure}",
                 "front_m": front.tolist(),
                 "back_m": back.tolist(),
                 "wall_xy_m": hit[:2].tolist(),
