@@ -7,6 +7,8 @@ import numpy as np
 
 from trackerd.bench.robustness import draw_installation, drawn_frames, renderer_for
 from trackerd.config.rig_geometry import wall_frame
+from trackerd.ends import hidden_share
+from trackerd.geometry.camera import CameraModel
 from trackerd.locator import Locator
 
 
@@ -58,3 +60,41 @@ def test_a_large_clear_balls_stated_error_is_about_its_actual_error_not_twice_it
     assert rms_sigma < 2.0 * rms_error, (rms_sigma, rms_error)
     # And no more confident than they are.
     assert np.all(np.abs(errors_px) <= 3.0 * sigmas_px), np.abs(errors_px) / sigmas_px
+
+
+def _covered_by_sampling(far_m: np.ndarray, near_m: np.ndarray, radius_m: float, rng: np.random.Generator) -> float:
+    """The share of the far ball's silhouette hidden by the near one, by rays from the origin: directions spread
+    evenly over the far ball's cone, each hidden where it passes within the radius of the near ball's centre."""
+    axis = far_m / np.linalg.norm(far_m)
+    half_angle = np.arcsin(radius_m / np.linalg.norm(far_m))
+    # Uniform over the cone's solid angle.
+    cos_theta = rng.uniform(np.cos(half_angle), 1.0, 200_000)
+    phi = rng.uniform(0.0, 2.0 * np.pi, cos_theta.size)
+    side = np.cross(axis, [0.0, 1.0, 0.0] if abs(axis[1]) < 0.9 else [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    up = np.cross(axis, side)
+    sin_theta = np.sqrt(1.0 - cos_theta**2)
+    rays = cos_theta[:, None] * axis + sin_theta[:, None] * (np.cos(phi)[:, None] * side + np.sin(phi)[:, None] * up)
+    along = rays @ near_m
+    miss = np.linalg.norm(rays * along[:, None] - near_m, axis=1)
+    return float(np.mean((along > 0) & (miss <= radius_m)))
+
+
+def test_the_share_of_a_ball_behind_the_other_matches_rays_cast_at_it() -> None:
+    """`hidden_share` (discs of the balls' angular radii, their lens of overlap) against rays cast from the
+    camera at the far ball's silhouette: whole, partly and not hidden, and never by a ball farther away."""
+    camera = CameraModel.from_pose("c", 640, 480, np.diag([500.0, 500.0, 1.0]), np.zeros(5), np.zeros(3), np.eye(3))
+    rng = np.random.default_rng(4)
+    radius_m = 0.02
+    far_m = np.array([0.1, -0.05, 2.4])
+    toward = far_m / np.linalg.norm(far_m)
+    across = np.cross(toward, [0.0, 1.0, 0.0])
+    across /= np.linalg.norm(across)
+    for offset_m in (0.0, 0.004, 0.01, 0.016, 0.022, 0.03, 0.05):
+        near_m = 0.8 * far_m + offset_m * across  # 0.48 m nearer, so the near disc is the larger
+        expected = _covered_by_sampling(far_m, near_m, radius_m, rng)
+        share = hidden_share(camera, far_m, near_m, radius_m)
+        assert abs(share - expected) < 0.01, (offset_m, share, expected)
+        assert hidden_share(camera, near_m, far_m, radius_m) == 0.0
+    assert hidden_share(camera, far_m, 0.8 * far_m, radius_m) == 1.0
+    assert hidden_share(camera, far_m, 0.8 * far_m + 0.05 * across, radius_m) == 0.0

@@ -139,6 +139,42 @@ def expected_radius_px(camera: CameraModel, point_m: Array, ball_radius_m: float
     return float(camera.focal_px * ball_radius_m / math.sqrt(max(distance**2 - ball_radius_m**2, 1e-6)))
 
 
+def hidden_share(camera: CameraModel, far_m: Array, near_m: Array, ball_radius_m: float) -> float:
+    """The share of the silhouette of the ball at ``far_m`` that the ball at ``near_m`` covers in ``camera``
+    (0 where that one is not the nearer). Angles from the camera's centre, so the lens plays no part: each
+    silhouette is a disc of the ball's angular radius, and the covered part is the two discs' overlap."""
+    to_far = np.asarray(far_m, dtype=np.float64) - camera.centre_m
+    to_near = np.asarray(near_m, dtype=np.float64) - camera.centre_m
+    far_d, near_d = float(np.linalg.norm(to_far)), float(np.linalg.norm(to_near))
+    if near_d >= far_d or near_d <= ball_radius_m:
+        return 0.0
+    far_r = math.asin(min(1.0, ball_radius_m / far_d))
+    near_r = math.asin(min(1.0, ball_radius_m / near_d))
+    apart = math.acos(max(-1.0, min(1.0, float(to_far @ to_near) / (far_d * near_d))))
+    if apart >= far_r + near_r:
+        return 0.0
+    if apart <= near_r - far_r:  # the nearer, larger disc covers the farther one whole
+        return 1.0
+    # The lens where two discs overlap (the nearer one is the larger, so it cannot lie inside the farther).
+    cos_far = (apart**2 + far_r**2 - near_r**2) / (2.0 * apart * far_r)
+    cos_near = (apart**2 + near_r**2 - far_r**2) / (2.0 * apart * near_r)
+    lens = (
+        far_r**2 * math.acos(max(-1.0, min(1.0, cos_far)))
+        + near_r**2 * math.acos(max(-1.0, min(1.0, cos_near)))
+        - 0.5
+        * math.sqrt(
+            max(
+                0.0,
+                (-apart + far_r + near_r)
+                * (apart + far_r - near_r)
+                * (apart - far_r + near_r)
+                * (apart + far_r + near_r),
+            )
+        )
+    )
+    return min(1.0, lens / (math.pi * far_r**2))
+
+
 def ball_sized(radius_px: float, expected_px: float) -> bool:
     """Whether an outline's radius is within MAX_RADIUS_RATIO of a ball's expected one, either way."""
     return 1.0 / MAX_RADIUS_RATIO <= radius_px / expected_px <= MAX_RADIUS_RATIO
