@@ -53,21 +53,22 @@ def channel_medians(
     channel from the pixels that carry it (a Bayer RG mosaic's own sites, or every pixel of an RGB or BGR
     frame); NaN where the ring holds none. Medians: a thin line of another colour (the rod, an edge of a
     picture) does not move them."""
+    # Only the window that holds the ring, in the frame's own coordinates (a Bayer site's parity is kept).
     height, width = frame.shape[:2]
-    ys, xs = np.mgrid[:height, :width]
+    outer = radii_px[1]
+    top, bottom = max(0, int(centre_px[1] - outer)), min(height, int(centre_px[1] + outer) + 2)
+    left, right = max(0, int(centre_px[0] - outer)), min(width, int(centre_px[0] + outer) + 2)
+    ys, xs = np.mgrid[top:bottom, left:right]
+    window = frame[top:bottom, left:right]
     squared = (xs - centre_px[0]) ** 2 + (ys - centre_px[1]) ** 2
     inside = (squared >= radii_px[0] ** 2) & (squared <= radii_px[1] ** 2)
     if frame.ndim == 3:
         order = (0, 1, 2) if pixel_format.startswith("RGB") else (2, 1, 0)
-        return np.array([np.median(frame[..., c][inside]) if inside.any() else np.nan for c in order])
+        return np.array([np.median(window[..., c][inside]) if inside.any() else np.nan for c in order])
     if not pixel_format.startswith("BayerRG"):
         return np.full(3, np.nan)
-    sites = {
-        0: (ys % 2 == 0) & (xs % 2 == 0),
-        1: (ys + xs) % 2 == 1,
-        2: (ys % 2 == 1) & (xs % 2 == 1),
-    }
-    return np.array([np.median(frame[inside & at]) if (inside & at).any() else np.nan for at in sites.values()])
+    sites = ((ys % 2 == 0) & (xs % 2 == 0), (ys + xs) % 2 == 1, (ys % 2 == 1) & (xs % 2 == 1))
+    return np.array([np.median(window[inside & at]) if (inside & at).any() else np.nan for at in sites])
 
 
 def told_by_colour(truth: dict[str, Any], cameras: list[Any], frames: list[Any], formats: list[str]) -> bool:
