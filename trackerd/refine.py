@@ -35,6 +35,7 @@ from trackerd.joint.search import JointSearch, fix_support
 from trackerd.locator import COLOURS, PointerFix
 
 if TYPE_CHECKING:
+    from trackerd.detect.colour import SampleGrid
     from trackerd.detect.result import EndDetection
     from trackerd.ends import EndMeasurement
     from trackerd.geometry.camera import CameraModel
@@ -361,12 +362,20 @@ class RefinedPath:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit
         (:class:`trackerd.joint.search.JointSearch`, which keeps no state of its own: what the search
         leaves for the next pair, when it last ran, is this path's, and all of it is in ``vars(self)``, which
-        the windowed recording's check compares, trackerd/recording/windowed.py)."""
-        return JointSearch(self).locate(images, detections, start)
+        the windowed recording's check compares, trackerd/recording/windowed.py).
+
+        Where it finds no pointer and a camera delivers a Bayer mosaic, it is searched again with those frames
+        demosaiced (the module's second pass): what the mosaic's search finds stands as it is."""
+        searched = JointSearch(self).locate(images, detections, start)
+        if searched.found or not any(grid.is_bayer for grid in self.loc.grids):
+            return searched
+        again = JointSearch(self, demosaiced=True).locate(images, detections, start)
+        return again if again.found else searched
 
     def _look_again(
         self,
         images: Sequence[NDArray[np.uint8]],
+        grids: Sequence[SampleGrid],
         camera_index: int,
         colour: str,
         point_m: Array,
@@ -384,7 +393,7 @@ class RefinedPath:
             return None
         fit = fit_ball(
             images[camera_index],
-            self.loc.grids[camera_index],
+            grids[camera_index],
             colour,
             float(at[0]),
             float(at[1]),
@@ -399,12 +408,17 @@ class RefinedPath:
         return from_fit(camera, camera_index, colour, fit)
 
     def _checked_by_rod(
-        self, fix: PointerFix, detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
+        self,
+        fix: PointerFix,
+        detections: tuple,
+        start: int,
+        images: Sequence[NDArray[np.uint8]],
+        grids: Sequence[SampleGrid],
     ) -> PointerFix:
         """A found fix fitted again without the measurements that the rod says are not their ball
         (:meth:`_off_the_rod`): not found when an end is left with fewer than two cameras, rejected when what
         is left makes no pointer."""
-        off = self._off_the_rod(images, fix)
+        off = self._off_the_rod(images, grids, fix)
         if not off:
             return fix
         assert fix.line is not None
@@ -415,7 +429,7 @@ class RefinedPath:
         # judge what is left), otherwise from the fix: its line is wrong only where the left-out ends put it.
         both = sum(1 for ends in kept if all(ends.get(c) is not None for c in COLOURS))
         init = None if both >= 2 else (fix.line.front_m, fix.line.back_m)
-        refit = self.fix_from_measurements(kept, init, detections, start, images, check_rod=False)
+        refit = self.fix_from_measurements(kept, init, detections, start, images, check_rod=False, grids=grids)
         if refit.found:
             return refit
         timings = {"triangulate_ns": time.perf_counter_ns() - start}
@@ -431,7 +445,9 @@ class RefinedPath:
             reason = f"{why}, and fewer than two cameras measured the {colour} end otherwise"
         return replace(refit, reason=reason, timings_ns=timings)
 
-    def _off_the_rod(self, images: Sequence[NDArray[np.uint8]], fix: PointerFix) -> list[tuple[int, str, float]]:
+    def _off_the_rod(
+        self, images: Sequence[NDArray[np.uint8]], grids: Sequence[SampleGrid], fix: PointerFix
+    ) -> list[tuple[int, str, float]]:
         """End measurements that the rod contradicts: in their camera, the rod clearly leaves the other end's
         ball (a sound outline: :meth:`_sound`) ROD_OFF_DEG or more away from them, and no rod leads to them
         (trackerd/detect/rod.py). Something of the end's colour where a camera does not see the ball, of the
@@ -452,7 +468,7 @@ class RefinedPath:
                     continue
                 bearing = rod_bearing(
                     images[index],
-                    self.loc.grids[index],
+                    grids[index],
                     anchor.centre_px,
                     anchor.radius_px,
                     measured.centre_px,
@@ -478,12 +494,15 @@ class RefinedPath:
         *,
         check_rod: bool = True,
         one_camera_end: bool = False,
+        grids: Sequence[SampleGrid] | None = None,
     ) -> PointerFix:
         """The pointer fit on each camera's end measurements (None where a camera does not see an end); a found
         fix then checked against the rod (:meth:`_checked_by_rod`) unless ``check_rod`` is false.
         ``one_camera_end``: one end may be measured by one camera only (a joint choice placed it by its ray and
         the pointer's length, :mod:`trackerd.joint.lone`), the other by two or more; the fit starts from
-        ``init``."""
+        ``init``. ``grids``: the sample grids of ``images`` where they are not the cameras' own (the joint
+        search's demosaiced frames)."""
+        grids = self.loc.grids if grids is None else grids
         front, back = self.loc.front_colour, self.loc.back_colour
         centroids = tuple({c: (None if ends[c] is None else ends[c].centre_px) for c in COLOURS} for ends in per_camera)
         used = [i for i, ends in enumerate(per_camera) if ends[front] is not None or ends[back] is not None]
@@ -579,7 +598,7 @@ class RefinedPath:
                 ratio = m.radius_px / expected
                 if 1.0 / GUIDED_SIZE <= ratio <= GUIDED_SIZE:
                     continue
-                again = self._look_again(images, i, colour, start_points[e], start_points[1 - e], expected)
+                again = self._look_again(images, grids, i, colour, start_points[e], start_points[1 - e], expected)
                 if again is not None:
                     per_camera[i][colour] = again
                     measured[k, e] = again.normalised
@@ -638,4 +657,4 @@ class RefinedPath:
             detections,
             tuple(dict(ends) for ends in per_camera),
         )
-        return self._checked_by_rod(fix, detections, start, images) if check_rod and fix.found else fix
+        return self._checked_by_rod(fix, detections, start, images, grids) if check_rod and fix.found else fix

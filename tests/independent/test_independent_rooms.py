@@ -54,9 +54,40 @@ def test_a_pose_in_a_room_it_did_not_render_is_located_within_its_stated_error(t
     assert truth["on_wall"]
 
 
-@pytest.mark.parametrize(("seed", "poses", "exposure"), [(8, "3,6", "drawn"), (5, "0", "drawn"), (2, "7", "set")])
+def test_a_small_ball_on_a_bayer_mosaic_is_found_by_the_search_at_full_resolution(tmp_path: Path) -> None:
+    """Seed 1, pose 1, exposed as an operator would and delivered as the raw BayerRG8 mosaic at 960x600: the
+    balls are 2-4 px in radius, one or two of their colour's samples across on the mosaic, and the search
+    there found neither. Searched on the demosaiced frame (trackerd/joint/search.py), the pointer is found
+    within 3 sigma, as it is from the RGB of the same scene."""
+    make_scenes.main(
+        [
+            "--out",
+            str(tmp_path),
+            "--seed",
+            "1",
+            "--scale",
+            "0.5",
+            "--only",
+            "1",
+            "--exposure",
+            "set",
+            "--format",
+            "bayer",
+        ]
+    )
+    (record,) = evaluate.evaluate_room(tmp_path)
+    assert record["eligible"] and record["told_by_colour"], record
+    assert record["status"] == "hit", record["reason"]
+    assert record["error_mm"] < 3.0 * record["sigma_mm"], record
+    assert max(record["end_errors_mm"]) < 20.0, record
+
+
+@pytest.mark.parametrize(
+    ("seed", "poses", "exposure", "fmt"),
+    [(8, "3,6", "drawn", "png"), (5, "0", "drawn", "png"), (2, "7", "set", "png"), (3, "7", "set", "bayer")],
+)
 def test_no_confident_hit_is_made_of_noise_or_the_displays_content(
-    tmp_path: Path, seed: int, poses: str, exposure: str
+    tmp_path: Path, seed: int, poses: str, exposure: str, fmt: str
 ) -> None:
     """Dark, noisy rooms at 960x600 whose balls are too dark to be told by their colour in most cameras:
     the first-sighting search pairs things of the ends' colours that meet at the pointer's length (noise
@@ -65,9 +96,25 @@ def test_no_confident_hit_is_made_of_noise_or_the_displays_content(
     poses each turned one into a hit 1-2 m off at 6-89 mm sigma (docs/detection.md, "Rooms trackerd did
     not render"). Seed 2's pose 7, exposed as an operator would, hides the blue ball from both cameras;
     the search paired a red and a blue block of the display into a hit 854 mm off at 9 sigma, whose red end
-    lay 99 % behind its blue one in the camera that had measured it whole (`MAX_HIDDEN_SHARE`)."""
+    lay 99 % behind its blue one in the camera that had measured it whole (`MAX_HIDDEN_SHARE`). Seed 3's
+    pose 7 as a raw Bayer mosaic hides the blue ball from one camera; the search on the demosaiced frames
+    paired specks of false colour a pixel in radius into a hit 1.9 m off at 70 sigma
+    (`MIN_DEMOSAICED_RADIUS_PX`)."""
     make_scenes.main(
-        ["--out", str(tmp_path), "--seed", str(seed), "--scale", "0.5", "--only", poses, "--exposure", exposure]
+        [
+            "--out",
+            str(tmp_path),
+            "--seed",
+            str(seed),
+            "--scale",
+            "0.5",
+            "--only",
+            poses,
+            "--exposure",
+            exposure,
+            "--format",
+            fmt,
+        ]
     )
     for record in evaluate.evaluate_room(tmp_path):
         if record["status"] == "hit":

@@ -3,6 +3,15 @@
 puts a ball no camera offered (:mod:`trackerd.detect.guided`), then the pointer fit; in stages, plain
 candidates first, then the groups merged with a picture split, last the vivid colours.
 
+A Bayer camera's frame is searched on its mosaic first. Where that finds no pointer, the search runs again with
+the frame demosaiced, at full resolution (``demosaiced=True``; :func:`trackerd.pixelformat.search_rgb`). On the
+mosaic each colour has one sample per 2x2 cell, and a ball of 2-4 px radius (a 960x600 camera across a room) is
+one or two samples across, too few to seed and fit an outline: the independently rendered rooms
+(tests/independent) found from their raw mosaics fewer than half of the pointers they found from the RGB of
+the same scenes. Demosaiced for every search, `bench robustness` lost a pointer it had found (0.9 -> 150 mm) and
+put an answer beyond 5 sigma, so the mosaic's answer, where it finds one, stands (docs/detection.md, "A Bayer
+frame searched as RGB"). The tracked path keeps the mosaic.
+
 It runs where the detectors' ends make no pointer (:class:`trackerd.refine.RefinedPath` decides when: a first
 sighting at once, then at the search's cadence) and costs tens of milliseconds where a tracked pair costs
 one or two (docs/detection.md, "When the room is not the one the thresholds were set for").
@@ -24,8 +33,10 @@ from trackerd.detect.rod import ROD_CLEAR, rod_leaving
 from trackerd.ends import ball_sized, expected_radius_px, hidden_share
 from trackerd.geometry.sphere import view_map
 from trackerd.locator import COLOURS, PointerFix
+from trackerd.pixelformat import search_rgb
 
 if TYPE_CHECKING:
+    from trackerd.detect.colour import SampleGrid
     from trackerd.detect.search import Candidate
     from trackerd.refine import RefinedPath
 
@@ -47,6 +58,14 @@ the other ball covers by more than this share: what that camera measured there i
 independently rendered room (tests/independent, seed 2, pose 7 with the operator's exposure) paired a red
 and a blue block of the display into a hit 854 mm off at 9 sigma whose red end, in one camera, lay 99 %
 behind its blue one; that camera had measured a whole red outline there."""
+
+MIN_DEMOSAICED_RADIUS_PX = 1.5
+"""A Bayer camera's search candidates (fitted on its demosaiced frame, see the module) smaller than this in
+radius are left out. A ball that small is one or two of its colour's samples across on the mosaic; on the
+demosaiced frame, what is that small and of an end's hue is mostly the demosaicing's false colour (a speck of
+noise, the corner of a letter). The independent rooms as raw Bayer at 960x600 (tests/independent, ``--exposure
+set --format bayer``, seeds 1-16) paired such candidates into two hits 0.5 and 1.9 m off at 23 and 70 sigma;
+with them left out, none, and the mosaic's own search found fewer than half as many of the pointers."""
 
 VIEW_TOLERANCE = 0.05
 """Where a camera's view map (:func:`trackerd.geometry.sphere.view_map`) scales some direction by more than
@@ -77,23 +96,37 @@ def new_candidates(found: list[Candidate], known: list[Candidate]) -> list[Candi
 class JointSearch:
     """The search of one :class:`~trackerd.refine.RefinedPath` (not thread-safe, like it)."""
 
-    def __init__(self, path: RefinedPath) -> None:
+    def __init__(self, path: RefinedPath, *, demosaiced: bool = False) -> None:
         self.path = path
         self.loc = path.loc
+        self.demosaiced = demosaiced
+        """Whether the Bayer cameras' frames are searched demosaiced (the second pass: see the module)."""
 
     def locate(self, images: Sequence[NDArray[np.uint8]], detections: tuple, start: int) -> PointerFix:
         """Every camera's candidates of both colours, chosen jointly, then the pointer fit."""
         from trackerd.detect.search import Candidate, search_candidates, split_candidates
         from trackerd.joint import choose_jointly
 
+        demosaiced = [self.demosaiced and grid.is_bayer for grid in self.loc.grids]
+        images, grids = self._searched_frames(images) if self.demosaiced else (list(images), list(self.loc.grids))
+
+        def sized(index: int, found: dict[str, list[Candidate]]) -> dict[str, list[Candidate]]:
+            # A demosaiced frame's smallest candidates are its false colour (MIN_DEMOSAICED_RADIUS_PX).
+            if not demosaiced[index]:
+                return found
+            return {c: [cand for cand in found[c] if cand.fit.radius_px >= MIN_DEMOSAICED_RADIUS_PX] for c in found}
+
         def searched(**options: Any) -> list[dict[str, list[Candidate]]]:
             return [
-                search_candidates(
-                    image,
-                    self.loc.grids[index],
-                    self.radius_range_px(index),
-                    view=self._view_at(index, SEARCH_VIEW_TOLERANCE),
-                    **options,
+                sized(
+                    index,
+                    search_candidates(
+                        image,
+                        grids[index],
+                        self.radius_range_px(index),
+                        view=self._view_at(index, SEARCH_VIEW_TOLERANCE),
+                        **options,
+                    ),
                 )
                 for index, image in enumerate(images)
             ]
@@ -108,7 +141,7 @@ class JointSearch:
         ) -> Iterator[Candidate]:
             # The geometry knows the ball's size to a few percent and where the rod meets it: its angular
             # size, which is its size in pixels only near the lens's axis (VIEW_TOLERANCE).
-            grid = self.loc.grids[camera]
+            grid = grids[camera]
             fits = guided_fits(images[camera], grid, colour, x_px, y_px, radius_px, axis, vivid=vivid)
             first = next(fits, None)
             if first is not None:
@@ -131,7 +164,7 @@ class JointSearch:
             key = (camera, x_px, y_px, radius_px)
             if key not in rods:
                 leaving = rod_leaving(
-                    images[camera], self.loc.grids[camera], np.array([x_px, y_px]), radius_px, rod_share * radius_px
+                    images[camera], grids[camera], np.array([x_px, y_px]), radius_px, rod_share * radius_px
                 )
                 clear = leaving.evidence >= ROD_CLEAR and leaving.rival < leaving.evidence
                 rods[key] = (float(leaving.direction[0]), float(leaving.direction[1])) if clear else None
@@ -164,7 +197,7 @@ class JointSearch:
                 # it there, and then no camera offers it. Split the merged groups (slower, and only now: the
                 # plain candidates make a pointer on nearly every first sighting) and choose again from all.
                 extra = [
-                    split_candidates(image, self.loc.grids[index], self.radius_range_px(index))
+                    sized(index, split_candidates(image, grids[index], self.radius_range_px(index)))
                     for index, image in enumerate(images)
                 ]
                 if not any(extra_per_camera[c] for extra_per_camera in extra for c in COLOURS):
@@ -187,14 +220,14 @@ class JointSearch:
                 choice = choose(
                     [{c: plain[c] + more[c] for c in COLOURS} for plain, more in zip(candidates, added, strict=True)]
                 )
-                painted = None if isinstance(choice, str) else self._one_paint(images, choice)
+                painted = None if isinstance(choice, str) else self._one_paint(images, grids, choice)
                 if painted is None:
                     continue
                 choice = replace(choice, chosen=painted)
             if isinstance(choice, str):
                 reason = reason or choice
                 continue
-            fix = self._fix_from_choice(choice, detections, start, images)
+            fix = self._fix_from_choice(choice, detections, start, images, grids)
             if not fix.found:
                 reason = reason or (fix.reason or "")
                 best = best or fix
@@ -217,8 +250,27 @@ class JointSearch:
             detections=detections,
         )
 
+    def _searched_frames(self, images: Sequence[NDArray[np.uint8]]) -> tuple[list[NDArray[np.uint8]], list[SampleGrid]]:
+        """The frames the search looks at, and their sample grids: a Bayer mosaic demosaiced (see the module),
+        any other frame as it is."""
+        from trackerd.detect.colour import sample_grid
+
+        frames, grids = [], []
+        for image, grid in zip(images, self.loc.grids, strict=True):
+            if grid.is_bayer:
+                image = search_rgb(image, grid.pixel_format)
+                grid = sample_grid("RGB8", image.shape[1], image.shape[0])
+            frames.append(image)
+            grids.append(grid)
+        return frames, grids
+
     def _fix_from_choice(
-        self, choice: Any, detections: tuple, start: int, images: Sequence[NDArray[np.uint8]]
+        self,
+        choice: Any,
+        detections: tuple,
+        start: int,
+        images: Sequence[NDArray[np.uint8]],
+        grids: Sequence[SampleGrid],
     ) -> PointerFix:
         """The pointer fit on a joint choice's outlines, started from its triangulated points."""
         from trackerd.ends import from_fit
@@ -233,7 +285,7 @@ class JointSearch:
         points = {"red": choice.red_m, "blue": choice.blue_m}
         init = (points[self.loc.front_colour], points[self.loc.back_colour])
         fix = self.path.fix_from_measurements(
-            per_camera, init, detections, start, images, one_camera_end=choice.one_camera is not None
+            per_camera, init, detections, start, images, one_camera_end=choice.one_camera is not None, grids=grids
         )
         behind = self._measured_behind_the_other(fix)
         if behind is None:
@@ -259,7 +311,9 @@ class JointSearch:
                     )
         return None
 
-    def _one_paint(self, images: Sequence[NDArray[np.uint8]], choice: Any) -> list[dict[str, Any]] | None:
+    def _one_paint(
+        self, images: Sequence[NDArray[np.uint8]], grids: Sequence[SampleGrid], choice: Any
+    ) -> list[dict[str, Any]] | None:
         """Each end's chosen candidates, kept where they are of one paint in every camera: all of them pass the
         plain hue test or none does (:func:`~trackerd.detect.search.hue_mask` on their inner halves' median
         colour), and their median green and other colour, as shares of their own channel, lie within
@@ -286,7 +340,7 @@ class JointSearch:
                     picks[colour] = None
                     continue
                 x_px, y_px = (float(v) for v in cand.fit.centre_px)
-                medians = colour_medians(images[index], self.loc.grids[index], colour, x_px, y_px, cand.fit.radius_px)
+                medians = colour_medians(images[index], grids[index], colour, x_px, y_px, cand.fit.radius_px)
                 if medians is None:
                     return None
                 own, green, other = medians[0]
