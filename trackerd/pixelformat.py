@@ -135,7 +135,7 @@ def search_rgb(frame: Image, pixel_format: str) -> Image:
     """A Bayer mosaic -> (H, W, 3) RGB at full resolution, demosaiced by OpenCV's edge-aware method, for the
     search over a whole frame (trackerd/joint/search.py). Not bilinearly: that gives every sharp edge in the room
     a fringe of false colour (a display's frame, black letters on white), which the search's hue test takes for
-    paint; on the independent rooms at 1920x1200 such fringes made a hit 360 mm off at 5 sigma
+    paint; on the independent rooms at 1920x1200 such fringes made a hit 360 mm off at 42 sigma
     (docs/detection.md, "A Bayer frame searched as RGB")."""
     return _uint8(cv2.cvtColor(frame, _DEMOSAIC_EDGE_AWARE[pixel_format]))
 
