@@ -259,7 +259,7 @@ class ColourLearner:
         self._missed_first.setdefault(kind, reason)
 
     def _missed_most(self) -> str:
-        """The commonest reason pairs were not located, as ``k of n pair(s): reason`` ("" if none)."""
+        """The commonest reason pairs were not located, as ``; most often (k of n): reason`` ("" if none)."""
         if not self._missed:
             return ""
         kind, count = self._missed.most_common(1)[0]

@@ -107,12 +107,11 @@ class JointSearch:
         from trackerd.detect.search import Candidate, search_candidates, split_candidates
         from trackerd.joint import choose_jointly
 
-        demosaiced = [self.demosaiced and grid.is_bayer for grid in self.loc.grids]
         images, grids = self._searched_frames(images) if self.demosaiced else (list(images), list(self.loc.grids))
 
         def sized(index: int, found: dict[str, list[Candidate]]) -> dict[str, list[Candidate]]:
             # A demosaiced frame's smallest candidates are its false colour (MIN_DEMOSAICED_RADIUS_PX).
-            if not demosaiced[index]:
+            if grids[index] is self.loc.grids[index]:
                 return found
             return {c: [cand for cand in found[c] if cand.fit.radius_px >= MIN_DEMOSAICED_RADIUS_PX] for c in found}
 
