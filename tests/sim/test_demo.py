@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from trackerd.cli.demo import summary_line
+from trackerd.cli.demo import quoted_status, summary_line
 from trackerd.cli.main import build_parser
 
 pytestmark = pytest.mark.serial  # runs the demo on a virtual rig
@@ -36,3 +36,16 @@ def test_the_summary_quotes_the_last_status_period_that_processed_pairs() -> Non
     )
     assert "None" not in summary_line({"hits": 0, "status": stopping, "busy_status": None})
     assert summary_line({"hits": 0, "status": None, "busy_status": None}).endswith("no pair was processed")
+
+
+def test_a_short_last_period_does_not_replace_a_full_one_in_the_summary() -> None:
+    """The status sent as the demo stops can cover two or three pairs: their percentiles are not the run's."""
+    full = _status(60, 5.5, 8.2, 14.0)
+    tail = _status(2, 8.0, 8.1, 15.0)
+    stopping = _status(0, None, None, 15.1)
+    quoted = None
+    for status in (full, tail, stopping):
+        quoted = quoted_status(quoted, status)
+    assert quoted is full
+    # A period as busy as the last one quoted, or nearly, takes its place.
+    assert quoted_status(full, _status(40, 6.0, 9.0, 16.0))["processing"]["samples"] == 40

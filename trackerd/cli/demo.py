@@ -150,12 +150,25 @@ def _listen(
                     continue
             else:
                 summary["status"] = data
-                if ((data.get("processing") or {}).get("samples") or 0) > 0:
-                    summary["busy_status"] = data  # the last status period in which pairs were processed
+                summary["busy_status"] = quoted_status(summary.get("busy_status"), data)
             print(fmt(name, data), flush=True)
     finally:
         sub.close(0)
         ctx.term()
+
+
+def _samples(status: dict[str, Any] | None) -> int:
+    return int(((status or {}).get("processing") or {}).get("samples") or 0)
+
+
+def quoted_status(quoted: dict[str, Any] | None, status: dict[str, Any]) -> dict[str, Any] | None:
+    """The status whose latency the summary quotes, after ``status`` arrives: the last period that processed
+    at least half as many pairs as the one quoted so far. The period that ends as the demo stops holds a
+    handful (2-3 at 60 pairs/s), and its percentiles said little of the run's."""
+    samples = _samples(status)
+    if samples > 0 and 2 * samples >= _samples(quoted):
+        return status
+    return quoted
 
 
 def _print_summary(summary: dict[str, Any]) -> None:
@@ -163,10 +176,9 @@ def _print_summary(summary: dict[str, Any]) -> None:
 
 
 def summary_line(summary: dict[str, Any]) -> str:
-    """Hits received, the outcomes, and the daemon's processing latency of the last busy status period.
-
-    The final status (sent while stopping) covers a period in which nothing was processed, so
-    its latency figures are null; the latency quoted is that of the last status with samples.
+    """Hits received, the outcomes, and the daemon's processing latency of the status period
+    :func:`quoted_status` kept (``busy_status``): the last that processed pairs, unless it held fewer than
+    half as many as the one before it (the final statuses, sent while stopping, cover a few pairs or none).
     """
     status = summary.get("status") or {}
     fixes = status.get("fixes") or {}
