@@ -48,10 +48,12 @@ from trackerd.tracked_ends import (
     EndOffset,
     area_change_log,
     corrected_end,
+    due_next_pair,
     end_depth_m,
     end_offset,
     is_stale,
     moved_px,
+    stale_share,
     staleness,
 )
 
@@ -151,6 +153,17 @@ class StaleEnd:
     """Where the last pair put it (None when the last pair was not found)."""
 
 
+@dataclass(frozen=True, slots=True)
+class AheadWork:
+    """Ends to measure again between pairs (:meth:`Locator.measure_ahead`): the pair just located, and its ends
+    whose corrections will be carried too far by the next pair (trackerd/tracked_ends.py: due_next_pair)."""
+
+    images: tuple[NDArray[np.uint8], ...]
+    detections: tuple[ImageDetections, ...]
+    ends: tuple[StaleEnd, ...]
+    """Each with where this pair put it (``point_m``, ``depth_m``)."""
+
+
 class Locator:
     """Detectors for each camera plus the rig's geometry; one instance per stream of image sets.
 
@@ -197,6 +210,22 @@ class Locator:
         """The last found pointer's line: each end's depth in each camera, for the tracked ends' area check."""
         self._line_before: PointerLine | None = None
         """The found pointer's line of the pair before the last, when the last one's was found too."""
+        self._shares: dict[tuple[int, str], tuple[EndOffset, float]] = {}
+        """Per camera and colour: the offset a tracked end was last corrected by and how stale it was then
+        (trackerd/tracked_ends.py: stale_share), for predicting which ends the next pair would find stale."""
+        self._due_ahead: list[tuple[int, str]] = []
+        """The ends the tracked path found due to be measured ahead at this pair (camera index, colour)."""
+        self._ahead: AheadWork | None = None
+        """What :meth:`measure_ahead` will measure; done at the start of the next :meth:`locate` if the caller
+        has not found a moment for it between pairs."""
+        self.measured_in_pair = 0
+        """How many ends' outlines the last :meth:`locate` measured again before answering, for a tracked pair:
+        those it found stale, and those left to measure ahead that nobody did (the work that time between
+        pairs did not take off this pair's latency)."""
+        self.measured_between_pairs = 0
+        """How many ends' outlines :meth:`measure_ahead` has measured, since the locator was made."""
+        self.measured_in_pairs = 0
+        """How many :attr:`measured_in_pair` has counted, since the locator was made."""
 
     # ------------------------------------------------------------------ detection
 
@@ -221,6 +250,7 @@ class Locator:
         self._tracked_by_fit = None
         self._last_line = None
         self._line_before = None
+        self._ahead = None
         if self._refined is not None:
             self._refined.reset()
 
@@ -228,6 +258,15 @@ class Locator:
         """Detect the ends in one image per camera (rig order) and locate the pointer."""
         if len(images) != len(self.cameras):
             raise ValueError(f"expected {len(self.cameras)} images, got {len(images)}")
+        ahead_ns = 0
+        self.measured_in_pair = 0
+        if self._ahead is not None:
+            # What nobody measured ahead is measured now, before this pair: the answers never depend on whether
+            # the time between pairs allowed it, only this pair's latency does.
+            begun = time.perf_counter_ns()
+            self.measured_in_pair = self._measure_ahead()
+            ahead_ns = time.perf_counter_ns() - begun
+        self._due_ahead = []
         start = time.perf_counter_ns()
         # Every camera's frame, the quick measurements of all taken together (trackerd.detect.detector).
         detectors = self.detectors  # made on first use, with the function below
@@ -241,15 +280,61 @@ class Locator:
             fix = self._locate_tracked(images, detections)
             if fix is not None and (not fix.found or not self._tight(fix)):
                 fix = None
+            if fix is not None and fix.line is not None and self._due_ahead:
+                self._ahead = self._ahead_work(images, detections, fix.line)
         if fix is None:
             fix = self._locate_detected(detections) if mode == "never" else self._locate_refined(images, detections)
         fix.timings_ns["detect_ns"] = detected - start
+        if ahead_ns:
+            fix.timings_ns["triangulate_ns"] = fix.timings_ns.get("triangulate_ns", 0) + ahead_ns
+        self.measured_in_pairs += self.measured_in_pair
         if not fix.found:
             self._lost()
         line = fix.line if fix.found else None
         self._line_before = self._last_line if line is not None else None
         self._last_line = line
         return fix
+
+    @property
+    def ahead_pending(self) -> bool:
+        """Whether :meth:`measure_ahead` has ends to measure (the caller may wait for a quiet moment)."""
+        return self._ahead is not None
+
+    def measure_ahead(self) -> int:
+        """Measure again, on the pair just located, the outlines of the tracked ends the next pair would find
+        stale (trackerd/tracked_ends.py: due_next_pair), so that it need not: an outline fit takes about a
+        millisecond an end, most of a tracked pair's time. The processing stage calls this once the pair's
+        messages are sent; :meth:`locate` calls it first if nobody did. An end measured again must pass what
+        one measured in the pair must (:meth:`_measure_again`); if any does not, every offset stays as it was
+        and the next pair decides as it would have. Returns how many ends were measured."""
+        measured = self._measure_ahead()
+        self.measured_between_pairs += measured
+        return measured
+
+    def _measure_ahead(self) -> int:
+        work, self._ahead = self._ahead, None
+        if work is None or self.offsets is None:
+            return 0
+        again = self._measure_again(work.images, work.detections, work.ends)
+        if again is None:
+            return 0
+        for end, offset in zip(work.ends, again, strict=True):
+            self.offsets[end.camera_index][end.colour] = offset
+        # As after an outline measured in the pair: the next tracked pair chooses the planes or the fit anew.
+        self._tracked_by_fit = None
+        return len(work.ends)
+
+    def _ahead_work(
+        self, images: Sequence[NDArray[np.uint8]], detections: tuple[ImageDetections, ...], line: PointerLine
+    ) -> AheadWork:
+        """The ends due ahead (:attr:`_due_ahead`) with where this pair's line puts them."""
+        offsets = self.offsets
+        assert offsets is not None
+        ends = []
+        for i, colour in self._due_ahead:
+            point = line.front_m if colour == self.front_colour else line.back_m
+            ends.append(StaleEnd(i, colour, offsets[i][colour], end_depth_m(self.cameras[i], point), point))
+        return AheadWork(tuple(images), detections, tuple(ends))
 
     def _lost(self) -> None:
         """The pointer was not found at this pair: the detectors' tracking windows and the tracked path's
@@ -262,6 +347,7 @@ class Locator:
             detector.reset()
         self.offsets = None
         self._tracked_by_fit = None
+        self._ahead = None
 
     @property
     def step_known(self) -> bool:
@@ -307,6 +393,7 @@ class Locator:
         # one batched measurement (:meth:`_measure_again`), before any end is corrected.
         drifts: list[tuple[float, float]] = []
         stale: list[StaleEnd] = []
+        due: list[tuple[int, str]] = []
         for i in used:
             camera, detection = self.cameras[i], detections[i]
             for e, colour in enumerate((self.front_colour, self.back_colour)):
@@ -319,8 +406,15 @@ class Locator:
                 if is_stale(staleness(offset, moved, area_change), area_change):
                     stale.append(StaleEnd(i, colour, offset, depth, point))
                     moved = area_change = 0.0  # measured again beside this very centroid
+                else:
+                    share = stale_share(offset, moved, area_change)
+                    before = self._shares.get((i, colour))
+                    if due_next_pair(share, before[1] if before is not None and before[0] is offset else 0.0):
+                        due.append((i, colour))
+                    self._shares[(i, colour)] = (offset, share)
                 drifts.append((moved, area_change))
         if stale:
+            self.measured_in_pair += len(stale)
             again = self._measure_again(images, detections, stale)
             if again is None:
                 return None
@@ -348,6 +442,7 @@ class Locator:
         if line_and_uncertainty is None:
             return None  # an end is not where the others put it: the refined path looks again
         line, uncertainty = line_and_uncertainty
+        self._due_ahead = due
         fix = self._judge(line, centroids, uncertainty_m=uncertainty)
         return replace(fix, timings_ns={"triangulate_ns": time.perf_counter_ns() - start}, detections=detections)
 

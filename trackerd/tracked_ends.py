@@ -16,7 +16,9 @@ So the locator keeps, per camera and end, the offset its last outline measuremen
 end's error from its size and how far it has drifted since (:func:`drift_px`, :func:`corrected_end`), and
 measures an end's outline again once it has moved about :data:`STALE_MOVED_PX` or its area has changed by
 more than :data:`STALE_AREA_LOG` (:func:`staleness`, :func:`is_stale`): about a millisecond for that one
-end, where a refined pair of two cameras takes four or five.
+end, where a refined pair of two cameras takes four or five. An end the next pair would find stale, carried on
+by its last step (:func:`due_next_pair`), is measured one pair early, between pairs, so that no pair waits for
+it (:meth:`trackerd.locator.Locator.measure_ahead`).
 """
 
 from __future__ import annotations
@@ -74,6 +76,13 @@ over this. Only a large ball (beyond 25 px) is made stale by it before STALE_ARE
 STALE_AREA_LOG = 0.1
 """And an end whose visible area has changed by more than this (|ln| of the ratio, distance explained) is
 measured again whatever its travel: past it the corrected centroid was 0.84 px off at the median."""
+
+AHEAD_SHARE = 1.0
+"""An end whose :func:`stale_share`, carried on by the step it made since the pair before, would pass this at
+the next pair is measured again between pairs, on the images of the pair just located
+(:meth:`trackerd.locator.Locator.measure_ahead`), so that the next pair does not wait for its outline. Below
+1 for a margin: a ball that speeds up or turns its visible area faster than it did is still caught ahead on
+most pairs, and one that is not is measured in the pair as before."""
 
 GUIDED_RADIUS_RATIO = 1.15
 """An end measured again must have an outline within this factor of the radius it had, scaled by its
@@ -150,6 +159,19 @@ def staleness(offset: EndOffset, moved: float, area_change: float) -> float:
 def is_stale(staleness_share: float, area_change: float) -> bool:
     """Whether an end should be measured by its outline again before its centroid is trusted."""
     return area_change > STALE_AREA_LOG or staleness_share > 1.0
+
+
+def stale_share(offset: EndOffset, moved: float, area_change: float) -> float:
+    """How far the correction has been carried as a share of the nearer of its two limits (:func:`staleness`,
+    and STALE_AREA_LOG for the area alone): :func:`is_stale` exactly when above 1."""
+    return max(staleness(offset, moved, area_change), area_change / STALE_AREA_LOG)
+
+
+def due_next_pair(share: float, share_before: float) -> bool:
+    """Whether an end at ``share`` (:func:`stale_share`) now and ``share_before`` at the pair before (0 for an
+    outline measured at that pair) should be measured ahead (:data:`AHEAD_SHARE`): its share carried on by the
+    last step, never back (a ball that came back towards where its outline was measured may leave again)."""
+    return share + max(share - share_before, 0.0) > AHEAD_SHARE
 
 
 def drift_px(offset: EndOffset, moved: float, area_change: float) -> float:
