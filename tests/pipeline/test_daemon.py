@@ -109,6 +109,8 @@ def test_hits_match_the_truth_and_sequences_have_no_unexplained_gaps(simulated_r
     assert health["total_fixes"] > 0 and health["ray_gap_mm"]["p50"] < 4.0
     captures = [m["capture_ns"] for _, m in messages if _ != "status"]
     assert captures == sorted(captures)  # published timestamps never go backwards
+    # The sweep's tracked ends are measured again as they move: between pairs, once each pair is sent.
+    assert pipeline.locator.measured_between_pairs > 0
 
 
 def test_an_observed_pipeline_takes_each_pairs_latency_apart(simulated_rig, rendered_sweep, tmp_path):

@@ -10,6 +10,7 @@ between them and what both report to.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 
 from trackerd.calibration.health import CalibrationHealth
@@ -55,6 +56,9 @@ class Processed:
 
     wire: list[Message] | None = None
     """The wire messages, once :meth:`messages` has built them."""
+    sent: threading.Event = field(default_factory=threading.Event)
+    """Set by the publishing thread once the messages are handed to ZeroMQ (never, for a result the queue
+    dropped): the processing thread's work between pairs waits for it (trackerd.pipeline.processing)."""
 
     def messages(self) -> list[Message]:
         """The wire messages, in the order published (the one conversion, trackerd.publish.from_fix);

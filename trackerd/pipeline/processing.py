@@ -5,6 +5,9 @@ trackerd.pipeline.sourceslot): the extensions see it, the locator locates the
 pointer, the extensions add their events, and the result goes to the publishing
 thread through a bounded queue that drops its oldest item when full
 (trackerd.pipeline.handover), with its wire messages built as it is handed over.
+Once they are sent, the locator measures again the ball outlines the next pair
+would need (:meth:`trackerd.locator.Locator.measure_ahead`), in the time
+between pairs rather than in the next pair's latency.
 Between pairs it applies a requested configuration (the first phase of a
 reload, trackerd.pipeline.reload).
 
@@ -44,6 +47,10 @@ development VM). The publishing thread does it once the pair's messages are
 sent, so it adds nothing to that pair's latency (done by the processing thread
 after the hand-over, it still held the GIL while they were being sent); it can
 delay a pair that arrives meanwhile, as any work of the daemon's can."""
+SENT_WAIT_S = 0.005
+"""How long the processing thread waits for a pair's messages to be sent before the locator's work between
+pairs (:meth:`trackerd.locator.Locator.measure_ahead`) starts regardless: the publishing thread sends within a
+fraction of a millisecond, and never sends a result the queue dropped."""
 
 
 def measures_health(pair_index: int, fix: PointerFix) -> bool:
@@ -168,6 +175,12 @@ class ProcessingStage:
                 links.queue.put_waiting(processed, stop)
             else:
                 links.queue.put(processed)
+            if self.locator.ahead_pending:
+                # The outlines the next pair would find stale are measured now, on this pair, so that the next
+                # one does not wait for them; once this pair's messages are out, since the measurement holds
+                # the interpreter and would keep the publishing thread from sending them.
+                processed.sent.wait(SENT_WAIT_S)
+                self.locator.measure_ahead()
             figures.processing_cpu.add(time.thread_time_ns() - start_cpu)
             figures.pairs_processed += 1
             self._links.notifier.progress()

@@ -120,6 +120,7 @@ class PublishingStage:
         messages = item.messages()
         for message in messages:
             self.publisher.publish(message)
+        item.sent.set()
         if item.pairless:
             return
         done = time.monotonic_ns()
