@@ -152,6 +152,10 @@ def test_a_short_run_reports_every_figure_consistently():
     figures = json.loads(run.stdout)
     assert figures["failure"] is None
     assert figures["pairs_processed"] >= 30  # 60 pairs/s for a second, whatever the machine did
+    outlines = figures["outlines_measured_again"]
+    # Counted over the run's pairs only: at most each of the two cameras' two ends on every pair.
+    assert 0 <= outlines["between_pairs"] + outlines["in_pairs"] <= 4 * figures["pairs_processed"]
+    assert min(outlines.values()) >= 0
     off = figures["off_cpu"]
     # Every pair processed in the run is traced (give or take the one in flight at either end).
     assert abs(off["pairs"] - figures["pairs_processed"]) <= 2

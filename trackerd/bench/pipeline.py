@@ -14,7 +14,9 @@ every message), fed by one of two sources:
 
 Figures: processing latency (last frame of a pair received to its messages
 handed to ZeroMQ) median and 99th percentile, per-stage timings, CPU time of
-the whole process per pair, pairs dropped and why. Targets on a 2-core machine:
+the whole process per pair, pairs dropped and why, and how many tracked ends'
+outlines were measured again between pairs and how many in a pair's latency
+(trackerd.locator.Locator.measure_ahead). Targets on a 2-core machine:
 p99 at most 4 ms, no drops caused by processing, under one core of CPU.
 
 And what the machine adds, so a slow tail can be told from slow code: the
@@ -187,6 +189,7 @@ def run(args: argparse.Namespace) -> int:
         time.sleep(2.0)  # warm up: tracking windows found, caches filled
         cpu0, wall0, machine0, machine0_ns = os.times(), time.monotonic(), _cpu_ticks(), time.monotonic_ns()
         pairs0 = pipeline.pairs_processed
+        outlines0 = (pipeline.locator.measured_between_pairs, pipeline.locator.measured_in_pairs)
         source = pipeline.source
         if source is None:
             raise RuntimeError("the pipeline started without a source")
@@ -215,6 +218,10 @@ def run(args: argparse.Namespace) -> int:
         trace = observer.trace()
         cpu1, wall1, machine1 = os.times(), time.monotonic(), _cpu_ticks()
         pairs = pipeline.pairs_processed - pairs0
+        outlines = {
+            "between_pairs": pipeline.locator.measured_between_pairs - outlines0[0],
+            "in_pairs": pipeline.locator.measured_in_pairs - outlines0[1],
+        }
         status1 = source.status()
         queue_drops = pipeline.pairs_dropped_before_publishing
     finally:
@@ -247,6 +254,7 @@ def run(args: argparse.Namespace) -> int:
         "processing_latency_ms": percentiles_ms(samples["processing"]),
         "stages_ms": {k: percentiles_ms(v) for k, v in samples.items() if k not in ("processing", "processing_cpu")},
         "processing_thread_cpu_ms": percentiles_ms(samples["processing_cpu"]),
+        "outlines_measured_again": outlines,
         "back_to_back_cpu_ms": back_to_back,
         "paced_detection_ms": paced_detection,
         "machine_steal_percent": _share_percent(machine0, machine1, "steal"),
@@ -431,6 +439,11 @@ def _format(f: dict[str, Any]) -> str:
     ]
     for name, s in f["stages_ms"].items():
         lines.append(f"  {name:<12} median {s['p50_ms']} ms  p99 {s['p99_ms']} ms")
+    outlines = f["outlines_measured_again"]
+    lines.append(
+        f"tracked ends' outlines measured again: {outlines['between_pairs']} between pairs,"
+        f" {outlines['in_pairs']} in a pair's latency"
+    )
     lines.append(f"CPU: {f['cpu_cores']} cores, {f['cpu_ms_per_pair']} ms per pair   (target < 1 core)")
     own = f["processing_thread_cpu_ms"]
     lines.append(
