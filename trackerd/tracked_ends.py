@@ -80,9 +80,10 @@ measured again whatever its travel: past it the corrected centroid was 0.84 px o
 AHEAD_SHARE = 1.0
 """An end whose :func:`stale_share`, carried on by the step it made since the pair before, would pass this at
 the next pair is measured again between pairs, on the images of the pair just located
-(:meth:`trackerd.locator.Locator.measure_ahead`), so that the next pair does not wait for its outline. Below
-1 for a margin: a ball that speeds up or turns its visible area faster than it did is still caught ahead on
-most pairs, and one that is not is measured in the pair as before."""
+(:meth:`trackerd.locator.Locator.measure_ahead`), so that the next pair does not wait for its outline. At 1,
+the end is measured one pair before it would have been, about as often as in the pair (on the `figure8` loop
+27 ends in three passes, against 20); 0.8 measured 46 and was no nearer (2.03 mm median against 1.73). A
+ball that speeds up beyond its last step is still measured in the pair (1 of the 28 there)."""
 
 GUIDED_RADIUS_RATIO = 1.15
 """An end measured again must have an outline within this factor of the radius it had, scaled by its
