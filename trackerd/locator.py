@@ -213,8 +213,6 @@ class Locator:
         self._shares: dict[tuple[int, str], tuple[EndOffset, float]] = {}
         """Per camera and colour: the offset a tracked end was last corrected by and how stale it was then
         (trackerd/tracked_ends.py: stale_share), for predicting which ends the next pair would find stale."""
-        self._due_ahead: list[tuple[int, str]] = []
-        """The ends the tracked path found due to be measured ahead at this pair (camera index, colour)."""
         self._ahead: AheadWork | None = None
         """What :meth:`measure_ahead` will measure; done at the start of the next :meth:`locate` if the caller
         has not found a moment for it between pairs."""
@@ -266,7 +264,6 @@ class Locator:
             begun = time.perf_counter_ns()
             self.measured_in_pair = self._measure_ahead()
             ahead_ns = time.perf_counter_ns() - begun
-        self._due_ahead = []
         start = time.perf_counter_ns()
         # Every camera's frame, the quick measurements of all taken together (trackerd.detect.detector).
         detectors = self.detectors  # made on first use, with the function below
@@ -280,8 +277,7 @@ class Locator:
             fix = self._locate_tracked(images, detections)
             if fix is not None and (not fix.found or not self._tight(fix)):
                 fix = None
-            if fix is not None and fix.line is not None and self._due_ahead:
-                self._ahead = self._ahead_work(images, detections, fix.line)
+                self._ahead = None  # what the tracked path put aside is the refined pair's to replace
         if fix is None:
             fix = self._locate_detected(detections) if mode == "never" else self._locate_refined(images, detections)
         fix.timings_ns["detect_ns"] = detected - start
@@ -323,18 +319,6 @@ class Locator:
         # As after an outline measured in the pair: the next tracked pair chooses the planes or the fit anew.
         self._tracked_by_fit = None
         return len(work.ends)
-
-    def _ahead_work(
-        self, images: Sequence[NDArray[np.uint8]], detections: tuple[ImageDetections, ...], line: PointerLine
-    ) -> AheadWork:
-        """The ends due ahead (:attr:`_due_ahead`) with where this pair's line puts them."""
-        offsets = self.offsets
-        assert offsets is not None
-        ends = []
-        for i, colour in self._due_ahead:
-            point = line.front_m if colour == self.front_colour else line.back_m
-            ends.append(StaleEnd(i, colour, offsets[i][colour], end_depth_m(self.cameras[i], point), point))
-        return AheadWork(tuple(images), detections, tuple(ends))
 
     def _lost(self) -> None:
         """The pointer was not found at this pair: the detectors' tracking windows and the tracked path's
@@ -442,7 +426,17 @@ class Locator:
         if line_and_uncertainty is None:
             return None  # an end is not where the others put it: the refined path looks again
         line, uncertainty = line_and_uncertainty
-        self._due_ahead = due
+        if due:
+            # Put aside with where this pair's line puts them, for measure_ahead (dropped by locate if this
+            # pair's fix is not kept).
+            points = {self.front_colour: line.front_m, self.back_colour: line.back_m}
+            self._ahead = AheadWork(
+                tuple(images),
+                detections,
+                tuple(
+                    StaleEnd(i, c, offsets[i][c], end_depth_m(self.cameras[i], points[c]), points[c]) for i, c in due
+                ),
+            )
         fix = self._judge(line, centroids, uncertainty_m=uncertainty)
         return replace(fix, timings_ns={"triangulate_ns": time.perf_counter_ns() - start}, detections=detections)
 
