@@ -67,9 +67,10 @@ def find_runs(mask: NDArray[np.bool_], *, framed: bool = False) -> Runs:
     return Runs(rows, starts - base, change[1::2] - base, width)
 
 
-PYTHON_LABEL_RUNS = 56
+PYTHON_LABEL_RUNS = 100
 """Up to this many runs, a plain union-find loop beats the vectorized one (fewer NumPy calls;
-measured: the two break even at 55-60 runs, 35 us each)."""
+measured: the two break even at 110 runs, about 27 us each, on the masks of rendered frames,
+and at 180 runs on random masks, whose many merges cost the vectorized one more)."""
 
 
 def label_runs(runs: Runs) -> tuple[IntArray, int]:
@@ -86,38 +87,53 @@ def label_runs(runs: Runs) -> tuple[IntArray, int]:
 
 
 def _label_runs_loop(runs: Runs) -> tuple[IntArray, int]:
+    """Union-find over the runs in their order, written for few Python steps per run.
+
+    A blob's root is always its lowest run (a root is hooked under the smaller of the
+    two), so every run's parent comes before it, and one pass in order numbers the
+    blobs: a root takes the next label, any other run its parent's (already final).
+    """
     rows, first, last = runs.rows.tolist(), runs.first.tolist(), runs.last.tolist()
     n = len(rows)
     parent = list(range(n))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    prev_lo = prev_hi = cur_lo = 0
+    prev_hi = cur_lo = 0
     cur_row = rows[0]
     j = 0
     for i in range(n):
-        if rows[i] != cur_row:
-            # Runs of the row just above, if it is the previous row.
-            prev_lo, prev_hi = (cur_lo, i) if rows[i] == cur_row + 1 else (i, i)
-            cur_row, cur_lo, j = rows[i], i, prev_lo
+        row = rows[i]
+        if row != cur_row:
+            # Runs of the row just above, if it is the previous row: [j, prev_hi).
+            if row == cur_row + 1:
+                j, prev_hi = cur_lo, i
+            else:
+                j = prev_hi = i
+            cur_row, cur_lo = row, i
         lo, hi = first[i] - 1, last[i] + 1
         while j < prev_hi and last[j] < lo:
             j += 1
         k = j
+        root = i  # run i's root: itself until it joins a run above
         while k < prev_hi and first[k] <= hi:
-            a, b = root(i), root(k)
-            if a != b:
-                parent[max(a, b)] = min(a, b)
+            other = parent[k]
+            while parent[other] != other:
+                other = parent[other]
+            parent[k] = other
+            if other < root:
+                parent[root] = other
+                root = other
+            elif other > root:
+                parent[other] = root
             k += 1
-    labels = [0] * n
-    numbers: dict[int, int] = {}
+    labels = parent  # relabelled in place: parent[i] < i is read before label i is written
+    count = 0
     for i in range(n):
-        labels[i] = numbers.setdefault(root(i), len(numbers))
-    return np.array(labels, dtype=np.int64), len(numbers)
+        p = parent[i]
+        if p == i:
+            labels[i] = count
+            count += 1
+        else:
+            labels[i] = labels[p]
+    return np.array(labels, dtype=np.int64), count
 
 
 def _label_runs_vectorized(runs: Runs) -> tuple[IntArray, int]:
