@@ -44,8 +44,10 @@ class Runs:
 def find_runs(mask: NDArray[np.bool_], *, framed: bool = False) -> Runs:
     """The runs of a 2D boolean mask (H, W).
 
-    ``framed=True`` promises that the mask's first and last columns are all
-    False, which saves padding it (the strip of windows is built that way).
+    ``framed=True`` promises that the mask's first column is all False and so
+    is its last element (the strip of windows, black in its first and last
+    columns, or a mask built with a False column before it and a False row
+    below it), which saves padding it; columns are then the mask's own.
     """
     height, width = mask.shape
     if framed:

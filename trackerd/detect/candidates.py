@@ -174,11 +174,14 @@ def seed_windows(
     """
     colours = list(masks)
     height, width = next(iter(masks.values())).shape
-    stacked = np.zeros(((height + 1) * len(colours), width), dtype=bool)
+    # Stacked with a False column before them and a False row after each: framed for
+    # find_runs, which then need not pad (and copy) a frame's worth of samples again.
+    # Columns of the stack are the masks' plus one.
+    stacked = np.zeros(((height + 1) * len(colours), width + 1), dtype=bool)
     for i, colour in enumerate(colours):
-        stacked[i * (height + 1) : i * (height + 1) + height] = masks[colour]
+        stacked[i * (height + 1) : i * (height + 1) + height, 1:] = masks[colour]
     out = {colour: Seeds([], 0, 0) for colour in colours}
-    runs = find_runs(stacked)
+    runs = find_runs(stacked, framed=True)
     if len(runs) == 0:
         return out
     labels, n = label_runs(runs)
@@ -186,8 +189,10 @@ def seed_windows(
     sample_area = float(step * grid.cell_px) ** 2
     lo_r, hi_r, lo_c, hi_c = grid.interior()
     margin = step + 1
+    left = region[2] - step  # the cell of the stack's column 0
     boxes: dict[str, list[list[int]]] = {colour: [] for colour in colours}
-    for k in sorted(range(n), key=lambda k: -count[k]):
+    # Largest first (reverse keeps the order of equal counts, as a key of -count did).
+    for k in sorted(range(n), key=count.__getitem__, reverse=True):
         layer = y0[k] // (height + 1)
         seeds = out[colours[layer]]
         seeds.count += 1
@@ -200,8 +205,8 @@ def seed_windows(
         merged = [
             max(lo_r, top + step * y0[k] - margin),
             min(hi_r, top + step * y1[k] + margin + 1),
-            max(lo_c, region[2] + step * x0[k] - margin),
-            min(hi_c, region[2] + step * x1[k] + margin + 1),
+            max(lo_c, left + step * x0[k] - margin),
+            min(hi_c, left + step * x1[k] + margin + 1),
         ]
         if merged[1] <= merged[0] or merged[3] <= merged[2]:
             continue
