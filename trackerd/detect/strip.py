@@ -83,11 +83,25 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
 
     The strip's first and last columns are always black.
     """
-    scales = [scale_for(w) for _, w in jobs]
-    shapes = [(-(-(w[1] - w[0]) // k), -(-(w[3] - w[2]) // k)) for (_, w), k in zip(jobs, scales, strict=True)]
-    boxes = [(h + 1, w + 1) for h, w in shapes]  # with the gap after
-    area = sum(h * w for h, w in boxes)
-    width = max(max(w for _, w in boxes), math.isqrt(area) + 1) + 1
+    # The windows' sizes in one plain loop (a frame has a handful: Python steps, not
+    # arithmetic, are the cost here).
+    scales: list[int] = []
+    shapes: list[tuple[int, int]] = []
+    boxes: list[tuple[int, int]] = []
+    tall: list[int] = []
+    mine: dict[str, list[int]] = {"red": [], "blue": []}
+    area = widest = 0
+    for j, (colour, region) in enumerate(jobs):
+        k = scale_for(region)
+        h, w = -(-(region[1] - region[0]) // k), -(-(region[3] - region[2]) // k)
+        scales.append(k)
+        shapes.append((h, w))
+        boxes.append((h + 1, w + 1))  # with the gap after
+        tall.append(h + 1)
+        mine[colour].append(j)
+        area += (h + 1) * (w + 1)
+        widest = w + 1 if w + 1 > widest else widest
+    width = max(widest, math.isqrt(area) + 1) + 1
     rows = [0] * len(jobs)
     cols = [0] * len(jobs)
     zones = []
@@ -95,13 +109,13 @@ def pack(frame: NDArray[np.uint8], grid: SampleGrid, jobs: list[tuple[str, Regio
     shelf_of = [0] * len(jobs)
     height = 1
     for colour in ("red", "blue"):
-        mine = sorted((j for j, (c, _) in enumerate(jobs) if c == colour), key=lambda j: -boxes[j][0])
-        if not mine:
+        if not mine[colour]:
             continue
         top = height
         x = width  # forces a new shelf
         shelf = 0
-        for j in mine:
+        # Tallest first (reverse keeps the jobs' order among equal heights).
+        for j in sorted(mine[colour], key=tall.__getitem__, reverse=True):
             h, w = boxes[j]
             if x + w > width:
                 height, x, shelf = height + shelf, 1, 0
