@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -142,18 +143,43 @@ def _plane(frame: NDArray[np.uint8], grid: SampleGrid, which: str, region: Regio
 
 
 def _exceeds(value: NDArray[np.uint8], others_max: NDArray[np.uint8], threshold: Threshold) -> NDArray[np.bool_]:
-    """``value >= others_max + min_excess and value >= min_value``, in uint8 without overflow.
+    """``value >= others_max + min_excess and value >= min_value``, in uint8 without overflow."""
+    return _exceeds_by(value, others_max, *_limits(threshold))
+
+
+def _exceeds_by(
+    value: NDArray[np.uint8],
+    others_max: NDArray[np.uint8],
+    min_excess: np.uint8 | NDArray[np.uint8],
+    at_least: np.uint8 | NDArray[np.uint8],
+) -> NDArray[np.bool_]:
+    """:func:`_exceeds` with the threshold as :func:`_limits` gives it: uint8 scalars, or arrays of
+    shape (n, 1, 1) for a stack of n planes, one threshold each (:func:`_stacked_limits`).
 
     ``value - min_excess`` wraps round below zero, but only where ``value`` is
-    below ``min_excess``, which the second test (against the larger of
-    ``min_excess`` and ``min_value``) rules out. (No maximum with a constant:
+    below ``min_excess``, which the second test (against ``at_least``, the larger
+    of ``min_excess`` and ``min_value``) rules out. (No maximum with a constant:
     with a scalar operand NumPy's maximum runs about ten times slower than
     subtracting or comparing one.)
     """
-    lowered = value - np.uint8(threshold.min_excess)
+    lowered = value - min_excess
     np.greater_equal(lowered, others_max, out=lowered.view(np.bool_))
-    high = value >= np.uint8(max(threshold.min_excess, threshold.min_value))
+    high = value >= at_least
     return np.logical_and(lowered.view(np.bool_), high, out=high)
+
+
+def _limits(threshold: Threshold) -> tuple[np.uint8, np.uint8]:
+    """A threshold's ``min_excess`` and the larger of it and ``min_value``, as :func:`_exceeds_by` takes them."""
+    return np.uint8(threshold.min_excess), np.uint8(max(threshold.min_excess, threshold.min_value))
+
+
+@lru_cache(maxsize=8)
+def _stacked_limits(red: Threshold, blue: Threshold) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Both colours' :func:`_limits` as uint8 arrays of shape (2, 1, 1), red's first, for a stack of
+    their planes (made once per pair of thresholds: building an array costs more than the test's call)."""
+    limits = np.array([_limits(red), _limits(blue)], dtype=np.uint8).T.reshape(2, 2, 1, 1)
+    limits.flags.writeable = False
+    return limits[0], limits[1]
 
 
 def coarse_masks(
@@ -172,12 +198,20 @@ def coarse_masks(
     colour) and the other colour's sample. Pass None for a colour not wanted.
     Returns (red mask or None, blue mask or None), shape about (rows / step, cols / step).
     """
+    g = _plane(frame, grid, "green_a", region, step)
+    g = np.maximum(g, _plane(frame, grid, "green_b", region, step)) if grid.is_bayer else g
+    if red is not None and blue is not None:
+        # Both colours' planes stacked, red over blue, so that each step of the test is one
+        # NumPy call for both (the test is per sample: the same masks as testing each alone).
+        own = np.empty((2, *g.shape), dtype=np.uint8)
+        own[0] = _plane(frame, grid, "red", region, step)
+        own[1] = _plane(frame, grid, "blue", region, step)
+        both = _exceeds_by(own, np.maximum(g, own[::-1]), *_stacked_limits(red, blue))
+        return both[0], both[1]
     # Each plane is read from the frame once, into a small contiguous array: the
     # tests below read each of them twice, and strided reads cost more than copies.
     r = np.ascontiguousarray(_plane(frame, grid, "red", region, step))
     b = np.ascontiguousarray(_plane(frame, grid, "blue", region, step))
-    g = _plane(frame, grid, "green_a", region, step)
-    g = np.maximum(g, _plane(frame, grid, "green_b", region, step)) if grid.is_bayer else g
     red_mask = _exceeds(r, np.maximum(g, b), red) if red is not None else None
     blue_mask = _exceeds(b, np.maximum(g, r), blue) if blue is not None else None
     return red_mask, blue_mask
