@@ -311,7 +311,7 @@ def refine(
     ok = ok[np.argsort(-area[ok], kind="stable")]
     per_job = [0] * n_jobs
     lo_r, hi_r, lo_c, hi_c = grid.interior()
-    mean_x, mean_y = stats.mean_x, stats.mean_y
+    mean_x, mean_y = stats.means()
     for k in ok.tolist():
         j = owner[k]
         per_job[j] += 1
