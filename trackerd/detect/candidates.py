@@ -289,8 +289,10 @@ def refine(
     stats = blob_stats(runs, labels, n)
     s = grid.cell_px
     owner = strip.jobs_at(runs.rows[stats.first_run], runs.first[stats.first_run])
-    scale = np.array(strip.scales)[owner]
-    area = stats.count * (scale * scale * s * s)
+    # Each blob's area from its window's scale, the cells' sizes as plain ints (a handful of blobs:
+    # fewer NumPy calls than an array of the scales indexed by the owners).
+    scales = strip.scales
+    area = stats.count * np.array([scales[j] * scales[j] * s * s for j in owner])
     # Specks (noise, the rim of a reddish surface) are common: classify all blobs at once
     # and build candidates only from the ball-shaped ones.
     elongation = stats.elongation()
@@ -302,13 +304,15 @@ def refine(
     problem[area > limits.max_area_px] = 2
     problem[area < limits.min_area_px] = 1
     _count_rejects(out.rejects, owner, problem, area, elongation, fill)
-    blobs_in = np.bincount(owner, minlength=n_jobs).tolist()
+    blobs_in = [0] * n_jobs
+    for j in owner:
+        blobs_in[j] += 1
     ok = (problem == 0).nonzero()[0]
     if ok.size == 0:
         return out
     # Keep the largest few per window: a speckled surface can make dozens of small round
     # clumps, none of which is an end when the window holds a bigger one.
-    ok = ok[np.argsort(-area[ok], kind="stable")]
+    ok = ok[(-area[ok]).argsort(kind="stable")]
     per_job = [0] * n_jobs
     lo_r, hi_r, lo_c, hi_c = grid.interior()
     mean_x, mean_y = stats.means()
@@ -371,7 +375,8 @@ def _count_rejects(
     if bad.size == 0:
         return
     n_jobs = len(rejects)
-    jobs = np.asarray(owner)[bad]
+    owners = np.asarray(owner)
+    jobs = owners[bad]
     counts = np.bincount(jobs * len(_PROBLEMS) + problem[bad] - 1, minlength=n_jobs * len(_PROBLEMS))
     for key in counts.nonzero()[0].tolist():
         j, p = divmod(key, len(_PROBLEMS))
@@ -379,7 +384,7 @@ def _count_rejects(
     # The largest rejected blob of each window: the highest area rank among its blobs.
     order = bad[area[bad].argsort(kind="stable")]
     rank = np.full(n_jobs, -1)
-    np.maximum.at(rank, np.asarray(owner)[order], np.arange(order.size))
+    np.maximum.at(rank, owners[order], np.arange(order.size))
     for j, r in enumerate(rank.tolist()):
         if r >= 0:
             k = int(order[r])

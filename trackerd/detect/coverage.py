@@ -163,7 +163,7 @@ def solve(ws: Workspace, own_levels: list[float]) -> list[tuple[float, float, fl
     run(ws.ops("solve", _solve_ops))
     # Per window and pixel of the cell (the other pixels, then the own sample): summed
     # coverage, and its moments about the region's first cell in columns and rows.
-    m = np.dot(ws.coverage_2d, ws.moments).tolist()
+    m = ws.coverage_2d.dot(ws.moments).tolist()
     n = ws.n
     out = []
     for e in range(n):

@@ -86,8 +86,9 @@ def measure_windows(
         run(ws.ops("excess", _excess_ops_no_value))
 
     # Boxes and shapes (rows and columns of the window with its ring: 1 .. size).
-    found = np.flatnonzero(ws.strong)
-    cuts = np.searchsorted(found, ws.window_starts).tolist()
+    # (Array methods, not np.flatnonzero and np.searchsorted: the same calls without their Python wrappers.)
+    found = ws.strong.nonzero()[0]
+    cuts = found.searchsorted(ws.window_starts).tolist()
     counts = [cuts[e + 1] - cuts[e] for e in range(n)]
     if not all(counts):
         return None
@@ -133,7 +134,7 @@ def measure_windows(
     else:
         # The own samples alone, as trackerd.detect.centroid.measure: each at its own pixel,
         # a cell's worth of area (four pixels) each.
-        moments = np.dot(ws.cover.reshape(n, ws.cells), ws.moments).tolist()
+        moments = ws.cover.reshape(n, ws.cells).dot(ws.moments).tolist()
         sums = [(4.0 * total, 4.0 * x, 4.0 * y) for total, x, y in moments]
     out = []
     for (r0, c0, dr, dc), (i0, i1, j0, j1, elongation, fill), (total, x_sum, y_sum) in zip(
