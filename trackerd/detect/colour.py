@@ -173,11 +173,22 @@ def _limits(threshold: Threshold) -> tuple[np.uint8, np.uint8]:
     return np.uint8(threshold.min_excess), np.uint8(max(threshold.min_excess, threshold.min_value))
 
 
-@lru_cache(maxsize=8)
 def _stacked_limits(red: Threshold, blue: Threshold) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     """Both colours' :func:`_limits` as uint8 arrays of shape (2, 1, 1), red's first, for a stack of
-    their planes (made once per pair of thresholds: building an array costs more than the test's call)."""
-    limits = np.array([_limits(red), _limits(blue)], dtype=np.uint8).T.reshape(2, 2, 1, 1)
+    their planes."""
+    # Cached by the thresholds' plain ints (a tuple of ints hashes in C; a dataclass calls Python).
+    return _limit_arrays(red.min_excess, red.min_value, blue.min_excess, blue.min_value)
+
+
+@lru_cache(maxsize=8)
+def _limit_arrays(
+    red_excess: int, red_value: int, blue_excess: int, blue_value: int
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """:func:`_stacked_limits`, made once per pair of thresholds: building an array costs more than
+    the test's call."""
+    limits = np.array(
+        [[red_excess, blue_excess], [max(red_excess, red_value), max(blue_excess, blue_value)]], dtype=np.uint8
+    ).reshape(2, 2, 1, 1)
     limits.flags.writeable = False
     return limits[0], limits[1]
 
