@@ -48,11 +48,17 @@ F32 = np.float32
 Ops = list[tuple[Any, ...]]
 """Calls to make in order, each ``(ufunc, *inputs, out)``."""
 
+Calls = list[tuple[Any, tuple[Any, ...], Any]]
+"""A built computation: each call as ``(ufunc, inputs, out)``, the inputs a tuple made once, so that
+making a call builds no list (``for f, *args, out in ops`` makes one per call: 60 calls took 41 us
+that way, 32 us so). (Not the output by position, which is cheaper still: np.maximum and
+np.minimum warn about it.)"""
 
-def run(ops: Ops) -> None:
+
+def run(calls: Calls) -> None:
     """Make the calls of a built computation."""
-    for f, *args, out in ops:
-        f(*args, out=out)
+    for f, inputs, out in calls:
+        f(*inputs, out=out)
 
 
 class Workspace:
@@ -117,14 +123,15 @@ class Workspace:
         moments = np.stack([np.ones(self.cells), 2.0 * (j - 1), 2.0 * (i - 1)], axis=1)
         self.moments = moments.astype(F32)
         self.window_starts = np.arange(n + 1) * self.cells
-        self._built: dict[str, Ops] = {}
+        self._built: dict[str, Calls] = {}
 
-    def ops(self, name: str, build: Callable[[Workspace], Ops]) -> Ops:
-        """The computation ``build`` makes for this layout (made on first use)."""
-        ops = self._built.get(name)
-        if ops is None:
-            ops = self._built[name] = [tuple(_as_array(arg) for arg in op) for op in build(self)]
-        return ops
+    def ops(self, name: str, build: Callable[[Workspace], Ops]) -> Calls:
+        """The computation ``build`` makes for this layout (made on first use), as :func:`run` takes it."""
+        calls = self._built.get(name)
+        if calls is None:
+            ops = build(self)
+            calls = self._built[name] = [(op[0], tuple(_as_array(arg) for arg in op[1:-1]), op[-1]) for op in ops]
+        return calls
 
 
 def _as_array(arg: Any) -> Any:
