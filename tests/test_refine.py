@@ -93,7 +93,8 @@ def test_a_partial_outlines_centre_error_is_where_a_circle_of_the_expected_radiu
     three quarters of the outline, about all of it for half, more for less, none for a whole one), and the
     error says so within a factor 1.5 (first order). A circle smaller than the ball has, besides, its
     shortfall in every direction: its rim may hold the edge of what hides the rest, on a side the arc does
-    not tell."""
+    not tell. One larger than the ball has half its excess in every direction, up to its shift along the axis:
+    the ball's outline lies anywhere within it, as far as the arc is partial."""
     radius_px, centre_px, axis_rad = 10.0, np.array([50.0, 40.0]), math.radians(30.0)
     for half_arc_deg in (60.0, 90.0, 135.0, 170.0):
         angles = axis_rad + np.radians(np.linspace(-half_arc_deg, half_arc_deg, 40))
@@ -103,9 +104,14 @@ def test_a_partial_outlines_centre_error_is_where_a_circle_of_the_expected_radiu
             expected_px = radius_px / ratio
             shift_px = _fixed_radius_fit(rim_px, expected_px, centre_px) - centre_px
             error = partial_arc_error(fit, expected_px, 1.0)
-            short_px = max(expected_px - radius_px, 0.0)
-            assert np.linalg.eigvalsh(error)[0] == pytest.approx(short_px**2, abs=1e-9)
-            variances, directions = np.linalg.eigh(error - np.eye(2) * short_px**2)
+            outward = (rim_px - centre_px) / radius_px
+            first_order_px = abs(radius_px - expected_px) * float(
+                np.linalg.norm(np.linalg.solve(outward.T @ outward, outward.sum(axis=0)))
+            )
+            beyond_px = min(0.5 * max(radius_px - expected_px, 0.0), first_order_px)
+            every_way_px2 = max(expected_px - radius_px, 0.0) ** 2 + beyond_px**2
+            assert np.linalg.eigvalsh(error)[0] == pytest.approx(every_way_px2, abs=1e-9)
+            variances, directions = np.linalg.eigh(error - np.eye(2) * every_way_px2)
             said_px = math.sqrt(variances[1])
             assert variances[0] < 1e-12  # nothing across the axis
             assert abs(directions[:, 1] @ np.array([math.cos(axis_rad), math.sin(axis_rad)])) > 0.999

@@ -36,6 +36,10 @@ from trackerd.geometry.sphere import fit_sphere_direction
 
 Array = NDArray[np.float64]
 
+EXCESS_SHARE = 0.5
+"""A partial outline's circle larger than the ball's by some excess has its centre off by this share of
+the excess either way, as a standard error (:func:`partial_arc_error`)."""
+
 MAX_RADIUS_RATIO = 1.3
 """A ball's fitted outline more than this much larger or smaller than a ball at its distance is left out
 of the pointer fit (when its end is measured by two other cameras)."""
@@ -394,6 +398,15 @@ def partial_arc_error(fit: BallFit, expected_radius_px: float, focal_px: float) 
     is short (59 such outlines in installations 0-25 and 0-23 of `bench robustness` seeds 7 and 2026: half
     of it at the median, one and a half at the 90th percentile; a circle larger than the ball, a twentieth
     at the median). So a circle that is too small has that shortfall besides, in every direction.
+
+    A circle larger than the ball holds rim points that are not the ball's (the edge of the finger on it,
+    or of something of its colour touching it), and the ball's own outline lies within it, anywhere: its
+    centre is off by up to the excess, in any direction (uniformly within a disc of that radius: half of it
+    either way, as a standard error), but no more than the arc's own shift: a whole rim too large is a glow
+    or a blur all round the ball, centred on it. Seen where a finger covered a third of a ball (`bench
+    robustness --seed 11 --follow 20`, installation 12, frames 12-16: a circle 7.5 px for 6.3, its centre
+    1.5 px off across the arc's axis, stated 0.4 px there, the hits 18-22 mm off at 2.3-3.1 mm sigma); and
+    a whole one (installation 27: 40 px for 31 round an orange-red ball in warm light, 0.5 px off).
     """
     outward = fit.rim_px - fit.centre_px
     outward = outward / np.maximum(np.linalg.norm(outward, axis=1, keepdims=True), 1e-12)
@@ -405,7 +418,12 @@ def partial_arc_error(fit: BallFit, expected_radius_px: float, focal_px: float) 
     shift_px = (fit.radius_px - expected_radius_px) * np.linalg.solve(spread, outward.sum(axis=0))
     shift = shift_px / focal_px
     short = max(expected_radius_px - fit.radius_px, 0.0) / focal_px
-    error: Array = np.outer(shift, shift) + np.eye(2) * short * short
+    # A whole rim larger than the ball is a glow or a blur all round it, which leaves its centre where it is
+    # (`bench robustness --seed 11 --follow 20`, installation 27: a circle 30 % too large, 0.5 px off): only
+    # as far as the arc is partial, as its shift says, can what is not the ball be on one side of it.
+    excess = EXCESS_SHARE * max(fit.radius_px - expected_radius_px, 0.0) / focal_px
+    beyond = min(excess, float(np.hypot(shift[0], shift[1])))
+    error: Array = np.outer(shift, shift) + np.eye(2) * (short * short + beyond * beyond)
     return error
 
 
