@@ -11,7 +11,7 @@ import pytest
 from trackerd.bench.robustness import MIN_VISIBLE, draw_installation, drawn_frames, renderer_for, run_rig
 from trackerd.config.rig_geometry import wall_frame
 from trackerd.detect.ballfit import BallFit
-from trackerd.ends import partial_arc_error
+from trackerd.ends import EXCESS_SHARE, partial_arc_error
 from trackerd.locator import Locator
 from trackerd.sim.appearance import Look
 from trackerd.sim.randomized import aimed_camera, build_rig
@@ -108,7 +108,7 @@ def test_a_partial_outlines_centre_error_is_where_a_circle_of_the_expected_radiu
             first_order_px = abs(radius_px - expected_px) * float(
                 np.linalg.norm(np.linalg.solve(outward.T @ outward, outward.sum(axis=0)))
             )
-            beyond_px = min(0.5 * max(radius_px - expected_px, 0.0), first_order_px)
+            beyond_px = min(EXCESS_SHARE * max(radius_px - expected_px, 0.0), first_order_px)
             every_way_px2 = max(expected_px - radius_px, 0.0) ** 2 + beyond_px**2
             assert np.linalg.eigvalsh(error)[0] == pytest.approx(every_way_px2, abs=1e-9)
             variances, directions = np.linalg.eigh(error - np.eye(2) * every_way_px2)

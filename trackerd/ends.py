@@ -404,7 +404,7 @@ def partial_arc_error(fit: BallFit, expected_radius_px: float, focal_px: float) 
     centre is off by up to the excess, in any direction (uniformly within a disc of that radius: half of it
     either way, as a standard error), but no more than the arc's own shift: a whole rim too large is a glow
     or a blur all round the ball, centred on it. Seen where a finger covered a third of a ball (`bench
-    robustness --seed 11 --follow 20`, installation 12, frames 12-16: a circle 7.5 px for 6.3, its centre
+    robustness --seed 11 --follow 20`, installation 12, frames 13-16: a circle 7.5 px for 6.3, its centre
     1.5 px off across the arc's axis, stated 0.4 px there, the hits 18-22 mm off at 2.3-3.1 mm sigma); and
     a whole one (installation 27: 40 px for 31 round an orange-red ball in warm light, 0.5 px off).
     """
